@@ -1,0 +1,118 @@
+//! Configuration: TOML text → (`--set` overrides) → [`schema::ExperimentFile`] →
+//! [`resolve::resolve`] → a validated [`crate::experiment::Experiment`] in SI units.
+//!
+//! Every error on that way is a [`ConfigError`] naming the key path, the value and what was
+//! expected.
+
+pub mod resolve;
+pub mod schema;
+
+use crate::error::ConfigError;
+use crate::experiment::Experiment;
+
+pub use resolve::resolve;
+
+/// Parse TOML text into a table; `origin` (a file name) prefixes syntax errors.
+pub fn parse(text: &str, origin: &str) -> Result<toml::Table, ConfigError> {
+    text.parse::<toml::Table>()
+        .map_err(|e| ConfigError::new(origin, format!("invalid TOML: {}", e.to_string().trim_end())))
+}
+
+/// Apply one `KEY=VALUE` override: `KEY` is a dotted path (array elements by index, e.g.
+/// `layers.0.thickness_mm`), `VALUE` a TOML value (`2.5`, `[0, 0, 1]`, `"disk"`); a bare word that
+/// is not valid TOML is taken as a string. Missing tables on the path are created.
+pub fn apply_set(doc: &mut toml::Table, assignment: &str) -> Result<(), ConfigError> {
+    let (key, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| ConfigError::new("--set", format!("`{assignment}`: expected KEY=VALUE")))?;
+    let key = key.trim();
+    let raw = raw.trim();
+    let value = match format!("v = {raw}").parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").expect("parsed key"),
+        Err(_) => toml::Value::String(raw.to_string()),
+    };
+    let parts: Vec<&str> = key.split('.').collect();
+    if key.is_empty() || parts.iter().any(|p| p.is_empty()) {
+        return Err(ConfigError::new("--set", format!("`{key}`: expected a dotted key path such as run.samples")));
+    }
+    let mut root = toml::Value::Table(std::mem::take(doc));
+    let result = set_path(&mut root, &parts, value);
+    if let toml::Value::Table(t) = root {
+        *doc = t;
+    }
+    result
+}
+
+fn set_path(root: &mut toml::Value, parts: &[&str], value: toml::Value) -> Result<(), ConfigError> {
+    let mut node = root;
+    for (i, part) in parts.iter().enumerate() {
+        let last = i + 1 == parts.len();
+        let here = parts[..=i].join(".");
+        node = match node {
+            toml::Value::Table(t) => {
+                if last {
+                    t.insert(part.to_string(), value);
+                    return Ok(());
+                }
+                t.entry(part.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            }
+            toml::Value::Array(a) => {
+                let len = a.len();
+                let idx: usize = part.parse().map_err(|_| {
+                    ConfigError::new(format!("--set {here}"), format!("`{part}` is not an index into an array of {len}"))
+                })?;
+                let slot = a.get_mut(idx).ok_or_else(|| {
+                    ConfigError::new(format!("--set {here}"), format!("index {idx} is out of range (array of {len})"))
+                })?;
+                if last {
+                    *slot = value;
+                    return Ok(());
+                }
+                slot
+            }
+            _ => {
+                return Err(ConfigError::new(
+                    format!("--set {}", parts.join(".")),
+                    format!("`{}` is a value, not a table", parts[..i].join(".")),
+                ));
+            }
+        };
+    }
+    Ok(())
+}
+
+/// Parse `text`, apply the overrides in order, deserialise and resolve.
+/// Returns the table as run (after overrides) with the resolved experiment.
+pub fn load(text: &str, origin: &str, sets: &[String]) -> Result<(toml::Table, Experiment), ConfigError> {
+    let mut doc = parse(text, origin)?;
+    for s in sets {
+        apply_set(&mut doc, s)?;
+    }
+    let file = deserialize(&doc)?;
+    let experiment = resolve(&file)?;
+    Ok((doc, experiment))
+}
+
+/// Deserialise a table into the schema, with errors naming the key path.
+pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigError> {
+    match doc.get("schema_version") {
+        None => {
+            return Err(ConfigError::new(
+                "schema_version",
+                format!("missing; this ohd reads schema_version = {}", schema::SCHEMA_VERSION),
+            ));
+        }
+        Some(toml::Value::Integer(v)) if *v == schema::SCHEMA_VERSION => {}
+        Some(v) => {
+            return Err(ConfigError::new(
+                "schema_version",
+                format!("= {v}: this ohd reads schema_version = {}", schema::SCHEMA_VERSION),
+            ));
+        }
+    }
+    serde_path_to_error::deserialize(toml::Value::Table(doc.clone())).map_err(|e| {
+        let path = e.path().to_string();
+        let path = if path == "." { "(top level)".to_string() } else { path };
+        ConfigError::new(path, e.into_inner().to_string())
+    })
+}

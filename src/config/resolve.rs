@@ -1,0 +1,610 @@
+//! The one step from the schema to validated SI runtime objects, and the only producer of
+//! configuration errors. Each check names the key path, the value and the expected range and unit.
+
+use std::collections::BTreeMap;
+
+use glam::DVec3;
+
+use super::schema::*;
+use crate::detect::{Area, Detector, ImageSpec, Side, SpectrumSpec};
+use crate::error::ConfigError;
+use crate::experiment::{Experiment, RunPlan};
+use crate::flow::VelocityField;
+use crate::medium::{Layer, MAX_REGIONS_PER_LAYER, Medium, Region, Scene, Shape};
+use crate::phase::{HenyeyGreenstein, PhaseFunction};
+use crate::source::{Chirp, Profile, Source};
+use crate::spectrum::FrequencyAxis;
+use crate::transport::{Tracking, WalkSettings};
+
+type R<T> = Result<T, ConfigError>;
+
+fn err<T>(path: impl Into<String>, msg: impl Into<String>) -> R<T> {
+    Err(ConfigError::new(path, msg))
+}
+
+fn join(prefix: &str, key: &str) -> String {
+    if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") }
+}
+
+/// A quantity that may be given under one of several unit-suffixed keys.
+/// Returns the SI value and the key it came from.
+fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<(f64, String)>> {
+    let given: Vec<_> = options.iter().filter(|o| o.1.is_some()).collect();
+    match given.as_slice() {
+        [] => Ok(None),
+        [(key, Some(v), scale)] => {
+            let path = join(prefix, key);
+            if v.is_nan() {
+                return err(path, "= nan: expected a number");
+            }
+            Ok(Some((v * scale, path)))
+        }
+        _ => err(
+            prefix.to_string(),
+            format!("give only one of {}", given.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
+        ),
+    }
+}
+
+fn require(prefix: &str, options: &[(&str, Option<f64>, f64)], what: &str) -> R<(f64, String)> {
+    pick(prefix, options)?.map_or_else(
+        || {
+            err(
+                prefix.to_string(),
+                format!("missing {what}: give one of {}", options.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
+            )
+        },
+        Ok,
+    )
+}
+
+/// Same as [`pick`] for fixed-size arrays.
+fn pick_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>, f64)]) -> R<Option<([f64; N], String)>> {
+    let given: Vec<_> = options.iter().filter(|o| o.1.is_some()).collect();
+    match given.as_slice() {
+        [] => Ok(None),
+        [(key, Some(v), scale)] => {
+            let path = join(prefix, key);
+            if v.iter().any(|x| !x.is_finite()) {
+                return err(path, format!("= {v:?}: expected finite numbers"));
+            }
+            Ok(Some((v.map(|x| x * scale), path)))
+        }
+        _ => err(
+            prefix.to_string(),
+            format!("give only one of {}", given.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
+        ),
+    }
+}
+
+fn require_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>, f64)], what: &str) -> R<([f64; N], String)> {
+    pick_arr(prefix, options)?.map_or_else(
+        || {
+            err(
+                prefix.to_string(),
+                format!("missing {what}: give one of {}", options.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
+            )
+        },
+        Ok,
+    )
+}
+
+fn positive(v: (f64, String), what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 > 0.0 { Ok(v.0) } else { err(v.1, format!("= {}: expected {what} > 0", show(v.0))) }
+}
+
+fn non_negative(v: (f64, String), what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 >= 0.0 { Ok(v.0) } else { err(v.1, format!("= {}: expected {what} ≥ 0", show(v.0))) }
+}
+
+fn show(v: f64) -> String {
+    format!("{v}")
+}
+
+fn unit_vector(path: &str, v: [f64; 3]) -> R<DVec3> {
+    let d = DVec3::from_array(v);
+    if !d.is_finite() || d.length() < 1e-12 {
+        return err(path, format!("= {v:?}: expected a non-zero direction vector [x, y, z]"));
+    }
+    Ok(d.normalize())
+}
+
+fn index_of_refraction(path: &str, n: f64) -> R<f64> {
+    if n.is_finite() && (1.0..=10.0).contains(&n) {
+        Ok(n)
+    } else {
+        err(path, format!("= {}: expected a refractive index in [1, 10]", show(n)))
+    }
+}
+
+const LENGTH_UNITS: [(&str, f64); 3] = [("um", 1e-6), ("mm", 1e-3), ("m", 1.0)];
+
+fn length_opts<'a>(name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>, keys: &'a mut Vec<String>) -> Vec<(&'a str, Option<f64>, f64)> {
+    *keys = LENGTH_UNITS.iter().map(|(u, _)| format!("{name}_{u}")).collect();
+    vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
+}
+
+fn length_arr_opts<'a, const N: usize>(
+    name: &str,
+    um: Option<[f64; N]>,
+    mm: Option<[f64; N]>,
+    m: Option<[f64; N]>,
+    keys: &'a mut Vec<String>,
+) -> Vec<(&'a str, Option<[f64; N]>, f64)> {
+    *keys = LENGTH_UNITS.iter().map(|(u, _)| format!("{name}_{u}")).collect();
+    vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
+}
+
+fn length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<(f64, String)>> {
+    let mut keys = Vec::new();
+    let opts = length_opts(name, um, mm, m, &mut keys);
+    pick(prefix, &opts)
+}
+
+fn length_req(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<(f64, String)> {
+    let mut keys = Vec::new();
+    let opts = length_opts(name, um, mm, m, &mut keys);
+    require(prefix, &opts, name)
+}
+
+fn length_arr<const N: usize>(
+    prefix: &str,
+    name: &str,
+    um: Option<[f64; N]>,
+    mm: Option<[f64; N]>,
+    m: Option<[f64; N]>,
+) -> R<Option<([f64; N], String)>> {
+    let mut keys = Vec::new();
+    let opts = length_arr_opts(name, um, mm, m, &mut keys);
+    pick_arr(prefix, &opts)
+}
+
+fn length_arr_req<const N: usize>(
+    prefix: &str,
+    name: &str,
+    um: Option<[f64; N]>,
+    mm: Option<[f64; N]>,
+    m: Option<[f64; N]>,
+) -> R<([f64; N], String)> {
+    let mut keys = Vec::new();
+    let opts = length_arr_opts(name, um, mm, m, &mut keys);
+    require_arr(prefix, &opts, name)
+}
+
+/// Resolve a deserialised experiment file into a validated experiment.
+pub fn resolve(f: &ExperimentFile) -> R<Experiment> {
+    let plan = resolve_run(&f.run)?;
+    let source = resolve_source(&f.source)?;
+    let n_above = index_of_refraction("ambient.n_above", f.ambient.n_above.unwrap_or(1.0))?;
+    let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
+    let scene = resolve_scene(f, n_above, n_below)?;
+    let detectors = resolve_detectors(&f.detectors, &scene)?;
+    Ok(Experiment {
+        name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
+        scene,
+        source,
+        detectors,
+        plan,
+    })
+}
+
+fn resolve_run(r: &RunSection) -> R<RunPlan> {
+    let batches = r.batches.unwrap_or(32);
+    if !(16..=65_536).contains(&batches) {
+        return err("run.batches", format!("= {batches}: expected 16 to 65536 independent batches"));
+    }
+    let samples = r.samples.unwrap_or(1_000_000);
+    if samples == 0 || samples > 1 << 48 {
+        return err("run.samples", format!("= {samples}: expected 1 to 2^48 paths"));
+    }
+    let threads = r.threads.unwrap_or(0);
+    if threads > 1024 {
+        return err("run.threads", format!("= {threads}: expected 0 (all cores) to 1024"));
+    }
+    let tracking = match r.tracking.unwrap_or(TrackingKind::Analytic) {
+        TrackingKind::Analytic => {
+            if r.majorant_scale.is_some() {
+                return err("run.majorant_scale", "only applies with run.tracking = \"delta\"");
+            }
+            Tracking::Analytic
+        }
+        TrackingKind::Delta => {
+            let s = r.majorant_scale.unwrap_or(1.0);
+            if !(s.is_finite() && (1.0..=1e6).contains(&s)) {
+                return err("run.majorant_scale", format!("= {s}: expected a factor in [1, 1e6]"));
+            }
+            Tracking::Delta { majorant_scale: s }
+        }
+    };
+    let roulette_threshold = r.roulette_threshold.unwrap_or(1e-4);
+    if !(roulette_threshold.is_finite() && (0.0..1.0).contains(&roulette_threshold)) {
+        return err("run.roulette_threshold", format!("= {roulette_threshold}: expected a weight in [0, 1)"));
+    }
+    let roulette_survival = r.roulette_survival.unwrap_or(0.1);
+    if !(roulette_survival > 0.0 && roulette_survival <= 1.0) {
+        return err("run.roulette_survival", format!("= {roulette_survival}: expected a probability in (0, 1]"));
+    }
+    let max_events = r.max_scattering_events.unwrap_or(1_000_000);
+    if max_events == 0 || max_events > u32::MAX as u64 {
+        return err("run.max_scattering_events", format!("= {max_events}: expected 1 to {}", u32::MAX));
+    }
+    let paths_per_batch = samples.div_ceil(batches);
+    Ok(RunPlan {
+        requested_samples: samples,
+        batches,
+        paths_per_batch,
+        seed: r.seed.unwrap_or(1),
+        threads: threads as usize,
+        walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
+    })
+}
+
+fn resolve_source(s: &SourceSection) -> R<Source> {
+    let wl = require(
+        "source",
+        &[("wavelength_nm", s.wavelength_nm, 1e-9), ("wavelength_um", s.wavelength_um, 1e-6)],
+        "the vacuum wavelength",
+    )?;
+    if !(wl.0.is_finite() && (1e-8..=1e-3).contains(&wl.0)) {
+        return err(wl.1, format!("= {} m: expected a vacuum wavelength from 10 nm to 1 mm", wl.0));
+    }
+    let radius = length("source", "radius", s.radius_um, s.radius_mm, s.radius_m)?;
+    let waist = length("source", "waist", s.waist_um, s.waist_mm, s.waist_m)?;
+    let profile = match s.profile.unwrap_or(ProfileKind::Pencil) {
+        ProfileKind::Pencil => {
+            if let Some(r) = radius.as_ref().or(waist.as_ref()) {
+                return err(r.1.clone(), "only applies to profile = \"disk\" (radius) or \"gaussian\" (waist)");
+            }
+            Profile::Pencil
+        }
+        ProfileKind::Disk => {
+            if let Some(w) = waist {
+                return err(w.1, "only applies to profile = \"gaussian\"; a disk has a radius");
+            }
+            let r = radius.ok_or_else(|| ConfigError::new("source", "profile = \"disk\" needs radius_um, radius_mm or radius_m"))?;
+            Profile::Disk { radius: positive(r, "a beam radius")? }
+        }
+        ProfileKind::Gaussian => {
+            if let Some(r) = radius {
+                return err(r.1, "only applies to profile = \"disk\"; a Gaussian beam has a waist (1/e² radius)");
+            }
+            let w = waist.ok_or_else(|| {
+                ConfigError::new("source", "profile = \"gaussian\" needs waist_um, waist_mm or waist_m (1/e² intensity radius)")
+            })?;
+            Profile::Gaussian { waist: positive(w, "a 1/e² beam radius")? }
+        }
+    };
+    let position = length_arr("source", "position", s.position_um, s.position_mm, s.position_m)?;
+    let position = match position {
+        Some((p, path)) => {
+            if p[2] > 0.0 {
+                return err(path, format!("= {p:?} m: the laser must start above or on the top surface (z ≤ 0)"));
+            }
+            DVec3::from_array(p)
+        }
+        None => DVec3::ZERO,
+    };
+    let direction = unit_vector("source.direction", s.direction.unwrap_or([0.0, 0.0, 1.0]))?;
+    if direction.z < 1e-6 {
+        return err(
+            "source.direction",
+            format!("= {:?}: the beam must point into the stack (z component > 0; +z is depth)", s.direction.unwrap()),
+        );
+    }
+    let chirp = match &s.chirp {
+        None => None,
+        Some(c) => {
+            let b = require(
+                "source.chirp",
+                &[("bandwidth_hz", c.bandwidth_hz, 1.0), ("bandwidth_mhz", c.bandwidth_mhz, 1e6), ("bandwidth_ghz", c.bandwidth_ghz, 1e9)],
+                "the chirp bandwidth B",
+            )?;
+            let t = require(
+                "source.chirp",
+                &[("duration_s", c.duration_s, 1.0), ("duration_ms", c.duration_ms, 1e-3), ("duration_us", c.duration_us, 1e-6)],
+                "the chirp duration T",
+            )?;
+            Some(Chirp { bandwidth: positive(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
+        }
+    };
+    Ok(Source::new(wl.0, profile, position, direction, chirp))
+}
+
+fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -> R<VelocityField> {
+    Ok(match v {
+        VelocitySection::None {} => VelocityField::Static,
+        VelocitySection::Uniform { velocity_mm_per_s, velocity_m_per_s } => {
+            let (v, _) = require_arr(
+                path,
+                &[("velocity_mm_per_s", *velocity_mm_per_s, 1e-3), ("velocity_m_per_s", *velocity_m_per_s, 1.0)],
+                "the velocity vector",
+            )?;
+            VelocityField::Uniform(DVec3::from_array(v))
+        }
+        VelocitySection::RandomDirection { speed_mm_per_s, speed_m_per_s } => {
+            let s = require(path, &[("speed_mm_per_s", *speed_mm_per_s, 1e-3), ("speed_m_per_s", *speed_m_per_s, 1.0)], "the speed")?;
+            VelocityField::RandomDirection { speed: non_negative(s, "a speed")? }
+        }
+        VelocitySection::Poiseuille { v_max_mm_per_s, v_max_m_per_s, mean_mm_per_s, mean_m_per_s } => {
+            let Some(&Shape::Cylinder { center, axis, radius, .. }) = cylinder else {
+                return err(
+                    join(path, "type"),
+                    "= \"poiseuille\": a Poiseuille profile needs a cylinder region (its axis and radius); use it on a region with shape.type = \"cylinder\"",
+                );
+            };
+            let v = require(
+                path,
+                &[
+                    ("v_max_mm_per_s", *v_max_mm_per_s, 1e-3),
+                    ("v_max_m_per_s", *v_max_m_per_s, 1.0),
+                    // Mean over the cross-section of v_max(1 − r²/R²) is v_max/2.
+                    ("mean_mm_per_s", *mean_mm_per_s, 2e-3),
+                    ("mean_m_per_s", *mean_m_per_s, 2.0),
+                ],
+                "the centre-line (v_max) or mean speed",
+            )?;
+            if !v.0.is_finite() {
+                return err(v.1, "expected a finite speed (negative reverses the flow along the axis)");
+            }
+            VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
+        }
+    })
+}
+
+fn resolve_medium(path: &str, name: &str, m: &MediumSection, velocity: VelocityField) -> R<Medium> {
+    let coeff = |key: &str, per_m: Option<f64>, per_cm: Option<f64>, per_mm: Option<f64>| -> R<f64> {
+        let keys = [format!("{key}_per_m"), format!("{key}_per_cm"), format!("{key}_per_mm")];
+        let v = require(
+            path,
+            &[(keys[0].as_str(), per_m, 1.0), (keys[1].as_str(), per_cm, 100.0), (keys[2].as_str(), per_mm, 1000.0)],
+            &format!("{key} (a coefficient)"),
+        )?;
+        if !(v.0.is_finite() && (0.0..=1e12).contains(&v.0)) {
+            return err(v.1, format!("= {} m⁻¹: expected a coefficient in [0, 1e12] m⁻¹", v.0));
+        }
+        Ok(v.0)
+    };
+    let sigma_a = coeff("sigma_a", m.sigma_a_per_m, m.sigma_a_per_cm, m.sigma_a_per_mm)?;
+    let sigma_s = coeff("sigma_s", m.sigma_s_per_m, m.sigma_s_per_cm, m.sigma_s_per_mm)?;
+    let phase = match &m.phase {
+        None | Some(PhaseSection::Isotropic {}) => PhaseFunction::Isotropic,
+        Some(PhaseSection::Hg { g }) => PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(*g).ok_or_else(|| {
+            ConfigError::new(join(path, "phase.g"), format!("= {g}: expected an asymmetry parameter with −1 < g < 1"))
+        })?),
+    };
+    Ok(Medium { name: name.to_string(), sigma_a, sigma_s, phase, velocity })
+}
+
+fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
+    let p = join(path, "shape");
+    Ok(match s {
+        ShapeSection::Sphere { center_um, center_mm, center_m, radius_um, radius_mm, radius_m } => {
+            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
+            let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
+            Shape::Sphere { center: DVec3::from_array(c), radius: r }
+        }
+        ShapeSection::Box { center_um, center_mm, center_m, size_um, size_mm, size_m } => {
+            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
+            let (sz, sp) = length_arr_req(&p, "size", *size_um, *size_mm, *size_m)?;
+            if sz.iter().any(|&x| x <= 0.0) {
+                return err(sp, format!("= {sz:?} m: expected three edge lengths > 0"));
+            }
+            let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
+            Shape::Box { min: c - h, max: c + h }
+        }
+        ShapeSection::Cylinder { center_um, center_mm, center_m, axis, radius_um, radius_mm, radius_m, length_um, length_mm, length_m } => {
+            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
+            let axis = unit_vector(&join(&p, "axis"), *axis)?;
+            let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
+            let half_length = match length(&p, "length", *length_um, *length_mm, *length_m)? {
+                None => f64::INFINITY,
+                Some(l) => 0.5 * positive(l, "a length (omit it for a tube crossing its whole layer)")?,
+            };
+            Shape::Cylinder { center: DVec3::from_array(c), axis, radius: r, half_length }
+        }
+    })
+}
+
+fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
+    if f.media.is_empty() {
+        return err("media", "no media defined: add a [media.NAME] table with sigma_a_* and sigma_s_*");
+    }
+    if f.layers.is_empty() {
+        return err("layers", "no layers: add at least one [[layers]] with thickness, n and medium");
+    }
+    let known = f.media.keys().cloned().collect::<Vec<_>>().join(", ");
+    let lookup = |path: String, name: &str| -> R<&MediumSection> {
+        f.media.get(name).ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
+    };
+    let mut media: Vec<Medium> = Vec::new();
+    let mut layers: Vec<Layer> = Vec::new();
+    let mut layer_index: BTreeMap<String, usize> = BTreeMap::new();
+    let mut z = 0.0;
+    for (i, l) in f.layers.iter().enumerate() {
+        let path = format!("layers[{i}]");
+        let name = l.name.clone().unwrap_or_else(|| format!("layer{i}"));
+        if layer_index.insert(name.clone(), i).is_some() {
+            return err(join(&path, "name"), format!("= \"{name}\": layer names must be unique"));
+        }
+        let th = length_req(&path, "thickness", l.thickness_um, l.thickness_mm, l.thickness_m)?;
+        let last = i + 1 == f.layers.len();
+        let thickness = if th.0 == f64::INFINITY && last {
+            f64::INFINITY
+        } else if th.0 == f64::INFINITY {
+            return err(th.1, "= inf: only the last layer may be semi-infinite");
+        } else {
+            positive(th, "a thickness (or inf for a semi-infinite last layer)")?
+        };
+        let n = index_of_refraction(&join(&path, "n"), l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?)?;
+        let ms = lookup(join(&path, "medium"), &l.medium)?;
+        let mpath = format!("media.{}", l.medium);
+        let velocity = match &ms.velocity {
+            None => VelocityField::Static,
+            Some(v) => resolve_velocity(&join(&mpath, "velocity"), v, None).map_err(|e| {
+                ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message))
+            })?,
+        };
+        media.push(resolve_medium(&mpath, &l.medium, ms, velocity)?);
+        layers.push(Layer {
+            name,
+            z_top: z,
+            z_bottom: z + thickness,
+            n,
+            medium: media.len() - 1,
+            regions: Vec::new(),
+            majorant: 0.0,
+        });
+        z += thickness;
+    }
+    let mut regions: Vec<Region> = Vec::new();
+    for (i, r) in f.regions.iter().enumerate() {
+        let path = format!("regions[{i}]");
+        let name = r.name.clone().unwrap_or_else(|| format!("region{i}"));
+        let li = *layer_index.get(&r.layer).ok_or_else(|| {
+            ConfigError::new(
+                join(&path, "layer"),
+                format!("= \"{}\": unknown layer; layers are {}", r.layer, layer_index.keys().cloned().collect::<Vec<_>>().join(", ")),
+            )
+        })?;
+        let shape = resolve_shape(&path, &r.shape)?;
+        let (zmin, zmax) = shape.z_range();
+        let layer = &layers[li];
+        if zmax <= layer.z_top || zmin >= layer.z_bottom {
+            return err(
+                join(&path, "shape"),
+                format!(
+                    "lies outside its layer \"{}\" (z from {} to {} m; the shape spans {} to {} m)",
+                    layer.name, layer.z_top, layer.z_bottom, zmin, zmax
+                ),
+            );
+        }
+        if layers[li].regions.len() == MAX_REGIONS_PER_LAYER {
+            return err(path, format!("layer \"{}\" already holds {MAX_REGIONS_PER_LAYER} regions, the most one layer may hold", layer.name));
+        }
+        let ms = lookup(join(&path, "medium"), &r.medium)?;
+        let mpath = format!("media.{}", r.medium);
+        let velocity = match (&r.velocity, &ms.velocity) {
+            (Some(v), _) => resolve_velocity(&join(&path, "velocity"), v, Some(&shape))?,
+            (None, Some(v)) => resolve_velocity(&join(&mpath, "velocity"), v, Some(&shape))?,
+            (None, None) => VelocityField::Static,
+        };
+        media.push(resolve_medium(&mpath, &r.medium, ms, velocity)?);
+        regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
+        layers[li].regions.push(regions.len() - 1);
+    }
+    for layer in &mut layers {
+        let mut majorant = media[layer.medium].sigma_t();
+        for &r in &layer.regions {
+            majorant = majorant.max(media[regions[r].medium].sigma_t());
+        }
+        layer.majorant = majorant;
+    }
+    Ok(Scene { layers, regions, media, n_above, n_below })
+}
+
+fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> {
+    let mut out: Vec<Detector> = Vec::new();
+    for (i, d) in ds.iter().enumerate() {
+        let path = format!("detectors[{i}]");
+        if d.name.is_empty() || !d.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return err(join(&path, "name"), format!("= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)", d.name));
+        }
+        if out.iter().any(|o| o.name == d.name) {
+            return err(join(&path, "name"), format!("= \"{}\": detector names must be unique", d.name));
+        }
+        let side = match d.side.unwrap_or(SideKind::Top) {
+            SideKind::Top => Side::Top,
+            SideKind::Bottom => {
+                if !scene.z_bottom().is_finite() {
+                    return err(join(&path, "side"), "= \"bottom\": the stack ends in a semi-infinite layer, so nothing leaves through a bottom");
+                }
+                Side::Bottom
+            }
+        };
+        let outward = if side == Side::Top { DVec3::NEG_Z } else { DVec3::Z };
+        let axis = match d.axis {
+            None => outward,
+            Some(a) => {
+                let a = unit_vector(&join(&path, "axis"), a)?;
+                if a.dot(outward) <= 0.0 {
+                    return err(join(&path, "axis"), format!("= {:?}: must point away from the stack ({} z for a {} detector)", d.axis.unwrap(), if side == Side::Top { "negative" } else { "positive" }, if side == Side::Top { "top" } else { "bottom" }));
+                }
+                a
+            }
+        };
+        let half = d.acceptance_half_angle_deg.unwrap_or(90.0);
+        if !(half > 0.0 && half <= 90.0) {
+            return err(join(&path, "acceptance_half_angle_deg"), format!("= {half}: expected a half-angle in (0, 90] degrees"));
+        }
+        let distance = match length(&path, "distance", d.distance_um, d.distance_mm, d.distance_m)? {
+            None => 0.0,
+            Some(v) => non_negative(v, "a distance from the surface")?,
+        };
+        let area = match d.area.as_ref().unwrap_or(&AreaSection::All {}) {
+            AreaSection::All {} => Area::All,
+            AreaSection::Disk { center_um, center_mm, center_m, radius_um, radius_mm, radius_m } => {
+                let p = join(&path, "area");
+                let c = length_arr(&p, "center", *center_um, *center_mm, *center_m)?.map_or([0.0; 2], |c| c.0);
+                let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
+                Area::Disk { center: c, radius: r }
+            }
+            AreaSection::Rect { center_um, center_mm, center_m, size_um, size_mm, size_m } => {
+                let p = join(&path, "area");
+                let c = length_arr(&p, "center", *center_um, *center_mm, *center_m)?.map_or([0.0; 2], |c| c.0);
+                let (s, sp) = length_arr_req(&p, "size", *size_um, *size_mm, *size_m)?;
+                if s.iter().any(|&x| x <= 0.0) {
+                    return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
+                }
+                Area::Rect { min: [c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]], max: [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]] }
+            }
+        };
+        let spectrum = match &d.spectrum {
+            None => None,
+            Some(s) => {
+                let p = join(&path, "spectrum");
+                let fmin = require(&p, &[("f_min_hz", s.f_min_hz, 1.0), ("f_min_khz", s.f_min_khz, 1e3), ("f_min_mhz", s.f_min_mhz, 1e6), ("f_min_ghz", s.f_min_ghz, 1e9)], "the lower edge of the frequency axis")?;
+                let fmax = require(&p, &[("f_max_hz", s.f_max_hz, 1.0), ("f_max_khz", s.f_max_khz, 1e3), ("f_max_mhz", s.f_max_mhz, 1e6), ("f_max_ghz", s.f_max_ghz, 1e9)], "the upper edge of the frequency axis")?;
+                let bins = s.bins.unwrap_or(256);
+                if !(1..=10_000_000).contains(&bins) {
+                    return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^7 bins"));
+                }
+                let axis = FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
+                    ConfigError::new(fmax.1.clone(), format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0))
+                })?;
+                let split = |key: &str, v: Option<u64>| -> R<Option<u32>> {
+                    match v {
+                        None => Ok(None),
+                        Some(k) if (1..=1000).contains(&k) => Ok(Some(k as u32)),
+                        Some(k) => err(join(&p, key), format!("= {k}: expected K from 1 to 1000 (channels 0 … K−1 and ≥ K)")),
+                    }
+                };
+                Some(SpectrumSpec { axis, by_order: split("by_order", s.by_order)?, by_doppler_events: split("by_doppler_events", s.by_doppler_events)? })
+            }
+        };
+        let image = match &d.image {
+            None => None,
+            Some(im) => {
+                let Some((min, max)) = area.bounds() else {
+                    return err(join(&path, "image"), "an image needs a bounded detector area (area.type = \"disk\" or \"rect\")");
+                };
+                let [nx, ny] = im.pixels;
+                if !(1..=16_384).contains(&nx) || !(1..=16_384).contains(&ny) {
+                    return err(join(&path, "image.pixels"), format!("= {:?}: expected [nx, ny], each 1 to 16384", im.pixels));
+                }
+                Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
+            }
+        };
+        out.push(Detector {
+            name: d.name.clone(),
+            side,
+            distance,
+            area,
+            axis,
+            cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
+            include_specular: d.include_specular.unwrap_or(true),
+            spectrum,
+            image,
+        });
+    }
+    Ok(out)
+}

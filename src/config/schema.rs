@@ -1,0 +1,267 @@
+//! The experiment file as written: serde structs mirroring the TOML, with `deny_unknown_fields`
+//! everywhere. Quantities whose natural unit is not SI carry it in the key (`thickness_mm`,
+//! `sigma_s_per_cm`, `speed_mm_per_s`, `f_max_khz`); a quantity may be given in any one of its
+//! listed units. Nothing here is validated: [`super::resolve`] does that, once.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+/// The schema version this build reads.
+pub const SCHEMA_VERSION: i64 = 1;
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentFile {
+    pub schema_version: i64,
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub description: Option<String>,
+    #[serde(default)]
+    pub run: RunSection,
+    pub source: SourceSection,
+    #[serde(default)]
+    pub ambient: AmbientSection,
+    pub media: BTreeMap<String, MediumSection>,
+    pub layers: Vec<LayerSection>,
+    #[serde(default)]
+    pub regions: Vec<RegionSection>,
+    #[serde(default)]
+    pub detectors: Vec<DetectorSection>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSection {
+    pub samples: Option<u64>,
+    pub seed: Option<u64>,
+    pub batches: Option<u64>,
+    pub threads: Option<u64>,
+    pub tracking: Option<TrackingKind>,
+    pub majorant_scale: Option<f64>,
+    pub roulette_threshold: Option<f64>,
+    pub roulette_survival: Option<f64>,
+    pub max_scattering_events: Option<u64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackingKind {
+    Analytic,
+    Delta,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSection {
+    pub wavelength_nm: Option<f64>,
+    pub wavelength_um: Option<f64>,
+    #[serde(default)]
+    pub profile: Option<ProfileKind>,
+    /// Disk radius.
+    pub radius_um: Option<f64>,
+    pub radius_mm: Option<f64>,
+    pub radius_m: Option<f64>,
+    /// Gaussian 1/e² intensity radius.
+    pub waist_um: Option<f64>,
+    pub waist_mm: Option<f64>,
+    pub waist_m: Option<f64>,
+    pub position_um: Option<[f64; 3]>,
+    pub position_mm: Option<[f64; 3]>,
+    pub position_m: Option<[f64; 3]>,
+    pub direction: Option<[f64; 3]>,
+    pub chirp: Option<ChirpSection>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProfileKind {
+    Pencil,
+    Disk,
+    Gaussian,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChirpSection {
+    pub bandwidth_hz: Option<f64>,
+    pub bandwidth_mhz: Option<f64>,
+    pub bandwidth_ghz: Option<f64>,
+    pub duration_s: Option<f64>,
+    pub duration_ms: Option<f64>,
+    pub duration_us: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AmbientSection {
+    pub n_above: Option<f64>,
+    pub n_below: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MediumSection {
+    pub sigma_a_per_m: Option<f64>,
+    pub sigma_a_per_cm: Option<f64>,
+    pub sigma_a_per_mm: Option<f64>,
+    pub sigma_s_per_m: Option<f64>,
+    pub sigma_s_per_cm: Option<f64>,
+    pub sigma_s_per_mm: Option<f64>,
+    #[serde(default)]
+    pub phase: Option<PhaseSection>,
+    #[serde(default)]
+    pub velocity: Option<VelocitySection>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PhaseSection {
+    Isotropic {},
+    #[serde(alias = "henyey_greenstein")]
+    Hg { g: f64 },
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum VelocitySection {
+    None {},
+    Uniform {
+        velocity_mm_per_s: Option<[f64; 3]>,
+        velocity_m_per_s: Option<[f64; 3]>,
+    },
+    Poiseuille {
+        v_max_mm_per_s: Option<f64>,
+        v_max_m_per_s: Option<f64>,
+        mean_mm_per_s: Option<f64>,
+        mean_m_per_s: Option<f64>,
+    },
+    RandomDirection {
+        speed_mm_per_s: Option<f64>,
+        speed_m_per_s: Option<f64>,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSection {
+    pub name: Option<String>,
+    /// `inf` (a TOML float) for a semi-infinite last layer.
+    pub thickness_um: Option<f64>,
+    pub thickness_mm: Option<f64>,
+    pub thickness_m: Option<f64>,
+    pub n: Option<f64>,
+    pub medium: String,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSection {
+    pub name: Option<String>,
+    pub layer: String,
+    pub medium: String,
+    /// Overrides the medium's velocity field inside this region.
+    pub velocity: Option<VelocitySection>,
+    pub shape: ShapeSection,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSection {
+    Cylinder {
+        center_um: Option<[f64; 3]>,
+        center_mm: Option<[f64; 3]>,
+        center_m: Option<[f64; 3]>,
+        axis: [f64; 3],
+        radius_um: Option<f64>,
+        radius_mm: Option<f64>,
+        radius_m: Option<f64>,
+        length_um: Option<f64>,
+        length_mm: Option<f64>,
+        length_m: Option<f64>,
+    },
+    Box {
+        center_um: Option<[f64; 3]>,
+        center_mm: Option<[f64; 3]>,
+        center_m: Option<[f64; 3]>,
+        size_um: Option<[f64; 3]>,
+        size_mm: Option<[f64; 3]>,
+        size_m: Option<[f64; 3]>,
+    },
+    Sphere {
+        center_um: Option<[f64; 3]>,
+        center_mm: Option<[f64; 3]>,
+        center_m: Option<[f64; 3]>,
+        radius_um: Option<f64>,
+        radius_mm: Option<f64>,
+        radius_m: Option<f64>,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorSection {
+    pub name: String,
+    pub side: Option<SideKind>,
+    pub area: Option<AreaSection>,
+    pub acceptance_half_angle_deg: Option<f64>,
+    pub axis: Option<[f64; 3]>,
+    pub distance_um: Option<f64>,
+    pub distance_mm: Option<f64>,
+    pub distance_m: Option<f64>,
+    pub include_specular: Option<bool>,
+    pub spectrum: Option<SpectrumSection>,
+    pub image: Option<ImageSection>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SideKind {
+    Top,
+    Bottom,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum AreaSection {
+    All {},
+    Disk {
+        center_um: Option<[f64; 2]>,
+        center_mm: Option<[f64; 2]>,
+        center_m: Option<[f64; 2]>,
+        radius_um: Option<f64>,
+        radius_mm: Option<f64>,
+        radius_m: Option<f64>,
+    },
+    Rect {
+        center_um: Option<[f64; 2]>,
+        center_mm: Option<[f64; 2]>,
+        center_m: Option<[f64; 2]>,
+        size_um: Option<[f64; 2]>,
+        size_mm: Option<[f64; 2]>,
+        size_m: Option<[f64; 2]>,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpectrumSection {
+    pub f_min_hz: Option<f64>,
+    pub f_min_khz: Option<f64>,
+    pub f_min_mhz: Option<f64>,
+    pub f_min_ghz: Option<f64>,
+    pub f_max_hz: Option<f64>,
+    pub f_max_khz: Option<f64>,
+    pub f_max_mhz: Option<f64>,
+    pub f_max_ghz: Option<f64>,
+    pub bins: Option<u64>,
+    pub by_order: Option<u64>,
+    pub by_doppler_events: Option<u64>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSection {
+    pub pixels: [u64; 2],
+}

@@ -1,0 +1,44 @@
+//! Typed errors. Configuration errors name the TOML key path, the offending value and what was
+//! expected (range and unit); file errors name the file.
+
+use std::path::PathBuf;
+
+/// An invalid experiment description: a TOML syntax error, an unknown key, a wrong type or an
+/// out-of-range value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ConfigError {
+    /// Dotted key path, e.g. `layers[0].thickness_mm`; the file name for syntax errors.
+    pub path: String,
+    /// What is wrong, with the value and the expected range and unit.
+    pub message: String,
+}
+
+impl ConfigError {
+    pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Self { path: path.into(), message: message.into() }
+    }
+}
+
+/// Every error the library returns.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Bad input in the experiment description (exit status 2).
+    #[error("config error: {0}")]
+    Config(#[from] ConfigError),
+    /// A file that could not be read (exit status 2: it is input).
+    #[error("cannot read {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    /// A file that could not be written (exit status 1).
+    #[error("cannot write {path}: {source}")]
+    Write { path: PathBuf, source: std::io::Error },
+}
+
+impl Error {
+    /// Whether the error is the user's input (exit status 2) rather than a failure to run.
+    pub fn is_input_error(&self) -> bool {
+        matches!(self, Error::Config(_) | Error::Read { .. })
+    }
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

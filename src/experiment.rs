@@ -1,0 +1,169 @@
+//! An experiment: the resolved scene, source and detectors, and the plan to run them.
+//!
+//! Work is split into `batches` equal batches of paths. Path `i` of batch `b` draws from the
+//! stream `(seed, Path, b, i)`; batches run in parallel on a rayon pool and are folded into the
+//! statistics in batch order, so the output does not depend on the number of threads.
+//! The random walk is compiled once per scene kind (moving or not, path length needed or not).
+
+use rayon::prelude::*;
+
+use crate::detect::{BeatModel, Detector, Recorder, TallyLayout};
+use crate::medium::Scene;
+use crate::sampling::{PathRng, Purpose};
+use crate::source::Source;
+use crate::stats::{BatchAccumulator, RunStats};
+use crate::transport::{WalkSettings, trace_path};
+
+/// How many paths and how they are split.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunPlan {
+    pub requested_samples: u64,
+    pub batches: u64,
+    pub paths_per_batch: u64,
+    pub seed: u64,
+    /// Worker threads; 0 = all available cores.
+    pub threads: usize,
+    pub walk: WalkSettings,
+}
+
+impl RunPlan {
+    /// Paths actually traced: the request rounded up to a whole number per batch.
+    pub fn samples(&self) -> u64 {
+        self.batches * self.paths_per_batch
+    }
+
+    /// Set the total number of paths (rounded up to equal batches).
+    pub fn set_samples(&mut self, samples: u64) {
+        self.requested_samples = samples;
+        self.paths_per_batch = samples.div_ceil(self.batches).max(1);
+    }
+
+    /// The thread count that will be used.
+    pub fn effective_threads(&self) -> usize {
+        if self.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { self.threads }
+    }
+}
+
+/// A validated experiment, ready to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Experiment {
+    pub name: String,
+    pub scene: Scene,
+    pub source: Source,
+    pub detectors: Vec<Detector>,
+    pub plan: RunPlan,
+}
+
+/// Progress reports from a running experiment (a cold seam: called every few thousand paths).
+pub trait Progress: Sync {
+    fn advance(&self, paths: u64);
+}
+
+/// No progress reporting.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn advance(&self, _: u64) {}
+}
+
+/// What a run produced: the per-estimate batch statistics and the counters.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    pub layout: TallyLayout,
+    pub beat: BeatModel,
+    pub estimates: BatchAccumulator,
+    pub stats: RunStats,
+    pub threads: usize,
+    pub wall_seconds: f64,
+}
+
+const PROGRESS_EVERY: u64 = 4096;
+
+impl Experiment {
+    pub fn beat_model(&self) -> BeatModel {
+        BeatModel::new(self.source.wavelength, self.source.chirp.map(|c| c.slope()))
+    }
+
+    pub fn tally_layout(&self) -> TallyLayout {
+        TallyLayout::new(&self.detectors, &self.beat_model())
+    }
+
+    /// Whether the walk needs the Doppler term (something moves).
+    pub fn needs_doppler(&self) -> bool {
+        self.scene.is_moving()
+    }
+
+    /// Whether the walk needs the optical path length (a chirp).
+    pub fn needs_length(&self) -> bool {
+        self.source.chirp.is_some()
+    }
+
+    /// Batches folded at a time: enough to keep every thread busy, few enough to bound memory.
+    fn batches_in_flight(&self) -> u64 {
+        (2 * self.plan.effective_threads() as u64).min(self.plan.batches).max(1)
+    }
+
+    /// Estimated peak memory of the tallies, bytes.
+    pub fn memory_estimate(&self) -> u64 {
+        let len = self.tally_layout().len as u64;
+        8 * len * (2 + self.batches_in_flight())
+    }
+
+    /// Run every batch and reduce them in batch order.
+    pub fn run(&self, progress: &dyn Progress) -> RunOutput {
+        let start = std::time::Instant::now();
+        let threads = self.plan.effective_threads();
+        let layout = self.tally_layout();
+        let beat = self.beat_model();
+        let mut estimates = BatchAccumulator::new(layout.len);
+        let mut stats = RunStats::default();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+        let in_flight = self.batches_in_flight();
+        let mut first = 0;
+        while first < self.plan.batches {
+            let last = (first + in_flight).min(self.plan.batches);
+            let work = |b: u64| self.run_batch(b, &layout, beat, progress);
+            let results: Vec<(Vec<f64>, RunStats)> = match &pool {
+                Ok(pool) => pool.install(|| (first..last).into_par_iter().map(work).collect()),
+                // A pool that cannot be built (no threads available) still gives the same numbers.
+                Err(_) => (first..last).map(work).collect(),
+            };
+            for (sums, s) in &results {
+                estimates.push(sums, self.plan.paths_per_batch);
+                stats.merge(s);
+            }
+            first = last;
+        }
+        RunOutput { layout, beat, estimates, stats, threads, wall_seconds: start.elapsed().as_secs_f64() }
+    }
+
+    fn run_batch(&self, batch: u64, layout: &TallyLayout, beat: BeatModel, progress: &dyn Progress) -> (Vec<f64>, RunStats) {
+        match (self.needs_doppler(), self.needs_length()) {
+            (false, false) => self.run_batch_kind::<false, false>(batch, layout, beat, progress),
+            (true, false) => self.run_batch_kind::<true, false>(batch, layout, beat, progress),
+            (false, true) => self.run_batch_kind::<false, true>(batch, layout, beat, progress),
+            (true, true) => self.run_batch_kind::<true, true>(batch, layout, beat, progress),
+        }
+    }
+
+    fn run_batch_kind<const DOPPLER: bool, const LENGTH: bool>(
+        &self,
+        batch: u64,
+        layout: &TallyLayout,
+        beat: BeatModel,
+        progress: &dyn Progress,
+    ) -> (Vec<f64>, RunStats) {
+        let mut sums = vec![0.0; layout.len];
+        let mut stats = RunStats::default();
+        let mut rec = Recorder { detectors: &self.detectors, layout, beat, acc: &mut sums, stats: &mut stats };
+        for i in 0..self.plan.paths_per_batch {
+            let mut rng = PathRng::new(self.plan.seed, Purpose::Path, batch, i);
+            trace_path::<DOPPLER, LENGTH>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+            if (i + 1) % PROGRESS_EVERY == 0 {
+                progress.advance(PROGRESS_EVERY);
+            }
+        }
+        progress.advance(self.plan.paths_per_batch % PROGRESS_EVERY);
+        (sums, stats)
+    }
+}

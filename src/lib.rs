@@ -1,0 +1,78 @@
+//! # ohd — Monte Carlo simulation of optical heterodyne detection in participating media
+//!
+//! `ohd` traces photon packets from a collimated laser through a stack of scattering layers with
+//! embedded regions (vessels, boxes, spheres). Each path carries, besides its radiometric weight,
+//! its optical path length `l` and the rate of change of that length `dl/dt` (from the velocities
+//! of the particles it scattered on). Detectors histogram the weight over the heterodyne beat
+//! frequency — the "OHD path integral" of Kim et al., ACM TOG 44(4) 2025 (Eq. 26, 33).
+//!
+//! ## Conventions (the single place they are stated; tests pin each one)
+//!
+//! * **Units.** SI inside: m, s, Hz, m/s, m⁻¹ for σa/σs/σt, sr⁻¹ for phase functions. All physics
+//!   in `f64`. Configuration keys carry their unit when it is not SI (`wavelength_nm`,
+//!   `sigma_s_per_mm`, `speed_mm_per_s`, …); [`config::resolve`] converts once.
+//! * **Frame.** Right-handed, `z` is depth: the layer stack starts at the top surface `z = 0` and
+//!   extends towards `+z` (as in MCML). "Top" detectors sit on the `z = 0` side, "bottom" ones
+//!   below the last finite layer. Layers are laterally infinite.
+//! * **Directions are propagation directions.** `dir_in` is the direction travelled before an
+//!   event, `dir_out` after it; `cos θ = dir_in · dir_out`, `+1` = forward. Henyey–Greenstein `g > 0`
+//!   is forward scattering, as published. `cos θ` is sampled directly (never through `acos`).
+//! * **Beat-frequency sign.** Positive = the optical path is lengthening (scatterer receding), as in
+//!   Kim et al. Eq. 33 and the wind-lidar custom. A *real* scattering event on a particle of velocity
+//!   `v` in a medium of refractive index `n` adds `n · v · (dir_in − dir_out)` to `dl/dt`
+//!   (Eq. 32 with `u = −dl/dt`). Interfaces and the source and detectors are static; null
+//!   collisions are not vertices (their terms telescope away). Coaxial backscatter from a receding
+//!   particle at speed `v` gives `f = +2nv/λ0` (test `transport::tests::coaxial_backscatter_sign`).
+//! * **Path length.** `l = Σ n_k |x_{k+1} − x_k|` from the laser's emission point to the plane of
+//!   the detector that records the path.
+//! * **Beat frequency.** Single-frequency laser: `f = (dl/dt)/λ0`. FMCW with chirp slope
+//!   `α = B/T`: up-chirp `f_up = α·l/c + (dl/dt)/λ0`, down-chirp `f_down = α·l/c − (dl/dt)/λ0`.
+//! * **Phase functions** are normalised to 1 over the sphere (sr⁻¹).
+//! * **Spectrum bins.** An explicit signed axis `[f_min, f_max)` cut into `bins` equal bins; bin
+//!   `k` covers `[f_min + kΔ, f_min + (k+1)Δ)`, ascending frequency. With `f_min = −f_max` and an
+//!   odd bin count the DC bin is the centre bin and the axis is mirror symmetric. A path outside the
+//!   axis goes to the `below` / `above` out-of-range tallies, never out of bounds. Spectrum values
+//!   are power per bin as a fraction of the emitted power (not per Hz), so a spectrum summed over
+//!   its bins plus its out-of-range tallies equals the detected power of the same paths (Parseval).
+//! * **Estimates** are means over paths of the fraction of emitted power; every estimate carries
+//!   the standard error of the mean over `batches` independent batches of equal size.
+//! * **Random numbers** are a pure function of `(seed, purpose, element, sample)`
+//!   ([`sampling::rng`]); work is split by the configuration, never by the thread count, and batches
+//!   are reduced in a fixed order, so output is bit-identical for any number of threads.
+//!
+//! ## Module map
+//!
+//! | module | role |
+//! |---|---|
+//! | [`config`] | TOML schema (serde), `--set` overrides, the one resolve step into SI runtime types |
+//! | [`sampling`] | random-number streams and warps (pure maps from uniforms) |
+//! | [`phase`] | phase functions (isotropic, Henyey–Greenstein) |
+//! | [`flow`] | velocity fields attached to media |
+//! | [`medium`] | homogeneous media, region shapes, the layer stack (the scene) |
+//! | [`transport`] | Fresnel interfaces, free-flight tracking, the random walk |
+//! | [`detect`] | detectors and what a finished path is recorded into |
+//! | [`spectrum`] | frequency axes and histograms |
+//! | [`stats`] | batch statistics (mean and standard error) |
+//! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
+//! | [`io`] | atomic files, `.npy`, EXR, the run manifest |
+
+pub mod config;
+pub mod detect;
+pub mod error;
+pub mod experiment;
+pub mod flow;
+pub mod io;
+pub mod medium;
+pub mod phase;
+pub mod sampling;
+pub mod source;
+pub mod spectrum;
+pub mod stats;
+pub mod transport;
+
+/// Speed of light in vacuum, m/s (exact, SI).
+pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
+
+/// The built-in default experiment (`ohd run` without a CONFIG): a vessel with Poiseuille flow in
+/// scattering tissue. The same file ships as `configs/default.toml`.
+pub const DEFAULT_CONFIG: &str = include_str!("../configs/default.toml");

@@ -1,0 +1,78 @@
+//! The scene: a stack of planar layers (MCML-style), each filled with a medium, with regions of
+//! other media embedded in them. Regions are index-matched to their layer; where regions of one
+//! layer overlap, the one listed first wins.
+
+use glam::DVec3;
+
+use super::{Medium, Shape};
+
+/// Most regions one layer may hold (the free-flight segment buffer lives on the stack).
+pub const MAX_REGIONS_PER_LAYER: usize = 16;
+
+/// One planar layer `z_top ≤ z < z_bottom`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layer {
+    pub name: String,
+    pub z_top: f64,
+    /// `f64::INFINITY` for a semi-infinite last layer.
+    pub z_bottom: f64,
+    /// Real refractive index.
+    pub n: f64,
+    /// Index into [`Scene::media`] of the medium filling the layer outside its regions.
+    pub medium: usize,
+    /// Indices into [`Scene::regions`], in priority order.
+    pub regions: Vec<usize>,
+    /// Largest σt in the layer (m⁻¹): the majorant for delta tracking.
+    pub majorant: f64,
+}
+
+/// A solid region of another medium inside one layer (clipped to that layer).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    pub name: String,
+    pub shape: Shape,
+    /// Index into [`Scene::media`].
+    pub medium: usize,
+    /// Index of the layer that holds it.
+    pub layer: usize,
+}
+
+/// Everything light travels through. Outside the stack are non-scattering half-spaces with
+/// indices `n_above` (z < 0) and `n_below`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub layers: Vec<Layer>,
+    pub regions: Vec<Region>,
+    pub media: Vec<Medium>,
+    pub n_above: f64,
+    pub n_below: f64,
+}
+
+impl Scene {
+    /// The medium at `p`, which must lie in `layer`.
+    #[inline]
+    pub fn medium_at(&self, layer: &Layer, p: DVec3) -> usize {
+        for &r in &layer.regions {
+            let region = &self.regions[r];
+            if region.shape.contains(p) {
+                return region.medium;
+            }
+        }
+        layer.medium
+    }
+
+    /// Whether any particle in the scene moves (otherwise no Doppler term is computed at all).
+    pub fn is_moving(&self) -> bool {
+        self.media.iter().any(|m| m.velocity.is_moving())
+    }
+
+    /// Depth of the bottom of the stack (∞ if the last layer is semi-infinite).
+    pub fn z_bottom(&self) -> f64 {
+        self.layers.last().map_or(0.0, |l| l.z_bottom)
+    }
+
+    /// Refractive index above (`side < 0`) or below the stack.
+    pub fn ambient_n(&self, below: bool) -> f64 {
+        if below { self.n_below } else { self.n_above }
+    }
+}

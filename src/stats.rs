@@ -1,0 +1,97 @@
+//! Batch statistics: every estimate is the mean over `B` independent, equally sized batches of the
+//! per-batch mean, and its standard error is `s/√B` with `s` the sample standard deviation of the
+//! batch means. Batches are folded in batch order (Welford's update), so the result does not
+//! depend on which thread ran which batch.
+
+use serde::Serialize;
+
+/// Counters of what happened during a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RunStats {
+    pub paths: u64,
+    /// Real scattering (and absorption-weighting) events.
+    pub scattering_events: u64,
+    /// Rejected tentative collisions of delta tracking.
+    pub null_collisions: u64,
+    /// Paths ended by Russian roulette.
+    pub roulette_terminations: u64,
+    /// Paths stopped at the event cap or travelling parallel to the layers in a void.
+    pub truncated_paths: u64,
+    /// Detections with a non-finite weight, path length or frequency (never binned).
+    pub non_finite: u64,
+}
+
+impl RunStats {
+    pub fn merge(&mut self, o: &RunStats) {
+        self.paths += o.paths;
+        self.scattering_events += o.scattering_events;
+        self.null_collisions += o.null_collisions;
+        self.roulette_terminations += o.roulette_terminations;
+        self.truncated_paths += o.truncated_paths;
+        self.non_finite += o.non_finite;
+    }
+}
+
+/// Running mean and sum of squared deviations of per-batch means, element by element.
+#[derive(Debug, Clone)]
+pub struct BatchAccumulator {
+    batches: usize,
+    mean: Vec<f64>,
+    m2: Vec<f64>,
+}
+
+impl BatchAccumulator {
+    pub fn new(len: usize) -> Self {
+        BatchAccumulator { batches: 0, mean: vec![0.0; len], m2: vec![0.0; len] }
+    }
+
+    /// Add one batch: `sums` are the batch's totals over its `paths` paths.
+    pub fn push(&mut self, sums: &[f64], paths: u64) {
+        self.batches += 1;
+        let k = self.batches as f64;
+        let inv_n = 1.0 / paths as f64;
+        for ((m, q), &s) in self.mean.iter_mut().zip(self.m2.iter_mut()).zip(sums) {
+            let x = s * inv_n;
+            let d = x - *m;
+            *m += d / k;
+            *q += d * (x - *m);
+        }
+    }
+
+    pub fn batches(&self) -> usize {
+        self.batches
+    }
+
+    /// The estimates (mean over batches of the per-path means).
+    pub fn mean(&self) -> &[f64] {
+        &self.mean
+    }
+
+    /// Standard error of each estimate (0 with fewer than two batches).
+    pub fn stderr(&self) -> Vec<f64> {
+        let b = self.batches as f64;
+        if self.batches < 2 {
+            return vec![0.0; self.mean.len()];
+        }
+        self.m2.iter().map(|&q| (q.max(0.0) / (b - 1.0) / b).sqrt()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn welford_matches_two_pass() {
+        let batches = [[1.0, 10.0], [3.0, 10.0], [2.0, 10.0], [6.0, 10.0]];
+        let mut acc = BatchAccumulator::new(2);
+        for b in &batches {
+            acc.push(b, 2);
+        }
+        // Per-batch means: 0.5, 1.5, 1.0, 3.0 → mean 1.5, sample var 7/6 → se √(7/24).
+        assert!((acc.mean()[0] - 1.5).abs() < 1e-15);
+        assert!((acc.stderr()[0] - (7.0f64 / 24.0).sqrt()).abs() < 1e-15);
+        // A constant estimate has zero error.
+        assert_eq!(acc.stderr()[1], 0.0);
+    }
+}

@@ -1,0 +1,8 @@
+//! Light transport: Fresnel interfaces, free-flight tracking and the random walk of a path.
+
+pub mod fresnel;
+pub mod tracking;
+pub mod walk;
+
+pub use tracking::{Flight, Tracking, free_flight};
+pub use walk::{PathState, WalkSettings, trace_path};
