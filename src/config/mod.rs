@@ -113,6 +113,6 @@ pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigEr
     serde_path_to_error::deserialize(toml::Value::Table(doc.clone())).map_err(|e| {
         let path = e.path().to_string();
         let path = if path == "." { "(top level)".to_string() } else { path };
-        ConfigError::new(path, e.into_inner().to_string())
+        ConfigError::new(path, e.into_inner().message().to_string())
     })
 }

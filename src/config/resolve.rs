@@ -26,9 +26,11 @@ fn join(prefix: &str, key: &str) -> String {
     if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") }
 }
 
+/// A quantity as given: its SI value, the key path it came from and the number as written.
+type Given = (f64, String, f64);
+
 /// A quantity that may be given under one of several unit-suffixed keys.
-/// Returns the SI value and the key it came from.
-fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<(f64, String)>> {
+fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<Given>> {
     let given: Vec<_> = options.iter().filter(|o| o.1.is_some()).collect();
     match given.as_slice() {
         [] => Ok(None),
@@ -37,7 +39,7 @@ fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<(f64, St
             if v.is_nan() {
                 return err(path, "= nan: expected a number");
             }
-            Ok(Some((v * scale, path)))
+            Ok(Some((v * scale, path, *v)))
         }
         _ => err(
             prefix.to_string(),
@@ -46,7 +48,7 @@ fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<(f64, St
     }
 }
 
-fn require(prefix: &str, options: &[(&str, Option<f64>, f64)], what: &str) -> R<(f64, String)> {
+fn require(prefix: &str, options: &[(&str, Option<f64>, f64)], what: &str) -> R<Given> {
     pick(prefix, options)?.map_or_else(
         || {
             err(
@@ -89,16 +91,45 @@ fn require_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>,
     )
 }
 
-fn positive(v: (f64, String), what: &str) -> R<f64> {
-    if v.0.is_finite() && v.0 > 0.0 { Ok(v.0) } else { err(v.1, format!("= {}: expected {what} > 0", show(v.0))) }
+/// The unit a key carries in its suffix, for messages (`thickness_um` → "µm").
+fn unit_of(path: &str) -> &'static str {
+    const SUFFIXES: [(&str, &str); 13] = [
+        ("_mm_per_s", "mm/s"),
+        ("_m_per_s", "m/s"),
+        ("_per_mm", "mm⁻¹"),
+        ("_per_cm", "cm⁻¹"),
+        ("_per_m", "m⁻¹"),
+        ("_um", "µm"),
+        ("_mm", "mm"),
+        ("_ghz", "GHz"),
+        ("_mhz", "MHz"),
+        ("_khz", "kHz"),
+        ("_hz", "Hz"),
+        ("_us", "µs"),
+        ("_ms", "ms"),
+    ];
+    SUFFIXES.iter().find(|(s, _)| path.ends_with(s)).map_or_else(
+        || if path.ends_with("_m") { "m" } else if path.ends_with("_s") { "s" } else if path.ends_with("_nm") { "nm" } else { "" },
+        |(_, u)| u,
+    )
 }
 
-fn non_negative(v: (f64, String), what: &str) -> R<f64> {
-    if v.0.is_finite() && v.0 >= 0.0 { Ok(v.0) } else { err(v.1, format!("= {}: expected {what} ≥ 0", show(v.0))) }
+fn positive(v: Given, what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 > 0.0 {
+        Ok(v.0)
+    } else {
+        let unit = unit_of(&v.1);
+        err(v.1, format!("= {}: expected {what} > 0 {unit}", v.2))
+    }
 }
 
-fn show(v: f64) -> String {
-    format!("{v}")
+fn non_negative(v: Given, what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 >= 0.0 {
+        Ok(v.0)
+    } else {
+        let unit = unit_of(&v.1);
+        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", v.2))
+    }
 }
 
 fn unit_vector(path: &str, v: [f64; 3]) -> R<DVec3> {
@@ -113,7 +144,7 @@ fn index_of_refraction(path: &str, n: f64) -> R<f64> {
     if n.is_finite() && (1.0..=10.0).contains(&n) {
         Ok(n)
     } else {
-        err(path, format!("= {}: expected a refractive index in [1, 10]", show(n)))
+        err(path, format!("= {}: expected a refractive index in [1, 10]", n))
     }
 }
 
@@ -135,13 +166,13 @@ fn length_arr_opts<'a, const N: usize>(
     vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
 }
 
-fn length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<(f64, String)>> {
+fn length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<Given>> {
     let mut keys = Vec::new();
     let opts = length_opts(name, um, mm, m, &mut keys);
     pick(prefix, &opts)
 }
 
-fn length_req(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<(f64, String)> {
+fn length_req(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Given> {
     let mut keys = Vec::new();
     let opts = length_opts(name, um, mm, m, &mut keys);
     require(prefix, &opts, name)
@@ -246,7 +277,7 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
         "the vacuum wavelength",
     )?;
     if !(wl.0.is_finite() && (1e-8..=1e-3).contains(&wl.0)) {
-        return err(wl.1, format!("= {} m: expected a vacuum wavelength from 10 nm to 1 mm", wl.0));
+        return err(wl.1, format!("= {}: expected a vacuum wavelength from 10 nm to 1 mm", wl.2));
     }
     let radius = length("source", "radius", s.radius_um, s.radius_mm, s.radius_m)?;
     let waist = length("source", "waist", s.waist_um, s.waist_mm, s.waist_m)?;
@@ -288,7 +319,10 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
     if direction.z < 1e-6 {
         return err(
             "source.direction",
-            format!("= {:?}: the beam must point into the stack (z component > 0; +z is depth)", s.direction.unwrap()),
+            format!(
+                "= {:?}: the beam must point into the stack, not graze it (z component of the unit vector > 1e-6; +z is depth)",
+                s.direction.unwrap()
+            ),
         );
     }
     let chirp = match &s.chirp {

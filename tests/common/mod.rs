@@ -1,0 +1,204 @@
+//! Shared test harness: chi-square and Kolmogorov–Smirnov tests, and helpers to run experiments
+//! from inline TOML. Tolerances are stated as tail probabilities or in standard errors; seeds are
+//! fixed.
+#![allow(dead_code)]
+
+use ohd::detect::Scalar;
+use ohd::experiment::{Experiment, RunOutput, Silent};
+
+/// ln Γ(x) for x > 0 (Lanczos, g = 7, n = 9).
+pub fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        return (std::f64::consts::PI / (std::f64::consts::PI * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// Regularised upper incomplete gamma Q(a, x) (series below a + 1, continued fraction above).
+pub fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let front = (-x + a * x.ln() - ln_gamma(a)).exp();
+    if x < a + 1.0 {
+        let (mut sum, mut term, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..10_000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-15 {
+                break;
+            }
+        }
+        1.0 - front * sum
+    } else {
+        // Lentz's continued fraction.
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        front * h
+    }
+}
+
+/// Upper-tail probability of a chi-square statistic with `dof` degrees of freedom.
+pub fn chi2_sf(stat: f64, dof: usize) -> f64 {
+    gamma_q(0.5 * dof as f64, 0.5 * stat)
+}
+
+/// Pearson chi-square of observed counts against expected probabilities (bins with an expected
+/// count below 5 are merged into their neighbour). Returns (statistic, dof, p-value).
+pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) {
+    assert_eq!(observed.len(), probabilities.len());
+    let n: f64 = observed.iter().sum();
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    let (mut o_acc, mut e_acc) = (0.0, 0.0);
+    for (&o, &p) in observed.iter().zip(probabilities) {
+        o_acc += o;
+        e_acc += p * n;
+        if e_acc >= 5.0 {
+            merged.push((o_acc, e_acc));
+            o_acc = 0.0;
+            e_acc = 0.0;
+        }
+    }
+    if e_acc > 0.0 || o_acc > 0.0 {
+        match merged.last_mut() {
+            Some(last) => {
+                last.0 += o_acc;
+                last.1 += e_acc;
+            }
+            None => merged.push((o_acc, e_acc)),
+        }
+    }
+    let stat: f64 = merged.iter().map(|&(o, e)| (o - e) * (o - e) / e).sum();
+    let dof = merged.len().saturating_sub(1).max(1);
+    (stat, dof, chi2_sf(stat, dof))
+}
+
+/// Kolmogorov–Smirnov: largest CDF distance of `samples` against `cdf`, and its p-value from the
+/// asymptotic Kolmogorov distribution (with Stephens' small-sample correction).
+pub fn ks_test(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> (f64, f64) {
+    samples.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let n = samples.len() as f64;
+    let mut d: f64 = 0.0;
+    for (i, &x) in samples.iter().enumerate() {
+        let f = cdf(x);
+        d = d.max(f - i as f64 / n).max((i + 1) as f64 / n - f);
+    }
+    let lambda = (n.sqrt() + 0.12 + 0.11 / n.sqrt()) * d;
+    let mut p = 0.0;
+    for k in 1..200 {
+        let k = k as f64;
+        p += 2.0 * (-1f64).powf(k - 1.0) * (-2.0 * k * k * lambda * lambda).exp();
+    }
+    (d, p.clamp(0.0, 1.0))
+}
+
+/// Load an experiment from inline TOML with `--set`-style overrides; panics with the message.
+pub fn experiment(text: &str, sets: &[&str]) -> Experiment {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    match ohd::config::load(text, "test", &sets) {
+        Ok((_, e)) => e,
+        Err(e) => panic!("config: {e}"),
+    }
+}
+
+/// A finished run with accessors.
+pub struct Run {
+    pub exp: Experiment,
+    pub out: RunOutput,
+}
+
+pub fn run(text: &str, sets: &[&str]) -> Run {
+    let exp = experiment(text, sets);
+    let out = exp.run(&Silent);
+    Run { exp, out }
+}
+
+/// One spectrum channel of one detector and chirp: (values, stderrs, below, above).
+pub struct Channel {
+    pub values: Vec<f64>,
+    pub stderr: Vec<f64>,
+    pub below: f64,
+    pub above: f64,
+}
+
+impl Run {
+    pub fn scalar(&self, s: Scalar) -> (f64, f64) {
+        (self.out.estimates.mean()[s as usize], self.out.estimates.stderr()[s as usize])
+    }
+
+    pub fn power(&self, detector: usize) -> (f64, f64) {
+        let i = self.out.layout.detectors[detector].power;
+        (self.out.estimates.mean()[i], self.out.estimates.stderr()[i])
+    }
+
+    /// Channel 0 is the total; then orders 0…K (if split), then Doppler-event counts.
+    pub fn channel(&self, detector: usize, chirp: usize, channel: usize) -> Channel {
+        let lay = &self.out.layout.detectors[detector];
+        let (start, stride) = lay.spectra.expect("detector has a spectrum");
+        let bins = stride - 2;
+        let o = start + (chirp * lay.channels + channel) * stride;
+        let m = self.out.estimates.mean();
+        let se = self.out.estimates.stderr();
+        Channel { values: m[o..o + bins].to_vec(), stderr: se[o..o + bins].to_vec(), below: m[o + bins], above: m[o + bins + 1] }
+    }
+
+    /// Paths traced.
+    pub fn paths(&self) -> f64 {
+        self.exp.plan.samples() as f64
+    }
+}
+
+/// Assert |measured − reference| ≤ k·σ, with a message.
+pub fn assert_within_sigma(what: &str, measured: f64, sigma: f64, reference: f64, k: f64) {
+    let z = (measured - reference) / sigma;
+    assert!(sigma > 0.0 && z.abs() <= k, "{what}: {measured:.6} ± {sigma:.6} vs {reference:.6} (z = {z:.2}, allowed {k})");
+}
+
+#[test]
+fn harness_self_check() {
+    // Q(1, x) = e^{-x}; chi-square with 2 dof: sf(x) = e^{-x/2}.
+    assert!((gamma_q(1.0, 2.0) - (-2.0f64).exp()).abs() < 1e-12);
+    assert!((chi2_sf(3.0, 2) - (-1.5f64).exp()).abs() < 1e-12);
+    // Median of chi-square(10) ≈ 9.3418.
+    assert!((chi2_sf(9.341_818, 10) - 0.5).abs() < 1e-5);
+    assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+}
