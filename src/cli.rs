@@ -160,8 +160,8 @@ fn describe(exp: &Experiment, origin: &str) -> String {
             s,
             "  {:<12} σa = {:.4} /mm, σs = {:.4} /mm, albedo = {:.5}, phase {:?}, velocity {:?}",
             m.name,
-            m.sigma_a / 1e3,
-            m.sigma_s / 1e3,
+            m.sigma_a() / 1e3,
+            m.sigma_s() / 1e3,
             m.albedo(),
             m.phase,
             m.velocity

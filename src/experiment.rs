@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::detect::{BeatModel, Detector, Recorder, TallyLayout};
 use crate::medium::Scene;
-use crate::sampling::{PathRng, Purpose};
+use crate::sampling::{Purpose, StreamKey};
 use crate::source::Source;
 use crate::stats::{BatchAccumulator, RunStats};
 use crate::transport::{WalkSettings, trace_path};
@@ -156,8 +156,9 @@ impl Experiment {
         let mut sums = vec![0.0; layout.len];
         let mut stats = RunStats::default();
         let mut rec = Recorder { detectors: &self.detectors, layout, beat, acc: &mut sums, stats: &mut stats };
+        let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         for i in 0..self.plan.paths_per_batch {
-            let mut rng = PathRng::new(self.plan.seed, Purpose::Path, batch, i);
+            let mut rng = key.path(i);
             trace_path::<DOPPLER, LENGTH>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
             if (i + 1) % PROGRESS_EVERY == 0 {
                 progress.advance(PROGRESS_EVERY);

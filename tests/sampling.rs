@@ -72,13 +72,7 @@ fn henyey_greenstein_chi_square() {
 }
 
 fn medium(name: &str, sigma_t: f64) -> Medium {
-    Medium {
-        name: name.into(),
-        sigma_a: 0.0,
-        sigma_s: sigma_t,
-        phase: PhaseFunction::Isotropic,
-        velocity: VelocityField::Static,
-    }
+    Medium::new(name, 0.0, sigma_t, PhaseFunction::Isotropic, VelocityField::Static)
 }
 
 /// A semi-infinite layer of σt = 1000 /m with a sphere (σt = 4000 /m) and a box (σt = 0, a void)
@@ -121,9 +115,9 @@ fn sample_distances(scene: &Scene, tracking: Tracking, n: usize, stream: u64) ->
     let mut nulls = 0;
     let layer = &scene.layers[0];
     let d: Vec<f64> = (0..n)
-        .map(|_| match free_flight(scene, layer, DVec3::ZERO, DVec3::Z, f64::INFINITY, tracking, &mut rng, &mut nulls) {
+        .map(|_| match free_flight(scene, layer, DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls) {
             Flight::Collision { t, .. } => t,
-            Flight::Boundary => f64::INFINITY,
+            Flight::Boundary { t } => t,
         })
         .collect();
     (d, nulls)
@@ -163,7 +157,7 @@ fn collisions_report_the_medium_they_happen_in() {
     for tracking in [Tracking::Analytic, Tracking::Delta { majorant_scale: 2.0 }] {
         for _ in 0..20_000 {
             if let Flight::Collision { t, medium } =
-                free_flight(&scene, &scene.layers[0], DVec3::ZERO, DVec3::Z, f64::INFINITY, tracking, &mut rng, &mut nulls)
+                free_flight(&scene, &scene.layers[0], DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls)
             {
                 let inside_sphere = (1.0e-3..=2.0e-3).contains(&t);
                 assert_eq!(medium == 1, inside_sphere, "{tracking:?}: t = {t}, medium {medium}");

@@ -406,7 +406,7 @@ fn resolve_medium(path: &str, name: &str, m: &MediumSection, velocity: VelocityF
             ConfigError::new(join(path, "phase.g"), format!("= {g}: expected an asymmetry parameter with −1 < g < 1"))
         })?),
     };
-    Ok(Medium { name: name.to_string(), sigma_a, sigma_s, phase, velocity })
+    Ok(Medium::new(name, sigma_a, sigma_s, phase, velocity))
 }
 
 fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {

@@ -34,9 +34,9 @@ impl HenyeyGreenstein {
     #[inline(always)]
     fn one_minus_cos_forward(h: f64, xi: f64) -> f64 {
         let one_minus_h = 1.0 - h;
-        let d = one_minus_h + 2.0 * h * xi;
-        let s = one_minus_h * (1.0 + h) / d;
-        one_minus_h * (1.0 - xi) * (s + one_minus_h) / d
+        let inv_d = 1.0 / (one_minus_h + 2.0 * h * xi);
+        let s = one_minus_h * (1.0 + h) * inv_d;
+        one_minus_h * (1.0 - xi) * (s + one_minus_h) * inv_d
     }
 
     /// Draw a deflection from `u ∈ [0, 1)`.
@@ -123,19 +123,21 @@ mod tests {
 
     #[test]
     fn normalised_over_the_sphere() {
-        // ∫ p dω = 2π ∫ p(μ) dμ, integrated in m = 1 − μ on a log grid (forward peak).
+        // ∫ p dω = 2π ∫ p(μ) dμ, integrated on a log grid in the distance from the peak
+        // (1 − cos θ for g ≥ 0, 1 + cos θ for g < 0) so that peaks of width (1 − |g|)² are resolved.
         for &g in &[-0.999, -0.5, 0.0, 1e-6, 0.7, 0.99, 0.999, 0.999999] {
             let p = HenyeyGreenstein::new(g).unwrap();
             let n = 200_000;
             let (lo, hi) = (1e-16f64, 2.0f64);
+            let at = |t: f64| if g >= 0.0 { p.eval(1.0 - t) } else { p.eval(t - 1.0) };
             let mut total = 0.0;
-            let mut prev_m = 0.0;
-            let mut prev_f = p.eval(1.0);
+            let mut prev_t = 0.0;
+            let mut prev_f = at(0.0);
             for i in 0..=n {
-                let m = lo * (hi / lo).powf(i as f64 / n as f64);
-                let f = if g >= 0.0 { p.eval(1.0 - m) } else { HenyeyGreenstein::eval_forward(-g, 2.0 - m) };
-                total += 0.5 * (f + prev_f) * (m - prev_m);
-                prev_m = m;
+                let t = lo * (hi / lo).powf(i as f64 / n as f64);
+                let f = at(t);
+                total += 0.5 * (f + prev_f) * (t - prev_t);
+                prev_t = t;
                 prev_f = f;
             }
             let integral = 2.0 * std::f64::consts::PI * total;
@@ -159,10 +161,16 @@ mod tests {
                 assert!(d.cos.is_finite() && d.sin.is_finite() && d.one_minus_cos.is_finite());
                 assert!((-1.0..=1.0).contains(&d.cos) && (0.0..=2.0).contains(&d.one_minus_cos));
                 assert!((d.cos * d.cos + d.sin * d.sin - 1.0).abs() < 1e-12);
-                // The CDF at the sample equals the uniform that produced it (inverse-CDF sampling).
-                let c = p.cdf_one_minus_cos(d.one_minus_cos);
-                let expected = if g >= 0.0 { 1.0 - u } else { u };
-                assert!((c - expected).abs() < 1e-9, "g={g} u={u}: cdf {c}");
+                if g >= 0.0 {
+                    // The CDF at the sample equals the uniform that produced it (inverse CDF).
+                    let c = p.cdf_one_minus_cos(d.one_minus_cos);
+                    assert!((c - (1.0 - u)).abs() < 1e-9, "g={g} u={u}: cdf {c}");
+                } else {
+                    // g < 0 is the exact mirror of |g|: cos θ ↦ −cos θ for the same uniform.
+                    let mirror = HenyeyGreenstein::new(-g).unwrap().sample(u);
+                    assert_eq!(d.cos, -mirror.cos, "g={g} u={u}");
+                    assert_eq!(d.sin, mirror.sin);
+                }
             }
         }
         // Isotropic limit: g = 0 reproduces the isotropic map exactly.

@@ -3,4 +3,4 @@
 pub mod rng;
 pub mod warp;
 
-pub use rng::{PathRng, Purpose};
+pub use rng::{PathRng, Purpose, StreamKey};

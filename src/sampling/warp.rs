@@ -9,12 +9,14 @@ pub fn exponential(u: f64) -> f64 {
 }
 
 /// A uniformly distributed azimuth as `(cos φ, sin φ)`, by rejection from the square
-/// (no trigonometric calls). Consumes two uniforms per trial; 4/π trials on average.
+/// (no trigonometric calls): `(x, y)` uniform in the unit disk gives `cos φ = (x² − y²)/r²`,
+/// `sin φ = 2xy/r²` (the angle doubled). `next` yields a pair of uniforms; 4/π trials on average.
 #[inline(always)]
-pub fn azimuth(mut next: impl FnMut() -> f64) -> (f64, f64) {
+pub fn azimuth(mut next: impl FnMut() -> (f64, f64)) -> (f64, f64) {
     loop {
-        let x = 2.0 * next() - 1.0;
-        let y = 2.0 * next() - 1.0;
+        let (u, v) = next();
+        let x = 2.0 * u - 1.0;
+        let y = 2.0 * v - 1.0;
         let r2 = x * x + y * y;
         if r2 <= 1.0 && r2 > 1e-300 {
             let inv = 1.0 / r2;
@@ -89,7 +91,7 @@ mod tests {
         let n = 200_000;
         let (mut sc, mut ss, mut sc2) = (0.0, 0.0, 0.0);
         for _ in 0..n {
-            let (c, s) = azimuth(|| r.uniform());
+            let (c, s) = azimuth(|| r.uniform_pair32());
             assert!((c * c + s * s - 1.0).abs() < 1e-12);
             sc += c;
             ss += s;

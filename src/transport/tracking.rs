@@ -15,7 +15,7 @@
 use glam::DVec3;
 
 use crate::medium::{Layer, MAX_REGIONS_PER_LAYER, Scene};
-use crate::sampling::{PathRng, warp};
+use crate::sampling::PathRng;
 
 /// How free paths are sampled in layers that hold regions.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,28 +30,35 @@ pub enum Tracking {
 pub enum Flight {
     /// A real collision at distance `t` in medium `medium` (index into `Scene::media`).
     Collision { t: f64, medium: usize },
-    /// No collision before the layer boundary at distance `t_boundary`.
-    Boundary,
+    /// No collision before the layer boundary, reached at distance `t` (∞ for a ray parallel to
+    /// the layers or into a semi-infinite layer).
+    Boundary { t: f64 },
 }
 
-/// Sample the next real collision along `pos + t·dir`, `0 ≤ t < t_boundary`, in `layer`.
+/// Sample the next real collision along `pos + t·dir` in `layer`, before the boundary plane that
+/// lies `dz ≥ 0` away along z (in the direction of travel), with `abs_dir_z = |dir.z|`.
 /// `null_collisions` counts the rejected tentative collisions of delta tracking.
-#[inline]
+///
+/// The homogeneous case compares `t·|dir.z| < dz`, so the division giving the distance to the
+/// boundary is only done when the boundary is reached.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
 pub fn free_flight(
     scene: &Scene,
     layer: &Layer,
     pos: DVec3,
     dir: DVec3,
-    t_boundary: f64,
+    dz: f64,
+    abs_dir_z: f64,
     tracking: Tracking,
     rng: &mut PathRng,
     null_collisions: &mut u64,
 ) -> Flight {
     if layer.regions.is_empty() {
-        let sigma_t = scene.media[layer.medium].sigma_t();
-        let t = warp::exponential(rng.uniform()) / sigma_t;
-        return if t < t_boundary { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary };
+        let t = rng.exponential() * scene.media[layer.medium].inv_sigma_t();
+        return if t * abs_dir_z < dz { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary { t: dz / abs_dir_z } };
     }
+    let t_boundary = dz / abs_dir_z;
     match tracking {
         Tracking::Analytic => analytic_segments(scene, layer, pos, dir, t_boundary, rng),
         Tracking::Delta { majorant_scale } => {
@@ -60,6 +67,7 @@ pub fn free_flight(
     }
 }
 
+#[inline(never)]
 fn analytic_segments(
     scene: &Scene,
     layer: &Layer,
@@ -81,11 +89,10 @@ fn analytic_segments(
             }
         }
     }
-    let mut tau = warp::exponential(rng.uniform());
+    let mut tau = rng.exponential();
     if n_spans == 0 {
-        let sigma_t = scene.media[layer.medium].sigma_t();
-        let t = tau / sigma_t;
-        return if t < t_boundary { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary };
+        let t = tau * scene.media[layer.medium].inv_sigma_t();
+        return if t < t_boundary { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary { t: t_boundary } };
     }
     // Breakpoints: 0, every span end, t_boundary; sorted (insertion sort: a handful of entries).
     let mut cuts = [0.0f64; 2 * MAX_REGIONS_PER_LAYER + 2];
@@ -116,17 +123,18 @@ fn analytic_segments(
             .iter()
             .find(|&&(a, b, _)| a <= mid && mid < b)
             .map_or(layer.medium, |&(_, _, m)| m);
-        let sigma_t = scene.media[medium].sigma_t();
-        let depth = sigma_t * (t1 - t0);
+        let m = &scene.media[medium];
+        let depth = m.sigma_t() * (t1 - t0);
         if tau < depth {
-            return Flight::Collision { t: t0 + tau / sigma_t, medium };
+            return Flight::Collision { t: t0 + tau * m.inv_sigma_t(), medium };
         }
         tau -= depth;
     }
-    Flight::Boundary
+    Flight::Boundary { t: t_boundary }
 }
 
 #[allow(clippy::too_many_arguments)]
+#[inline(never)]
 fn delta(
     scene: &Scene,
     layer: &Layer,
@@ -138,14 +146,14 @@ fn delta(
     null_collisions: &mut u64,
 ) -> Flight {
     if majorant <= 0.0 {
-        return Flight::Boundary;
+        return Flight::Boundary { t: t_boundary };
     }
     let inv = 1.0 / majorant;
     let mut t = 0.0;
     loop {
-        t += warp::exponential(rng.uniform()) * inv;
+        t += rng.exponential() * inv;
         if t >= t_boundary {
-            return Flight::Boundary;
+            return Flight::Boundary { t: t_boundary };
         }
         let medium = scene.medium_at(layer, pos + t * dir);
         if rng.uniform() * majorant < scene.media[medium].sigma_t() {

@@ -132,14 +132,11 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     let mut li = 0usize;
     loop {
         let layer = &scene.layers[li];
-        let t_boundary = if s.dir.z > 0.0 {
-            (layer.z_bottom - s.pos.z) / s.dir.z
-        } else if s.dir.z < 0.0 {
-            (layer.z_top - s.pos.z) / s.dir.z
-        } else {
-            f64::INFINITY
-        };
-        match free_flight(scene, layer, s.pos, s.dir, t_boundary, settings.tracking, rng, &mut rec.stats.null_collisions) {
+        // Distance along z to the boundary plane ahead (either one for a horizontal ray).
+        let dz = if s.dir.z >= 0.0 { layer.z_bottom - s.pos.z } else { s.pos.z - layer.z_top };
+        let flight =
+            free_flight(scene, layer, s.pos, s.dir, dz, s.dir.z.abs(), settings.tracking, rng, &mut rec.stats.null_collisions);
+        match flight {
             Flight::Collision { t, medium } => {
                 s.pos += t * s.dir;
                 if LENGTH {
@@ -155,7 +152,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
                     return;
                 }
                 let d = m.phase.sample(rng.uniform());
-                let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform());
+                let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
                 let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
                 if DOPPLER && m.velocity.is_moving() {
                     let v = m.velocity.velocity(s.pos, rng);
@@ -177,7 +174,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
                     }
                 }
             }
-            Flight::Boundary => {
+            Flight::Boundary { t: t_boundary } => {
                 if !t_boundary.is_finite() {
                     if s.dir.z > 0.0 {
                         // Through a transparent semi-infinite last layer: transmitted to depth.
