@@ -1,1 +1,63 @@
-fn main(){}
+//! Criterion benchmarks: the per-event kernel (phase sampling, azimuth, rotation, Doppler term),
+//! a homogeneous free flight, and whole runs of the van de Hulst slab and the default vessel
+//! scene on one thread. Throughput is reported per event or per photon.
+//!
+//! `cargo bench --bench transport`; the whole-process comparison with a numba Monte Carlo is
+//! `python3 validation/bench_numba.py`.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::DVec3;
+use ohd::experiment::Silent;
+use ohd::phase::{HenyeyGreenstein, PhaseFunction};
+use ohd::sampling::{PathRng, Purpose, warp};
+use ohd::transport::walk::{doppler_increment, scatter_direction};
+
+fn event_kernel(c: &mut Criterion) {
+    let mut g = c.benchmark_group("event");
+    g.throughput(Throughput::Elements(1));
+    let phase = PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(0.9).unwrap());
+    let v = DVec3::new(0.0, 0.0, 1e-3);
+    let mut rng = PathRng::new(1, Purpose::Test, 0, 0);
+    let mut dir = DVec3::Z;
+    let mut dldt = 0.0;
+    g.bench_function("scatter_hg_with_doppler", |b| {
+        b.iter(|| {
+            let d = phase.sample(rng.uniform());
+            let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
+            let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
+            dldt += doppler_increment(1.4, v, delta);
+            dir = out;
+            black_box(dldt)
+        })
+    });
+    g.bench_function("free_path_exponential", |b| b.iter(|| black_box(rng.exponential())));
+    g.bench_function("path_stream_seeding", |b| {
+        let key = ohd::sampling::StreamKey::new(1, Purpose::Path, 3);
+        let mut i = 0u64;
+        b.iter(|| {
+            i += 1;
+            black_box(key.path(i).uniform())
+        })
+    });
+    g.finish();
+}
+
+fn whole_runs(c: &mut Criterion) {
+    let mut g = c.benchmark_group("run_1_thread");
+    g.sample_size(10);
+    for (name, text, photons) in [
+        ("vdh_slab", include_str!("../validation/vdh_slab.toml"), 200_000u64),
+        ("default_vessel", ohd::DEFAULT_CONFIG, 20_000),
+    ] {
+        let sets = [format!("run.samples={photons}"), "run.threads=1".to_string()];
+        let (_, exp) = ohd::config::load(text, name, &sets).expect("valid config");
+        g.throughput(Throughput::Elements(exp.plan.samples()));
+        g.bench_function(name, |b| b.iter(|| black_box(exp.run(&Silent).stats.scattering_events)));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, event_kernel, whole_runs);
+criterion_main!(benches);
