@@ -13,7 +13,7 @@
 use glam::DVec3;
 
 use crate::detect::{Escape, Recorder, Scalar, Side};
-use crate::medium::Scene;
+use crate::medium::{Medium, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
 use crate::source::Source;
@@ -35,7 +35,12 @@ pub struct WalkSettings {
 
 impl Default for WalkSettings {
     fn default() -> Self {
-        WalkSettings { tracking: Tracking::Analytic, roulette_threshold: 1e-4, roulette_survival: 0.1, max_events: 1_000_000 }
+        WalkSettings {
+            tracking: Tracking::Analytic,
+            roulette_threshold: 1e-4,
+            roulette_survival: 0.1,
+            max_events: 1_000_000,
+        }
     }
 }
 
@@ -93,7 +98,27 @@ pub fn doppler_increment(n: f64, v: DVec3, dir_in_minus_out: DVec3) -> f64 {
     n * v.dot(dir_in_minus_out)
 }
 
+/// How a walk ended; [`trace_path`] records it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum End {
+    /// Left the stack through `side` into the ambient medium of index `n_ambient`.
+    Escaped { side: Side, n_ambient: f64 },
+    /// Went down through a transparent semi-infinite last layer: transmitted to depth.
+    ToDepth,
+    /// Lost all its weight at a collision (albedo 0).
+    Absorbed,
+    /// Lost the Russian roulette.
+    Roulette,
+    /// Hit the event cap, or runs parallel to the layers in a transparent semi-infinite layer.
+    Truncated,
+}
+
 /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
+///
+/// The walk itself ([`walk`]) does not touch the recorder: it accumulates the absorbed weight in
+/// a local and reports how it ended, and the path is recorded once here. Keeping the tally
+/// vector and counters out of the event loop frees registers there and removes a bounds-checked
+/// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
 pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     scene: &Scene,
     source: &Source,
@@ -128,92 +153,144 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     }
     s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
 
+    let mut absorbed = 0.0;
+    let end = walk::<DOPPLER, LENGTH>(scene, settings, &mut s, rng, &mut absorbed, &mut rec.stats.null_collisions);
+    // Every real collision increments `order`, except one that leaves no weight to go on with.
+    rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
+    rec.add(Scalar::AbsorbedFraction, absorbed);
+    match end {
+        End::Escaped { side, n_ambient } => rec.escape(side, &s.escape(false), n_ambient),
+        End::ToDepth => {
+            rec.add(Scalar::TransmittanceTotal, s.weight);
+            if s.order == 0 {
+                rec.add(Scalar::TransmittanceUnscattered, s.weight);
+            }
+        }
+        End::Absorbed => {}
+        End::Roulette => rec.stats.roulette_terminations += 1,
+        End::Truncated => rec.stats.truncated_paths += 1,
+    }
+}
+
+/// The random walk of `s` from the top surface until it ends; the weight deposited by
+/// absorption is added to `absorbed`.
+///
+/// The loop is nested: the outer one runs once per visit of a layer and reads what the event
+/// loop needs from the layer and its filling medium (bounds, index, `1/σt`, the medium itself)
+/// once, the inner one runs once per event. In a layer without regions the free flight is
+/// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
+/// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
+#[inline(always)]
+fn walk<const DOPPLER: bool, const LENGTH: bool>(
+    scene: &Scene,
+    settings: &WalkSettings,
+    s: &mut PathState,
+    rng: &mut PathRng,
+    absorbed: &mut f64,
+    null_collisions: &mut u64,
+) -> End {
     let last = scene.layers.len() - 1;
     let mut li = 0usize;
     loop {
         let layer = &scene.layers[li];
-        // Distance along z to the boundary plane ahead (either one for a horizontal ray).
-        let dz = if s.dir.z >= 0.0 { layer.z_bottom - s.pos.z } else { s.pos.z - layer.z_top };
-        let flight =
-            free_flight(scene, layer, s.pos, s.dir, dz, s.dir.z.abs(), settings.tracking, rng, &mut rec.stats.null_collisions);
-        match flight {
-            Flight::Collision { t, medium } => {
-                s.pos += t * s.dir;
-                if LENGTH {
-                    s.l += layer.n * t;
+        let fill = &scene.media[layer.medium];
+        let homogeneous = layer.regions.is_empty();
+        let (z_top, z_bottom, n) = (layer.z_top, layer.z_bottom, layer.n);
+        let fill_inv_sigma_t = fill.inv_sigma_t();
+        let t_boundary = loop {
+            // Distance along z to the boundary plane ahead (either one for a horizontal ray).
+            let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
+            let abs_dir_z = s.dir.z.abs();
+            let (t, medium) = if homogeneous {
+                // As `free_flight`: compare `t·|dir.z| < dz`, divide only on reaching the boundary.
+                let t = rng.exponential() * fill_inv_sigma_t;
+                if t * abs_dir_z >= dz {
+                    break dz / abs_dir_z;
                 }
-                rec.stats.scattering_events += 1;
-                let m = &scene.media[medium];
-                // Absorption weighting: deposit (1 − albedo) of the weight, carry on with the rest.
-                let albedo = m.albedo();
-                rec.add(Scalar::AbsorbedFraction, s.weight * (1.0 - albedo));
-                s.weight *= albedo;
-                if s.weight <= 0.0 {
-                    return;
+                (t, fill)
+            } else {
+                match free_flight(scene, layer, s.pos, s.dir, dz, abs_dir_z, settings.tracking, rng, null_collisions) {
+                    Flight::Collision { t, medium } => (t, &scene.media[medium]),
+                    Flight::Boundary { t } => break t,
                 }
-                let d = m.phase.sample(rng.uniform());
-                let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
-                let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-                if DOPPLER && m.velocity.is_moving() {
-                    let v = m.velocity.velocity(s.pos, rng);
-                    s.dldt += doppler_increment(layer.n, v, delta);
-                    s.doppler_events += 1;
-                }
-                s.dir = out;
-                s.order += 1;
-                if s.order >= settings.max_events {
-                    rec.stats.truncated_paths += 1;
-                    return;
-                }
-                if s.weight < settings.roulette_threshold {
-                    if rng.uniform() < settings.roulette_survival {
-                        s.weight /= settings.roulette_survival;
-                    } else {
-                        rec.stats.roulette_terminations += 1;
-                        return;
-                    }
-                }
+            };
+            if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed) {
+                return end;
             }
-            Flight::Boundary { t: t_boundary } => {
-                if !t_boundary.is_finite() {
-                    if s.dir.z > 0.0 {
-                        // Through a transparent semi-infinite last layer: transmitted to depth.
-                        rec.add(Scalar::TransmittanceTotal, s.weight);
-                        if s.order == 0 {
-                            rec.add(Scalar::TransmittanceUnscattered, s.weight);
-                        }
-                    } else {
-                        rec.stats.truncated_paths += 1;
-                    }
-                    return;
-                }
-                if LENGTH {
-                    s.l += layer.n * t_boundary;
-                }
-                let down = s.dir.z > 0.0;
-                s.pos += t_boundary * s.dir;
-                s.pos.z = if down { layer.z_bottom } else { layer.z_top };
-                let (next, n2) = match (down, li) {
-                    (true, i) if i < last => (Some(i + 1), scene.layers[i + 1].n),
-                    (true, _) => (None, scene.n_below),
-                    (false, 0) => (None, scene.n_above),
-                    (false, i) => (Some(i - 1), scene.layers[i - 1].n),
-                };
-                let (r, cos_t) = fresnel::reflectance(layer.n, n2, s.dir.z.abs());
-                if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
-                    s.dir.z = -s.dir.z;
-                    continue;
-                }
-                s.dir = fresnel::refract(s.dir, layer.n, n2, cos_t);
-                match next {
-                    Some(i) => li = i,
-                    None => {
-                        let side = if down { Side::Bottom } else { Side::Top };
-                        rec.escape(side, &s.escape(false), n2);
-                        return;
-                    }
-                }
-            }
+        };
+
+        // Reached the boundary plane ahead.
+        if !t_boundary.is_finite() {
+            return if s.dir.z > 0.0 { End::ToDepth } else { End::Truncated };
+        }
+        if LENGTH {
+            s.l += n * t_boundary;
+        }
+        let down = s.dir.z > 0.0;
+        s.pos += t_boundary * s.dir;
+        s.pos.z = if down { z_bottom } else { z_top };
+        let (next, n2) = match (down, li) {
+            (true, i) if i < last => (Some(i + 1), scene.layers[i + 1].n),
+            (true, _) => (None, scene.n_below),
+            (false, 0) => (None, scene.n_above),
+            (false, i) => (Some(i - 1), scene.layers[i - 1].n),
+        };
+        let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
+        if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
+            s.dir.z = -s.dir.z;
+            continue;
+        }
+        s.dir = fresnel::refract(s.dir, n, n2, cos_t);
+        match next {
+            Some(i) => li = i,
+            None => return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 },
         }
     }
+}
+
+/// A real collision of `s` at distance `t` in medium `m` of a layer of index `n`: absorption
+/// weighting, a new direction, the Doppler term, the event cap and Russian roulette. `Some` if
+/// the path ends here.
+#[inline(always)]
+fn collide<const DOPPLER: bool, const LENGTH: bool>(
+    s: &mut PathState,
+    t: f64,
+    m: &Medium,
+    n: f64,
+    settings: &WalkSettings,
+    rng: &mut PathRng,
+    absorbed: &mut f64,
+) -> Option<End> {
+    s.pos += t * s.dir;
+    if LENGTH {
+        s.l += n * t;
+    }
+    // Absorption weighting: deposit (1 − albedo) of the weight, carry on with the rest.
+    let albedo = m.albedo();
+    *absorbed += s.weight * (1.0 - albedo);
+    s.weight *= albedo;
+    if s.weight <= 0.0 {
+        return Some(End::Absorbed);
+    }
+    let d = m.phase.sample(rng.uniform());
+    let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
+    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    if DOPPLER && m.velocity.is_moving() {
+        let v = m.velocity.velocity(s.pos, rng);
+        s.dldt += doppler_increment(n, v, delta);
+        s.doppler_events += 1;
+    }
+    s.dir = out;
+    s.order += 1;
+    if s.order >= settings.max_events {
+        return Some(End::Truncated);
+    }
+    if s.weight < settings.roulette_threshold {
+        if rng.uniform() < settings.roulette_survival {
+            s.weight /= settings.roulette_survival;
+        } else {
+            return Some(End::Roulette);
+        }
+    }
+    None
 }
