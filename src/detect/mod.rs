@@ -8,9 +8,9 @@
 
 use glam::DVec3;
 
+use crate::SPEED_OF_LIGHT;
 use crate::spectrum::{FrequencyAxis, Slot};
 use crate::stats::RunStats;
-use crate::SPEED_OF_LIGHT;
 
 /// Which surface of the stack a detector watches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,8 +26,14 @@ pub enum Side {
 pub enum Area {
     /// The whole plane.
     All,
-    Disk { center: [f64; 2], radius: f64 },
-    Rect { min: [f64; 2], max: [f64; 2] },
+    Disk {
+        center: [f64; 2],
+        radius: f64,
+    },
+    Rect {
+        min: [f64; 2],
+        max: [f64; 2],
+    },
 }
 
 impl Area {
@@ -245,6 +251,12 @@ impl Recorder<'_> {
     }
 
     /// A path leaving the stack through `side` into ambient index `n_ambient`.
+    ///
+    /// Inlined into the walk: the scalar tallies are a few adds, and where the walk does not
+    /// track `l` or `dl/dt` their finiteness checks fold away. The detectors are an outlined
+    /// call made only if there are any (measured: ~60 → ~15 instructions per escape without
+    /// detectors).
+    #[inline(always)]
     pub fn escape(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
@@ -260,6 +272,14 @@ impl Recorder<'_> {
                 }
             }
         }
+        if !self.detectors.is_empty() {
+            self.detect(side, e, n_ambient);
+        }
+    }
+
+    /// The detectors' share of [`escape`](Self::escape) (a finite path).
+    #[inline(never)]
+    fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         for (d, lay) in self.detectors.iter().zip(&self.layout.detectors) {
             if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
                 continue;
@@ -274,9 +294,9 @@ impl Recorder<'_> {
             self.acc[lay.power] += e.weight;
             if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
                 let order_channel = spec.by_order.map(|k| 1 + e.order.min(k) as usize);
-                let event_channel = spec.by_doppler_events.map(|k| {
-                    1 + spec.by_order.map_or(0, |k| k as usize + 1) + e.doppler_events.min(k) as usize
-                });
+                let event_channel = spec
+                    .by_doppler_events
+                    .map(|k| 1 + spec.by_order.map_or(0, |k| k as usize + 1) + e.doppler_events.min(k) as usize);
                 for chirp in 0..self.beat.chirps() {
                     let f = self.beat.frequency(chirp, l, e.dldt);
                     let slot = match spec.axis.locate(f) {
