@@ -57,6 +57,12 @@ impl StreamKey {
 }
 
 /// A per-path random-number stream.
+///
+/// Performance: the walk keeps the 32-byte state in four registers only as long as no outlined
+/// function receives `&mut PathRng` (once its address escapes, every draw loads and stores the
+/// state from the stack). Outlined callees are therefore given the numbers they need, or the
+/// generator by value.
+#[derive(Clone)]
 pub struct PathRng(Xoshiro256PlusPlus);
 
 impl PathRng {

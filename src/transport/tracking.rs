@@ -22,7 +22,9 @@ use crate::sampling::PathRng;
 pub enum Tracking {
     Analytic,
     /// Delta tracking with the layer majorant multiplied by `majorant_scale ≥ 1`.
-    Delta { majorant_scale: f64 },
+    Delta {
+        majorant_scale: f64,
+    },
 }
 
 /// The outcome of a free flight.
@@ -56,26 +58,36 @@ pub fn free_flight(
 ) -> Flight {
     if layer.regions.is_empty() {
         let t = rng.exponential() * scene.media[layer.medium].inv_sigma_t();
-        return if t * abs_dir_z < dz { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary { t: dz / abs_dir_z } };
+        return if t * abs_dir_z < dz {
+            Flight::Collision { t, medium: layer.medium }
+        } else {
+            Flight::Boundary { t: dz / abs_dir_z }
+        };
     }
     let t_boundary = dz / abs_dir_z;
+    // The outlined trackers never see `rng` itself (see `PathRng`): the analytic one needs one
+    // optical depth, drawn here, and delta tracking works on the generator passed by value.
     match tracking {
-        Tracking::Analytic => analytic_segments(scene, layer, pos, dir, t_boundary, rng),
+        Tracking::Analytic => analytic_segments(scene, layer, pos, dir, t_boundary, rng.exponential()),
         Tracking::Delta { majorant_scale } => {
-            delta(scene, layer, pos, dir, t_boundary, layer.majorant * majorant_scale, rng, null_collisions)
+            let (flight, advanced) = delta(
+                scene,
+                layer,
+                pos,
+                dir,
+                t_boundary,
+                layer.majorant * majorant_scale,
+                rng.clone(),
+                null_collisions,
+            );
+            *rng = advanced;
+            flight
         }
     }
 }
 
 #[inline(never)]
-fn analytic_segments(
-    scene: &Scene,
-    layer: &Layer,
-    pos: DVec3,
-    dir: DVec3,
-    t_boundary: f64,
-    rng: &mut PathRng,
-) -> Flight {
+fn analytic_segments(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_boundary: f64, mut tau: f64) -> Flight {
     // Region intervals along the ray, clipped to [0, t_boundary], in priority order.
     let mut spans = [(0.0f64, 0.0f64, 0usize); MAX_REGIONS_PER_LAYER];
     let mut n_spans = 0;
@@ -89,10 +101,13 @@ fn analytic_segments(
             }
         }
     }
-    let mut tau = rng.exponential();
     if n_spans == 0 {
         let t = tau * scene.media[layer.medium].inv_sigma_t();
-        return if t < t_boundary { Flight::Collision { t, medium: layer.medium } } else { Flight::Boundary { t: t_boundary } };
+        return if t < t_boundary {
+            Flight::Collision { t, medium: layer.medium }
+        } else {
+            Flight::Boundary { t: t_boundary }
+        };
     }
     // Breakpoints: 0, every span end, t_boundary; sorted (insertion sort: a handful of entries).
     let mut cuts = [0.0f64; 2 * MAX_REGIONS_PER_LAYER + 2];
@@ -119,10 +134,8 @@ fn analytic_segments(
             continue;
         }
         let mid = 0.5 * (t0 + t1);
-        let medium = spans[..n_spans]
-            .iter()
-            .find(|&&(a, b, _)| a <= mid && mid < b)
-            .map_or(layer.medium, |&(_, _, m)| m);
+        let medium =
+            spans[..n_spans].iter().find(|&&(a, b, _)| a <= mid && mid < b).map_or(layer.medium, |&(_, _, m)| m);
         let m = &scene.media[medium];
         let depth = m.sigma_t() * (t1 - t0);
         if tau < depth {
@@ -142,22 +155,22 @@ fn delta(
     dir: DVec3,
     t_boundary: f64,
     majorant: f64,
-    rng: &mut PathRng,
+    mut rng: PathRng,
     null_collisions: &mut u64,
-) -> Flight {
+) -> (Flight, PathRng) {
     if majorant <= 0.0 {
-        return Flight::Boundary { t: t_boundary };
+        return (Flight::Boundary { t: t_boundary }, rng);
     }
     let inv = 1.0 / majorant;
     let mut t = 0.0;
     loop {
         t += rng.exponential() * inv;
         if t >= t_boundary {
-            return Flight::Boundary { t: t_boundary };
+            return (Flight::Boundary { t: t_boundary }, rng);
         }
         let medium = scene.medium_at(layer, pos + t * dir);
         if rng.uniform() * majorant < scene.media[medium].sigma_t() {
-            return Flight::Collision { t, medium };
+            return (Flight::Collision { t, medium }, rng);
         }
         *null_collisions += 1;
     }
