@@ -94,6 +94,14 @@ impl PathRng {
         const SCALE: f64 = 1.0 / 4_294_967_296.0;
         ((r >> 32) as f64 * SCALE, (r & 0xFFFF_FFFF) as f64 * SCALE)
     }
+
+    /// Two independent signed 32-bit integers, uniform on `[−2³¹, 2³¹)`, from one draw (the two
+    /// halves reinterpreted; for [`warp::azimuth_i32`](super::warp::azimuth_i32)).
+    #[inline(always)]
+    pub fn pair_i32(&mut self) -> (i32, i32) {
+        let r = self.0.next_u64();
+        ((r >> 32) as i32, r as i32)
+    }
 }
 
 #[cfg(test)]

@@ -15,13 +15,40 @@ pub fn exponential(u: f64) -> f64 {
 pub fn azimuth(mut next: impl FnMut() -> (f64, f64)) -> (f64, f64) {
     loop {
         let (u, v) = next();
-        let x = 2.0 * u - 1.0;
-        let y = 2.0 * v - 1.0;
-        let r2 = x * x + y * y;
-        if r2 <= 1.0 && r2 > 1e-300 {
-            let inv = 1.0 / r2;
-            return ((x * x - y * y) * inv, 2.0 * x * y * inv);
+        if let Some(cs) = doubled_angle(2.0 * u - 1.0, 2.0 * v - 1.0, 1.0) {
+            return cs;
         }
+    }
+}
+
+/// [`azimuth`] from pairs of signed 32-bit integers uniform on `[−2³¹, 2³¹)`: the same grid of
+/// points as `2u − 1` from pairs of 32-bit uniforms, scaled by 2³¹. The map is scale-invariant
+/// and a power-of-two scale is exact, so every accept decision and every result is bit-identical
+/// to [`azimuth`] on the corresponding uniforms (test `integer_azimuth_is_the_uniform_one_scaled`),
+/// without converting to `[0, 1)` and back (measured: 30 → 25 instructions per trial).
+#[inline(always)]
+pub fn azimuth_i32(mut next: impl FnMut() -> (i32, i32)) -> (f64, f64) {
+    loop {
+        let (i, j) = next();
+        if let Some(cs) = doubled_angle(f64::from(i), f64::from(j), R2_MAX_I32) {
+            return cs;
+        }
+    }
+}
+
+/// 2⁶²: the squared radius of the unit disk in [`azimuth_i32`]'s scaled coordinates.
+const R2_MAX_I32: f64 = 4_611_686_018_427_387_904.0;
+
+/// One trial of the azimuth rejection: `(cos 2α, sin 2α)` for the point `(x, y) = r(cos α, sin α)`
+/// if it lies in the disk `r² ≤ r2_max` and is not its centre.
+#[inline(always)]
+fn doubled_angle(x: f64, y: f64, r2_max: f64) -> Option<(f64, f64)> {
+    let r2 = x * x + y * y;
+    if r2 <= r2_max && r2 > 0.0 {
+        let inv = 1.0 / r2;
+        Some(((x * x - y * y) * inv, 2.0 * x * y * inv))
+    } else {
+        None
     }
 }
 
@@ -58,10 +85,7 @@ pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0f64.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
+    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 #[cfg(test)]
@@ -89,19 +113,46 @@ mod tests {
     fn azimuth_is_unit_and_unbiased() {
         let mut r = crate::sampling::PathRng::new(3, crate::sampling::Purpose::Test, 0, 0);
         let n = 200_000;
-        let (mut sc, mut ss, mut sc2) = (0.0, 0.0, 0.0);
-        for _ in 0..n {
-            let (c, s) = azimuth(|| r.uniform_pair32());
-            assert!((c * c + s * s - 1.0).abs() < 1e-12);
-            sc += c;
-            ss += s;
-            sc2 += c * c;
+        for integer in [false, true] {
+            let (mut sc, mut ss, mut sc2) = (0.0, 0.0, 0.0);
+            for _ in 0..n {
+                let (c, s) = if integer { azimuth_i32(|| r.pair_i32()) } else { azimuth(|| r.uniform_pair32()) };
+                assert!((c * c + s * s - 1.0).abs() < 1e-12);
+                sc += c;
+                ss += s;
+                sc2 += c * c;
+            }
+            let nf = n as f64;
+            // E[cos φ] = E[sin φ] = 0 (σ = √(1/2)/√n), E[cos² φ] = 1/2 (σ = √(1/8)/√n).
+            assert!((sc / nf).abs() < 4.0 * (0.5f64 / nf).sqrt());
+            assert!((ss / nf).abs() < 4.0 * (0.5f64 / nf).sqrt());
+            assert!((sc2 / nf - 0.5).abs() < 4.0 * (0.125f64 / nf).sqrt());
         }
-        let nf = n as f64;
-        // E[cos φ] = E[sin φ] = 0 (σ = √(1/2)/√n), E[cos² φ] = 1/2 (σ = √(1/8)/√n).
-        assert!((sc / nf).abs() < 4.0 * (0.5f64 / nf).sqrt());
-        assert!((ss / nf).abs() < 4.0 * (0.5f64 / nf).sqrt());
-        assert!((sc2 / nf - 0.5).abs() < 4.0 * (0.125f64 / nf).sqrt());
+    }
+
+    #[test]
+    fn integer_azimuth_is_the_uniform_one_scaled() {
+        // i = 2³²u − 2³¹ maps the 32-bit uniforms u onto the integers, and 2u − 1 = i / 2³¹
+        // exactly: both trials accept or reject together, with bit-identical results.
+        let mut r = crate::sampling::PathRng::new(4, crate::sampling::Purpose::Test, 0, 0);
+        let to_int = |u: f64| (u * 4_294_967_296.0 - 2_147_483_648.0) as i32;
+        let mut rejected = 0;
+        for _ in 0..200_000 {
+            let (u, v) = r.uniform_pair32();
+            let (i, j) = (to_int(u), to_int(v));
+            assert_eq!(2.0 * u - 1.0, f64::from(i) / 2_147_483_648.0);
+            let a = doubled_angle(2.0 * u - 1.0, 2.0 * v - 1.0, 1.0);
+            assert_eq!(a, doubled_angle(f64::from(i), f64::from(j), R2_MAX_I32), "({u}, {v})");
+            rejected += usize::from(a.is_none());
+        }
+        assert!(rejected > 0);
+        // The edges of the integer square: corners and the centre are rejected, the boundary
+        // point (−2³¹, 0) is on the circle and accepted, as (−1, 0) is.
+        for (i, j) in [(i32::MIN, i32::MIN), (i32::MAX, i32::MAX), (0, 0)] {
+            assert_eq!(doubled_angle(f64::from(i), f64::from(j), R2_MAX_I32), None);
+        }
+        assert_eq!(doubled_angle(f64::from(i32::MIN), 0.0, R2_MAX_I32), Some((1.0, 0.0)));
+        assert_eq!(doubled_angle(-1.0, 0.0, 1.0), Some((1.0, 0.0)));
     }
 
     #[test]

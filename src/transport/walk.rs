@@ -273,7 +273,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
         return Some(End::Absorbed);
     }
     let d = m.phase.sample(rng.uniform());
-    let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
+    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
     if DOPPLER && m.velocity.is_moving() {
         let v = m.velocity.velocity(s.pos, rng);
