@@ -81,14 +81,31 @@ impl PathState {
 /// `(1 − cos θ)·dir_in − sin θ·(cos φ t + sin φ b)` so that it keeps its relative precision for
 /// the milliradian deflections of forward-peaked media (a difference of two nearly equal unit
 /// vectors would not).
+///
+/// The new direction is as unit as `dir` up to rounding, not renormalised: rounding makes
+/// `|dir|² − 1` drift by a few 1e-16 per event, which the walk removes every
+/// [`RENORMALISE_EVERY`] events with [`renormalise`].
 #[inline(always)]
 pub fn scatter_direction(dir: DVec3, d: Deflection, cos_phi: f64, sin_phi: f64) -> (DVec3, DVec3) {
     let (t, b) = warp::orthonormal_basis(dir);
     let perp = t * cos_phi + b * sin_phi;
     let out = dir * d.cos + perp * d.sin;
-    // One Newton step of renormalisation keeps |dir| = 1 over millions of events.
-    let out = out * (1.5 - 0.5 * out.length_squared());
     (out, dir * d.one_minus_cos - perp * d.sin)
+}
+
+/// How many scattering events the walk lets pass between renormalisations of the direction.
+///
+/// Renormalising after every event cost 14 instructions per collision (callgrind, 4% of a van
+/// de Hulst path). Without it, `||dir|² − 1|` measured over 2·10⁷ events stays below 1e-14 for
+/// |g| ≤ 0.99 and reaches 1e-12 for g = 0.999999 (tiny deflections let the rounding errors
+/// accumulate); renormalising every 32 events bounds it by the drift of 32 events (test
+/// `direction_stays_unit_over_many_events`).
+pub const RENORMALISE_EVERY: u32 = 32;
+
+/// One Newton step towards `|dir| = 1`, for a `dir` whose length is already 1 up to rounding.
+#[inline(always)]
+pub fn renormalise(dir: DVec3) -> DVec3 {
+    dir * (1.5 - 0.5 * dir.length_squared())
 }
 
 /// Change of `dl/dt` at a real scattering event on a particle of velocity `v` in a medium of index
@@ -191,6 +208,8 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
 ) -> End {
     let last = scene.layers.len() - 1;
     let mut li = 0usize;
+    // The next event count at which `collide` looks at the event cap and renormalises.
+    let mut checkpoint = RENORMALISE_EVERY.min(settings.max_events);
     loop {
         let layer = &scene.layers[li];
         let fill = &scene.media[layer.medium];
@@ -214,7 +233,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
                     Flight::Boundary { t } => break t,
                 }
             };
-            if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed) {
+            if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed, &mut checkpoint) {
                 return end;
             }
         };
@@ -251,6 +270,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
 /// A real collision of `s` at distance `t` in medium `m` of a layer of index `n`: absorption
 /// weighting, a new direction, the Doppler term, the event cap and Russian roulette. `Some` if
 /// the path ends here.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn collide<const DOPPLER: bool, const LENGTH: bool>(
     s: &mut PathState,
@@ -260,6 +280,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     settings: &WalkSettings,
     rng: &mut PathRng,
     absorbed: &mut f64,
+    checkpoint: &mut u32,
 ) -> Option<End> {
     s.pos += t * s.dir;
     if LENGTH {
@@ -282,8 +303,14 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     }
     s.dir = out;
     s.order += 1;
-    if s.order >= settings.max_events {
-        return Some(End::Truncated);
+    // One comparison per event serves both the event cap and the periodic renormalisation (a
+    // separate `order % RENORMALISE_EVERY` test cost 5 instructions per collision).
+    if s.order >= *checkpoint {
+        if s.order >= settings.max_events {
+            return Some(End::Truncated);
+        }
+        s.dir = renormalise(s.dir);
+        *checkpoint = s.order.saturating_add(RENORMALISE_EVERY).min(settings.max_events);
     }
     if s.weight < settings.roulette_threshold {
         if rng.uniform() < settings.roulette_survival {
@@ -293,4 +320,32 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::phase::{HenyeyGreenstein, PhaseFunction};
+    use crate::sampling::Purpose;
+
+    #[test]
+    fn direction_stays_unit_over_many_events() {
+        // The walk's sequence of rotations and periodic renormalisations, 10⁶ events per g.
+        for &g in &[0.0, 0.75, -0.9, 0.99, 0.999999] {
+            let phase = PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(g).unwrap());
+            let mut rng = PathRng::new(5, Purpose::Test, 0, 0);
+            let mut dir = DVec3::new(0.3, -0.5, 0.7).normalize();
+            let mut worst = 0.0f64;
+            for order in 1..=1_000_000u32 {
+                let d = phase.sample(rng.uniform());
+                let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+                dir = scatter_direction(dir, d, cos_phi, sin_phi).0;
+                if order % RENORMALISE_EVERY == 0 {
+                    dir = renormalise(dir);
+                }
+                worst = worst.max((dir.length_squared() - 1.0).abs());
+            }
+            assert!(worst < 1e-14, "g = {g}: ||dir|² − 1| reached {worst:e}");
+        }
+    }
 }
