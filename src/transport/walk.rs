@@ -216,18 +216,26 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
         let homogeneous = layer.regions.is_empty();
         let (z_top, z_bottom, n) = (layer.z_top, layer.z_bottom, layer.n);
         let fill_inv_sigma_t = fill.inv_sigma_t();
+        // Distance along z to the boundary plane ahead (either one for a horizontal ray), |dir.z|.
+        let plane_ahead =
+            |s: &PathState| (if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top }, s.dir.z.abs());
         let t_boundary = loop {
-            // Distance along z to the boundary plane ahead (either one for a horizontal ray).
-            let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
-            let abs_dir_z = s.dir.z.abs();
             let (t, medium) = if homogeneous {
-                // As `free_flight`: compare `t·|dir.z| < dz`, divide only on reaching the boundary.
+                // A collision iff its point is still in the layer, `z_top ≤ z < z_bottom`: two
+                // comparisons on the new depth, which the collision needs anyway, instead of
+                // selecting the plane ahead and comparing `t·|dir.z|` with its distance
+                // (measured: 8 instructions per flight). The distance to the plane, and its
+                // division, only when the plane is reached. A vacuum (t = ∞) gives z = ±∞ or NaN
+                // and goes to the boundary.
                 let t = rng.exponential() * fill_inv_sigma_t;
-                if t * abs_dir_z >= dz {
+                let z = s.pos.z + t * s.dir.z;
+                if !(z_top <= z && z < z_bottom) {
+                    let (dz, abs_dir_z) = plane_ahead(s);
                     break dz / abs_dir_z;
                 }
                 (t, fill)
             } else {
+                let (dz, abs_dir_z) = plane_ahead(s);
                 match free_flight(scene, layer, s.pos, s.dir, dz, abs_dir_z, settings.tracking, rng, null_collisions) {
                     Flight::Collision { t, medium } => (t, &scene.media[medium]),
                     Flight::Boundary { t } => break t,
