@@ -257,7 +257,7 @@ impl Recorder<'_> {
     /// call made only if there are any (measured: ~60 → ~15 instructions per escape without
     /// detectors).
     #[inline(always)]
-    pub fn escape(&mut self, side: Side, e: &Escape, n_ambient: f64) {
+    pub fn escape(&mut self, side: Side, e: Escape, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -273,7 +273,10 @@ impl Recorder<'_> {
             }
         }
         if !self.detectors.is_empty() {
-            self.detect(side, e, n_ambient);
+            // A copy made here: taking `&e` directly made LLVM build `e` on the stack before the
+            // first test, for every path (13 stores; measured 182.8M → 177.8M instructions).
+            let e = Escape { ..e };
+            self.detect(side, &e, n_ambient);
         }
     }
 

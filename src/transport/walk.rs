@@ -162,7 +162,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
     if r_sp > 0.0 {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
-        rec.escape(Side::Top, &reflected.escape(true), scene.n_above);
+        rec.escape(Side::Top, reflected.escape(true), scene.n_above);
         s.weight = 1.0 - r_sp;
         if s.weight <= 0.0 {
             return;
@@ -176,7 +176,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
     match end {
-        End::Escaped { side, n_ambient } => rec.escape(side, &s.escape(false), n_ambient),
+        End::Escaped { side, n_ambient } => rec.escape(side, s.escape(false), n_ambient),
         End::ToDepth => {
             rec.add(Scalar::TransmittanceTotal, s.weight);
             if s.order == 0 {
