@@ -206,7 +206,6 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
     absorbed: &mut f64,
     null_collisions: &mut u64,
 ) -> End {
-    let last = scene.layers.len() - 1;
     let mut li = 0usize;
     // The next event count at which `collide` looks at the event cap and renormalises.
     let mut checkpoint = RENORMALISE_EVERY.min(settings.max_events);
@@ -216,10 +215,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
         let homogeneous = layer.regions.is_empty();
         let (z_top, z_bottom, n) = (layer.z_top, layer.z_bottom, layer.n);
         let fill_inv_sigma_t = fill.inv_sigma_t();
-        // Distance along z to the boundary plane ahead (either one for a horizontal ray), |dir.z|.
-        let plane_ahead =
-            |s: &PathState| (if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top }, s.dir.z.abs());
-        let t_boundary = loop {
+        loop {
             let (t, medium) = if homogeneous {
                 // A collision iff its point is still in the layer, `z_top ≤ z < z_bottom`: two
                 // comparisons on the new depth, which the collision needs anyway, instead of
@@ -230,37 +226,52 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
                 let t = rng.exponential() * fill_inv_sigma_t;
                 let z = s.pos.z + t * s.dir.z;
                 if !(z_top <= z && z < z_bottom) {
-                    let (dz, abs_dir_z) = plane_ahead(s);
-                    break dz / abs_dir_z;
+                    break;
                 }
                 (t, fill)
             } else {
-                let (dz, abs_dir_z) = plane_ahead(s);
-                match free_flight(scene, layer, s.pos, s.dir, dz, abs_dir_z, settings.tracking, rng, null_collisions) {
+                // Distance along z to the boundary plane ahead (either one for a horizontal ray).
+                let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
+                match free_flight(
+                    scene,
+                    layer,
+                    s.pos,
+                    s.dir,
+                    dz,
+                    s.dir.z.abs(),
+                    settings.tracking,
+                    rng,
+                    null_collisions,
+                ) {
                     Flight::Collision { t, medium } => (t, &scene.media[medium]),
-                    Flight::Boundary { t } => break t,
+                    Flight::Boundary { .. } => break,
                 }
             };
             if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed, &mut checkpoint) {
                 return end;
             }
-        };
+        }
 
-        // Reached the boundary plane ahead.
+        // Reached the boundary plane ahead: the bottom one going down, else the top one. The
+        // distance is the one `free_flight` reports, `|Δz| / |dir.z|` (signs cancel exactly);
+        // a horizontal ray gets ±∞ or NaN and is truncated.
+        let down = s.dir.z > 0.0;
+        let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
+        let t_boundary = (plane - s.pos.z) / s.dir.z;
         if !t_boundary.is_finite() {
-            return if s.dir.z > 0.0 { End::ToDepth } else { End::Truncated };
+            return if down { End::ToDepth } else { End::Truncated };
         }
         if LENGTH {
             s.l += n * t_boundary;
         }
-        let down = s.dir.z > 0.0;
         s.pos += t_boundary * s.dir;
-        s.pos.z = if down { z_bottom } else { z_top };
-        let (next, n2) = match (down, li) {
-            (true, i) if i < last => (Some(i + 1), scene.layers[i + 1].n),
-            (true, _) => (None, scene.n_below),
-            (false, 0) => (None, scene.n_above),
-            (false, i) => (Some(i - 1), scene.layers[i - 1].n),
+        s.pos.z = plane;
+        // Beyond the plane: the next layer, or the ambient medium (above layer 0, `next` wraps to
+        // `usize::MAX`).
+        let beyond = scene.layers.get(next);
+        let n2 = match beyond {
+            Some(l) => l.n,
+            None => scene.ambient_n(down),
         };
         let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
         if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
@@ -268,10 +279,10 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
             continue;
         }
         s.dir = fresnel::refract(s.dir, n, n2, cos_t);
-        match next {
-            Some(i) => li = i,
-            None => return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 },
+        if beyond.is_none() {
+            return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 };
         }
+        li = next;
     }
 }
 
