@@ -85,12 +85,21 @@ impl PathState {
 /// The new direction is as unit as `dir` up to rounding, not renormalised: rounding makes
 /// `|dir|² − 1` drift by a few 1e-16 per event, which the walk removes every
 /// [`RENORMALISE_EVERY`] events with [`renormalise`].
+///
+/// `(t, b)` is the basis of [`warp::orthonormal_basis`] (Duff et al. 2017), but not built: with
+/// `s = sign(dir.z)`, `a = −1/(s + dir.z)`, `c = sin θ cos φ`, `c′ = sin θ sin φ` and
+/// `w = s·c·x + c′·y`, its terms collect into
+/// `sin θ·(cos φ t + sin φ b) = (c + a·x·w, s·c′ + a·y·w, −w)`, about half the arithmetic of
+/// forming `t` and `b` (measured: 131 → 118 instructions per collision).
 #[inline(always)]
 pub fn scatter_direction(dir: DVec3, d: Deflection, cos_phi: f64, sin_phi: f64) -> (DVec3, DVec3) {
-    let (t, b) = warp::orthonormal_basis(dir);
-    let perp = t * cos_phi + b * sin_phi;
-    let out = dir * d.cos + perp * d.sin;
-    (out, dir * d.one_minus_cos - perp * d.sin)
+    let sign = 1.0f64.copysign(dir.z);
+    let a = -1.0 / (sign + dir.z);
+    let (c, c_prime) = (d.sin * cos_phi, d.sin * sin_phi);
+    let w = sign * c * dir.x + c_prime * dir.y;
+    let aw = a * w;
+    let perp_sin = DVec3::new(c + aw * dir.x, sign * c_prime + aw * dir.y, -w);
+    (dir * d.cos + perp_sin, dir * d.one_minus_cos - perp_sin)
 }
 
 /// How many scattering events the walk lets pass between renormalisations of the direction.
@@ -346,6 +355,35 @@ mod tests {
     use super::*;
     use crate::phase::{HenyeyGreenstein, PhaseFunction};
     use crate::sampling::Purpose;
+
+    #[test]
+    fn scattering_matches_the_explicit_basis() {
+        // The collected form equals sin θ·(cos φ t + sin φ b) with the basis built, to rounding,
+        // for directions in every octant and at the poles, and deflections down to 1e-9 rad,
+        // where `dir_in − dir_out` must keep its relative precision.
+        let mut rng = PathRng::new(6, Purpose::Test, 0, 0);
+        let mut dirs = vec![DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(1e-9, 0.0, -1.0).normalize()];
+        for _ in 0..2000 {
+            dirs.push(warp::uniform_sphere(rng.uniform(), rng.uniform()));
+        }
+        for dir in dirs {
+            for theta in [1e-9, 1e-4, 0.3, 2.0, 3.1] {
+                let d = Deflection {
+                    cos: f64::cos(theta),
+                    one_minus_cos: 2.0 * (0.5 * theta).sin().powi(2),
+                    sin: theta.sin(),
+                };
+                let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+                let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
+                let (t, b) = warp::orthonormal_basis(dir);
+                let perp = t * cos_phi + b * sin_phi;
+                let (out_ref, delta_ref) = (dir * d.cos + perp * d.sin, dir * d.one_minus_cos - perp * d.sin);
+                assert!((out - out_ref).length() < 1e-15, "{dir} θ={theta}: {out} vs {out_ref}");
+                assert!((delta - delta_ref).length() <= 1e-15 * delta_ref.length(), "{dir} θ={theta}");
+                assert!((out.length() - 1.0).abs() < 1e-15 && (out.dot(dir) - d.cos).abs() < 1e-15);
+            }
+        }
+    }
 
     #[test]
     fn direction_stays_unit_over_many_events() {
