@@ -60,8 +60,10 @@ impl StreamKey {
 ///
 /// Performance: the walk keeps the 32-byte state in four registers only as long as no outlined
 /// function receives `&mut PathRng` (once its address escapes, every draw loads and stores the
-/// state from the stack). Outlined callees are therefore given the numbers they need, or the
-/// generator by value.
+/// state from the stack; measured: 217.3M → 201.6M instructions per 200k van de Hulst paths).
+/// Outlined callees are therefore given the numbers they need, or the generator by value: that
+/// is what `Clone` is for, and a clone repeats the numbers of its original, so it must replace
+/// it (as in `free_flight`), never run beside it.
 #[derive(Clone)]
 pub struct PathRng(Xoshiro256PlusPlus);
 
