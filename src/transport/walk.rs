@@ -141,7 +141,7 @@ enum End {
 
 /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
 ///
-/// The walk itself ([`walk`]) does not touch the recorder: it accumulates the absorbed weight in
+/// The walk itself (`walk`) does not touch the recorder: it accumulates the absorbed weight in
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
