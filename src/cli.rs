@@ -11,7 +11,11 @@ use ohd::experiment::{Experiment, Progress};
 use ohd::io::manifest::{Invocation, write_run};
 
 #[derive(Parser)]
-#[command(name = "ohd", version, about = "Monte Carlo simulation of optical heterodyne detection in participating media")]
+#[command(
+    name = "ohd",
+    version,
+    about = "Monte Carlo simulation of optical heterodyne detection in participating media"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -55,7 +59,9 @@ enum Command {
 /// Read the configuration text and a name for it.
 fn read_config(config: Option<&Path>) -> Result<(String, String, String), Error> {
     match config {
-        None => Ok((ohd::DEFAULT_CONFIG.to_string(), "built-in default (configs/default.toml)".into(), "default".into())),
+        None => {
+            Ok((ohd::DEFAULT_CONFIG.to_string(), "built-in default (configs/default.toml)".into(), "default".into()))
+        }
         Some(p) => {
             let text = std::fs::read_to_string(p).map_err(|source| Error::Read { path: p.to_path_buf(), source })?;
             let stem = p.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
@@ -105,8 +111,10 @@ pub fn main() -> ExitCode {
             let output = if !quiet && std::io::stderr().is_terminal() {
                 let bar = indicatif::ProgressBar::new(exp.plan.samples());
                 bar.set_style(
-                    indicatif::ProgressStyle::with_template("{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, ETA {eta}")
-                        .expect("valid template"),
+                    indicatif::ProgressStyle::with_template(
+                        "{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, ETA {eta}",
+                    )
+                    .expect("valid template"),
                 );
                 let bar = Bar(bar);
                 let o = exp.run(&bar);
@@ -126,8 +134,13 @@ pub fn main() -> ExitCode {
                         exp.plan.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
                         dir.display()
                     );
-                    for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"] {
-                        eprintln!("  {k:<24} {:.6} ± {:.6}", est[k]["value"].as_f64().unwrap_or(f64::NAN), est[k]["stderr"].as_f64().unwrap_or(f64::NAN));
+                    for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"]
+                    {
+                        eprintln!(
+                            "  {k:<24} {:.6} ± {:.6}",
+                            est[k]["value"].as_f64().unwrap_or(f64::NAN),
+                            est[k]["stderr"].as_f64().unwrap_or(f64::NAN)
+                        );
                     }
                     ExitCode::SUCCESS
                 }
@@ -184,7 +197,11 @@ fn describe(exp: &Experiment, origin: &str) -> String {
     if !exp.scene.regions.is_empty() {
         let _ = writeln!(s, "regions:");
         for r in &exp.scene.regions {
-            let _ = writeln!(s, "  {:<12} in {}, medium {}, {:?}", r.name, exp.scene.layers[r.layer].name, exp.scene.media[r.medium].name, r.shape);
+            let _ = writeln!(
+                s,
+                "  {:<12} in {}, medium {}, {:?}",
+                r.name, exp.scene.layers[r.layer].name, exp.scene.media[r.medium].name, r.shape
+            );
         }
     }
     let _ = writeln!(s, "detectors:");

@@ -137,7 +137,13 @@ impl Experiment {
         RunOutput { layout, beat, estimates, stats, threads, wall_seconds: start.elapsed().as_secs_f64() }
     }
 
-    fn run_batch(&self, batch: u64, layout: &TallyLayout, beat: BeatModel, progress: &dyn Progress) -> (Vec<f64>, RunStats) {
+    fn run_batch(
+        &self,
+        batch: u64,
+        layout: &TallyLayout,
+        beat: BeatModel,
+        progress: &dyn Progress,
+    ) -> (Vec<f64>, RunStats) {
         match (self.needs_doppler(), self.needs_length()) {
             (false, false) => self.run_batch_kind::<false, false>(batch, layout, beat, progress),
             (true, false) => self.run_batch_kind::<true, false>(batch, layout, beat, progress),

@@ -10,7 +10,7 @@
 //!
 //! * **Units.** SI inside: m, s, Hz, m/s, m⁻¹ for σa/σs/σt, sr⁻¹ for phase functions. All physics
 //!   in `f64`. Configuration keys carry their unit when it is not SI (`wavelength_nm`,
-//!   `sigma_s_per_mm`, `speed_mm_per_s`, …); [`config::resolve`] converts once.
+//!   `sigma_s_per_mm`, `speed_mm_per_s`, …); [`config::resolve()`] converts once.
 //! * **Frame.** Right-handed, `z` is depth: the layer stack starts at the top surface `z = 0` and
 //!   extends towards `+z` (as in MCML). "Top" detectors sit on the `z = 0` side, "bottom" ones
 //!   below the last finite layer. Layers are laterally infinite.

@@ -31,8 +31,7 @@ fn read(path: &Path) -> String {
 }
 
 fn load_file(path: &Path, sets: &[String]) -> (toml::Table, Experiment) {
-    load(&read(path), &path.display().to_string(), sets)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    load(&read(path), &path.display().to_string(), sets).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 fn scalar(out: &RunOutput, s: Scalar) -> f64 {
@@ -64,40 +63,25 @@ fn smoke_run(name: &str, exp: &mut Experiment, samples: u64) -> RunOutput {
     let se = out.estimates.stderr();
     assert!(!mean.is_empty(), "{name}: no estimates");
     for (i, (m, s)) in mean.iter().zip(&se).enumerate() {
-        assert!(
-            m.is_finite() && s.is_finite(),
-            "{name}: estimate {i} = {m} ± {s} is not finite"
-        );
+        assert!(m.is_finite() && s.is_finite(), "{name}: estimate {i} = {m} ± {s} is not finite");
     }
-    assert_eq!(
-        out.stats.non_finite, 0,
-        "{name}: non-finite path contributions"
-    );
+    assert_eq!(out.stats.non_finite, 0, "{name}: non-finite path contributions");
     for s in Scalar::ALL {
         let v = scalar(&out, s);
-        assert!(
-            (0.0..=1.0 + 1e-9).contains(&v),
-            "{name}: {} = {v} outside [0, 1]",
-            s.name()
-        );
+        assert!((0.0..=1.0 + 1e-9).contains(&v), "{name}: {} = {v} outside [0, 1]", s.name());
     }
 
     // With the configured roulette: 1 within the roulette's own noise.
     let walk = &exp.plan.walk;
     let n = out.stats.paths as f64;
-    let roulette_events =
-        out.stats.roulette_terminations as f64 / (1.0 - walk.roulette_survival).max(1e-12);
-    let roulette_sd =
-        walk.roulette_threshold * (roulette_events / walk.roulette_survival).sqrt() / n;
+    let roulette_events = out.stats.roulette_terminations as f64 / (1.0 - walk.roulette_survival).max(1e-12);
+    let roulette_sd = walk.roulette_threshold * (roulette_events / walk.roulette_survival).sqrt() / n;
     let sum = total(&out);
     assert!(
         sum <= 1.0 + 1e-9 + 6.0 * roulette_sd,
         "{name}: R_spec + R_diffuse + T + A = {sum} > 1 + 6 × {roulette_sd:e} (roulette noise)"
     );
-    assert!(
-        sum > 0.5,
-        "{name}: R_spec + R_diffuse + T + A = {sum}: most of the power went missing"
-    );
+    assert!(sum > 0.5, "{name}: R_spec + R_diffuse + T + A = {sum}: most of the power went missing");
 
     // Without roulette: exactly at most 1.
     let mut exact = exp.clone();
@@ -106,28 +90,18 @@ fn smoke_run(name: &str, exp: &mut Experiment, samples: u64) -> RunOutput {
     let exact_out = exact.run(&Silent);
     assert_eq!(exact_out.stats.roulette_terminations, 0);
     let sum = total(&exact_out);
-    assert!(
-        sum <= 1.0 + 1e-9,
-        "{name}: without roulette R_spec + R_diffuse + T + A = {sum} > 1"
-    );
+    assert!(sum <= 1.0 + 1e-9, "{name}: without roulette R_spec + R_diffuse + T + A = {sum} > 1");
     out
 }
 
 #[test]
 fn good_fixtures_load_and_run() {
     let files = toml_files(&repo().join("tests/configs/good"));
-    assert!(
-        files.len() >= 4,
-        "expected at least 4 good fixtures, found {}",
-        files.len()
-    );
+    assert!(files.len() >= 4, "expected at least 4 good fixtures, found {}", files.len());
     for path in files {
         let (_, mut exp) = load_file(&path, &[]);
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        assert!(
-            exp.plan.samples() <= 100_000,
-            "{name}: keep run.samples small in fixtures"
-        );
+        assert!(exp.plan.samples() <= 100_000, "{name}: keep run.samples small in fixtures");
         smoke_run(&name, &mut exp, 2000);
     }
 }
@@ -135,16 +109,9 @@ fn good_fixtures_load_and_run() {
 /// The substrings a bad fixture's error must contain: one `# expect: ...` line first, optionally
 /// followed by more.
 fn expectations(path: &Path, text: &str) -> Vec<String> {
-    let expects: Vec<String> = text
-        .lines()
-        .map_while(|l| l.strip_prefix("# expect:"))
-        .map(|s| s.trim().to_string())
-        .collect();
-    assert!(
-        !expects.is_empty(),
-        "{}: the first line must be `# expect: <substring of the error>`",
-        path.display()
-    );
+    let expects: Vec<String> =
+        text.lines().map_while(|l| l.strip_prefix("# expect:")).map(|s| s.trim().to_string()).collect();
+    assert!(!expects.is_empty(), "{}: the first line must be `# expect: <substring of the error>`", path.display());
     for e in &expects {
         assert!(!e.is_empty(), "{}: empty `# expect:` line", path.display());
     }
@@ -154,54 +121,32 @@ fn expectations(path: &Path, text: &str) -> Vec<String> {
 #[test]
 fn bad_fixtures_fail_with_the_expected_message() {
     let files = toml_files(&repo().join("tests/configs/bad"));
-    assert!(
-        files.len() >= 14,
-        "expected at least 14 bad fixtures, found {}",
-        files.len()
-    );
+    assert!(files.len() >= 14, "expected at least 14 bad fixtures, found {}", files.len());
     let mut failures = Vec::new();
     for path in &files {
         let text = read(path);
         let expects = expectations(path, &text);
         match load(&text, &path.display().to_string(), &[]) {
-            Ok(_) => failures.push(format!(
-                "{}: loaded, but should fail with {expects:?}",
-                path.display()
-            )),
+            Ok(_) => failures.push(format!("{}: loaded, but should fail with {expects:?}", path.display())),
             Err(e) => {
                 let msg = e.to_string();
-                assert!(
-                    !e.path.is_empty(),
-                    "{}: error without a key path: {msg}",
-                    path.display()
-                );
+                assert!(!e.path.is_empty(), "{}: error without a key path: {msg}", path.display());
                 for x in &expects {
                     if !msg.contains(x.as_str()) {
-                        failures.push(format!(
-                            "{}:\n  expected: {x}\n  got:      {msg}",
-                            path.display()
-                        ));
+                        failures.push(format!("{}:\n  expected: {x}\n  got:      {msg}", path.display()));
                     }
                 }
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} bad fixture(s) misbehaved:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "{} bad fixture(s) misbehaved:\n{}", failures.len(), failures.join("\n"));
 }
 
 #[test]
 fn shipped_experiments_run_and_write_outputs() {
     let root = repo();
     let mut files = toml_files(&root.join("configs"));
-    assert!(
-        files.iter().any(|p| p.ends_with("configs/default.toml")),
-        "configs/default.toml is missing"
-    );
+    assert!(files.iter().any(|p| p.ends_with("configs/default.toml")), "configs/default.toml is missing");
     let validation = root.join("validation");
     if validation.is_dir() {
         files.extend(toml_files(&validation));
@@ -212,34 +157,16 @@ fn shipped_experiments_run_and_write_outputs() {
         let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
         let out = smoke_run(&stem, &mut exp, 4000);
         let dir = tmp.path().join(&stem);
-        let inv = Invocation {
-            config_source: path.display().to_string(),
-            overrides: vec![],
-        };
-        let manifest =
-            write_run(&dir, &exp, &out, &table, &inv).unwrap_or_else(|e| panic!("{stem}: {e}"));
-        let text =
-            std::fs::read_to_string(dir.join("manifest.json")).expect("manifest.json written");
+        let inv = Invocation { config_source: path.display().to_string(), overrides: vec![] };
+        let manifest = write_run(&dir, &exp, &out, &table, &inv).unwrap_or_else(|e| panic!("{stem}: {e}"));
+        let text = std::fs::read_to_string(dir.join("manifest.json")).expect("manifest.json written");
         let parsed: serde_json::Value = serde_json::from_str(&text).expect("manifest.json parses");
-        assert_eq!(
-            parsed["name"], manifest["name"],
-            "{stem}: manifest on disk differs from the one returned"
-        );
-        assert_eq!(
-            parsed["samples"].as_u64(),
-            Some(exp.plan.samples()),
-            "{stem}: samples"
-        );
+        assert_eq!(parsed["name"], manifest["name"], "{stem}: manifest on disk differs from the one returned");
+        assert_eq!(parsed["samples"].as_u64(), Some(exp.plan.samples()), "{stem}: samples");
         for s in Scalar::ALL {
-            let v = parsed["estimates"][s.name()]["value"]
-                .as_f64()
-                .unwrap_or(f64::NAN);
+            let v = parsed["estimates"][s.name()]["value"].as_f64().unwrap_or(f64::NAN);
             let want = scalar(&out, s);
-            assert!(
-                (v - want).abs() <= 1e-12 * want.abs(),
-                "{stem}: estimates.{} = {v}, ran {want}",
-                s.name()
-            );
+            assert!((v - want).abs() <= 1e-12 * want.abs(), "{stem}: estimates.{} = {v}, ran {want}", s.name());
             assert!(
                 parsed["estimates"][s.name()]["stderr"].as_f64().is_some(),
                 "{stem}: estimates.{}.stderr",
@@ -266,21 +193,10 @@ fn sets(s: &[&str]) -> Vec<String> {
 fn set_numeric_override_changes_the_layer() {
     let (text, origin) = pencil_slab();
     let (_, exp) = load(&text, &origin, &[]).unwrap();
-    assert!(
-        (exp.scene.layers[0].z_bottom - 0.5e-3).abs() < 1e-15,
-        "fixture slab is 0.5 mm"
-    );
+    assert!((exp.scene.layers[0].z_bottom - 0.5e-3).abs() < 1e-15, "fixture slab is 0.5 mm");
     let (doc, exp) = load(&text, &origin, &sets(&["layers.0.thickness_mm=0.25"])).unwrap();
-    assert!(
-        (exp.scene.layers[0].z_bottom - 0.25e-3).abs() < 1e-15,
-        "z_bottom = {}",
-        exp.scene.layers[0].z_bottom
-    );
-    assert_eq!(
-        doc["layers"][0]["thickness_mm"].as_float(),
-        Some(0.25),
-        "the table as run carries the override"
-    );
+    assert!((exp.scene.layers[0].z_bottom - 0.25e-3).abs() < 1e-15, "z_bottom = {}", exp.scene.layers[0].z_bottom);
+    assert_eq!(doc["layers"][0]["thickness_mm"].as_float(), Some(0.25), "the table as run carries the override");
 
     // The same through vdh_slab, as in the documentation: 0.2 mm → 0.5 mm.
     let path = repo().join("validation/vdh_slab.toml");
@@ -300,24 +216,14 @@ fn set_numeric_override_changes_the_layer() {
 #[test]
 fn set_bare_word_is_a_string() {
     let (text, origin) = pencil_slab();
-    let (doc, exp) = load(
-        &text,
-        &origin,
-        &sets(&["source.profile=disk", "source.radius_mm=0.1"]),
-    )
-    .unwrap();
+    let (doc, exp) = load(&text, &origin, &sets(&["source.profile=disk", "source.radius_mm=0.1"])).unwrap();
     assert_eq!(doc["source"]["profile"].as_str(), Some("disk"));
     match exp.source.profile {
         Profile::Disk { radius } => assert!((radius - 1e-4).abs() < 1e-18, "radius = {radius}"),
         p => panic!("expected a disk profile, got {p:?}"),
     }
     // A quoted string is the same.
-    let (_, exp) = load(
-        &text,
-        &origin,
-        &sets(&["source.profile=\"disk\"", "source.radius_mm=0.1"]),
-    )
-    .unwrap();
+    let (_, exp) = load(&text, &origin, &sets(&["source.profile=\"disk\"", "source.radius_mm=0.1"])).unwrap();
     assert!(matches!(exp.source.profile, Profile::Disk { .. }));
     // An unknown bare word is a string, then rejected by the schema naming the key.
     let e = load(&text, &origin, &sets(&["source.profile=ring"])).unwrap_err();
@@ -329,18 +235,12 @@ fn set_bare_word_is_a_string() {
 fn set_array_value() {
     let (text, origin) = pencil_slab();
     let (doc, exp) = load(&text, &origin, &sets(&["source.direction=[0,0.1,1]"])).unwrap();
-    assert_eq!(
-        doc["source"]["direction"].as_array().map(|a| a.len()),
-        Some(3)
-    );
+    assert_eq!(doc["source"]["direction"].as_array().map(|a| a.len()), Some(3));
     let d = exp.source.direction.to_array();
     let n = (0.01f64 + 1.0).sqrt();
     let want = [0.0, 0.1 / n, 1.0 / n];
     for k in 0..3 {
-        assert!(
-            (d[k] - want[k]).abs() < 1e-12,
-            "direction = {d:?}, want {want:?}"
-        );
+        assert!((d[k] - want[k]).abs() < 1e-12, "direction = {d:?}, want {want:?}");
     }
     // Spaces around `=` and inside the array are fine.
     let (_, exp) = load(&text, &origin, &sets(&["source.direction = [0, 0.1, 1]"])).unwrap();

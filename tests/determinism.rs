@@ -17,7 +17,10 @@ fn one_and_two_threads_write_identical_outputs() {
             manifests.push(write_run(dir.path(), &exp, &out, &table, &Invocation::default()).unwrap());
         }
         assert_eq!(manifests[0]["estimates"], manifests[1]["estimates"], "{name}: estimates differ");
-        assert_eq!(manifests[0]["run_statistics"]["scattering_events"], manifests[1]["run_statistics"]["scattering_events"]);
+        assert_eq!(
+            manifests[0]["run_statistics"]["scattering_events"],
+            manifests[1]["run_statistics"]["scattering_events"]
+        );
         let files = manifests[0]["files"].as_array().unwrap();
         for f in files {
             let f = f.as_str().unwrap();
@@ -28,7 +31,10 @@ fn one_and_two_threads_write_identical_outputs() {
         // A different seed really changes the numbers (the check above is not vacuous).
         let (_, exp) = ohd::config::load(text, name, &["run.samples=120000".into(), "run.seed=99".into()]).unwrap();
         let other = exp.run(&ohd::experiment::Silent);
-        assert_ne!(other.estimates.mean()[1], manifests[0]["estimates"]["reflectance_diffuse"]["value"].as_f64().unwrap());
+        assert_ne!(
+            other.estimates.mean()[1],
+            manifests[0]["estimates"]["reflectance_diffuse"]["value"].as_f64().unwrap()
+        );
     }
 }
 

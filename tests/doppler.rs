@@ -165,7 +165,7 @@ by_order = 2
     let inner = &counts[..19];
     let n_inner: f64 = inner.iter().sum();
     assert!(n_inner > 5000.0, "only {n_inner} detections");
-    let (stat, dof, p) = common::chi_square(inner, &vec![1.0 / 19.0; 19]);
+    let (stat, dof, p) = common::chi_square(inner, &[1.0 / 19.0; 19]);
     assert!(p > 1e-4, "chi2 {stat:.1} / {dof} dof, p = {p:.2e}: {inner:?}");
     assert_eq!(counts[21], 0.0);
     assert_eq!(ch.above, 0.0);
@@ -178,7 +178,11 @@ fn reversing_velocities_mirrors_the_spectrum_exactly() {
     // Same seed, every velocity reversed: bin k ↔ bin B−1−k exactly (odd bin count, symmetric axis),
     // below ↔ above, in every channel. Poiseuille (default scene) and uniform.
     let cases: [(&str, Vec<&str>, Vec<&str>); 2] = [
-        (ohd::DEFAULT_CONFIG, vec!["run.samples=100000"], vec!["run.samples=100000", "media.blood.velocity.v_max_mm_per_s=-34"]),
+        (
+            ohd::DEFAULT_CONFIG,
+            vec!["run.samples=100000"],
+            vec!["run.samples=100000", "media.blood.velocity.v_max_mm_per_s=-34"],
+        ),
         (
             SLAB,
             vec!["run.samples=100000", "detectors.0.spectrum.bins=801"],
@@ -220,7 +224,11 @@ fn parseval_spectrum_sums_to_detected_power() {
         let r = run(text, &sets);
         let (power, _) = r.power(0);
         let spec = r.exp.detectors[0].spectrum.as_ref().unwrap();
-        let groups = [(0usize, 1usize), (1, spec.by_order.unwrap() as usize + 1), (2 + spec.by_order.unwrap() as usize, spec.by_doppler_events.unwrap() as usize + 1)];
+        let groups = [
+            (0usize, 1usize),
+            (1, spec.by_order.unwrap() as usize + 1),
+            (2 + spec.by_order.unwrap() as usize, spec.by_doppler_events.unwrap() as usize + 1),
+        ];
         let mut out_of_range = 0.0;
         for (first, count) in groups {
             let mut sum = 0.0;

@@ -79,7 +79,12 @@ fn medium(name: &str, sigma_t: f64) -> Medium {
 /// on the ray's way.
 fn piecewise_scene() -> Scene {
     let regions = vec![
-        Region { name: "sphere".into(), shape: Shape::Sphere { center: DVec3::new(0.0, 0.0, 1.5e-3), radius: 0.5e-3 }, medium: 1, layer: 0 },
+        Region {
+            name: "sphere".into(),
+            shape: Shape::Sphere { center: DVec3::new(0.0, 0.0, 1.5e-3), radius: 0.5e-3 },
+            medium: 1,
+            layer: 0,
+        },
         Region {
             name: "void".into(),
             shape: Shape::Box { min: DVec3::new(-1.0, -1.0, 2.5e-3), max: DVec3::new(1.0, 1.0, 3.0e-3) },
@@ -115,9 +120,11 @@ fn sample_distances(scene: &Scene, tracking: Tracking, n: usize, stream: u64) ->
     let mut nulls = 0;
     let layer = &scene.layers[0];
     let d: Vec<f64> = (0..n)
-        .map(|_| match free_flight(scene, layer, DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls) {
-            Flight::Collision { t, .. } => t,
-            Flight::Boundary { t } => t,
+        .map(|_| {
+            match free_flight(scene, layer, DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls) {
+                Flight::Collision { t, .. } => t,
+                Flight::Boundary { t } => t,
+            }
         })
         .collect();
     (d, nulls)
@@ -135,9 +142,10 @@ fn free_flight_distances_ks() {
     // Piecewise: CDF 1 − exp(−τ(t)) for analytic segments, delta tracking with the exact and an
     // inflated majorant.
     let scene = piecewise_scene();
-    for (k, tracking) in [Tracking::Analytic, Tracking::Delta { majorant_scale: 1.0 }, Tracking::Delta { majorant_scale: 3.0 }]
-        .into_iter()
-        .enumerate()
+    for (k, tracking) in
+        [Tracking::Analytic, Tracking::Delta { majorant_scale: 1.0 }, Tracking::Delta { majorant_scale: 3.0 }]
+            .into_iter()
+            .enumerate()
     {
         let (mut d, nulls) = sample_distances(&scene, tracking, 200_000, 10 + k as u64);
         let (ks, p) = common::ks_test(&mut d, |t| 1.0 - (-piecewise_depth(t)).exp());
@@ -156,9 +164,17 @@ fn collisions_report_the_medium_they_happen_in() {
     let mut nulls = 0;
     for tracking in [Tracking::Analytic, Tracking::Delta { majorant_scale: 2.0 }] {
         for _ in 0..20_000 {
-            if let Flight::Collision { t, medium } =
-                free_flight(&scene, &scene.layers[0], DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls)
-            {
+            if let Flight::Collision { t, medium } = free_flight(
+                &scene,
+                &scene.layers[0],
+                DVec3::ZERO,
+                DVec3::Z,
+                f64::INFINITY,
+                1.0,
+                tracking,
+                &mut rng,
+                &mut nulls,
+            ) {
                 let inside_sphere = (1.0e-3..=2.0e-3).contains(&t);
                 assert_eq!(medium == 1, inside_sphere, "{tracking:?}: t = {t}, medium {medium}");
                 assert_ne!(medium, 2, "no collision in a void");

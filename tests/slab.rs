@@ -30,16 +30,10 @@ fn van_de_hulst_slab() {
 fn albedo_one_conserves_energy_with_fresnel_interfaces() {
     // No absorption, mismatched indices on both sides (partial reflection and total internal
     // reflection at every exit): every packet leaves with weight 1, so R + T = 1.
-    let r = run(
-        VDH,
-        &[
-            "media.slab.sigma_a_per_cm=0",
-            "layers.0.n=1.4",
-            "ambient.n_below=1.33",
-            "run.samples=200000",
-        ],
-    );
-    let total = r.scalar(Scalar::ReflectanceSpecular).0 + r.scalar(Scalar::ReflectanceDiffuse).0 + r.scalar(Scalar::TransmittanceTotal).0;
+    let r = run(VDH, &["media.slab.sigma_a_per_cm=0", "layers.0.n=1.4", "ambient.n_below=1.33", "run.samples=200000"]);
+    let total = r.scalar(Scalar::ReflectanceSpecular).0
+        + r.scalar(Scalar::ReflectanceDiffuse).0
+        + r.scalar(Scalar::TransmittanceTotal).0;
     assert!((1.0 - total).abs() < 1e-3, "R + T = {total}");
     assert_eq!(r.scalar(Scalar::AbsorbedFraction).0, 0.0);
     assert_eq!(r.out.stats.roulette_terminations, 0);
@@ -89,7 +83,10 @@ fn error_bars_are_honest() {
         let (tt, se) = r.scalar(Scalar::TransmittanceTotal);
         z.push((tt - 0.66096) / se);
     }
-    for (name, zs) in [("Rd", z.iter().step_by(2).copied().collect::<Vec<_>>()), ("Tt", z.iter().skip(1).step_by(2).copied().collect())] {
+    for (name, zs) in [
+        ("Rd", z.iter().step_by(2).copied().collect::<Vec<_>>()),
+        ("Tt", z.iter().skip(1).step_by(2).copied().collect()),
+    ] {
         let k = zs.len() as f64;
         let mean = zs.iter().sum::<f64>() / k;
         let var = zs.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (k - 1.0);

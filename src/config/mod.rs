@@ -59,7 +59,10 @@ fn set_path(root: &mut toml::Value, parts: &[&str], value: toml::Value) -> Resul
             toml::Value::Array(a) => {
                 let len = a.len();
                 let idx: usize = part.parse().map_err(|_| {
-                    ConfigError::new(format!("--set {here}"), format!("`{part}` is not an index into an array of {len}"))
+                    ConfigError::new(
+                        format!("--set {here}"),
+                        format!("`{part}` is not an index into an array of {len}"),
+                    )
                 })?;
                 let slot = a.get_mut(idx).ok_or_else(|| {
                     ConfigError::new(format!("--set {here}"), format!("index {idx} is out of range (array of {len})"))

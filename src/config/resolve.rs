@@ -79,7 +79,11 @@ fn pick_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>, f6
     }
 }
 
-fn require_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>, f64)], what: &str) -> R<([f64; N], String)> {
+fn require_arr<const N: usize>(
+    prefix: &str,
+    options: &[(&str, Option<[f64; N]>, f64)],
+    what: &str,
+) -> R<([f64; N], String)> {
     pick_arr(prefix, options)?.map_or_else(
         || {
             err(
@@ -109,7 +113,17 @@ fn unit_of(path: &str) -> &'static str {
         ("_ms", "ms"),
     ];
     SUFFIXES.iter().find(|(s, _)| path.ends_with(s)).map_or_else(
-        || if path.ends_with("_m") { "m" } else if path.ends_with("_s") { "s" } else if path.ends_with("_nm") { "nm" } else { "" },
+        || {
+            if path.ends_with("_m") {
+                "m"
+            } else if path.ends_with("_s") {
+                "s"
+            } else if path.ends_with("_nm") {
+                "nm"
+            } else {
+                ""
+            }
+        },
         |(_, u)| u,
     )
 }
@@ -150,7 +164,13 @@ fn index_of_refraction(path: &str, n: f64) -> R<f64> {
 
 const LENGTH_UNITS: [(&str, f64); 3] = [("um", 1e-6), ("mm", 1e-3), ("m", 1.0)];
 
-fn length_opts<'a>(name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>, keys: &'a mut Vec<String>) -> Vec<(&'a str, Option<f64>, f64)> {
+fn length_opts<'a>(
+    name: &str,
+    um: Option<f64>,
+    mm: Option<f64>,
+    m: Option<f64>,
+    keys: &'a mut Vec<String>,
+) -> Vec<(&'a str, Option<f64>, f64)> {
     *keys = LENGTH_UNITS.iter().map(|(u, _)| format!("{name}_{u}")).collect();
     vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
 }
@@ -210,13 +230,7 @@ pub fn resolve(f: &ExperimentFile) -> R<Experiment> {
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
     let scene = resolve_scene(f, n_above, n_below)?;
     let detectors = resolve_detectors(&f.detectors, &scene)?;
-    Ok(Experiment {
-        name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
-        scene,
-        source,
-        detectors,
-        plan,
-    })
+    Ok(Experiment { name: f.name.clone().unwrap_or_else(|| "experiment".to_string()), scene, source, detectors, plan })
 }
 
 fn resolve_run(r: &RunSection) -> R<RunPlan> {
@@ -292,7 +306,9 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
             if let Some(w) = waist {
                 return err(w.1, "only applies to profile = \"gaussian\"; a disk has a radius");
             }
-            let r = radius.ok_or_else(|| ConfigError::new("source", "profile = \"disk\" needs radius_um, radius_mm or radius_m"))?;
+            let r = radius.ok_or_else(|| {
+                ConfigError::new("source", "profile = \"disk\" needs radius_um, radius_mm or radius_m")
+            })?;
             Profile::Disk { radius: positive(r, "a beam radius")? }
         }
         ProfileKind::Gaussian => {
@@ -300,7 +316,10 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
                 return err(r.1, "only applies to profile = \"disk\"; a Gaussian beam has a waist (1/e² radius)");
             }
             let w = waist.ok_or_else(|| {
-                ConfigError::new("source", "profile = \"gaussian\" needs waist_um, waist_mm or waist_m (1/e² intensity radius)")
+                ConfigError::new(
+                    "source",
+                    "profile = \"gaussian\" needs waist_um, waist_mm or waist_m (1/e² intensity radius)",
+                )
             })?;
             Profile::Gaussian { waist: positive(w, "a 1/e² beam radius")? }
         }
@@ -330,12 +349,20 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
         Some(c) => {
             let b = require(
                 "source.chirp",
-                &[("bandwidth_hz", c.bandwidth_hz, 1.0), ("bandwidth_mhz", c.bandwidth_mhz, 1e6), ("bandwidth_ghz", c.bandwidth_ghz, 1e9)],
+                &[
+                    ("bandwidth_hz", c.bandwidth_hz, 1.0),
+                    ("bandwidth_mhz", c.bandwidth_mhz, 1e6),
+                    ("bandwidth_ghz", c.bandwidth_ghz, 1e9),
+                ],
                 "the chirp bandwidth B",
             )?;
             let t = require(
                 "source.chirp",
-                &[("duration_s", c.duration_s, 1.0), ("duration_ms", c.duration_ms, 1e-3), ("duration_us", c.duration_us, 1e-6)],
+                &[
+                    ("duration_s", c.duration_s, 1.0),
+                    ("duration_ms", c.duration_ms, 1e-3),
+                    ("duration_us", c.duration_us, 1e-6),
+                ],
                 "the chirp duration T",
             )?;
             Some(Chirp { bandwidth: positive(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
@@ -356,7 +383,11 @@ fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -
             VelocityField::Uniform(DVec3::from_array(v))
         }
         VelocitySection::RandomDirection { speed_mm_per_s, speed_m_per_s } => {
-            let s = require(path, &[("speed_mm_per_s", *speed_mm_per_s, 1e-3), ("speed_m_per_s", *speed_m_per_s, 1.0)], "the speed")?;
+            let s = require(
+                path,
+                &[("speed_mm_per_s", *speed_mm_per_s, 1e-3), ("speed_m_per_s", *speed_m_per_s, 1.0)],
+                "the speed",
+            )?;
             VelocityField::RandomDirection { speed: non_negative(s, "a speed")? }
         }
         VelocitySection::Poiseuille { v_max_mm_per_s, v_max_m_per_s, mean_mm_per_s, mean_m_per_s } => {
@@ -402,9 +433,14 @@ fn resolve_medium(path: &str, name: &str, m: &MediumSection, velocity: VelocityF
     let sigma_s = coeff("sigma_s", m.sigma_s_per_m, m.sigma_s_per_cm, m.sigma_s_per_mm)?;
     let phase = match &m.phase {
         None | Some(PhaseSection::Isotropic {}) => PhaseFunction::Isotropic,
-        Some(PhaseSection::Hg { g }) => PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(*g).ok_or_else(|| {
-            ConfigError::new(join(path, "phase.g"), format!("= {g}: expected an asymmetry parameter with −1 < g < 1"))
-        })?),
+        Some(PhaseSection::Hg { g }) => {
+            PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(*g).ok_or_else(|| {
+                ConfigError::new(
+                    join(path, "phase.g"),
+                    format!("= {g}: expected an asymmetry parameter with −1 < g < 1"),
+                )
+            })?)
+        }
     };
     Ok(Medium::new(name, sigma_a, sigma_s, phase, velocity))
 }
@@ -426,7 +462,18 @@ fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
             let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
             Shape::Box { min: c - h, max: c + h }
         }
-        ShapeSection::Cylinder { center_um, center_mm, center_m, axis, radius_um, radius_mm, radius_m, length_um, length_mm, length_m } => {
+        ShapeSection::Cylinder {
+            center_um,
+            center_mm,
+            center_m,
+            axis,
+            radius_um,
+            radius_mm,
+            radius_m,
+            length_um,
+            length_mm,
+            length_m,
+        } => {
             let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
             let axis = unit_vector(&join(&p, "axis"), *axis)?;
             let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
@@ -448,7 +495,9 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
     }
     let known = f.media.keys().cloned().collect::<Vec<_>>().join(", ");
     let lookup = |path: String, name: &str| -> R<&MediumSection> {
-        f.media.get(name).ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
+        f.media
+            .get(name)
+            .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
     };
     let mut media: Vec<Medium> = Vec::new();
     let mut layers: Vec<Layer> = Vec::new();
@@ -469,14 +518,16 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
         } else {
             positive(th, "a thickness (or inf for a semi-infinite last layer)")?
         };
-        let n = index_of_refraction(&join(&path, "n"), l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?)?;
+        let n = index_of_refraction(
+            &join(&path, "n"),
+            l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?,
+        )?;
         let ms = lookup(join(&path, "medium"), &l.medium)?;
         let mpath = format!("media.{}", l.medium);
         let velocity = match &ms.velocity {
             None => VelocityField::Static,
-            Some(v) => resolve_velocity(&join(&mpath, "velocity"), v, None).map_err(|e| {
-                ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message))
-            })?,
+            Some(v) => resolve_velocity(&join(&mpath, "velocity"), v, None)
+                .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?,
         };
         media.push(resolve_medium(&mpath, &l.medium, ms, velocity)?);
         layers.push(Layer {
@@ -497,7 +548,11 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
         let li = *layer_index.get(&r.layer).ok_or_else(|| {
             ConfigError::new(
                 join(&path, "layer"),
-                format!("= \"{}\": unknown layer; layers are {}", r.layer, layer_index.keys().cloned().collect::<Vec<_>>().join(", ")),
+                format!(
+                    "= \"{}\": unknown layer; layers are {}",
+                    r.layer,
+                    layer_index.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
             )
         })?;
         let shape = resolve_shape(&path, &r.shape)?;
@@ -513,7 +568,13 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
             );
         }
         if layers[li].regions.len() == MAX_REGIONS_PER_LAYER {
-            return err(path, format!("layer \"{}\" already holds {MAX_REGIONS_PER_LAYER} regions, the most one layer may hold", layer.name));
+            return err(
+                path,
+                format!(
+                    "layer \"{}\" already holds {MAX_REGIONS_PER_LAYER} regions, the most one layer may hold",
+                    layer.name
+                ),
+            );
         }
         let ms = lookup(join(&path, "medium"), &r.medium)?;
         let mpath = format!("media.{}", r.medium);
@@ -541,7 +602,13 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
     for (i, d) in ds.iter().enumerate() {
         let path = format!("detectors[{i}]");
         if d.name.is_empty() || !d.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return err(join(&path, "name"), format!("= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)", d.name));
+            return err(
+                join(&path, "name"),
+                format!(
+                    "= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)",
+                    d.name
+                ),
+            );
         }
         if out.iter().any(|o| o.name == d.name) {
             return err(join(&path, "name"), format!("= \"{}\": detector names must be unique", d.name));
@@ -550,7 +617,10 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             SideKind::Top => Side::Top,
             SideKind::Bottom => {
                 if !scene.z_bottom().is_finite() {
-                    return err(join(&path, "side"), "= \"bottom\": the stack ends in a semi-infinite layer, so nothing leaves through a bottom");
+                    return err(
+                        join(&path, "side"),
+                        "= \"bottom\": the stack ends in a semi-infinite layer, so nothing leaves through a bottom",
+                    );
                 }
                 Side::Bottom
             }
@@ -561,14 +631,25 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             Some(a) => {
                 let a = unit_vector(&join(&path, "axis"), a)?;
                 if a.dot(outward) <= 0.0 {
-                    return err(join(&path, "axis"), format!("= {:?}: must point away from the stack ({} z for a {} detector)", d.axis.unwrap(), if side == Side::Top { "negative" } else { "positive" }, if side == Side::Top { "top" } else { "bottom" }));
+                    return err(
+                        join(&path, "axis"),
+                        format!(
+                            "= {:?}: must point away from the stack ({} z for a {} detector)",
+                            d.axis.unwrap(),
+                            if side == Side::Top { "negative" } else { "positive" },
+                            if side == Side::Top { "top" } else { "bottom" }
+                        ),
+                    );
                 }
                 a
             }
         };
         let half = d.acceptance_half_angle_deg.unwrap_or(90.0);
         if !(half > 0.0 && half <= 90.0) {
-            return err(join(&path, "acceptance_half_angle_deg"), format!("= {half}: expected a half-angle in (0, 90] degrees"));
+            return err(
+                join(&path, "acceptance_half_angle_deg"),
+                format!("= {half}: expected a half-angle in (0, 90] degrees"),
+            );
         }
         let distance = match length(&path, "distance", d.distance_um, d.distance_mm, d.distance_m)? {
             None => 0.0,
@@ -596,34 +677,67 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             None => None,
             Some(s) => {
                 let p = join(&path, "spectrum");
-                let fmin = require(&p, &[("f_min_hz", s.f_min_hz, 1.0), ("f_min_khz", s.f_min_khz, 1e3), ("f_min_mhz", s.f_min_mhz, 1e6), ("f_min_ghz", s.f_min_ghz, 1e9)], "the lower edge of the frequency axis")?;
-                let fmax = require(&p, &[("f_max_hz", s.f_max_hz, 1.0), ("f_max_khz", s.f_max_khz, 1e3), ("f_max_mhz", s.f_max_mhz, 1e6), ("f_max_ghz", s.f_max_ghz, 1e9)], "the upper edge of the frequency axis")?;
+                let fmin = require(
+                    &p,
+                    &[
+                        ("f_min_hz", s.f_min_hz, 1.0),
+                        ("f_min_khz", s.f_min_khz, 1e3),
+                        ("f_min_mhz", s.f_min_mhz, 1e6),
+                        ("f_min_ghz", s.f_min_ghz, 1e9),
+                    ],
+                    "the lower edge of the frequency axis",
+                )?;
+                let fmax = require(
+                    &p,
+                    &[
+                        ("f_max_hz", s.f_max_hz, 1.0),
+                        ("f_max_khz", s.f_max_khz, 1e3),
+                        ("f_max_mhz", s.f_max_mhz, 1e6),
+                        ("f_max_ghz", s.f_max_ghz, 1e9),
+                    ],
+                    "the upper edge of the frequency axis",
+                )?;
                 let bins = s.bins.unwrap_or(256);
                 if !(1..=10_000_000).contains(&bins) {
                     return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^7 bins"));
                 }
                 let axis = FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
-                    ConfigError::new(fmax.1.clone(), format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0))
+                    ConfigError::new(
+                        fmax.1.clone(),
+                        format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0),
+                    )
                 })?;
                 let split = |key: &str, v: Option<u64>| -> R<Option<u32>> {
                     match v {
                         None => Ok(None),
                         Some(k) if (1..=1000).contains(&k) => Ok(Some(k as u32)),
-                        Some(k) => err(join(&p, key), format!("= {k}: expected K from 1 to 1000 (channels 0 … K−1 and ≥ K)")),
+                        Some(k) => {
+                            err(join(&p, key), format!("= {k}: expected K from 1 to 1000 (channels 0 … K−1 and ≥ K)"))
+                        }
                     }
                 };
-                Some(SpectrumSpec { axis, by_order: split("by_order", s.by_order)?, by_doppler_events: split("by_doppler_events", s.by_doppler_events)? })
+                Some(SpectrumSpec {
+                    axis,
+                    by_order: split("by_order", s.by_order)?,
+                    by_doppler_events: split("by_doppler_events", s.by_doppler_events)?,
+                })
             }
         };
         let image = match &d.image {
             None => None,
             Some(im) => {
                 let Some((min, max)) = area.bounds() else {
-                    return err(join(&path, "image"), "an image needs a bounded detector area (area.type = \"disk\" or \"rect\")");
+                    return err(
+                        join(&path, "image"),
+                        "an image needs a bounded detector area (area.type = \"disk\" or \"rect\")",
+                    );
                 };
                 let [nx, ny] = im.pixels;
                 if !(1..=16_384).contains(&nx) || !(1..=16_384).contains(&ny) {
-                    return err(join(&path, "image.pixels"), format!("= {:?}: expected [nx, ny], each 1 to 16384", im.pixels));
+                    return err(
+                        join(&path, "image.pixels"),
+                        format!("= {:?}: expected [nx, ny], each 1 to 16384", im.pixels),
+                    );
                 }
                 Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
             }

@@ -1,7 +1,7 @@
 //! The experiment file as written: serde structs mirroring the TOML, with `deny_unknown_fields`
 //! everywhere. Quantities whose natural unit is not SI carry it in the key (`thickness_mm`,
 //! `sigma_s_per_cm`, `speed_mm_per_s`, `f_max_khz`); a quantity may be given in any one of its
-//! listed units. Nothing here is validated: [`super::resolve`] does that, once.
+//! listed units. Nothing here is validated: [`super::resolve()`] does that, once.
 
 use std::collections::BTreeMap;
 
@@ -120,7 +120,9 @@ pub struct MediumSection {
 pub enum PhaseSection {
     Isotropic {},
     #[serde(alias = "henyey_greenstein")]
-    Hg { g: f64 },
+    Hg {
+        g: f64,
+    },
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

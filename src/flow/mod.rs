@@ -80,12 +80,8 @@ mod tests {
 
     #[test]
     fn poiseuille_profile() {
-        let f = VelocityField::Poiseuille {
-            origin: DVec3::new(0.0, 0.0, 1.0),
-            axis: DVec3::X,
-            radius: 2.0,
-            v_max: 3.0,
-        };
+        let f =
+            VelocityField::Poiseuille { origin: DVec3::new(0.0, 0.0, 1.0), axis: DVec3::X, radius: 2.0, v_max: 3.0 };
         let mut r = PathRng::new(0, Purpose::Test, 0, 0);
         assert_eq!(f.velocity(DVec3::new(5.0, 0.0, 1.0), &mut r), DVec3::new(3.0, 0.0, 0.0));
         // r = 1 = R/2 → v_max · 3/4, along the axis, whatever the axial position.

@@ -28,7 +28,13 @@ pub struct Invocation {
 }
 
 /// Write all outputs of `out` into `dir` (created if needed). Returns the manifest as written.
-pub fn write_run(dir: &Path, exp: &Experiment, out: &RunOutput, config: &toml::Table, inv: &Invocation) -> Result<Value> {
+pub fn write_run(
+    dir: &Path,
+    exp: &Experiment,
+    out: &RunOutput,
+    config: &toml::Table,
+    inv: &Invocation,
+) -> Result<Value> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     let mean = out.estimates.mean();
     let se = out.estimates.stderr();
@@ -61,12 +67,16 @@ pub fn write_run(dir: &Path, exp: &Experiment, out: &RunOutput, config: &toml::T
             let mut groups: Vec<(&str, usize, usize)> = vec![("", 0, 1)];
             if let Some(k) = spec.by_order {
                 groups.push(("_by_order", 1, k as usize + 1));
-                channel_names.extend((0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") }));
+                channel_names
+                    .extend((0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") }));
             }
             if let Some(e) = spec.by_doppler_events {
                 let first = 1 + spec.by_order.map_or(0, |k| k as usize + 1);
                 groups.push(("_by_doppler_events", first, e as usize + 1));
-                channel_names.extend((0..=e).map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") }));
+                channel_names.extend(
+                    (0..=e)
+                        .map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") }),
+                );
             }
             let mut chirps = serde_json::Map::new();
             for (c, cname) in chirp_names.iter().enumerate() {
@@ -86,10 +96,14 @@ pub fn write_run(dir: &Path, exp: &Experiment, out: &RunOutput, config: &toml::T
                 let mut oor = serde_json::Map::new();
                 for (ch, chname) in channel_names.iter().enumerate() {
                     let o = base + ch * stride + bins;
-                    oor.insert(chname.clone(), json!({ "below": estimate(mean[o], se[o]), "above": estimate(mean[o + 1], se[o + 1]) }));
+                    oor.insert(
+                        chname.clone(),
+                        json!({ "below": estimate(mean[o], se[o]), "above": estimate(mean[o + 1], se[o + 1]) }),
+                    );
                 }
                 out_of_range_total += mean[base + bins] + mean[base + bins + 1];
-                let key = if cname.is_empty() { "single".to_string() } else { cname.trim_start_matches('_').to_string() };
+                let key =
+                    if cname.is_empty() { "single".to_string() } else { cname.trim_start_matches('_').to_string() };
                 de.insert(format!("out_of_range_{key}"), Value::Object(oor));
                 chirps.insert(key, json!(cname));
             }
@@ -112,8 +126,10 @@ pub fn write_run(dir: &Path, exp: &Experiment, out: &RunOutput, config: &toml::T
             let (v, e) = (&mean[start..start + n], &se[start..start + n]);
             put(format!("{}_image.npy", d.name), npy::to_bytes(&[im.ny, im.nx], v))?;
             put(format!("{}_image_stderr.npy", d.name), npy::to_bytes(&[im.ny, im.nx], e))?;
-            let exr = exr_bytes(im.nx, im.ny, &[("intensity", v), ("stderr", e)])
-                .map_err(|m| Error::Write { path: dir.join(format!("{}_image.exr", d.name)), source: std::io::Error::other(m) })?;
+            let exr = exr_bytes(im.nx, im.ny, &[("intensity", v), ("stderr", e)]).map_err(|m| Error::Write {
+                path: dir.join(format!("{}_image.exr", d.name)),
+                source: std::io::Error::other(m),
+            })?;
             put(format!("{}_image.exr", d.name), exr)?;
             info.insert(
                 "image".into(),

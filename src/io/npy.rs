@@ -33,7 +33,8 @@ pub fn from_bytes(bytes: &[u8]) -> Option<(Vec<usize>, Vec<f64>)> {
         return None;
     }
     let dims = header.split("'shape': (").nth(1)?.split(')').next()?;
-    let shape: Vec<usize> = dims.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| s.parse().ok()).collect::<Option<_>>()?;
+    let shape: Vec<usize> =
+        dims.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| s.parse().ok()).collect::<Option<_>>()?;
     let body = &bytes[10 + hlen..];
     if body.len() != 8 * shape.iter().product::<usize>() {
         return None;

@@ -28,7 +28,13 @@ pub struct Medium {
 
 impl Medium {
     /// A medium with absorption σa and scattering σs (m⁻¹, finite and ≥ 0).
-    pub fn new(name: impl Into<String>, sigma_a: f64, sigma_s: f64, phase: PhaseFunction, velocity: VelocityField) -> Self {
+    pub fn new(
+        name: impl Into<String>,
+        sigma_a: f64,
+        sigma_s: f64,
+        phase: PhaseFunction,
+        velocity: VelocityField,
+    ) -> Self {
         let sigma_t = sigma_a + sigma_s;
         Medium {
             name: name.into(),

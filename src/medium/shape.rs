@@ -8,10 +8,21 @@ use glam::DVec3;
 pub enum Shape {
     /// Circular cylinder of any orientation; `half_length = ∞` for an unbounded tube (clipped by
     /// its layer).
-    Cylinder { center: DVec3, axis: DVec3, radius: f64, half_length: f64 },
+    Cylinder {
+        center: DVec3,
+        axis: DVec3,
+        radius: f64,
+        half_length: f64,
+    },
     /// Axis-aligned box.
-    Box { min: DVec3, max: DVec3 },
-    Sphere { center: DVec3, radius: f64 },
+    Box {
+        min: DVec3,
+        max: DVec3,
+    },
+    Sphere {
+        center: DVec3,
+        radius: f64,
+    },
 }
 
 impl Shape {

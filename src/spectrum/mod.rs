@@ -22,8 +22,12 @@ pub enum Slot {
 impl FrequencyAxis {
     /// `None` unless `f_min < f_max` (both finite) and `bins ≥ 1`.
     pub fn new(f_min: f64, f_max: f64, bins: usize) -> Option<Self> {
-        (f_min.is_finite() && f_max.is_finite() && f_min < f_max && bins >= 1)
-            .then(|| FrequencyAxis { f_min, f_max, bins, inv_width: bins as f64 / (f_max - f_min) })
+        (f_min.is_finite() && f_max.is_finite() && f_min < f_max && bins >= 1).then(|| FrequencyAxis {
+            f_min,
+            f_max,
+            bins,
+            inv_width: bins as f64 / (f_max - f_min),
+        })
     }
 
     /// Width of one bin, Hz.

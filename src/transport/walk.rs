@@ -268,7 +268,9 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
         let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
         let t_boundary = (plane - s.pos.z) / s.dir.z;
         if !t_boundary.is_finite() {
-            return if down { End::ToDepth } else { End::Truncated };
+            // Only a semi-infinite last layer lets a path go to depth; an overflow towards a
+            // finite plane (|dir.z| of order 1e-308) is a ray that never arrives.
+            return if down && z_bottom == f64::INFINITY { End::ToDepth } else { End::Truncated };
         }
         if LENGTH {
             s.l += n * t_boundary;

@@ -178,7 +178,12 @@ impl Run {
         let o = start + (chirp * lay.channels + channel) * stride;
         let m = self.out.estimates.mean();
         let se = self.out.estimates.stderr();
-        Channel { values: m[o..o + bins].to_vec(), stderr: se[o..o + bins].to_vec(), below: m[o + bins], above: m[o + bins + 1] }
+        Channel {
+            values: m[o..o + bins].to_vec(),
+            stderr: se[o..o + bins].to_vec(),
+            below: m[o + bins],
+            above: m[o + bins + 1],
+        }
     }
 
     /// Paths traced.
@@ -190,7 +195,10 @@ impl Run {
 /// Assert |measured − reference| ≤ k·σ, with a message.
 pub fn assert_within_sigma(what: &str, measured: f64, sigma: f64, reference: f64, k: f64) {
     let z = (measured - reference) / sigma;
-    assert!(sigma > 0.0 && z.abs() <= k, "{what}: {measured:.6} ± {sigma:.6} vs {reference:.6} (z = {z:.2}, allowed {k})");
+    assert!(
+        sigma > 0.0 && z.abs() <= k,
+        "{what}: {measured:.6} ± {sigma:.6} vs {reference:.6} (z = {z:.2}, allowed {k})"
+    );
 }
 
 #[test]
