@@ -222,6 +222,14 @@ fn length_arr_req<const N: usize>(
     require_arr(prefix, &opts, name)
 }
 
+/// A required frequency given as `NAME_hz`, `NAME_khz`, `NAME_mhz` or `NAME_ghz` (values in that order).
+fn frequency(prefix: &str, name: &str, values: [Option<f64>; 4], what: &str) -> R<Given> {
+    let keys = ["hz", "khz", "mhz", "ghz"].map(|u| format!("{name}_{u}"));
+    let scales = [1.0, 1e3, 1e6, 1e9];
+    let opts: Vec<(&str, Option<f64>, f64)> = (0..4).map(|i| (keys[i].as_str(), values[i], scales[i])).collect();
+    require(prefix, &opts, what)
+}
+
 /// Resolve a deserialised experiment file into a validated experiment.
 pub fn resolve(f: &ExperimentFile) -> R<Experiment> {
     let plan = resolve_run(&f.run)?;
@@ -677,24 +685,16 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             None => None,
             Some(s) => {
                 let p = join(&path, "spectrum");
-                let fmin = require(
+                let fmin = frequency(
                     &p,
-                    &[
-                        ("f_min_hz", s.f_min_hz, 1.0),
-                        ("f_min_khz", s.f_min_khz, 1e3),
-                        ("f_min_mhz", s.f_min_mhz, 1e6),
-                        ("f_min_ghz", s.f_min_ghz, 1e9),
-                    ],
+                    "f_min",
+                    [s.f_min_hz, s.f_min_khz, s.f_min_mhz, s.f_min_ghz],
                     "the lower edge of the frequency axis",
                 )?;
-                let fmax = require(
+                let fmax = frequency(
                     &p,
-                    &[
-                        ("f_max_hz", s.f_max_hz, 1.0),
-                        ("f_max_khz", s.f_max_khz, 1e3),
-                        ("f_max_mhz", s.f_max_mhz, 1e6),
-                        ("f_max_ghz", s.f_max_ghz, 1e9),
-                    ],
+                    "f_max",
+                    [s.f_max_hz, s.f_max_khz, s.f_max_mhz, s.f_max_ghz],
                     "the upper edge of the frequency axis",
                 )?;
                 let bins = s.bins.unwrap_or(256);
