@@ -71,6 +71,36 @@ fn fresnel_slab_closed_form() {
 }
 
 #[test]
+fn oblique_specular_reflection_is_fresnel() {
+    // A beam at 45° onto glass (n = 1.5): the specular reflectance is the unpolarised Fresnel
+    // value 0.05024 exactly, and the light refracted in travels at sin θt = sin 45°/1.5; with an
+    // absorbing slab of τ = 0.5 along the normal, the unscattered transmission through the
+    // oblique path is e^{−τ/cos θt} times the two interface transmissions (up to the multiple
+    // internal reflections, which add (1 − R)² R² e^{−3τ/cos θt}/(1 − R² e^{−2τ/cos θt})).
+    let r = run(
+        VDH,
+        &[
+            "media.slab.sigma_s_per_cm=0",
+            "media.slab.sigma_a_per_cm=25",
+            "layers.0.n=1.5",
+            "source.direction=[1, 0, 1]",
+            "run.samples=400000",
+            "run.roulette_threshold=0",
+        ],
+    );
+    let (rsp, _) = r.scalar(Scalar::ReflectanceSpecular);
+    assert!((rsp - 0.050_240).abs() < 5e-6, "specular at 45° = {rsp}");
+    let cos_t = (1.0f64 - 0.5 / 2.25).sqrt();
+    // Fresnel reflectance inside the slab at θt (the same for both crossings, by reciprocity).
+    let cos45 = std::f64::consts::FRAC_1_SQRT_2;
+    let (r0, _) = ohd::transport::fresnel::reflectance(1.0, 1.5, cos45);
+    let e = (-0.5 / cos_t).exp();
+    let t = (1.0 - r0).powi(2) * e / (1.0 - r0 * r0 * e * e);
+    let (tt, se) = r.scalar(Scalar::TransmittanceTotal);
+    assert_within_sigma("T through an oblique Fresnel slab", tt, se, t, 3.0);
+}
+
+#[test]
 fn error_bars_are_honest() {
     // Over 40 independent runs of the van de Hulst slab, z = (estimate − reference)/stderr must
     // look like a unit normal: mean within 3.5/√40, sample variance within the 99.9% chi-square

@@ -51,6 +51,23 @@ mod tests {
     }
 
     #[test]
+    fn oblique_incidence_matches_textbook_values() {
+        // Air → glass n = 1.5 at 45°: Rs = 0.0920, Rp = 0.0085, R = (Rs + Rp)/2 = 0.05024.
+        let cos45 = std::f64::consts::FRAC_1_SQRT_2;
+        let (r, cos_t) = reflectance(1.0, 1.5, cos45);
+        assert!((r - 0.050_240).abs() < 5e-6, "R(45°) = {r}");
+        assert!((cos_t - (1.0f64 - 0.5 / 2.25).sqrt()).abs() < 1e-15);
+        // At Brewster's angle (tan θB = n2/n1) the p-polarised part vanishes: R = Rs/2, with
+        // Rs = ((cos θi − n cos θt)/(cos θi + n cos θt))².
+        let theta_b = 1.5f64.atan();
+        let (ci, si) = (theta_b.cos(), theta_b.sin());
+        let ct = (1.0 - si * si / 2.25).sqrt();
+        let rs = ((ci - 1.5 * ct) / (ci + 1.5 * ct)).powi(2);
+        let (rb, _) = reflectance(1.0, 1.5, ci);
+        assert!((rb - 0.5 * rs).abs() < 1e-12, "R(Brewster) = {rb}, Rs/2 = {}", 0.5 * rs);
+    }
+
+    #[test]
     fn total_internal_reflection() {
         // Critical angle from 1.5 into 1.0: sin θc = 1/1.5.
         let sin_c: f64 = 1.0 / 1.5;
