@@ -25,7 +25,7 @@ fn event_kernel(c: &mut Criterion) {
     g.bench_function("scatter_hg_with_doppler", |b| {
         b.iter(|| {
             let d = phase.sample(rng.uniform());
-            let (cos_phi, sin_phi) = warp::azimuth(|| rng.uniform_pair32());
+            let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
             let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
             dldt += doppler_increment(1.4, v, delta);
             dir = out;

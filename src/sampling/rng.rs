@@ -88,9 +88,9 @@ impl PathRng {
         Exp1.sample(&mut self.0)
     }
 
-    /// Two uniforms in `[0, 1)` with 32 random bits each, from one draw (for samples such as an
-    /// azimuth, where 2⁻³² resolution is far below any effect).
-    #[inline(always)]
+    /// Two uniforms in `[0, 1)` with 32 random bits each, from one draw: the input of the reference
+    /// [`azimuth`](super::warp::azimuth), against which the walk's integer form is tested.
+    #[cfg(test)]
     pub fn uniform_pair32(&mut self) -> (f64, f64) {
         let r = self.0.next_u64();
         const SCALE: f64 = 1.0 / 4_294_967_296.0;
