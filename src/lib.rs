@@ -63,6 +63,7 @@ pub mod experiment;
 pub mod flow;
 pub mod io;
 pub mod medium;
+pub mod mie;
 pub mod phase;
 pub mod sampling;
 pub mod source;

@@ -1,0 +1,2 @@
+//! Mie solver benchmarks (work in progress).
+fn main() {}

@@ -1,0 +1,1 @@
+//! Lorenz–Mie scattering by homogeneous spheres (work in progress).
