@@ -2,6 +2,7 @@
 
 pub mod manifest;
 pub mod npy;
+pub mod table;
 
 use std::path::{Path, PathBuf};
 

@@ -2,8 +2,12 @@
 //! (sr⁻¹). A closed set, dispatched by `match` on the per-collision path.
 
 mod hg;
+mod tabulated;
+
+use std::sync::Arc;
 
 pub use hg::HenyeyGreenstein;
+pub use tabulated::TabulatedPhase;
 
 /// A sampled deflection: the polar angle of `dir_out` about `dir_in`.
 ///
@@ -29,12 +33,14 @@ impl Deflection {
 }
 
 /// The phase functions a medium can have.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum PhaseFunction {
     /// `p = 1/(4π)`.
     Isotropic,
     /// Henyey–Greenstein with asymmetry `g ∈ (−1, 1)`.
     HenyeyGreenstein(HenyeyGreenstein),
+    /// A table (Mie, measured), shared by every medium and thread that uses it.
+    Tabulated(Arc<TabulatedPhase>),
 }
 
 impl PhaseFunction {
@@ -44,6 +50,7 @@ impl PhaseFunction {
         match self {
             PhaseFunction::Isotropic => Deflection::from_one_minus_cos(2.0 * (1.0 - u)),
             PhaseFunction::HenyeyGreenstein(hg) => hg.sample(u),
+            PhaseFunction::Tabulated(t) => t.sample(u),
         }
     }
 
@@ -53,6 +60,7 @@ impl PhaseFunction {
         match self {
             PhaseFunction::Isotropic => 1.0 / (4.0 * std::f64::consts::PI),
             PhaseFunction::HenyeyGreenstein(hg) => hg.eval(cos_theta),
+            PhaseFunction::Tabulated(t) => t.eval(cos_theta),
         }
     }
 
@@ -61,6 +69,7 @@ impl PhaseFunction {
         match self {
             PhaseFunction::Isotropic => 0.0,
             PhaseFunction::HenyeyGreenstein(hg) => hg.g(),
+            PhaseFunction::Tabulated(t) => t.mean_cosine(),
         }
     }
 }
