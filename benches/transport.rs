@@ -44,6 +44,50 @@ fn event_kernel(c: &mut Criterion) {
     g.finish();
 }
 
+/// Drawing one deflection: closed-form HG against tabulated phase functions (2000 angles, alias
+/// table), alone and inside the whole event kernel. The issue-3 target: tabulated ≤ 1.5× HG.
+fn phase_sampling(c: &mut Criterion) {
+    use ohd::mie::{MieSolution, angle_grid};
+    use ohd::phase::TabulatedPhase;
+    let mut g = c.benchmark_group("phase");
+    g.throughput(Throughput::Elements(1));
+    let hg = HenyeyGreenstein::new(0.9).unwrap();
+    let theta = angle_grid(2000, 1.0);
+    let values: Vec<f64> = theta.iter().map(|t| hg.eval(t.cos())).collect();
+    let hg_table = TabulatedPhase::from_angles(&theta, &values, "hg").unwrap();
+    let (n, k, x) = ohd::medium::relative_sphere(5.56e-6, 1.40, 5.445e-5, 1.345, 785e-9);
+    let sol = MieSolution::new(n, k, x).unwrap();
+    let theta = angle_grid(2000, x);
+    let mut values = vec![0.0; theta.len()];
+    sol.phase_function(&theta, &mut values);
+    let rbc = TabulatedPhase::from_angles(&theta, &values, "rbc").unwrap();
+    let phases = [
+        ("hg", PhaseFunction::HenyeyGreenstein(hg)),
+        ("table_hg_2000", PhaseFunction::Tabulated(hg_table.into())),
+        ("table_rbc_mie_2000", PhaseFunction::Tabulated(rbc.into())),
+    ];
+    let mut rng = PathRng::new(1, Purpose::Test, 1, 0);
+    for (name, phase) in &phases {
+        g.bench_function(format!("sample_{name}"), |b| b.iter(|| black_box(phase.sample(rng.uniform()))));
+    }
+    let v = DVec3::new(0.0, 0.0, 1e-3);
+    for (name, phase) in &phases {
+        let mut dir = DVec3::Z;
+        let mut dldt = 0.0;
+        g.bench_function(format!("event_{name}"), |b| {
+            b.iter(|| {
+                let d = phase.sample(rng.uniform());
+                let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+                let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
+                dldt += doppler_increment(1.4, v, delta);
+                dir = out;
+                black_box(dldt)
+            })
+        });
+    }
+    g.finish();
+}
+
 fn whole_runs(c: &mut Criterion) {
     let mut g = c.benchmark_group("run_1_thread");
     g.sample_size(10);
@@ -68,5 +112,5 @@ fn whole_runs(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, event_kernel, whole_runs);
+criterion_group!(benches, event_kernel, phase_sampling, whole_runs);
 criterion_main!(benches);

@@ -47,6 +47,11 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Mie scattering by one homogeneous sphere: prints {"x", "qext", "qsca", "qback", "g"} as JSON
+    /// (qback = 4|S1(180°)|²/x²). Give the relative index and size parameter (--m-real, --m-imag,
+    /// --x), or the physical sphere (--diameter-um, --n-particle, --k-particle, --n-medium,
+    /// --wavelength-nm). With --angles N --table FILE, also writes its phase table.
+    Mie(MieArgs),
     /// Validate an experiment and print it as resolved (SI units), without running it.
     Check {
         /// Experiment file (TOML). Omit to check the built-in default.
@@ -54,6 +59,116 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+}
+
+#[derive(clap::Args)]
+struct MieArgs {
+    /// Real part n of the relative refractive index m = n − ik.
+    #[arg(long, allow_negative_numbers = true, requires = "x", conflicts_with_all = ["diameter_um", "n_particle", "k_particle", "n_medium", "wavelength_nm"])]
+    m_real: Option<f64>,
+    /// Imaginary part k ≥ 0 of m = n − ik (absorbing when > 0) [default: 0].
+    #[arg(long, allow_negative_numbers = true, requires = "m_real")]
+    m_imag: Option<f64>,
+    /// Size parameter x = 2π r n_medium / λ0.
+    #[arg(long, allow_negative_numbers = true, requires = "m_real")]
+    x: Option<f64>,
+    /// Sphere diameter, µm.
+    #[arg(long, allow_negative_numbers = true, requires_all = ["n_particle", "n_medium", "wavelength_nm"])]
+    diameter_um: Option<f64>,
+    /// Real refractive index of the sphere.
+    #[arg(long, allow_negative_numbers = true, requires = "diameter_um")]
+    n_particle: Option<f64>,
+    /// Absorption index k ≥ 0 of the sphere (index n − ik) [default: 0].
+    #[arg(long, allow_negative_numbers = true, requires = "diameter_um")]
+    k_particle: Option<f64>,
+    /// Refractive index of the host medium.
+    #[arg(long, allow_negative_numbers = true, requires = "diameter_um")]
+    n_medium: Option<f64>,
+    /// Vacuum wavelength, nm.
+    #[arg(long, allow_negative_numbers = true, requires = "diameter_um")]
+    wavelength_nm: Option<f64>,
+    /// Number of angles of the phase table (dense near forward).
+    #[arg(long, requires = "table")]
+    angles: Option<usize>,
+    /// Write the phase table (format: media/README.md) to this file.
+    #[arg(long, requires = "angles")]
+    table: Option<PathBuf>,
+}
+
+fn mie(a: &MieArgs) -> Result<(), Error> {
+    use std::collections::BTreeMap;
+
+    use ohd::io::table::{Normalisation, TableOptics, phase_table_text};
+    use ohd::mie::{MieSolution, angle_grid};
+
+    let input = |m: String| Error::Input(m);
+    let finite = |name: &str, v: f64, ok: bool, expected: &str| -> Result<f64, Error> {
+        if v.is_finite() && ok { Ok(v) } else { Err(input(format!("--{name} {v}: expected {expected}"))) }
+    };
+    let mut optics = TableOptics::default();
+    let (n, k, x) = match (a.m_real, a.diameter_um) {
+        (Some(n), None) => {
+            let k = a.m_imag.unwrap_or(0.0);
+            let n = finite("m-real", n, n > 0.0, "a real part > 0")?;
+            let k = finite("m-imag", k, k >= 0.0, "k ≥ 0 (m = n − ik; k > 0 absorbs)")?;
+            let x = a.x.unwrap_or(f64::NAN);
+            (n, k, finite("x", x, x > 0.0, "a size parameter > 0")?)
+        }
+        (None, Some(d)) => {
+            let d = finite("diameter-um", d, d > 0.0, "a diameter > 0 µm")?;
+            let np = a.n_particle.unwrap_or(f64::NAN);
+            let np = finite("n-particle", np, np > 0.0, "a refractive index > 0")?;
+            let kp = a.k_particle.unwrap_or(0.0);
+            let kp = finite("k-particle", kp, kp >= 0.0, "k ≥ 0 (index n − ik; k > 0 absorbs)")?;
+            let nm = a.n_medium.unwrap_or(f64::NAN);
+            let nm = finite("n-medium", nm, nm > 0.0, "a refractive index > 0")?;
+            let wl = a.wavelength_nm.unwrap_or(f64::NAN);
+            let wl = finite("wavelength-nm", wl, wl > 0.0, "a vacuum wavelength > 0 nm")?;
+            optics = TableOptics {
+                wavelength_nm: Some(wl),
+                n_medium: Some(nm),
+                n_particle: Some(np),
+                k_particle: Some(kp),
+                size_distribution: Some(format!("monodisperse, diameter {d} µm")),
+                ..Default::default()
+            };
+            ohd::medium::relative_sphere(d * 1e-6, np, kp, nm, wl * 1e-9)
+        }
+        _ => {
+            return Err(input(
+                "give either --m-real and --x (with --m-imag), or --diameter-um, --n-particle, --n-medium and --wavelength-nm"
+                    .into(),
+            ));
+        }
+    };
+    let sol = MieSolution::new(n, k, x).map_err(|e| input(e.to_string()))?;
+    let q = sol.efficiencies();
+    if let (Some(angles), Some(path)) = (a.angles, &a.table) {
+        if !(16..=100_000).contains(&angles) {
+            return Err(input(format!("--angles {angles}: expected 16 to 100000")));
+        }
+        let theta = angle_grid(angles, x);
+        let mut p = vec![0.0; angles];
+        sol.phase_function(&theta, &mut p);
+        optics.size_parameter = Some(x);
+        optics.qext = Some(q.qext);
+        optics.qsca = Some(q.qsca);
+        optics.qback = Some(q.qback);
+        optics.g = Some(q.g);
+        let args: Vec<String> = std::env::args().collect();
+        let provenance = BTreeMap::from([
+            ("generator".to_string(), format!("ohd {} (Lorenz–Mie, src/mie)", env!("CARGO_PKG_VERSION"))),
+            ("command".to_string(), args.join(" ")),
+            ("relative_index".to_string(), format!("m = {n} − {k}i")),
+        ]);
+        let degrees: Vec<f64> = theta.iter().map(|t| t.to_degrees()).collect();
+        let description = format!("Mie phase function of one sphere, x = {x}, m = {n} − {k}i");
+        let text = phase_table_text(&description, Normalisation::PerSr, &optics, &provenance, &degrees, &p);
+        ohd::io::write_atomic(path, text.as_bytes())?;
+    }
+    let json = serde_json::json!({ "x": x, "qext": q.qext, "qsca": q.qsca, "qback": q.qback, "g": q.g });
+    println!("{json}");
+    Ok(())
 }
 
 /// Read the configuration text and a name for it.
@@ -92,6 +207,10 @@ fn fail(e: &Error) -> ExitCode {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Mie(a) => match mie(&a) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => fail(&e),
+        },
         Command::Check { config, set } => match load(config.as_deref(), &set) {
             Ok((_, exp, origin, _)) => {
                 print!("{}", describe(&exp, &origin));

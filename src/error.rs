@@ -32,12 +32,15 @@ pub enum Error {
     /// A file that could not be written (exit status 1).
     #[error("cannot write {path}: {source}")]
     Write { path: PathBuf, source: std::io::Error },
+    /// Any other bad input (a command-line value out of range), with its message (exit status 2).
+    #[error("{0}")]
+    Input(String),
 }
 
 impl Error {
     /// Whether the error is the user's input (exit status 2) rather than a failure to run.
     pub fn is_input_error(&self) -> bool {
-        matches!(self, Error::Config(_) | Error::Read { .. })
+        matches!(self, Error::Config(_) | Error::Read { .. } | Error::Input(_))
     }
 }
 

@@ -4,8 +4,12 @@
 //! Every error on that way is a [`ConfigError`] naming the key path, the value and what was
 //! expected.
 
+pub mod preset;
 pub mod resolve;
 pub mod schema;
+mod units;
+
+use std::path::Path;
 
 use crate::error::ConfigError;
 use crate::experiment::Experiment;
@@ -51,7 +55,7 @@ fn set_path(root: &mut toml::Value, parts: &[&str], value: toml::Value) -> Resul
         node = match node {
             toml::Value::Table(t) => {
                 if last {
-                    t.insert(part.to_string(), value);
+                    units::insert_replacing(t, part, value);
                     return Ok(());
                 }
                 t.entry(part.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()))
@@ -84,15 +88,21 @@ fn set_path(root: &mut toml::Value, parts: &[&str], value: toml::Value) -> Resul
     Ok(())
 }
 
-/// Parse `text`, apply the overrides in order, deserialise and resolve.
-/// Returns the table as run (after overrides) with the resolved experiment.
+/// Parse `text`, apply the overrides in order, expand media presets, deserialise and resolve.
+/// Returns the table as run (after overrides, presets expanded) with the resolved experiment.
+///
+/// Files the configuration names (phase tables) are found relative to the directory of `origin`
+/// when it is a file, else relative to the working directory.
 pub fn load(text: &str, origin: &str, sets: &[String]) -> Result<(toml::Table, Experiment), ConfigError> {
     let mut doc = parse(text, origin)?;
     for s in sets {
         apply_set(&mut doc, s)?;
     }
+    preset::expand(&mut doc)?;
     let file = deserialize(&doc)?;
-    let experiment = resolve(&file)?;
+    let origin = Path::new(origin);
+    let base = if origin.is_file() { origin.parent().unwrap_or(Path::new(".")) } else { Path::new(".") };
+    let experiment = resolve::resolve_in(&file, base)?;
     Ok((doc, experiment))
 }
 

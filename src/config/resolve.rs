@@ -2,16 +2,23 @@
 //! configuration errors. Each check names the key path, the value and the expected range and unit.
 
 use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
 
 use glam::DVec3;
 
 use super::schema::*;
+use super::units::unit_of;
 use crate::detect::{Area, Detector, ImageSpec, Side, SpectrumSpec};
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::VelocityField;
-use crate::medium::{Layer, MAX_REGIONS_PER_LAYER, Medium, Region, Scene, Shape};
-use crate::phase::{HenyeyGreenstein, PhaseFunction};
+use crate::io::table::read_phase_table;
+use crate::medium::{
+    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, ParticleOptics, Region, Scene, Shape, TableInfo, mixture_optics,
+};
+use crate::mie::{Concentration, EnsembleSpec, Packing, SizeDistribution};
+use crate::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};
 use crate::source::{Chirp, Profile, Source};
 use crate::spectrum::FrequencyAxis;
 use crate::transport::{Tracking, WalkSettings};
@@ -92,39 +99,6 @@ fn require_arr<const N: usize>(
             )
         },
         Ok,
-    )
-}
-
-/// The unit a key carries in its suffix, for messages (`thickness_um` → "µm").
-fn unit_of(path: &str) -> &'static str {
-    const SUFFIXES: [(&str, &str); 13] = [
-        ("_mm_per_s", "mm/s"),
-        ("_m_per_s", "m/s"),
-        ("_per_mm", "mm⁻¹"),
-        ("_per_cm", "cm⁻¹"),
-        ("_per_m", "m⁻¹"),
-        ("_um", "µm"),
-        ("_mm", "mm"),
-        ("_ghz", "GHz"),
-        ("_mhz", "MHz"),
-        ("_khz", "kHz"),
-        ("_hz", "Hz"),
-        ("_us", "µs"),
-        ("_ms", "ms"),
-    ];
-    SUFFIXES.iter().find(|(s, _)| path.ends_with(s)).map_or_else(
-        || {
-            if path.ends_with("_m") {
-                "m"
-            } else if path.ends_with("_s") {
-                "s"
-            } else if path.ends_with("_nm") {
-                "nm"
-            } else {
-                ""
-            }
-        },
-        |(_, u)| u,
     )
 }
 
@@ -230,13 +204,20 @@ fn frequency(prefix: &str, name: &str, values: [Option<f64>; 4], what: &str) -> 
     require(prefix, &opts, what)
 }
 
-/// Resolve a deserialised experiment file into a validated experiment.
+/// Resolve a deserialised experiment file into a validated experiment; files it names are found
+/// relative to the working directory.
 pub fn resolve(f: &ExperimentFile) -> R<Experiment> {
+    resolve_in(f, Path::new("."))
+}
+
+/// As [`resolve`], with files named by the configuration found relative to `base`.
+pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let plan = resolve_run(&f.run)?;
     let source = resolve_source(&f.source)?;
     let n_above = index_of_refraction("ambient.n_above", f.ambient.n_above.unwrap_or(1.0))?;
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
-    let scene = resolve_scene(f, n_above, n_below)?;
+    let ctx = Ctx { base, wavelength: source.wavelength };
+    let scene = resolve_scene(f, n_above, n_below, &ctx)?;
     let detectors = resolve_detectors(&f.detectors, &scene)?;
     Ok(Experiment { name: f.name.clone().unwrap_or_else(|| "experiment".to_string()), scene, source, detectors, plan })
 }
@@ -424,33 +405,347 @@ fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -
     })
 }
 
-fn resolve_medium(path: &str, name: &str, m: &MediumSection, velocity: VelocityField) -> R<Medium> {
-    let coeff = |key: &str, per_m: Option<f64>, per_cm: Option<f64>, per_mm: Option<f64>| -> R<f64> {
-        let keys = [format!("{key}_per_m"), format!("{key}_per_cm"), format!("{key}_per_mm")];
-        let v = require(
+/// What resolving needs besides the file: where relative paths start, and the wavelength media
+/// are computed for.
+struct Ctx<'a> {
+    base: &'a Path,
+    wavelength: f64,
+}
+
+/// The optics of a named medium (everything but its velocity), resolved once per name however many
+/// layers and regions use it.
+#[derive(Debug, Clone)]
+struct Optics {
+    sigma_a: f64,
+    sigma_s: f64,
+    phase: PhaseFunction,
+    info: MediumInfo,
+}
+
+/// Default number of angles of a Mie phase table, and the grid used when only σ and g are needed.
+const MIE_ANGLES: u64 = 1000;
+const MIE_ANGLES_UNUSED: usize = 16;
+/// Default nodes of the size quadrature of a polydisperse component.
+const SIZE_POINTS: u64 = 96;
+
+/// Values computed for one wavelength must not be used at another (1 % tolerance).
+fn check_wavelength(path: &str, what: &str, given: f64, source: f64) -> R<()> {
+    if (given / source - 1.0).abs() > 0.01 {
+        return err(
             path,
-            &[(keys[0].as_str(), per_m, 1.0), (keys[1].as_str(), per_cm, 100.0), (keys[2].as_str(), per_mm, 1000.0)],
-            &format!("{key} (a coefficient)"),
-        )?;
+            format!(
+                "{what} λ0 = {:.1} nm but source.wavelength is {:.1} nm: use values for the source wavelength",
+                given * 1e9,
+                source * 1e9
+            ),
+        );
+    }
+    Ok(())
+}
+
+fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
+    if let Some(wl) = pick(path, &[("wavelength_nm", m.wavelength_nm, 1e-9), ("wavelength_um", m.wavelength_um, 1e-6)])?
+    {
+        check_wavelength(&wl.1, "this medium's values are for", wl.0, ctx.wavelength)?;
+    }
+    // Only a Mie phase function needs the full angle grid; σ and g alone need very few angles.
+    let mie_angles = match &m.phase {
+        None => Some(MIE_ANGLES),
+        Some(PhaseSection::Mie { angles }) => Some(angles.unwrap_or(MIE_ANGLES)),
+        _ => None,
+    };
+    if let Some(a) = mie_angles.filter(|a| !(16..=100_000).contains(a)) {
+        return err(join(path, "phase.angles"), format!("= {a}: expected 16 to 100000 angles"));
+    }
+    let particles = match &m.particles {
+        None => None,
+        Some(list) => {
+            let angles = mie_angles.map_or(MIE_ANGLES_UNUSED, |a| a as usize);
+            Some(resolve_particles(&join(path, "particles"), list, angles, ctx)?)
+        }
+    };
+    let coeff = |key: &str, per_m: Option<f64>, per_cm: Option<f64>, per_mm: Option<f64>, mie: Option<f64>| -> R<f64> {
+        let keys = [format!("{key}_per_m"), format!("{key}_per_cm"), format!("{key}_per_mm")];
+        let opts =
+            [(keys[0].as_str(), per_m, 1.0), (keys[1].as_str(), per_cm, 100.0), (keys[2].as_str(), per_mm, 1000.0)];
+        let Some(v) = pick(path, &opts)? else {
+            return mie.ok_or_else(|| {
+                ConfigError::new(
+                    path,
+                    format!("missing {key} (a coefficient): give one of {}, or particles", keys.join(", ")),
+                )
+            });
+        };
         if !(v.0.is_finite() && (0.0..=1e12).contains(&v.0)) {
             return err(v.1, format!("= {} m⁻¹: expected a coefficient in [0, 1e12] m⁻¹", v.0));
         }
         Ok(v.0)
     };
-    let sigma_a = coeff("sigma_a", m.sigma_a_per_m, m.sigma_a_per_cm, m.sigma_a_per_mm)?;
-    let sigma_s = coeff("sigma_s", m.sigma_s_per_m, m.sigma_s_per_cm, m.sigma_s_per_mm)?;
-    let phase = match &m.phase {
-        None | Some(PhaseSection::Isotropic {}) => PhaseFunction::Isotropic,
+    let sigma_a =
+        coeff("sigma_a", m.sigma_a_per_m, m.sigma_a_per_cm, m.sigma_a_per_mm, particles.as_ref().map(|p| p.sigma_a))?;
+    let sigma_s =
+        coeff("sigma_s", m.sigma_s_per_m, m.sigma_s_per_cm, m.sigma_s_per_mm, particles.as_ref().map(|p| p.sigma_s))?;
+    let scale = m.sigma_s_scale.unwrap_or(1.0);
+    if !(scale.is_finite() && scale >= 0.0) {
+        return err(join(path, "sigma_s_scale"), format!("= {scale}: expected a factor ≥ 0"));
+    }
+    let needs_particles = |what: &str| {
+        ConfigError::new(
+            join(path, "phase"),
+            format!("{what} needs the medium's particles (add a particles table, or give the phase function)"),
+        )
+    };
+    let mut table = None;
+    let (phase, kind) = match &m.phase {
+        None if particles.is_none() => (PhaseFunction::Isotropic, "isotropic"),
+        Some(PhaseSection::Isotropic {}) => (PhaseFunction::Isotropic, "isotropic"),
         Some(PhaseSection::Hg { g }) => {
-            PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(*g).ok_or_else(|| {
+            let g = match (g, &particles) {
+                (Some(g), _) => *g,
+                (None, Some(p)) => p.g,
+                (None, None) => return Err(needs_particles("type = \"hg\" without g")),
+            };
+            let hg = HenyeyGreenstein::new(g).ok_or_else(|| {
                 ConfigError::new(
                     join(path, "phase.g"),
                     format!("= {g}: expected an asymmetry parameter with −1 < g < 1"),
                 )
-            })?)
+            })?;
+            (PhaseFunction::HenyeyGreenstein(hg), "hg")
+        }
+        Some(PhaseSection::Table { file }) => {
+            let key = join(path, "phase.file");
+            let loaded = read_phase_table(&ctx.base.join(file)).map_err(|e| ConfigError::new(&key, e))?;
+            if let Some(nm) = loaded.file.optics.wavelength_nm {
+                check_wavelength(&key, &format!("the table `{file}` is for"), nm * 1e-9, ctx.wavelength)?;
+            }
+            table = Some(TableInfo {
+                origin: loaded.phase.origin().to_string(),
+                angles: loaded.phase.len(),
+                source_normalisation: Some(loaded.file.normalisation.name().to_string()),
+                source_integral: loaded.phase.source_integral(),
+                provenance: loaded.file.provenance.clone(),
+            });
+            (PhaseFunction::Tabulated(Arc::new(loaded.phase)), "table")
+        }
+        None | Some(PhaseSection::Mie { .. }) => {
+            let p = particles.as_ref().ok_or_else(|| needs_particles("type = \"mie\""))?;
+            let origin = format!("Mie, {} component(s), λ0 = {:.1} nm", p.components.len(), ctx.wavelength * 1e9);
+            let t = TabulatedPhase::from_angles(&p.theta, &p.phase, origin).map_err(|e| {
+                ConfigError::new(join(path, "particles"), format!("the Mie phase function is not a distribution: {e}"))
+            })?;
+            table = Some(TableInfo {
+                origin: t.origin().to_string(),
+                angles: t.len(),
+                source_normalisation: None,
+                source_integral: t.source_integral(),
+                provenance: Default::default(),
+            });
+            (PhaseFunction::Tabulated(Arc::new(t)), "mie")
         }
     };
-    Ok(Medium::new(name, sigma_a, sigma_s, phase, velocity))
+    let info = MediumInfo {
+        preset: m.preset.clone(),
+        phase: kind.to_string(),
+        g: phase.mean_cosine(),
+        table,
+        particles,
+        sigma_s_scale: scale,
+    };
+    Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase, info })
+}
+
+/// A radius (m) given as `NAME_um/_mm/_m` or, when `diameter` names the alternative, a diameter.
+fn positive_length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<f64>> {
+    length(prefix, name, um, mm, m)?.map(|v| positive(v, &format!("a {}", name.replace('_', " ")))).transpose()
+}
+
+fn size_range(
+    prefix: &str,
+    lo: Option<f64>,
+    hi: Option<f64>,
+    names: (&str, &str),
+    default: Option<(f64, f64)>,
+) -> R<(f64, f64)> {
+    let (lo, hi) = match (lo, hi, default) {
+        (Some(a), Some(b), _) => (a, b),
+        (a, b, Some((da, db))) => (a.unwrap_or(da), b.unwrap_or(db)),
+        _ => {
+            return err(prefix, format!("missing the size range: give {}_um and {}_um (or _mm, _m)", names.0, names.1));
+        }
+    };
+    if lo >= hi {
+        return err(
+            join(prefix, names.0),
+            format!("= {lo} m is not below {} = {hi} m: the size range is empty", names.1),
+        );
+    }
+    Ok((lo, hi))
+}
+
+fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usize, ctx: &Ctx) -> R<ParticleOptics> {
+    let items = list.items();
+    if items.is_empty() {
+        return err(path, "an empty list: give at least one particle component");
+    }
+    let mut specs = Vec::with_capacity(items.len());
+    for (suffix, p) in items {
+        let here = format!("{path}{suffix}");
+        let name = p.name.clone().unwrap_or_else(|| format!("component{}", specs.len()));
+        let k = p.k_particle.unwrap_or(0.0);
+        if !(p.n_particle.is_finite() && p.n_particle > 0.0 && p.n_particle <= 20.0) {
+            return err(
+                join(&here, "n_particle"),
+                format!("= {}: expected a real refractive index in (0, 20]", p.n_particle),
+            );
+        }
+        if !(k.is_finite() && (0.0..=20.0).contains(&k)) {
+            return err(
+                join(&here, "k_particle"),
+                format!("= {k}: expected an absorption index k in [0, 20] (index n − ik, k ≥ 0 absorbs)"),
+            );
+        }
+        let n_medium = index_of_refraction(&join(&here, "n_medium"), p.n_medium)?;
+        let sp = join(&here, "size");
+        let distribution = match &p.size {
+            SizeSection::Monodisperse { diameter_um, diameter_mm, diameter_m, radius_um, radius_mm, radius_m } => {
+                let d = positive_length(&sp, "diameter", *diameter_um, *diameter_mm, *diameter_m)?;
+                let r = positive_length(&sp, "radius", *radius_um, *radius_mm, *radius_m)?;
+                let radius = match (d, r) {
+                    (Some(d), None) => 0.5 * d,
+                    (None, Some(r)) => r,
+                    (Some(_), Some(_)) => return err(&sp, "give the diameter or the radius, not both"),
+                    (None, None) => {
+                        return err(&sp, "missing the particle size: give diameter_um or radius_um (or _mm, _m)");
+                    }
+                };
+                SizeDistribution::Monodisperse { radius }
+            }
+            SizeSection::LogNormal {
+                median_radius_um,
+                median_radius_mm,
+                median_radius_m,
+                sigma_g,
+                min_radius_um,
+                min_radius_mm,
+                min_radius_m,
+                max_radius_um,
+                max_radius_mm,
+                max_radius_m,
+            } => {
+                let median_radius =
+                    positive_length(&sp, "median_radius", *median_radius_um, *median_radius_mm, *median_radius_m)?
+                        .ok_or_else(|| ConfigError::new(&sp, "missing median_radius_um (or _mm, _m)"))?;
+                if !(sigma_g.is_finite() && *sigma_g > 1.0 && *sigma_g <= 10.0) {
+                    return err(
+                        join(&sp, "sigma_g"),
+                        format!("= {sigma_g}: expected a geometric standard deviation in (1, 10]"),
+                    );
+                }
+                let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
+                let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
+                let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
+                SizeDistribution::LogNormal { median_radius, sigma_g: *sigma_g, r_min, r_max }
+            }
+            SizeSection::ModifiedGamma {
+                mode_radius_um,
+                mode_radius_mm,
+                mode_radius_m,
+                alpha,
+                gamma,
+                min_radius_um,
+                min_radius_mm,
+                min_radius_m,
+                max_radius_um,
+                max_radius_mm,
+                max_radius_m,
+            } => {
+                let mode_radius =
+                    positive_length(&sp, "mode_radius", *mode_radius_um, *mode_radius_mm, *mode_radius_m)?
+                        .ok_or_else(|| ConfigError::new(&sp, "missing mode_radius_um (or _mm, _m)"))?;
+                if !(alpha.is_finite() && *alpha > 0.0 && *alpha <= 100.0) {
+                    return err(join(&sp, "alpha"), format!("= {alpha}: expected a shape exponent α in (0, 100]"));
+                }
+                if !(gamma.is_finite() && *gamma > 0.0 && *gamma <= 100.0) {
+                    return err(join(&sp, "gamma"), format!("= {gamma}: expected an exponent γ in (0, 100]"));
+                }
+                let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
+                let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
+                let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
+                SizeDistribution::ModifiedGamma { alpha: *alpha, gamma: *gamma, mode_radius, r_min, r_max }
+            }
+            SizeSection::MarshallPalmer {
+                rain_rate_mm_per_h,
+                min_diameter_um,
+                min_diameter_mm,
+                min_diameter_m,
+                max_diameter_um,
+                max_diameter_mm,
+                max_diameter_m,
+            } => {
+                if !(rain_rate_mm_per_h.is_finite() && *rain_rate_mm_per_h > 0.0 && *rain_rate_mm_per_h <= 500.0) {
+                    return err(
+                        join(&sp, "rain_rate_mm_per_h"),
+                        format!("= {rain_rate_mm_per_h} mm/h: expected a rain rate in (0, 500] mm/h"),
+                    );
+                }
+                let lo = positive_length(&sp, "min_diameter", *min_diameter_um, *min_diameter_mm, *min_diameter_m)?;
+                let hi = positive_length(&sp, "max_diameter", *max_diameter_um, *max_diameter_mm, *max_diameter_m)?;
+                // Defaults: 0.05–6 mm, the range of scene-parameters §B4.
+                let (d_min, d_max) = size_range(&sp, lo, hi, ("min_diameter", "max_diameter"), Some((0.05e-3, 6e-3)))?;
+                SizeDistribution::MarshallPalmer { rain_rate_mm_per_h: *rain_rate_mm_per_h, d_min, d_max }
+            }
+        };
+        let conc = pick(
+            &here,
+            &[
+                ("number_density_per_m3", p.number_density_per_m3, 1.0),
+                ("number_density_per_cm3", p.number_density_per_cm3, 1e6),
+                ("volume_fraction", p.volume_fraction, 1.0),
+            ],
+        )?;
+        let concentration = match (&distribution, conc) {
+            (SizeDistribution::MarshallPalmer { .. }, Some(c)) => {
+                return err(c.1, "Marshall–Palmer fixes the drop concentration (N0 = 8000 m⁻³ mm⁻¹); remove this key");
+            }
+            (SizeDistribution::MarshallPalmer { .. }, None) => None,
+            (_, None) => {
+                return err(
+                    &here,
+                    "missing the concentration: give number_density_per_cm3, number_density_per_m3 or volume_fraction",
+                );
+            }
+            (_, Some(c)) if c.1.ends_with("volume_fraction") => {
+                if !(c.0 > 0.0 && c.0 < 1.0) {
+                    return err(c.1, format!("= {}: expected a volume fraction in (0, 1)", c.2));
+                }
+                Some(Concentration::VolumeFraction(c.0))
+            }
+            (_, Some(c)) => Some(Concentration::NumberDensity(positive(c, "a number density")?)),
+        };
+        let packing = match p.packing.unwrap_or(PackingKind::None) {
+            PackingKind::None => None,
+            PackingKind::Twersky => Some(Packing::Twersky),
+        };
+        let size_points = p.size_points.unwrap_or(SIZE_POINTS);
+        if !(8..=4096).contains(&size_points) {
+            return err(join(&here, "size_points"), format!("= {size_points}: expected 8 to 4096 quadrature nodes"));
+        }
+        specs.push((
+            name,
+            EnsembleSpec {
+                n_particle: p.n_particle,
+                k_particle: k,
+                n_medium,
+                wavelength: ctx.wavelength,
+                distribution,
+                concentration,
+                packing,
+                size_points: size_points as usize,
+            },
+        ));
+    }
+    mixture_optics(&specs, angles).map_err(|e| ConfigError::new(path, e.to_string()))
 }
 
 fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
@@ -494,7 +789,7 @@ fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
     })
 }
 
-fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
+fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R<Scene> {
     if f.media.is_empty() {
         return err("media", "no media defined: add a [media.NAME] table with sigma_a_* and sigma_s_*");
     }
@@ -506,6 +801,20 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
         f.media
             .get(name)
             .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
+    };
+    // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
+    let mut optics: BTreeMap<&str, Optics> = BTreeMap::new();
+    let mut make = |path: &str, name: &str, ms: &MediumSection, velocity: VelocityField| -> R<Medium> {
+        let o = match optics.get(name) {
+            Some(o) => o,
+            None => {
+                let o = resolve_optics(path, ms, ctx)?;
+                optics.entry(f.media.get_key_value(name).expect("looked up").0.as_str()).or_insert(o)
+            }
+        };
+        let mut m = Medium::new(name, o.sigma_a, o.sigma_s, o.phase.clone(), velocity);
+        m.info = o.info.clone();
+        Ok(m)
     };
     let mut media: Vec<Medium> = Vec::new();
     let mut layers: Vec<Layer> = Vec::new();
@@ -537,7 +846,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
             Some(v) => resolve_velocity(&join(&mpath, "velocity"), v, None)
                 .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?,
         };
-        media.push(resolve_medium(&mpath, &l.medium, ms, velocity)?);
+        media.push(make(&mpath, &l.medium, ms, velocity)?);
         layers.push(Layer {
             name,
             z_top: z,
@@ -591,7 +900,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64) -> R<Scene> {
             (None, Some(v)) => resolve_velocity(&join(&mpath, "velocity"), v, Some(&shape))?,
             (None, None) => VelocityField::Static,
         };
-        media.push(resolve_medium(&mpath, &r.medium, ms, velocity)?);
+        media.push(make(&mpath, &r.medium, ms, velocity)?);
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
     }

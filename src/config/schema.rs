@@ -103,6 +103,18 @@ pub struct AmbientSection {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MediumSection {
+    /// The preset this medium was expanded from (see [`super::preset`]); for the record.
+    pub preset: Option<String>,
+    pub description: Option<String>,
+    pub references: Option<Vec<String>>,
+    /// The vacuum wavelength the medium's values are for; checked against the source.
+    pub wavelength_nm: Option<f64>,
+    pub wavelength_um: Option<f64>,
+    /// Particles whose Mie optics give σs, σa and the phase function (explicit σs, σa win).
+    pub particles: Option<OneOrMany<ParticlesSection>>,
+    /// Factor applied to σs after everything else (≥ 0; e.g. to calibrate a sphere model to a
+    /// measured σs, or to thin a medium for tractability).
+    pub sigma_s_scale: Option<f64>,
     pub sigma_a_per_m: Option<f64>,
     pub sigma_a_per_cm: Option<f64>,
     pub sigma_a_per_mm: Option<f64>,
@@ -119,9 +131,137 @@ pub struct MediumSection {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PhaseSection {
     Isotropic {},
+    /// `g` may be left out when the medium has `particles`: then it is their Mie asymmetry.
     #[serde(alias = "henyey_greenstein")]
     Hg {
-        g: f64,
+        g: Option<f64>,
+    },
+    /// A phase-table file (format in `media/README.md`), relative to the config file.
+    Table {
+        file: String,
+    },
+    /// Tabulated from the Mie solution of the medium's `particles` (the default when it has them).
+    Mie {
+        angles: Option<u64>,
+    },
+}
+
+/// A single table or an array of them (`particles = {…}` or `[[media.x.particles]]`).
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum OneOrMany<T> {
+    One(T),
+    Many(Vec<T>),
+}
+
+/// By hand rather than `#[serde(untagged)]`, so that an error inside an item keeps its message
+/// and key path instead of becoming "did not match any variant".
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for OneOrMany<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
+        struct V<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> serde::de::Visitor<'de> for V<T> {
+            type Value = OneOrMany<T>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table or an array of tables")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, a: A) -> Result<Self::Value, A::Error> {
+                T::deserialize(MapAccessDeserializer::new(a)).map(OneOrMany::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, a: A) -> Result<Self::Value, A::Error> {
+                Vec::<T>::deserialize(SeqAccessDeserializer::new(a)).map(OneOrMany::Many)
+            }
+        }
+        d.deserialize_any(V(std::marker::PhantomData))
+    }
+}
+
+impl<T> OneOrMany<T> {
+    /// The items with their key paths relative to the field (`""` for a single one, `[i]` else).
+    pub fn items(&self) -> Vec<(String, &T)> {
+        match self {
+            OneOrMany::One(t) => vec![(String::new(), t)],
+            OneOrMany::Many(v) => v.iter().enumerate().map(|(i, t)| (format!("[{i}]"), t)).collect(),
+        }
+    }
+}
+
+/// One kind of particle in a medium: optical constants, size distribution and concentration.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticlesSection {
+    /// A label (e.g. an OPAC component name), for messages and the manifest.
+    pub name: Option<String>,
+    /// Real part of the particle's refractive index.
+    pub n_particle: f64,
+    /// Imaginary part, k ≥ 0 absorbing (index n − ik); default 0.
+    pub k_particle: Option<f64>,
+    /// Refractive index of the host the particles sit in (1 for air).
+    pub n_medium: f64,
+    pub size: SizeSection,
+    pub number_density_per_m3: Option<f64>,
+    pub number_density_per_cm3: Option<f64>,
+    /// Fraction of the volume the particles fill (the hematocrit, for red blood cells).
+    pub volume_fraction: Option<f64>,
+    pub packing: Option<PackingKind>,
+    /// Nodes of the size quadrature.
+    pub size_points: Option<u64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PackingKind {
+    None,
+    Twersky,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SizeSection {
+    Monodisperse {
+        diameter_um: Option<f64>,
+        diameter_mm: Option<f64>,
+        diameter_m: Option<f64>,
+        radius_um: Option<f64>,
+        radius_mm: Option<f64>,
+        radius_m: Option<f64>,
+    },
+    /// Number distribution log-normal in radius (OPAC): median radius, geometric standard deviation.
+    LogNormal {
+        median_radius_um: Option<f64>,
+        median_radius_mm: Option<f64>,
+        median_radius_m: Option<f64>,
+        sigma_g: f64,
+        min_radius_um: Option<f64>,
+        min_radius_mm: Option<f64>,
+        min_radius_m: Option<f64>,
+        max_radius_um: Option<f64>,
+        max_radius_mm: Option<f64>,
+        max_radius_m: Option<f64>,
+    },
+    /// Deirmendjian's modified gamma, n(r) ∝ r^α exp(−(α/γ)(r/r_c)^γ), mode radius r_c.
+    ModifiedGamma {
+        mode_radius_um: Option<f64>,
+        mode_radius_mm: Option<f64>,
+        mode_radius_m: Option<f64>,
+        alpha: f64,
+        gamma: f64,
+        min_radius_um: Option<f64>,
+        min_radius_mm: Option<f64>,
+        min_radius_m: Option<f64>,
+        max_radius_um: Option<f64>,
+        max_radius_mm: Option<f64>,
+        max_radius_m: Option<f64>,
+    },
+    /// Marshall–Palmer raindrops, N(D) = 8000 m⁻³ mm⁻¹ exp(−4.1 R^−0.21 D): absolute concentration.
+    MarshallPalmer {
+        rain_rate_mm_per_h: f64,
+        min_diameter_um: Option<f64>,
+        min_diameter_mm: Option<f64>,
+        min_diameter_m: Option<f64>,
+        max_diameter_um: Option<f64>,
+        max_diameter_mm: Option<f64>,
+        max_diameter_m: Option<f64>,
     },
 }
 

@@ -1,13 +1,45 @@
 //! Media and the scene they fill: homogeneous media, region shapes, the layer stack.
 
+mod particles;
 mod scene;
 mod shape;
 
+pub use particles::{ComponentOptics, ParticleOptics, mixture_optics, relative_sphere};
 pub use scene::{Layer, MAX_REGIONS_PER_LAYER, Region, Scene};
 pub use shape::Shape;
 
+use serde::Serialize;
+
 use crate::flow::VelocityField;
 use crate::phase::PhaseFunction;
+
+/// Where a medium's optics came from, for the manifest (nothing here is read by the walk).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct MediumInfo {
+    /// The preset it was expanded from.
+    pub preset: Option<String>,
+    /// The phase function in words ("hg", "table", "mie", "isotropic").
+    pub phase: String,
+    /// Mean cosine of the phase function as sampled.
+    pub g: f64,
+    /// A phase table's origin and how its values were normalised as given.
+    pub table: Option<TableInfo>,
+    /// Mie optics of the particles, before explicit σ values and `sigma_s_scale` were applied.
+    pub particles: Option<ParticleOptics>,
+    pub sigma_s_scale: f64,
+}
+
+/// A phase table as loaded.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TableInfo {
+    pub origin: String,
+    pub angles: usize,
+    /// Declared normalisation of a table file (`per_sr`, `four_pi`, `arbitrary`).
+    pub source_normalisation: Option<String>,
+    /// `∫ p dΩ` of the values as given (renormalised to 1 on load).
+    pub source_integral: f64,
+    pub provenance: std::collections::BTreeMap<String, String>,
+}
 
 /// A homogeneous participating medium with the velocity field of its particles.
 ///
@@ -19,6 +51,8 @@ pub struct Medium {
     pub name: String,
     pub phase: PhaseFunction,
     pub velocity: VelocityField,
+    /// Provenance of the optics, for the manifest.
+    pub info: MediumInfo,
     sigma_a: f64,
     sigma_s: f64,
     sigma_t: f64,
@@ -40,6 +74,7 @@ impl Medium {
             name: name.into(),
             phase,
             velocity,
+            info: MediumInfo::default(),
             sigma_a,
             sigma_s,
             sigma_t,
