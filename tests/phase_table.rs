@@ -80,7 +80,7 @@ fn orientation_tripwire() {
     // the mirrored table must do the opposite. (A table read from the wrong end — θ measured from
     // backward — or a sampler returning −cos θ fails one of the two.)
     let theta: Vec<f64> = (0..=180).map(|d| (d as f64).to_radians()).collect();
-    let forward: Vec<f64> = theta.iter().map(|t| if *t <= PI / 2.0 { 1.0 + t.cos() } else { 0.0 }).collect();
+    let forward: Vec<f64> = theta.iter().map(|t| if *t < PI / 2.0 { 1.0 + t.cos() } else { 0.0 }).collect();
     let backward: Vec<f64> = forward.iter().rev().copied().collect();
     let f = TabulatedPhase::from_angles(&theta, &forward, "forward").unwrap();
     let b = TabulatedPhase::from_angles(&theta, &backward, "backward").unwrap();

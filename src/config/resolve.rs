@@ -555,32 +555,38 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
     Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase, info })
 }
 
-/// A radius (m) given as `NAME_um/_mm/_m` or, when `diameter` names the alternative, a diameter.
-fn positive_length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<f64>> {
-    length(prefix, name, um, mm, m)?.map(|v| positive(v, &format!("a {}", name.replace('_', " ")))).transpose()
+/// A positive length given as `NAME_um`, `NAME_mm` or `NAME_m`, if given.
+fn positive_length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<Given>> {
+    let Some(v) = length(prefix, name, um, mm, m)? else { return Ok(None) };
+    positive(v.clone(), &format!("a {}", name.replace('_', " ")))?;
+    Ok(Some(v))
 }
 
+/// A size range `[lo, hi]` (m) from its two keys, with defaults when both are optional.
 fn size_range(
     prefix: &str,
-    lo: Option<f64>,
-    hi: Option<f64>,
+    lo: Option<Given>,
+    hi: Option<Given>,
     names: (&str, &str),
     default: Option<(f64, f64)>,
 ) -> R<(f64, f64)> {
     let (lo, hi) = match (lo, hi, default) {
         (Some(a), Some(b), _) => (a, b),
-        (a, b, Some((da, db))) => (a.unwrap_or(da), b.unwrap_or(db)),
+        (a, b, Some((da, db))) => {
+            (a.unwrap_or((da, join(prefix, names.0), da)), b.unwrap_or((db, join(prefix, names.1), db)))
+        }
         _ => {
             return err(prefix, format!("missing the size range: give {}_um and {}_um (or _mm, _m)", names.0, names.1));
         }
     };
-    if lo >= hi {
+    if lo.0 >= hi.0 {
+        let key = |p: &str| p.rsplit('.').next().unwrap_or(p).to_string();
         return err(
-            join(prefix, names.0),
-            format!("= {lo} m is not below {} = {hi} m: the size range is empty", names.1),
+            lo.1.clone(),
+            format!("= {} is not below {} = {}: the size range is empty", lo.2, key(&hi.1), hi.2),
         );
     }
-    Ok((lo, hi))
+    Ok((lo.0, hi.0))
 }
 
 fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usize, ctx: &Ctx) -> R<ParticleOptics> {
@@ -612,8 +618,8 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                 let d = positive_length(&sp, "diameter", *diameter_um, *diameter_mm, *diameter_m)?;
                 let r = positive_length(&sp, "radius", *radius_um, *radius_mm, *radius_m)?;
                 let radius = match (d, r) {
-                    (Some(d), None) => 0.5 * d,
-                    (None, Some(r)) => r,
+                    (Some(d), None) => 0.5 * d.0,
+                    (None, Some(r)) => r.0,
                     (Some(_), Some(_)) => return err(&sp, "give the diameter or the radius, not both"),
                     (None, None) => {
                         return err(&sp, "missing the particle size: give diameter_um or radius_um (or _mm, _m)");
@@ -645,7 +651,7 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                 let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
                 let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
                 let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
-                SizeDistribution::LogNormal { median_radius, sigma_g: *sigma_g, r_min, r_max }
+                SizeDistribution::LogNormal { median_radius: median_radius.0, sigma_g: *sigma_g, r_min, r_max }
             }
             SizeSection::ModifiedGamma {
                 mode_radius_um,
@@ -672,7 +678,13 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                 let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
                 let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
                 let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
-                SizeDistribution::ModifiedGamma { alpha: *alpha, gamma: *gamma, mode_radius, r_min, r_max }
+                SizeDistribution::ModifiedGamma {
+                    alpha: *alpha,
+                    gamma: *gamma,
+                    mode_radius: mode_radius.0,
+                    r_min,
+                    r_max,
+                }
             }
             SizeSection::MarshallPalmer {
                 rain_rate_mm_per_h,
