@@ -287,17 +287,43 @@ fn describe(exp: &Experiment, origin: &str) -> String {
     );
     let _ = writeln!(s, "ambient: n above = {}, n below = {}", exp.scene.n_above, exp.scene.n_below);
     let _ = writeln!(s, "media:");
-    for m in &exp.scene.media {
+    let mut shown = std::collections::BTreeSet::new();
+    for m in exp.scene.media.iter().filter(|m| shown.insert(m.name.clone())) {
+        let phase = match &m.phase {
+            ohd::phase::PhaseFunction::Tabulated(t) => format!("{t:?}"),
+            p => format!("{p:?}"),
+        };
         let _ = writeln!(
             s,
-            "  {:<12} σa = {:.4} /mm, σs = {:.4} /mm, albedo = {:.5}, phase {:?}, velocity {:?}",
+            "  {:<12} σa = {:.6e} /m, σs = {:.6e} /m, albedo = {:.5}, g = {:.6}, phase {phase}, velocity {:?}",
             m.name,
-            m.sigma_a() / 1e3,
-            m.sigma_s() / 1e3,
+            m.sigma_a(),
+            m.sigma_s(),
             m.albedo(),
-            m.phase,
+            m.info.g,
             m.velocity
         );
+        if let Some(p) = &m.info.particles {
+            let _ = writeln!(
+                s,
+                "  {:<12} Mie: σs = {:.6e} /m, σa = {:.6e} /m, g = {:.6}, backscatter β = {:.4e} /(m sr), lidar ratio {:.2} sr",
+                "", p.sigma_s, p.sigma_a, p.g, p.backscatter, p.lidar_ratio
+            );
+            for c in &p.components {
+                let _ = writeln!(
+                    s,
+                    "  {:<14} {}: N = {:.4e} /m³, volume fraction {:.4e}, r_eff = {:.4} µm, σs = {:.4e} /m, σa = {:.4e} /m, g = {:.4}",
+                    "",
+                    c.name,
+                    c.number_density,
+                    c.volume_fraction,
+                    c.effective_radius * 1e6,
+                    c.sigma_s,
+                    c.sigma_a,
+                    c.g
+                );
+            }
+        }
     }
     let _ = writeln!(s, "layers:");
     for l in &exp.scene.layers {

@@ -149,6 +149,19 @@ pub fn write_run(
         estimates.insert("detectors".into(), Value::Object(det_estimates));
     }
 
+    // Each named medium once (a medium used by several layers appears once per use in the scene).
+    let mut media = serde_json::Map::new();
+    for m in &exp.scene.media {
+        media.entry(m.name.clone()).or_insert_with(|| {
+            json!({
+                "sigma_a_per_m": m.sigma_a(),
+                "sigma_s_per_m": m.sigma_s(),
+                "albedo": m.albedo(),
+                "optics": serde_json::to_value(&m.info).unwrap_or(Value::Null),
+            })
+        });
+    }
+
     let st = &out.stats;
     let wall = out.wall_seconds.max(1e-9);
     let manifest = json!({
@@ -177,6 +190,7 @@ pub fn write_run(
             "doppler": exp.needs_doppler(),
             "path_length": exp.needs_length(),
         },
+        "media": Value::Object(media),
         "estimates": Value::Object(estimates),
         "detectors": Value::Object(det_info),
         "files": files,
