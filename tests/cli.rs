@@ -204,3 +204,105 @@ fn no_progress_bar_when_not_a_terminal() {
     // Only the summary: one line per estimate plus the header.
     assert!(err.lines().count() <= 8, "{err}");
 }
+
+/// `ohd mie` prints exactly {"x", "qext", "qsca", "qback", "g"}.
+fn mie_json(args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["mie"];
+    all.extend_from_slice(args);
+    let o = ohd(&repo(), &all);
+    assert!(o.status.success(), "{}", describe(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", describe(&o)));
+    let mut keys: Vec<&str> = v.as_object().expect("an object").keys().map(|k| k.as_str()).collect();
+    keys.sort();
+    assert_eq!(keys, ["g", "qback", "qext", "qsca", "x"]);
+    v
+}
+
+#[test]
+fn mie_prints_efficiencies_for_relative_and_physical_inputs() {
+    // Wiscombe's MIEV0 case m = 0.75, x = 10 (validation-values §3).
+    let v = mie_json(&["--m-real", "0.75", "--x", "10"]);
+    for (k, want) in [("qext", 2.232265), ("qsca", 2.232265), ("g", 0.896473), ("qback", 0.046584)] {
+        // The published values round to 6 decimals.
+        let got = v[k].as_f64().unwrap();
+        assert!((got - want).abs() <= 5e-7, "{k}: {got} vs {want}");
+    }
+    // Physical inputs: x = π D n_medium / λ, m = (N − iK)/n_medium; the B&H case m = 1.55, x = 5.21282
+    // (r = 0.525 µm, λ0 = 0.6328 µm, in air).
+    let v = mie_json(&["--diameter-um", "1.05", "--n-particle", "1.55", "--n-medium", "1", "--wavelength-nm", "632.8"]);
+    assert!((v["x"].as_f64().unwrap() - 5.21282).abs() < 1e-5, "{v}");
+    assert!((v["qext"].as_f64().unwrap() / 3.10543 - 1.0).abs() < 2e-6, "{v}");
+    // The same sphere in water: the medium index enters both x and m.
+    let w = mie_json(&[
+        "--diameter-um",
+        "1.05",
+        "--n-particle",
+        "1.55",
+        "--k-particle",
+        "0.01",
+        "--n-medium",
+        "1.33",
+        "--wavelength-nm",
+        "632.8",
+    ]);
+    let r = mie_json(&[
+        "--m-real",
+        &(1.55 / 1.33).to_string(),
+        "--m-imag",
+        &(0.01 / 1.33).to_string(),
+        "--x",
+        &(std::f64::consts::PI * 1.05 * 1.33 / 0.6328).to_string(),
+    ]);
+    for k in ["x", "qext", "qsca", "qback", "g"] {
+        assert!((w[k].as_f64().unwrap() / r[k].as_f64().unwrap() - 1.0).abs() < 1e-12, "{k}: {w} vs {r}");
+    }
+}
+
+#[test]
+fn mie_writes_a_phase_table_that_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("rbc.phase.toml");
+    let v = mie_json(&[
+        "--diameter-um",
+        "5.56",
+        "--n-particle",
+        "1.40",
+        "--n-medium",
+        "1.345",
+        "--wavelength-nm",
+        "785",
+        "--angles",
+        "500",
+        "--table",
+        path_str(&table),
+    ]);
+    let loaded = ohd::io::table::read_phase_table(&table).expect("the written table loads");
+    assert_eq!(loaded.phase.len(), 500);
+    assert_eq!(loaded.file.optics.wavelength_nm, Some(785.0));
+    assert_eq!(loaded.file.optics.g, v["g"].as_f64());
+    // Written per sr: integrates to 1 up to the linear interpolation of the forward peak.
+    assert!((loaded.phase.source_integral() - 1.0).abs() < 0.01, "{}", loaded.phase.source_integral());
+    assert!((loaded.phase.mean_cosine() - v["g"].as_f64().unwrap()).abs() < 1e-3);
+}
+
+#[test]
+fn mie_bad_input_exits_2_with_a_message() {
+    for (args, says) in [
+        (vec!["mie", "--m-real", "1.5", "--m-imag", "-0.1", "--x", "1"], "--m-imag -0.1: expected k ≥ 0"),
+        (vec!["mie", "--m-real", "1.5", "--x", "0"], "--x 0: expected a size parameter > 0"),
+        (vec!["mie", "--m-real", "1.5", "--x", "1e9"], "size parameter"),
+        (
+            vec!["mie", "--diameter-um", "-1", "--n-particle", "1.4", "--n-medium", "1", "--wavelength-nm", "500"],
+            "--diameter-um -1: expected a diameter > 0 µm",
+        ),
+        (vec!["mie", "--m-real", "1.5", "--x", "1", "--angles", "4", "--table", "t.toml"], "--angles 4"),
+        (vec!["mie", "--m-real", "1.5"], "--x"),
+        (vec!["mie", "--m-real", "1.5", "--x", "1", "--diameter-um", "1"], "cannot be used with"),
+    ] {
+        let o = ohd(&repo(), &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        assert!(text(&o.stderr).contains(says), "{args:?}: expected `{says}` in\n{}", describe(&o));
+        assert!(o.stdout.is_empty(), "{args:?}: printed {}", text(&o.stdout));
+    }
+    assert!(!repo().join("t.toml").exists());
+}
