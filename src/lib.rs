@@ -27,7 +27,12 @@
 //!   the detector that records the path.
 //! * **Beat frequency.** Single-frequency laser: `f = (dl/dt)/λ0`. FMCW with chirp slope
 //!   `α = B/T`: up-chirp `f_up = α·l/c + (dl/dt)/λ0`, down-chirp `f_down = α·l/c − (dl/dt)/λ0`.
-//! * **Phase functions** are normalised to 1 over the sphere (sr⁻¹).
+//! * **Phase functions** are normalised to 1 over the sphere (sr⁻¹); tables in other
+//!   normalisations (`four_pi`, `arbitrary`) are renormalised on load and the manifest records the
+//!   convention as given. Tables are indexed by the scattering angle θ from forward (θ = 0,
+//!   `cos θ = dir_in · dir_out = 1`) and read as linear in `cos θ` between their angles.
+//! * **Refractive indices** of particles are `n − ik` with `k ≥ 0` absorbing (Wiscombe's sign);
+//!   the Mie size parameter is `x = 2π r n_medium/λ0` and the relative index `m = (n − ik)/n_medium`.
 //! * **Spectrum bins.** An explicit signed axis `[f_min, f_max)` cut into `bins` equal bins; bin
 //!   `k` covers `[f_min + kΔ, f_min + (k+1)Δ)`, ascending frequency. With `f_min = −f_max` and an
 //!   odd bin count the DC bin is the centre bin and the axis is mirror symmetric. A path outside the
@@ -46,15 +51,16 @@
 //! |---|---|
 //! | [`config`] | TOML schema (serde), `--set` overrides, the one resolve step into SI runtime types |
 //! | [`sampling`] | random-number streams and warps (pure maps from uniforms) |
-//! | [`phase`] | phase functions (isotropic, Henyey–Greenstein) |
+//! | [`phase`] | phase functions (isotropic, Henyey–Greenstein, tabulated) |
+//! | [`mie`] | Lorenz–Mie scattering by spheres, particle ensembles and their bulk optics |
 //! | [`flow`] | velocity fields attached to media |
-//! | [`medium`] | homogeneous media, region shapes, the layer stack (the scene) |
+//! | [`medium`] | homogeneous media (with particle mixtures), region shapes, the layer stack (the scene) |
 //! | [`transport`] | Fresnel interfaces, free-flight tracking, the random walk |
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
-//! | [`io`] | atomic files, `.npy`, EXR, the run manifest |
+//! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
 pub mod config;
 pub mod detect;
