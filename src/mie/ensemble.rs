@@ -61,8 +61,8 @@ pub enum SizeDistribution {
     /// truncated to `[r_min, r_max]`. `α > 0`, `γ > 0`.
     ModifiedGamma { alpha: f64, gamma: f64, mode_radius: f64, r_min: f64, r_max: f64 },
     /// Marshall & Palmer (1948, J. Meteorol. 5:165) raindrops: `N(D) = N0 exp(−Λ D)` per unit
-    /// diameter, `N0 = 8000 m⁻³ mm⁻¹`, `Λ = 4.1 R^−0.21 mm⁻¹` (R in mm/h), for diameters
-    /// `D ∈ [d_min, d_max]`. An absolute concentration: it takes no [`Concentration`].
+    /// diameter, `N0 = 8000 m⁻³ mm⁻¹`, `Λ = 4.1 R^−0.21 mm⁻¹` (R in mm/h, `0 < R ≤ 1000`), for
+    /// diameters `D ∈ [d_min, d_max]`. An absolute concentration: it takes no [`Concentration`].
     MarshallPalmer { rain_rate_mm_per_h: f64, d_min: f64, d_max: f64 },
 }
 
@@ -281,7 +281,13 @@ fn nodes(dist: &SizeDistribution, size_points: usize) -> Result<Nodes, MieError>
             (LogDensity::Gamma { alpha, gamma, b }, r_min.ln(), r_max.ln())
         }
         SizeDistribution::MarshallPalmer { rain_rate_mm_per_h, d_min, d_max } => {
-            positive("rain_rate_mm_per_h", rain_rate_mm_per_h)?;
+            if !(rain_rate_mm_per_h > 0.0 && rain_rate_mm_per_h <= 1000.0) {
+                return Err(MieError::Parameter {
+                    name: "rain_rate_mm_per_h",
+                    value: rain_rate_mm_per_h,
+                    expected: "0 < R ≤ 1000 mm/h",
+                });
+            }
             let (d_min, d_max) = range("Marshall–Palmer diameter range [d_min, d_max]", d_min, d_max)?;
             // Λ = 4.1 R^−0.21 mm⁻¹ = 4100 R^−0.21 m⁻¹.
             let lambda = 4.1e3 * rain_rate_mm_per_h.powf(-0.21);
