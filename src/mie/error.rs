@@ -1,7 +1,7 @@
 //! Errors of the Mie solver and the ensemble integrator. Every message states the offending value and
 //! the accepted range.
 
-use super::solver::{K_MAX, MX_MAX, N_MAX, X_MAX, X_MIN};
+use super::solver::{K_MAX, MX_MAX, N_MAX, N_MIN, X_MAX, X_MIN};
 
 /// Invalid input to [`MieSolution::new`](super::MieSolution::new) or
 /// [`ensemble_optics`](super::ensemble_optics).
@@ -10,8 +10,10 @@ pub enum MieError {
     /// Size parameter `x = 2π r n_medium / λ0` not finite or outside `[X_MIN, X_MAX]`.
     #[error("size parameter x = {x:e} is out of range: expected a finite value in [{X_MIN:e}, {X_MAX:e}]")]
     SizeParameter { x: f64 },
-    /// Real part of the relative refractive index not finite or outside `(0, N_MAX]`.
-    #[error("real part of the relative refractive index n = {n} is out of range: expected finite, 0 < n ≤ {N_MAX}")]
+    /// Real part of the relative refractive index not finite or outside `[N_MIN, N_MAX]`.
+    #[error(
+        "real part of the relative refractive index n = {n:e} is out of range: expected finite, {N_MIN:e} ≤ n ≤ {N_MAX}"
+    )]
     RealIndex { n: f64 },
     /// Imaginary part (absorption, `m = n − ik`) not finite or outside `[0, K_MAX]`.
     #[error(

@@ -14,7 +14,7 @@
 //!
 //! ## Coefficients
 //!
-//! With `D_n(z) = ψ_n'(z)/ψ_n(z)` (B&H eq. 4.88 divided through by `ψ_n(mx)`):
+//! With `D_n(z) = ψ_n'(z)/ψ_n(z)` (B&H §4.8; their ψ/ψ' form of a_n, b_n divided through by `ψ_n(mx)`):
 //!
 //! ```text
 //! a_n = [(D_n(mx)/m + n/x) ψ_n(x) − ψ_{n−1}(x)] / [(D_n(mx)/m + n/x) ξ_n(x) − ξ_{n−1}(x)]
@@ -49,9 +49,9 @@
 //! * `ψ_n(x)` by upward recurrence while `n < x` (oscillatory region), and for `n ≥ x` by
 //!   `ψ_n = ψ_{n−1} / (G_n(x) + (2n+1)/x)`, which is stable where upward recurrence loses `ψ`
 //!   (it decays there; always the case for small `x`). `ψ_n(x)` has no zeros for `n ≥ x`.
-//! * Number of terms `N` from Wiscombe's criterion (eq. 7 there), at least 3 so that the `O(x²)`
+//! * Number of terms `N` from Wiscombe's criterion, at least 3 so that the `O(x²)`
 //!   asymmetry of small spheres (from `a_1 a_2*`, `a_1 b_1*`) is kept.
-//! * Angular functions by upward recurrence in `μ = cos θ` (B&H eq. 4.47):
+//! * Angular functions by upward recurrence in `μ = cos θ` (B&H ch. 4):
 //!   `π_n = ((2n−1) μ π_{n−1} − n π_{n−2})/(n−1)`, `τ_n = n μ π_n − (n+1) π_{n−1}`.
 
 use std::f64::consts::PI;
@@ -64,6 +64,9 @@ pub use num_complex::Complex64;
 pub const X_MIN: f64 = 1e-20;
 /// Largest accepted size parameter (N ≈ 1.0002e5 terms).
 pub const X_MAX: f64 = 1e5;
+/// Smallest accepted real part of the relative index (far below any material's; it keeps `1/m²`
+/// finite when k = 0).
+pub const N_MIN: f64 = 1e-6;
 /// Largest accepted real part of the relative index.
 pub const N_MAX: f64 = 100.0;
 /// Largest accepted imaginary part of the relative index.
@@ -85,14 +88,15 @@ fn start_order(n_terms: usize, z_abs: f64) -> usize {
 /// Efficiencies (cross-section / geometric cross-section π r²) and the asymmetry parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Efficiencies {
-    /// Extinction efficiency, `(2/x²) Σ (2n+1) Re(a_n + b_n)` (B&H eq. 4.62).
+    /// Extinction efficiency, `(2/x²) Σ (2n+1) Re(a_n + b_n)` (B&H ch. 4).
     pub qext: f64,
-    /// Scattering efficiency, `(2/x²) Σ (2n+1)(|a_n|² + |b_n|²)` (B&H eq. 4.61).
+    /// Scattering efficiency, `(2/x²) Σ (2n+1)(|a_n|² + |b_n|²)` (B&H ch. 4).
     pub qsca: f64,
     /// Backscatter efficiency in the radar convention, `4|S1(π)|²/x² = |Σ (2n+1)(−1)ⁿ(a_n − b_n)|²/x²`
     /// (m = 0.75, x = 10 → 0.046584). The phase function at π is `qback / (4π qsca)`.
     pub qback: f64,
-    /// Asymmetry parameter ⟨cos θ⟩ (B&H eq. 4.79); 0 when nothing scatters.
+    /// Asymmetry parameter ⟨cos θ⟩ (B&H ch. 4); 0 when nothing scatters:
+    /// `g Qsca x²/4 = Σ n(n+2)/(n+1) Re(a_n a*_{n+1} + b_n b*_{n+1}) + Σ (2n+1)/(n(n+1)) Re(a_n b*_n)`.
     pub g: f64,
 }
 
@@ -107,7 +111,7 @@ pub struct MieSolution {
     b: Vec<Complex64>,
 }
 
-/// Number of terms: Wiscombe (1980) eq. 7, at least 3.
+/// Number of terms: Wiscombe's (1980) criterion, at least 3.
 fn wiscombe_terms(x: f64) -> usize {
     let c = x.cbrt();
     let n = if x <= 8.0 {
@@ -162,13 +166,13 @@ impl MieSolution {
     /// Solve for a sphere of relative index `m = n − ik` and size parameter `x = 2π r n_medium/λ0`.
     /// `k ≥ 0` is absorbing (m = n − ik).
     ///
-    /// Accepted: `x ∈ [X_MIN, X_MAX]`, `0 < n ≤ N_MAX`, `0 ≤ k ≤ K_MAX`, `|m|·x ≤ MX_MAX`, all finite.
+    /// Accepted: `x ∈ [X_MIN, X_MAX]`, `N_MIN ≤ n ≤ N_MAX`, `0 ≤ k ≤ K_MAX`, `|m|·x ≤ MX_MAX`, all finite.
     /// `m = 1` exactly gives zero coefficients (no scattering).
     pub fn new(n: f64, k: f64, x: f64) -> Result<Self, MieError> {
         if !(x.is_finite() && (X_MIN..=X_MAX).contains(&x)) {
             return Err(MieError::SizeParameter { x });
         }
-        if !(n.is_finite() && n > 0.0 && n <= N_MAX) {
+        if !(n.is_finite() && (N_MIN..=N_MAX).contains(&n)) {
             return Err(MieError::RealIndex { n });
         }
         if !(k.is_finite() && (0.0..=K_MAX).contains(&k)) {
@@ -246,7 +250,7 @@ impl MieSolution {
         (&self.a, &self.b)
     }
 
-    /// Qext, Qsca, Qback and g from the series (B&H eqs. 4.61, 4.62, 4.79; Qback radar convention).
+    /// Qext, Qsca, Qback and g from the series (B&H ch. 4; Qback radar convention).
     pub fn efficiencies(&self) -> Efficiencies {
         let (mut ext, mut sca, mut asym) = (0.0, 0.0, 0.0);
         let mut back = Complex64::new(0.0, 0.0);
@@ -281,7 +285,7 @@ impl MieSolution {
     /// S1(θ), S2(θ) (Bohren & Huffman convention) at scattering angles θ (radians, 0 = forward).
     ///
     /// `S1 = Σ (2n+1)/(n(n+1)) (a_n π_n + b_n τ_n)`, `S2 = Σ (2n+1)/(n(n+1)) (a_n τ_n + b_n π_n)`
-    /// (B&H eq. 4.74). The scattered intensity for unpolarised light is `(|S1|² + |S2|²)/2`.
+    /// (B&H ch. 4). The scattered intensity for unpolarised light is `(|S1|² + |S2|²)/2`.
     pub fn amplitudes(&self, theta: &[f64]) -> Vec<(Complex64, Complex64)> {
         theta
             .iter()
@@ -310,7 +314,10 @@ impl MieSolution {
     /// (|S1|² + |S2|²)/2 at each θ, written into `out` (same length as `theta`).
     ///
     /// The loop runs over n outside and the angles inside, on flat arrays, so that the inner loop
-    /// vectorises; nothing is allocated per n.
+    /// vectorises; nothing is allocated per n. It accumulates `S± = S1 ± S2 = Σ c_n (a_n ± b_n)(π_n ± τ_n)`
+    /// (`c_n = (2n+1)/(n(n+1))`), which needs half the multiplications of S1 and S2, and returns
+    /// `(|S+|² + |S−|²)/4`. Near θ = 0 (S− → 0) and θ = π (S+ → 0) this loses nothing: the large
+    /// sum is formed directly, the small one from `π_n − τ_n` or `π_n + τ_n`, exact at μ = ±1.
     ///
     /// # Panics
     /// If `out.len() != theta.len()` (a programming error, not an input error).
@@ -322,19 +329,19 @@ impl MieSolution {
         // coefficients chosen for n = 1 below, yields π_1 = 1.
         let mut p1 = vec![0.0; len];
         let mut p2 = vec![1.0; len];
-        let mut s1r = vec![0.0; len];
-        let mut s1i = vec![0.0; len];
-        let mut s2r = vec![0.0; len];
-        let mut s2i = vec![0.0; len];
+        let mut spr = vec![0.0; len];
+        let mut spi = vec![0.0; len];
+        let mut smr = vec![0.0; len];
+        let mut smi = vec![0.0; len];
         for (i, (an, bn)) in self.a.iter().zip(&self.b).enumerate() {
             let nf = (i + 1) as f64;
             let c = (2.0 * nf + 1.0) / (nf * (nf + 1.0));
-            let (ar, ai, br, bi) = (c * an.re, c * an.im, c * bn.re, c * bn.im);
+            let (plus, minus) = (c * (an + bn), c * (an - bn));
             // π_n = α μ π_{n−1} − β π_{n−2}; for n = 1, α = 0, β = −1 with the stand-in π_{−1} = 1.
             let (alpha, beta) = if i == 0 { (0.0, -1.0) } else { ((2.0 * nf - 1.0) / (nf - 1.0), nf / (nf - 1.0)) };
             let np1 = nf + 1.0;
             let (mu, p1, p2) = (&mu[..len], &mut p1[..len], &mut p2[..len]);
-            let (s1r, s1i, s2r, s2i) = (&mut s1r[..len], &mut s1i[..len], &mut s2r[..len], &mut s2i[..len]);
+            let (spr, spi, smr, smi) = (&mut spr[..len], &mut spi[..len], &mut smr[..len], &mut smi[..len]);
             for j in 0..len {
                 let u = mu[j];
                 let pm1 = p1[j];
@@ -342,14 +349,15 @@ impl MieSolution {
                 let t = nf * u * p - np1 * pm1;
                 p2[j] = pm1;
                 p1[j] = p;
-                s1r[j] += ar * p + br * t;
-                s1i[j] += ai * p + bi * t;
-                s2r[j] += ar * t + br * p;
-                s2i[j] += ai * t + bi * p;
+                let (sum, diff) = (p + t, p - t);
+                spr[j] += plus.re * sum;
+                spi[j] += plus.im * sum;
+                smr[j] += minus.re * diff;
+                smi[j] += minus.im * diff;
             }
         }
         for j in 0..len {
-            out[j] = 0.5 * (s1r[j] * s1r[j] + s1i[j] * s1i[j] + s2r[j] * s2r[j] + s2i[j] * s2i[j]);
+            out[j] = 0.25 * (spr[j] * spr[j] + spi[j] * spi[j] + smr[j] * smr[j] + smi[j] * smi[j]);
         }
     }
 
@@ -413,11 +421,15 @@ mod tests {
 
     #[test]
     fn coefficients_match_high_precision_values() {
-        // a_n, b_n evaluated directly from B&H eq. 4.88 (ψ_n = √(πz/2) J_{n+½}, η_n = √(πz/2) Y_{n+½},
-        // ξ_n = ψ_n + iη_n) with mpmath 1.3.0 at 40 significant digits, printed to 16 digits.
+        // a_n, b_n evaluated directly from the B&H ψ/ψ' form,
+        // a_n = [m ψ_n(mx) ψ_n'(x) − ψ_n(x) ψ_n'(mx)] / [m ψ_n(mx) ξ_n'(x) − ξ_n(x) ψ_n'(mx)] and likewise
+        // b_n, with ψ_n = √(πz/2) J_{n+½}, η_n = √(πz/2) Y_{n+½}, ξ_n = ψ_n + iη_n, in mpmath 1.3.0 at
+        // 40 significant digits, printed to 16 digits.
         // m is in the B&H convention (n + ik). The tiny-x rows test the cancellation-free numerators.
+        // (n, k, x, order, a_n, b_n)
+        type Row = (f64, f64, f64, usize, (f64, f64), (f64, f64));
         #[rustfmt::skip]
-        let cases: [(f64, f64, f64, usize, (f64, f64), (f64, f64)); 13] = [
+        let cases: [Row; 13] = [
             (1.33, 1e-5, 1e4, 1, (0.8467371339486803, -0.1634247445382292), (0.8732732750144168, -0.21378258543399356)),
             (1.33, 1e-5, 1e4, 2, (0.8732354893410799, -0.21384739846820208), (0.8467388567978329, -0.1634248707805196)),
             (10.0, 10.0, 1e4, 1, (0.10758705897487597, 0.22530693404381863), (0.8924129413597945, -0.22530693527847806)),
@@ -467,6 +479,7 @@ mod tests {
             (1.5, 0.0, 2e5),
             (0.0, 0.0, 1.0),
             (-1.0, 0.0, 1.0),
+            (1e-300, 0.0, 1.0),
             (f64::NAN, 0.0, 1.0),
             (1.5, -1e-3, 1.0),
             (1.5, f64::INFINITY, 1.0),
@@ -501,7 +514,7 @@ mod tests {
         }
         let e = s.efficiencies();
         let x = s.size_parameter();
-        // Optical theorem (B&H eq. 4.76): Qext = 4 Re S(0) / x²; S1(0) = S2(0); S1(π) = −S2(π).
+        // Optical theorem: Qext = 4 Re S(0) / x²; S1(0) = S2(0); S1(π) = −S2(π).
         assert!((4.0 * amp[0].0.re / (x * x) / e.qext - 1.0).abs() < 1e-12);
         assert!((amp[0].0 - amp[0].1).norm() < 1e-12 * amp[0].0.norm());
         let (b1, b2) = amp[50];
