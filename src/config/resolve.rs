@@ -17,7 +17,7 @@ use crate::io::table::read_phase_table;
 use crate::medium::{
     Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, ParticleOptics, Region, Scene, Shape, TableInfo, mixture_optics,
 };
-use crate::mie::{Concentration, EnsembleSpec, Packing, SizeDistribution};
+use crate::mie::{Concentration, DEFAULT_SIZE_POINTS, EnsembleSpec, Packing, SizeDistribution};
 use crate::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};
 use crate::source::{Chirp, Profile, Source};
 use crate::spectrum::FrequencyAxis;
@@ -425,8 +425,6 @@ struct Optics {
 /// Default number of angles of a Mie phase table, and the grid used when only σ and g are needed.
 const MIE_ANGLES: u64 = 1000;
 const MIE_ANGLES_UNUSED: usize = 16;
-/// Default nodes of the size quadrature of a polydisperse component.
-const SIZE_POINTS: u64 = 96;
 
 /// Values computed for one wavelength must not be used at another (1 % tolerance).
 fn check_wavelength(path: &str, what: &str, given: f64, source: f64) -> R<()> {
@@ -739,7 +737,7 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
             PackingKind::None => None,
             PackingKind::Twersky => Some(Packing::Twersky),
         };
-        let size_points = p.size_points.unwrap_or(SIZE_POINTS);
+        let size_points = p.size_points.unwrap_or(DEFAULT_SIZE_POINTS as u64);
         if !(8..=4096).contains(&size_points) {
             return err(join(&here, "size_points"), format!("= {size_points}: expected 8 to 4096 quadrature nodes"));
         }
