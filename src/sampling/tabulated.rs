@@ -43,21 +43,27 @@ impl fmt::Display for TableError {
     }
 }
 
-/// One cell `[lo, lo + width]` with its alias entry.
+/// A cell's geometry: `[lo, lo + width]` with normalised end densities `a`, `b`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Piece {
+    lo: f64,
+    width: f64,
+    a: f64,
+    b: f64,
+}
+
+/// One alias-table entry: a cell with the geometry of both outcomes stored inline, so that a draw
+/// touches one entry (one random memory access: sampling went from 2.0× to 1.5× the cost of HG, `phase/` benches).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Cell {
     /// Keep this cell when the fractional part of `u·n` is below `threshold` …
     threshold: f64,
     /// … and then rescale that fraction by `1/threshold` …
     inv_threshold: f64,
-    /// … otherwise take cell `alias`, rescaling by `1/(1 − threshold)`.
+    /// … otherwise take the alias, rescaling by `1/(1 − threshold)`.
     inv_rest: f64,
-    alias: u32,
-    lo: f64,
-    width: f64,
-    /// Normalised density at `lo` and at `lo + width`.
-    a: f64,
-    b: f64,
+    own: Piece,
+    alias: Piece,
 }
 
 /// A normalised piecewise-linear density on `[x₀, x_n]`.
@@ -119,16 +125,14 @@ impl PiecewiseLinear {
             *c /= last;
         }
         let (threshold, alias) = alias_table(&mass, total);
+        let piece = |i: usize| Piece { lo: nodes[i], width: nodes[i + 1] - nodes[i], a: density[i], b: density[i + 1] };
         let cells = (0..cells)
             .map(|i| Cell {
                 threshold: threshold[i],
                 inv_threshold: if threshold[i] > 0.0 { 1.0 / threshold[i] } else { 0.0 },
                 inv_rest: if threshold[i] < 1.0 { 1.0 / (1.0 - threshold[i]) } else { 0.0 },
-                alias: alias[i],
-                lo: nodes[i],
-                width: nodes[i + 1] - nodes[i],
-                a: density[i],
-                b: density[i + 1],
+                own: piece(i),
+                alias: piece(alias[i] as usize),
             })
             .collect();
         Ok(PiecewiseLinear { nodes: nodes.to_vec(), density, cdf, cells, raw_integral: total })
@@ -144,9 +148,9 @@ impl PiecewiseLinear {
         let frac = if frac < ONE_BELOW { frac } else { ONE_BELOW };
         let here = &self.cells[i];
         let (cell, v) = if frac < here.threshold {
-            (here, frac * here.inv_threshold)
+            (&here.own, frac * here.inv_threshold)
         } else {
-            (&self.cells[here.alias as usize], (frac - here.threshold) * here.inv_rest)
+            (&here.alias, (frac - here.threshold) * here.inv_rest)
         };
         let (a, b) = (cell.a, cell.b);
         // The denominator is 0 only for a = 0 at v = 0, where t = 0.
@@ -160,7 +164,7 @@ impl PiecewiseLinear {
     pub fn pdf(&self, x: f64) -> f64 {
         match self.cell_of(x) {
             Some(i) => {
-                let c = &self.cells[i];
+                let c = &self.cells[i].own;
                 let t = (x - c.lo) / c.width;
                 c.a + (c.b - c.a) * t
             }
@@ -175,7 +179,7 @@ impl PiecewiseLinear {
         }
         match self.cell_of(x) {
             Some(i) => {
-                let c = &self.cells[i];
+                let c = &self.cells[i].own;
                 let t = (x - c.lo) / c.width;
                 (self.cdf[i] + c.width * t * (c.a + 0.5 * (c.b - c.a) * t)).min(1.0)
             }
@@ -186,7 +190,11 @@ impl PiecewiseLinear {
     /// `E[X]`, exactly for the piecewise-linear density.
     pub fn mean(&self) -> f64 {
         // ∫ x (a + (b − a)(x − lo)/w) dx over a cell = w (lo (a + b)/2 + w (a + 2b)/6).
-        self.cells.iter().map(|c| c.width * (c.lo * 0.5 * (c.a + c.b) + c.width * (c.a + 2.0 * c.b) / 6.0)).sum()
+        self.cells
+            .iter()
+            .map(|c| &c.own)
+            .map(|c| c.width * (c.lo * 0.5 * (c.a + c.b) + c.width * (c.a + 2.0 * c.b) / 6.0))
+            .sum()
     }
 
     /// The cell holding `x`, if `x` lies within the nodes.
