@@ -14,15 +14,17 @@ use ohd::phase::{HenyeyGreenstein, PhaseFunction};
 use ohd::sampling::{PathRng, Purpose, warp};
 use ohd::transport::walk::{doppler_increment, scatter_direction};
 
-fn event_kernel(c: &mut Criterion) {
-    let mut g = c.benchmark_group("event");
-    g.throughput(Throughput::Elements(1));
-    let phase = PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(0.9).unwrap());
+/// One real scattering event as the walk does it: deflection, azimuth, rotation, Doppler term.
+fn scatter_event(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    phase: &PhaseFunction,
+    rng: &mut PathRng,
+) {
     let v = DVec3::new(0.0, 0.0, 1e-3);
-    let mut rng = PathRng::new(1, Purpose::Test, 0, 0);
     let mut dir = DVec3::Z;
     let mut dldt = 0.0;
-    g.bench_function("scatter_hg_with_doppler", |b| {
+    g.bench_function(name, |b| {
         b.iter(|| {
             let d = phase.sample(rng.uniform());
             let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
@@ -32,6 +34,14 @@ fn event_kernel(c: &mut Criterion) {
             black_box(dldt)
         })
     });
+}
+
+fn event_kernel(c: &mut Criterion) {
+    let mut g = c.benchmark_group("event");
+    g.throughput(Throughput::Elements(1));
+    let phase = PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(0.9).unwrap());
+    let mut rng = PathRng::new(1, Purpose::Test, 0, 0);
+    scatter_event(&mut g, "scatter_hg_with_doppler", &phase, &mut rng);
     g.bench_function("free_path_exponential", |b| b.iter(|| black_box(rng.exponential())));
     g.bench_function("path_stream_seeding", |b| {
         let key = ohd::sampling::StreamKey::new(1, Purpose::Path, 3);
@@ -70,20 +80,8 @@ fn phase_sampling(c: &mut Criterion) {
     for (name, phase) in &phases {
         g.bench_function(format!("sample_{name}"), |b| b.iter(|| black_box(phase.sample(rng.uniform()))));
     }
-    let v = DVec3::new(0.0, 0.0, 1e-3);
     for (name, phase) in &phases {
-        let mut dir = DVec3::Z;
-        let mut dldt = 0.0;
-        g.bench_function(format!("event_{name}"), |b| {
-            b.iter(|| {
-                let d = phase.sample(rng.uniform());
-                let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
-                let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
-                dldt += doppler_increment(1.4, v, delta);
-                dir = out;
-                black_box(dldt)
-            })
-        });
+        scatter_event(&mut g, &format!("event_{name}"), phase, &mut rng);
     }
     g.finish();
 }

@@ -84,24 +84,24 @@ pub fn merge(base: &mut toml::Table, over: toml::Table) {
                 merge(b, o)
             }
             (Some(toml::Value::Array(b)), toml::Value::Table(o)) if o.keys().all(|k| k.parse::<usize>().is_ok()) => {
-                for (i, v) in o {
-                    let i: usize = i.parse().expect("checked numeric");
-                    match (b.get_mut(i), v) {
-                        (Some(toml::Value::Table(bt)), toml::Value::Table(ot)) => merge(bt, ot),
-                        (Some(slot), v) => *slot = v,
-                        (None, v) => b.push(v),
-                    }
-                }
+                merge_elements(b, o.into_iter().map(|(i, v)| (i.parse().expect("checked numeric"), v)))
             }
             (Some(toml::Value::Array(b)), toml::Value::Array(o)) if is_array_of_tables(b) && is_array_of_tables(&o) => {
-                for (i, v) in o.into_iter().enumerate() {
-                    match (b.get_mut(i), v) {
-                        (Some(toml::Value::Table(bt)), toml::Value::Table(ot)) => merge(bt, ot),
-                        (_, v) => b.push(v),
-                    }
-                }
+                merge_elements(b, o.into_iter().enumerate())
             }
             (_, value) => insert_replacing(base, &key, value),
+        }
+    }
+}
+
+/// Merge `(index, value)` overrides into an array: tables merge, other values replace, indices past
+/// the end append.
+fn merge_elements(base: &mut Vec<toml::Value>, over: impl Iterator<Item = (usize, toml::Value)>) {
+    for (i, v) in over {
+        match (base.get_mut(i), v) {
+            (Some(toml::Value::Table(bt)), toml::Value::Table(ot)) => merge(bt, ot),
+            (Some(slot), v) => *slot = v,
+            (None, v) => base.push(v),
         }
     }
 }

@@ -560,14 +560,17 @@ fn positive_length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m
     Ok(Some(v))
 }
 
-/// A size range `[lo, hi]` (m) from its two keys, with defaults when both are optional.
+/// A size range `[lo, hi]` (m) from its two length keys (`names`, each in µm, mm or m), with
+/// defaults when both are optional.
 fn size_range(
     prefix: &str,
-    lo: Option<Given>,
-    hi: Option<Given>,
     names: (&str, &str),
+    lo: [Option<f64>; 3],
+    hi: [Option<f64>; 3],
     default: Option<(f64, f64)>,
 ) -> R<(f64, f64)> {
+    let lo = positive_length(prefix, names.0, lo[0], lo[1], lo[2])?;
+    let hi = positive_length(prefix, names.1, hi[0], hi[1], hi[2])?;
     let (lo, hi) = match (lo, hi, default) {
         (Some(a), Some(b), _) => (a, b),
         (a, b, Some((da, db))) => {
@@ -646,9 +649,13 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                         format!("= {sigma_g}: expected a geometric standard deviation in (1, 10]"),
                     );
                 }
-                let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
-                let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
-                let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
+                let (r_min, r_max) = size_range(
+                    &sp,
+                    ("min_radius", "max_radius"),
+                    [*min_radius_um, *min_radius_mm, *min_radius_m],
+                    [*max_radius_um, *max_radius_mm, *max_radius_m],
+                    None,
+                )?;
                 SizeDistribution::LogNormal { median_radius: median_radius.0, sigma_g: *sigma_g, r_min, r_max }
             }
             SizeSection::ModifiedGamma {
@@ -673,9 +680,13 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                 if !(gamma.is_finite() && *gamma > 0.0 && *gamma <= 100.0) {
                     return err(join(&sp, "gamma"), format!("= {gamma}: expected an exponent γ in (0, 100]"));
                 }
-                let lo = positive_length(&sp, "min_radius", *min_radius_um, *min_radius_mm, *min_radius_m)?;
-                let hi = positive_length(&sp, "max_radius", *max_radius_um, *max_radius_mm, *max_radius_m)?;
-                let (r_min, r_max) = size_range(&sp, lo, hi, ("min_radius", "max_radius"), None)?;
+                let (r_min, r_max) = size_range(
+                    &sp,
+                    ("min_radius", "max_radius"),
+                    [*min_radius_um, *min_radius_mm, *min_radius_m],
+                    [*max_radius_um, *max_radius_mm, *max_radius_m],
+                    None,
+                )?;
                 SizeDistribution::ModifiedGamma {
                     alpha: *alpha,
                     gamma: *gamma,
@@ -699,10 +710,14 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
                         format!("= {rain_rate_mm_per_h} mm/h: expected a rain rate in (0, 500] mm/h"),
                     );
                 }
-                let lo = positive_length(&sp, "min_diameter", *min_diameter_um, *min_diameter_mm, *min_diameter_m)?;
-                let hi = positive_length(&sp, "max_diameter", *max_diameter_um, *max_diameter_mm, *max_diameter_m)?;
                 // Defaults: 0.05–6 mm, the range of scene-parameters §B4.
-                let (d_min, d_max) = size_range(&sp, lo, hi, ("min_diameter", "max_diameter"), Some((0.05e-3, 6e-3)))?;
+                let (d_min, d_max) = size_range(
+                    &sp,
+                    ("min_diameter", "max_diameter"),
+                    [*min_diameter_um, *min_diameter_mm, *min_diameter_m],
+                    [*max_diameter_um, *max_diameter_mm, *max_diameter_m],
+                    Some((0.05e-3, 6e-3)),
+                )?;
                 SizeDistribution::MarshallPalmer { rain_rate_mm_per_h: *rain_rate_mm_per_h, d_min, d_max }
             }
         };
