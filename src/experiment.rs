@@ -7,12 +7,13 @@
 
 use rayon::prelude::*;
 
-use crate::detect::{BeatModel, Detector, Recorder, TallyLayout};
+use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
+use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
 use crate::medium::Scene;
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::Source;
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{WalkSettings, trace_path};
+use crate::transport::{NeeTarget, WalkSettings, trace_path};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -75,9 +76,18 @@ pub struct RunOutput {
     pub stats: RunStats,
     pub threads: usize,
     pub wall_seconds: f64,
+    /// Paths detected in LDH regions of interest, in batch order (only when speckle is asked for).
+    pub lines: Vec<RecordedLine>,
+    /// Speckle spectra of the LDH camera's ROIs, when asked for (synthesised after the run).
+    pub speckle: Vec<RoiSpeckle>,
+    /// Seconds spent synthesising them (not part of `wall_seconds`).
+    pub speckle_seconds: f64,
 }
 
 const PROGRESS_EVERY: u64 = 4096;
+
+/// One batch's tally sums, counters and recorded lines.
+type BatchResult = (Vec<f64>, RunStats, Vec<RecordedLine>);
 
 impl Experiment {
     pub fn beat_model(&self) -> BeatModel {
@@ -96,6 +106,21 @@ impl Experiment {
     /// Whether the walk needs the optical path length (a chirp).
     pub fn needs_length(&self) -> bool {
         self.source.chirp.is_some()
+    }
+
+    /// The detectors scored by next-event estimation.
+    pub fn next_event_targets(&self) -> Vec<NeeTarget> {
+        self.detectors
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.next_event)
+            .map(|(i, d)| NeeTarget::new(i, d.axis, d.cos_acceptance))
+            .collect()
+    }
+
+    /// Whether detected paths are kept for speckle synthesis.
+    pub fn records_lines(&self) -> bool {
+        self.detectors.iter().any(|d| d.ldh.as_ref().is_some_and(|l| l.speckle.is_some()))
     }
 
     /// Batches folded at a time: enough to keep every thread busy, few enough to bound memory.
@@ -117,33 +142,36 @@ impl Experiment {
         let beat = self.beat_model();
         let mut estimates = BatchAccumulator::new(layout.len);
         let mut stats = RunStats::default();
+        let mut lines = Vec::new();
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
         let in_flight = self.batches_in_flight();
         let mut first = 0;
         while first < self.plan.batches {
             let last = (first + in_flight).min(self.plan.batches);
             let work = |b: u64| self.run_batch(b, &layout, beat, progress);
-            let results: Vec<(Vec<f64>, RunStats)> = match &pool {
+            let results: Vec<BatchResult> = match &pool {
                 Ok(pool) => pool.install(|| (first..last).into_par_iter().map(work).collect()),
                 // A pool that cannot be built (no threads available) still gives the same numbers.
                 Err(_) => (first..last).map(work).collect(),
             };
-            for (sums, s) in &results {
-                estimates.push(sums, self.plan.paths_per_batch);
-                stats.merge(s);
+            for (sums, s, l) in results {
+                estimates.push(&sums, self.plan.paths_per_batch);
+                stats.merge(&s);
+                lines.extend(l);
             }
             first = last;
         }
-        RunOutput { layout, beat, estimates, stats, threads, wall_seconds: start.elapsed().as_secs_f64() }
+        let wall_seconds = start.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
+        let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
+            Some(spec) => synthesize_speckle(spec, &lines, self.plan.samples(), self.plan.seed),
+            None => Vec::new(),
+        };
+        let speckle_seconds = t.elapsed().as_secs_f64();
+        RunOutput { layout, beat, estimates, stats, threads, wall_seconds, lines, speckle, speckle_seconds }
     }
 
-    fn run_batch(
-        &self,
-        batch: u64,
-        layout: &TallyLayout,
-        beat: BeatModel,
-        progress: &dyn Progress,
-    ) -> (Vec<f64>, RunStats) {
+    fn run_batch(&self, batch: u64, layout: &TallyLayout, beat: BeatModel, progress: &dyn Progress) -> BatchResult {
         match (self.needs_doppler(), self.needs_length()) {
             (false, false) => self.run_batch_kind::<false, false>(batch, layout, beat, progress),
             (true, false) => self.run_batch_kind::<true, false>(batch, layout, beat, progress),
@@ -158,19 +186,34 @@ impl Experiment {
         layout: &TallyLayout,
         beat: BeatModel,
         progress: &dyn Progress,
-    ) -> (Vec<f64>, RunStats) {
+    ) -> BatchResult {
         let mut sums = vec![0.0; layout.len];
         let mut stats = RunStats::default();
-        let mut rec = Recorder { detectors: &self.detectors, layout, beat, acc: &mut sums, stats: &mut stats };
+        let mut lines = Vec::new();
+        let record = self.records_lines();
+        let nee = self.next_event_targets();
+        let mut rec = Recorder {
+            detectors: &self.detectors,
+            layout,
+            beat,
+            acc: &mut sums,
+            stats: &mut stats,
+            lines: if record { Some(&mut lines) } else { None },
+            nee: &nee,
+        };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         for i in 0..self.plan.paths_per_batch {
             let mut rng = key.path(i);
-            trace_path::<DOPPLER, LENGTH>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+            if nee.is_empty() {
+                trace_path::<DOPPLER, LENGTH, false>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+            } else {
+                trace_path::<DOPPLER, LENGTH, true>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+            }
             if (i + 1) % PROGRESS_EVERY == 0 {
                 progress.advance(PROGRESS_EVERY);
             }
         }
         progress.advance(self.plan.paths_per_batch % PROGRESS_EVERY);
-        (sums, stats)
+        (sums, stats, lines)
     }
 }

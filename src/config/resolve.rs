@@ -9,18 +9,19 @@ use glam::DVec3;
 
 use super::schema::*;
 use super::units::unit_of;
-use crate::detect::{Area, Detector, ImageSpec, Side, SpectrumSpec};
+use crate::detect::{Area, Detector, ImageSpec, LdhSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::VelocityField;
 use crate::io::table::read_phase_table;
 use crate::medium::{
-    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, ParticleOptics, Region, Scene, Shape, TableInfo, mixture_optics,
+    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Motion, ParticleOptics, Region, Scene, Shape, TableInfo,
+    mixture_optics, stokes_einstein,
 };
 use crate::mie::{Concentration, DEFAULT_SIZE_POINTS, EnsembleSpec, Packing, SizeDistribution};
 use crate::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};
 use crate::source::{Chirp, Profile, Source};
-use crate::spectrum::FrequencyAxis;
+use crate::spectrum::{FrequencyAxis, Stft, Window};
 use crate::transport::{Tracking, WalkSettings};
 
 type R<T> = Result<T, ConfigError>;
@@ -219,6 +220,14 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let ctx = Ctx { base, wavelength: source.wavelength };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
     let detectors = resolve_detectors(&f.detectors, &scene)?;
+    if source.chirp.is_some()
+        && let Some(i) = detectors.iter().position(|d| d.ldh.is_some())
+    {
+        return err(
+            format!("detectors[{i}].ldh"),
+            "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
+        );
+    }
     Ok(Experiment { name: f.name.clone().unwrap_or_else(|| "experiment".to_string()), scene, source, detectors, plan })
 }
 
@@ -403,6 +412,49 @@ fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
     })
+}
+
+/// `[media.X.motion]`: a per-event velocity dispersion and a diffusion coefficient, given directly
+/// or by Stokes–Einstein from radius, temperature and viscosity.
+fn resolve_motion(path: &str, m: &MotionSection) -> R<Motion> {
+    let dispersion = pick(
+        path,
+        &[("dispersion_mm_per_s", m.dispersion_mm_per_s, 1e-3), ("dispersion_m_per_s", m.dispersion_m_per_s, 1.0)],
+    )?
+    .map_or(Ok(0.0), |v| non_negative(v, "a velocity standard deviation"))?;
+    let direct = pick(
+        path,
+        &[("diffusion_m2_per_s", m.diffusion_m2_per_s, 1.0), ("diffusion_um2_per_s", m.diffusion_um2_per_s, 1e-12)],
+    )?;
+    let radius = pick(path, &[("radius_um", m.radius_um, 1e-6), ("radius_nm", m.radius_nm, 1e-9)])?;
+    let temperature = pick(path, &[("temperature_k", m.temperature_k, 1.0)])?;
+    let viscosity =
+        pick(path, &[("viscosity_mpa_s", m.viscosity_mpa_s, 1e-3), ("viscosity_pa_s", m.viscosity_pa_s, 1.0)])?;
+    let stokes = radius.is_some() || temperature.is_some() || viscosity.is_some();
+    let diffusion = match (direct, stokes) {
+        (Some(d), false) => non_negative(d, "a diffusion coefficient")?,
+        (None, false) => 0.0,
+        (Some(d), true) => {
+            return err(d.1, "give either the diffusion coefficient or radius, temperature and viscosity, not both");
+        }
+        (None, true) => {
+            let missing = |what: &str, keys: &str| {
+                ConfigError::new(
+                    path,
+                    format!("missing {what} for the Stokes–Einstein diffusion coefficient: give {keys}"),
+                )
+            };
+            let r =
+                positive(radius.ok_or_else(|| missing("the particle radius", "radius_um or radius_nm"))?, "a radius")?;
+            let t = positive(temperature.ok_or_else(|| missing("the temperature", "temperature_k"))?, "a temperature")?;
+            let eta = positive(
+                viscosity.ok_or_else(|| missing("the fluid viscosity", "viscosity_mpa_s or viscosity_pa_s"))?,
+                "a viscosity",
+            )?;
+            stokes_einstein(r, t, eta)
+        }
+    };
+    Ok(Motion { dispersion, diffusion })
 }
 
 /// What resolving needs besides the file: where relative paths start, and the wavelength media
@@ -839,6 +891,9 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         };
         let mut m = Medium::new(name, o.sigma_a, o.sigma_s, o.phase.clone(), velocity);
         m.info = o.info.clone();
+        if let Some(motion) = &ms.motion {
+            m.motion = resolve_motion(&join(path, "motion"), motion)?;
+        }
         Ok(m)
     };
     let mut media: Vec<Medium> = Vec::new();
@@ -937,6 +992,131 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         layer.majorant = majorant;
     }
     Ok(Scene { layers, regions, media, n_above, n_below })
+}
+
+/// Defaults of an LDH camera: Kim et al. 2025's replica of Puyo et al. 2018 (39 kHz, N_w = 512)
+/// with HoloDoppler's M0 band (6–18.3 kHz); see `scene-parameters.md` §A4.
+pub const LDH_DEFAULT_FRAME_RATE_HZ: f64 = 39_000.0;
+pub const LDH_DEFAULT_WINDOW_SAMPLES: u64 = 512;
+pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];
+pub const LDH_DEFAULT_SPECKLE_WINDOWS: u64 = 16;
+
+fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
+    let fs = pick(path, &[("frame_rate_hz", l.frame_rate_hz, 1.0), ("frame_rate_khz", l.frame_rate_khz, 1e3)])?
+        .map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
+    let n = l.window_samples.unwrap_or(LDH_DEFAULT_WINDOW_SAMPLES);
+    if !(2..=1 << 20).contains(&n) || n % 2 != 0 {
+        return err(join(path, "window_samples"), format!("= {n}: expected an even number of samples from 2 to 2^20"));
+    }
+    let window = match l.window.unwrap_or(WindowKind::Hann) {
+        WindowKind::Rect => Window::Rect,
+        WindowKind::Hann => Window::Hann,
+    };
+    let stft = Stft::new(fs, n as usize, window)
+        .ok_or_else(|| ConfigError::new(join(path, "frame_rate_hz"), format!("= {fs}: expected a finite rate > 0")))?;
+    let (band, band_path) = pick_arr(path, &[("band_hz", l.band_hz, 1.0), ("band_khz", l.band_khz, 1e3)])?
+        .unwrap_or((LDH_DEFAULT_BAND_HZ, join(path, "band_hz")));
+    let nyquist = 0.5 * fs;
+    if !(0.0 < band[0] && band[0] < band[1] && band[1] <= nyquist) {
+        return err(
+            band_path,
+            format!(
+                "= [{}, {}] Hz: expected 0 < f1 < f2 ≤ f_s/2 = {nyquist} Hz (the camera's Nyquist frequency)",
+                band[0], band[1]
+            ),
+        );
+    }
+    let bin = stft.bin_width();
+    let axis = match &l.spectrum {
+        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w.
+        None => FrequencyAxis::new(-(0.5 * n as f64 + 0.5) * bin, (0.5 * n as f64 + 0.5) * bin, n as usize + 1)
+            .expect("a valid default axis"),
+        Some(s) => {
+            let p = join(path, "spectrum");
+            let fmin = frequency(&p, "f_min", [s.f_min_hz, s.f_min_khz, None, None], "the lower edge")?;
+            let fmax = frequency(&p, "f_max", [s.f_max_hz, s.f_max_khz, None, None], "the upper edge")?;
+            let bins = s.bins.unwrap_or(n + 1);
+            if !(1..=1_000_000).contains(&bins) {
+                return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
+            }
+            FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
+                ConfigError::new(fmax.1.clone(), format!("= {} Hz: expected f_min ({} Hz) < f_max", fmax.0, fmin.0))
+            })?
+        }
+    };
+    let mut rois: Vec<Roi> = Vec::new();
+    for (i, r) in l.roi.iter().enumerate() {
+        let p = format!("{path}.roi[{i}]");
+        if r.name.is_empty() || !r.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return err(
+                join(&p, "name"),
+                format!(
+                    "= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)",
+                    r.name
+                ),
+            );
+        }
+        if rois.iter().any(|o| o.name == r.name) {
+            return err(join(&p, "name"), format!("= \"{}\": ROI names must be unique", r.name));
+        }
+        let c = length_arr(&p, "center", r.center_um, r.center_mm, r.center_m)?.map_or([0.0; 2], |c| c.0);
+        let (s, sp) = length_arr_req(&p, "size", r.size_um, r.size_mm, r.size_m)?;
+        if s.iter().any(|&x| x <= 0.0) {
+            return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
+        }
+        let roi = Roi {
+            name: r.name.clone(),
+            min: [c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]],
+            max: [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]],
+        };
+        let inside = |x: f64, y: f64| im.min[0] <= x && x <= im.max[0] && im.min[1] <= y && y <= im.max[1];
+        if !(inside(roi.min[0], roi.min[1]) && inside(roi.max[0], roi.max[1])) {
+            return err(
+                p,
+                format!(
+                    "the ROI spans x {:?}, y {:?} m, not inside the image (x {:?}, y {:?} m)",
+                    [roi.min[0], roi.max[0]],
+                    [roi.min[1], roi.max[1]],
+                    [im.min[0], im.max[0]],
+                    [im.min[1], im.max[1]]
+                ),
+            );
+        }
+        rois.push(roi);
+    }
+    let speckle = match &l.speckle {
+        None => None,
+        Some(sp) => {
+            if rois.is_empty() {
+                return err(
+                    join(path, "speckle"),
+                    "speckle is synthesised for ROIs: add [[detectors.ldh.roi]] entries",
+                );
+            }
+            let w = sp.windows.unwrap_or(LDH_DEFAULT_SPECKLE_WINDOWS);
+            if !(1..=1_000_000).contains(&w) {
+                return err(join(path, "speckle.windows"), format!("= {w}: expected 1 to 10^6 windows"));
+            }
+            Some(SpeckleSpec { windows: w as u32 })
+        }
+    };
+    LdhSpec::new(
+        stft,
+        (band[0], band[1]),
+        l.flip_sign.unwrap_or(false),
+        l.m1.unwrap_or(false),
+        l.by_class.unwrap_or(false),
+        rois,
+        axis,
+        l.pixel_spectra.unwrap_or(false),
+        speckle,
+    )
+    .ok_or_else(|| {
+        ConfigError::new(
+            join(path, "band_hz"),
+            format!("= [{}, {}] Hz holds no STFT bin (bins are {bin} Hz wide): widen the band", band[0], band[1]),
+        )
+    })
 }
 
 fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> {
@@ -1086,7 +1266,22 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             include_specular: d.include_specular.unwrap_or(true),
             spectrum,
             image,
+            ldh: None,
+            next_event: false,
         });
+        if let Some(l) = &d.ldh {
+            let p = join(&path, "ldh");
+            let Some(im) = image else {
+                return err(p, "an LDH camera needs the detector's image (add [detectors.image] pixels = [nx, ny])");
+            };
+            if out.iter().any(|o| o.ldh.is_some()) {
+                return err(p, "only one detector may be an LDH camera");
+            }
+            let ldh = resolve_ldh(&p, l, &im)?;
+            let det = out.last_mut().expect("just pushed");
+            det.ldh = Some(ldh);
+            det.next_event = true;
+        }
     }
     Ok(out)
 }

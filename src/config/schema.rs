@@ -125,6 +125,25 @@ pub struct MediumSection {
     pub phase: Option<PhaseSection>,
     #[serde(default)]
     pub velocity: Option<VelocitySection>,
+    /// Random motion of the particles beyond the flow.
+    pub motion: Option<MotionSection>,
+}
+
+/// `[media.X.motion]`: a per-event random velocity and Brownian diffusion.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSection {
+    /// Standard deviation of each velocity component, drawn per scattering event.
+    pub dispersion_mm_per_s: Option<f64>,
+    pub dispersion_m_per_s: Option<f64>,
+    /// The diffusion coefficient D, or the particle radius, temperature and viscosity that give it.
+    pub diffusion_m2_per_s: Option<f64>,
+    pub diffusion_um2_per_s: Option<f64>,
+    pub radius_um: Option<f64>,
+    pub radius_nm: Option<f64>,
+    pub temperature_k: Option<f64>,
+    pub viscosity_mpa_s: Option<f64>,
+    pub viscosity_pa_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -355,6 +374,73 @@ pub struct DetectorSection {
     pub include_specular: Option<bool>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
+    /// A laser Doppler holography camera over the image's pixels.
+    pub ldh: Option<LdhSection>,
+}
+
+/// `[detectors.ldh]`: the LDH acquisition (camera rate, STFT window, band) and its outputs.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LdhSection {
+    pub frame_rate_hz: Option<f64>,
+    pub frame_rate_khz: Option<f64>,
+    /// Samples N_w of one short-time Fourier transform window.
+    pub window_samples: Option<u64>,
+    pub window: Option<WindowKind>,
+    /// `[f1, f2]` of the M0± band.
+    pub band_hz: Option<[f64; 2]>,
+    pub band_khz: Option<[f64; 2]>,
+    /// Report frequencies (M0−, spectra) with the opposite sign.
+    pub flip_sign: Option<bool>,
+    /// Also accumulate the first moment M1.
+    pub m1: Option<bool>,
+    /// Also accumulate M0± per path class (static, one Doppler event, several).
+    pub by_class: Option<bool>,
+    /// Axis of the ROI spectra (and of per-pixel spectra).
+    pub spectrum: Option<LdhSpectrumSection>,
+    /// Full spectra in every pixel (memory: pixels × bins).
+    pub pixel_spectra: Option<bool>,
+    #[serde(default)]
+    pub roi: Vec<RoiSection>,
+    pub speckle: Option<SpeckleSection>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WindowKind {
+    Rect,
+    Hann,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LdhSpectrumSection {
+    pub f_min_hz: Option<f64>,
+    pub f_min_khz: Option<f64>,
+    pub f_max_hz: Option<f64>,
+    pub f_max_khz: Option<f64>,
+    pub bins: Option<u64>,
+}
+
+/// `[[detectors.ldh.roi]]`: a named rectangle of the detector plane.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoiSection {
+    pub name: String,
+    pub center_um: Option<[f64; 2]>,
+    pub center_mm: Option<[f64; 2]>,
+    pub center_m: Option<[f64; 2]>,
+    pub size_um: Option<[f64; 2]>,
+    pub size_mm: Option<[f64; 2]>,
+    pub size_m: Option<[f64; 2]>,
+}
+
+/// `[detectors.ldh.speckle]`: single-window speckle of the ROI spectra, Algorithms 1 and 2.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeckleSection {
+    /// Independent windows (speckle realisations) per ROI; default 16.
+    pub windows: Option<u64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]

@@ -2,7 +2,11 @@
 //! messages ("µm") and for overrides, which replace a quantity given in another unit.
 
 /// `(suffix, unit as printed)`, longest suffix first so that `_mm_per_s` is not read as `_s`.
-const UNITS: [(&str, &str); 21] = [
+const UNITS: [(&str, &str); 26] = [
+    ("_um2_per_s", "µm²/s"),
+    ("_m2_per_s", "m²/s"),
+    ("_mpa_s", "mPa·s"),
+    ("_pa_s", "Pa·s"),
     ("_mm_per_s", "mm/s"),
     ("_mm_per_h", "mm/h"),
     ("_m_per_s", "m/s"),
@@ -15,6 +19,7 @@ const UNITS: [(&str, &str); 21] = [
     ("_mhz", "MHz"),
     ("_khz", "kHz"),
     ("_deg", "°"),
+    ("_k", "K"),
     ("_hz", "Hz"),
     ("_um", "µm"),
     ("_nm", "nm"),

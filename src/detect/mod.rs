@@ -6,11 +6,16 @@
 //! spectra (`chirps × channels × (bins + 2)`, the last two slots of a channel being the
 //! below/above out-of-range tallies), then the image (`ny × nx`, row-major).
 
+pub mod ldh;
+
 use glam::DVec3;
 
+pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
+
 use crate::SPEED_OF_LIGHT;
-use crate::spectrum::{FrequencyAxis, Slot};
+use crate::spectrum::FrequencyAxis;
 use crate::stats::RunStats;
+use crate::transport::NeeTarget;
 
 /// Which surface of the stack a detector watches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -103,6 +108,11 @@ pub struct Detector {
     pub include_specular: bool,
     pub spectrum: Option<SpectrumSpec>,
     pub image: Option<ImageSpec>,
+    /// An LDH camera over the image's pixels.
+    pub ldh: Option<LdhSpec>,
+    /// Scored by next-event estimation from every scattering vertex (a top detector with a
+    /// narrow cone) rather than by the paths that happen to leave into its cone.
+    pub next_event: bool,
 }
 
 /// Global scalar tallies, in their slots at the start of the tally vector.
@@ -151,6 +161,15 @@ impl BeatModel {
         BeatModel { inv_wavelength: 1.0 / wavelength, chirp_per_metre: chirp_slope.map(|a| a / SPEED_OF_LIGHT) }
     }
 
+    /// Lorentzian half-width at half maximum (Hz) of a path's line from its Brownian sum
+    /// `b = Σ D_k n_k² |Δ_k|²`: the field correlation decays as `exp(−Σ D_k q_k² τ)` with
+    /// `q_k = (2π/λ0) n_k |Δ_k|`, a Lorentzian of half-width `Σ D_k q_k² / 2π = 2π b/λ0²`
+    /// (validation-values §4.10; Berne & Pecora 1976).
+    #[inline(always)]
+    pub fn brownian_hwhm(&self, b: f64) -> f64 {
+        std::f64::consts::TAU * b * self.inv_wavelength * self.inv_wavelength
+    }
+
     /// Number of spectra per detector: 1, or 2 (up, down) with a chirp.
     pub fn chirps(&self) -> usize {
         if self.chirp_per_metre.is_some() { 2 } else { 1 }
@@ -188,6 +207,7 @@ pub struct DetectorLayout {
     pub spectra: Option<(usize, usize)>,
     pub channels: usize,
     pub image: Option<usize>,
+    pub ldh: Option<LdhLayout>,
 }
 
 impl TallyLayout {
@@ -211,7 +231,9 @@ impl TallyLayout {
                 len += im.nx * im.ny;
                 start
             });
-            layouts.push(DetectorLayout { power, spectra, channels, image });
+            let pixels = d.image.map_or(0, |im| im.nx * im.ny);
+            let ldh = d.ldh.as_ref().map(|l| l.layout(pixels, &mut len));
+            layouts.push(DetectorLayout { power, spectra, channels, image, ldh });
         }
         TallyLayout { len, detectors: layouts }
     }
@@ -231,6 +253,9 @@ pub struct Escape {
     pub dldt: f64,
     pub order: u32,
     pub doppler_events: u32,
+    /// `Σ D_k n_k² |dir_in − dir_out|²` over events on diffusing particles, m²/s; the Lorentzian
+    /// half-width of the path's line is [`BeatModel::brownian_hwhm`] of it.
+    pub brownian: f64,
     /// The specular reflection of the laser at the top surface.
     pub specular: bool,
 }
@@ -242,6 +267,10 @@ pub struct Recorder<'a> {
     pub beat: BeatModel,
     pub acc: &'a mut [f64],
     pub stats: &'a mut RunStats,
+    /// Paths detected in LDH regions of interest, kept when speckle is asked for (else `None`).
+    pub lines: Option<&'a mut Vec<RecordedLine>>,
+    /// The detectors scored by next-event estimation.
+    pub nee: &'a [NeeTarget],
 }
 
 impl Recorder<'_> {
@@ -280,56 +309,89 @@ impl Recorder<'_> {
         }
     }
 
-    /// The detectors' share of [`escape`](Self::escape) (a finite path).
+    /// A shadow ray of next-event estimation reaching detector `i` (already in its cone).
+    #[inline(never)]
+    pub fn next_event(&mut self, i: usize, e: &Escape, n_ambient: f64) {
+        if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
+            self.stats.non_finite += 1;
+            return;
+        }
+        self.detect_one(i, e, n_ambient);
+    }
+
+    /// The detectors' share of [`escape`](Self::escape) (a finite path). Next-event detectors
+    /// only take the paths that never scattered (their shadow rays score the others).
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
-        for (d, lay) in self.detectors.iter().zip(&self.layout.detectors) {
-            if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
+        for (i, d) in self.detectors.iter().enumerate() {
+            if d.side != side
+                || (e.specular && !d.include_specular)
+                || e.dir.dot(d.axis) < d.cos_acceptance
+                || (d.next_event && e.order > 0)
+            {
                 continue;
             }
-            // Travel on to the detector plane.
-            let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
-            let p = e.pos + dist * e.dir;
-            if !d.area.contains(p.x, p.y) {
-                continue;
-            }
-            let l = e.l + n_ambient * dist;
-            self.acc[lay.power] += e.weight;
-            if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
-                let order_channel = spec.by_order.map(|k| 1 + e.order.min(k) as usize);
-                let event_channel = spec
-                    .by_doppler_events
-                    .map(|k| 1 + spec.by_order.map_or(0, |k| k as usize + 1) + e.doppler_events.min(k) as usize);
-                for chirp in 0..self.beat.chirps() {
-                    let f = self.beat.frequency(chirp, l, e.dldt);
-                    let slot = match spec.axis.locate(f) {
-                        Slot::Bin(k) => k,
-                        Slot::Below => spec.axis.bins,
-                        Slot::Above => spec.axis.bins + 1,
-                        Slot::NonFinite => {
-                            self.stats.non_finite += 1;
-                            continue;
-                        }
-                    };
-                    let base = start + chirp * lay.channels * stride;
-                    self.acc[base + slot] += e.weight;
-                    if let Some(c) = order_channel {
-                        self.acc[base + c * stride + slot] += e.weight;
-                    }
-                    if let Some(c) = event_channel {
-                        self.acc[base + c * stride + slot] += e.weight;
-                    }
+            self.detect_one(i, e, n_ambient);
+        }
+    }
+
+    /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area.
+    fn detect_one(&mut self, i: usize, e: &Escape, n_ambient: f64) {
+        let (d, lay) = (&self.detectors[i], &self.layout.detectors[i]);
+        // Travel on to the detector plane.
+        let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
+        let p = e.pos + dist * e.dir;
+        if !d.area.contains(p.x, p.y) {
+            return;
+        }
+        let l = e.l + n_ambient * dist;
+        let w = e.weight;
+        self.acc[lay.power] += w;
+        let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
+        if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
+            let order_channel = spec.by_order.map(|k| 1 + e.order.min(k) as usize);
+            let event_channel = spec
+                .by_doppler_events
+                .map(|k| 1 + spec.by_order.map_or(0, |k| k as usize + 1) + e.doppler_events.min(k) as usize);
+            for chirp in 0..self.beat.chirps() {
+                let f = self.beat.frequency(chirp, l, e.dldt);
+                let base = start + chirp * lay.channels * stride;
+                if !spec.axis.add_line(&mut self.acc[base..base + stride], w, f, gamma) {
+                    self.stats.non_finite += 1;
+                    continue;
+                }
+                for c in [order_channel, event_channel].into_iter().flatten() {
+                    let o = base + c * stride;
+                    spec.axis.add_line(&mut self.acc[o..o + stride], w, f, gamma);
                 }
             }
-            if let (Some(im), Some(start)) = (&d.image, lay.image) {
-                let fx = (p.x - im.min[0]) / (im.max[0] - im.min[0]);
-                let fy = (p.y - im.min[1]) / (im.max[1] - im.min[1]);
-                if (0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy) {
-                    let ix = ((fx * im.nx as f64) as usize).min(im.nx - 1);
-                    let iy = ((fy * im.ny as f64) as usize).min(im.ny - 1);
-                    self.acc[start + iy * im.nx + ix] += e.weight;
-                }
+        }
+        let pixel = d.image.and_then(|im| {
+            let fx = (p.x - im.min[0]) / (im.max[0] - im.min[0]);
+            let fy = (p.y - im.min[1]) / (im.max[1] - im.min[1]);
+            ((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy)).then(|| {
+                let ix = ((fx * im.nx as f64) as usize).min(im.nx - 1);
+                let iy = ((fy * im.ny as f64) as usize).min(im.ny - 1);
+                iy * im.nx + ix
+            })
+        });
+        if let (Some(px), Some(start)) = (pixel, lay.image) {
+            self.acc[start + px] += w;
+        }
+        if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {
+            // LDH uses a single-frequency laser (checked when resolving).
+            let f = self.beat.frequency(0, l, e.dldt);
+            if !f.is_finite() {
+                self.stats.non_finite += 1;
+                return;
             }
+            let class = ldh::class_of(e.doppler_events);
+            let lines = &mut self.lines;
+            ldh.record(ll, self.acc, pixel, p.x, p.y, w, f, gamma, class, |roi| {
+                if let Some(v) = lines.as_deref_mut() {
+                    v.push(RecordedLine { roi: roi as u32, class: class as u8, weight: w, frequency: f, gamma });
+                }
+            });
         }
     }
 }

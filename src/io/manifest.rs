@@ -142,6 +142,10 @@ pub fn write_run(
                 }),
             );
         }
+        if let (Some(spec), Some(ll)) = (&d.ldh, &lay.ldh) {
+            let v = super::ldh::write_ldh(&mut put, d, spec, ll, mean, &se, &out.speckle, &mut estimates)?;
+            info.insert("ldh".into(), v);
+        }
         det_estimates.insert(d.name.clone(), Value::Object(de));
         det_info.insert(d.name.clone(), Value::Object(info));
     }
@@ -186,6 +190,7 @@ pub fn write_run(
             "roulette_terminations": st.roulette_terminations,
             "truncated_paths": st.truncated_paths,
             "non_finite": st.non_finite,
+            "speckle_seconds": out.speckle_seconds,
             "out_of_range_weight": out_of_range_total,
             "doppler": exp.needs_doppler(),
             "path_length": exp.needs_length(),

@@ -1,7 +1,10 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
 
+pub mod ldh;
 pub mod manifest;
 pub mod npy;
+pub mod plot;
+pub mod png;
 pub mod table;
 
 use std::path::{Path, PathBuf};

@@ -41,6 +41,32 @@ pub struct TableInfo {
     pub provenance: std::collections::BTreeMap<String, String>,
 }
 
+/// Random motion of a medium's particles beyond the mean flow of its [`VelocityField`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Motion {
+    /// Standard deviation of each Cartesian component of a random velocity drawn afresh at every
+    /// scattering event and added to the flow (shear-induced dispersion, tumbling), m/s.
+    pub dispersion: f64,
+    /// Translational diffusion coefficient `D` of the particles (Brownian motion), m²/s. Not drawn
+    /// per event: a path collects `D·q²` per event, and its line is broadened into a Lorentzian of
+    /// half-width `Σ D_k q_k² / 2π` Hz (see `detect`).
+    pub diffusion: f64,
+}
+
+impl Motion {
+    /// Whether the particles move at random at all.
+    pub fn is_random(&self) -> bool {
+        self.dispersion > 0.0 || self.diffusion > 0.0
+    }
+}
+
+/// Stokes–Einstein diffusion coefficient `D = k_B T / (6π η r)` (m²/s) of a sphere of radius `r`
+/// (m) in a fluid of viscosity `η` (Pa·s) at temperature `T` (K).
+pub fn stokes_einstein(radius: f64, temperature: f64, viscosity: f64) -> f64 {
+    const BOLTZMANN: f64 = 1.380_649e-23; // J/K, exact (SI 2019)
+    BOLTZMANN * temperature / (6.0 * std::f64::consts::PI * viscosity * radius)
+}
+
 /// A homogeneous participating medium with the velocity field of its particles.
 ///
 /// The coefficients are fixed at construction so that the derived constants the random walk
@@ -51,6 +77,8 @@ pub struct Medium {
     pub name: String,
     pub phase: PhaseFunction,
     pub velocity: VelocityField,
+    /// Random motion beyond the flow (none by default).
+    pub motion: Motion,
     /// Provenance of the optics, for the manifest.
     pub info: MediumInfo,
     sigma_a: f64,
@@ -74,6 +102,7 @@ impl Medium {
             name: name.into(),
             phase,
             velocity,
+            motion: Motion::default(),
             info: MediumInfo::default(),
             sigma_a,
             sigma_s,
@@ -81,6 +110,13 @@ impl Medium {
             inv_sigma_t: if sigma_t > 0.0 { 1.0 / sigma_t } else { f64::INFINITY },
             albedo: if sigma_t > 0.0 { sigma_s / sigma_t } else { 0.0 },
         }
+    }
+
+    /// Whether scattering on this medium's particles changes `dl/dt` or broadens the line (a
+    /// "Doppler event").
+    #[inline(always)]
+    pub fn is_dynamic(&self) -> bool {
+        self.velocity.is_moving() || self.motion.is_random()
     }
 
     /// Absorption coefficient σa, m⁻¹.

@@ -63,7 +63,7 @@ impl Scene {
 
     /// Whether any particle in the scene moves (otherwise no Doppler term is computed at all).
     pub fn is_moving(&self) -> bool {
-        self.media.iter().any(|m| m.velocity.is_moving())
+        self.media.iter().any(|m| m.is_dynamic())
     }
 
     /// Depth of the bottom of the stack (∞ if the last layer is semi-infinite).

@@ -8,7 +8,7 @@
 
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Exp1};
+use rand_distr::{Distribution, Exp1, StandardNormal};
 
 /// What a stream is used for; different purposes never share numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,6 +18,9 @@ pub enum Purpose {
     Path = 0x5041_5448,
     /// Anything a test needs.
     Test = 0x5445_5354,
+    /// Speckle of single measurements: Algorithm 2's random phases and Cauchy frequencies,
+    /// Algorithm 1's per-bin `Exp(1)` draws ([`crate::spectrum::synth`]).
+    Speckle = 0x5350_4543,
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.
@@ -86,6 +89,12 @@ impl PathRng {
     #[inline(always)]
     pub fn exponential(&mut self) -> f64 {
         Exp1.sample(&mut self.0)
+    }
+
+    /// A standard normal variate (ziggurat, `rand_distr`).
+    #[inline(always)]
+    pub fn normal(&mut self) -> f64 {
+        StandardNormal.sample(&mut self.0)
     }
 
     /// Two uniforms in `[0, 1)` with 32 random bits each, from one draw: the input of the reference

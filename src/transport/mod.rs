@@ -1,8 +1,10 @@
 //! Light transport: Fresnel interfaces, free-flight tracking and the random walk of a path.
 
 pub mod fresnel;
+pub mod nee;
 pub mod tracking;
 pub mod walk;
 
+pub use nee::NeeTarget;
 pub use tracking::{Flight, Tracking, free_flight};
 pub use walk::{PathState, WalkSettings, trace_path};

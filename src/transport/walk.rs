@@ -58,6 +58,9 @@ pub struct PathState {
     pub order: u32,
     /// Scattering events on moving particles so far.
     pub doppler_events: u32,
+    /// `Σ D_k n_k² |dir_in − dir_out|²` over the events on diffusing particles, m²/s: with the
+    /// wavenumber `2π/λ0` it gives the path's Brownian line width (see [`Escape::brownian`]).
+    pub brownian: f64,
 }
 
 impl PathState {
@@ -70,6 +73,7 @@ impl PathState {
             dldt: self.dldt,
             order: self.order,
             doppler_events: self.doppler_events,
+            brownian: self.brownian,
             specular,
         }
     }
@@ -145,7 +149,7 @@ enum End {
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
+pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     scene: &Scene,
     source: &Source,
     settings: &WalkSettings,
@@ -165,6 +169,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
         dldt: 0.0,
         order: 0,
         doppler_events: 0,
+        brownian: 0.0,
     };
     // Specular reflection at entry, scored deterministically (as MCML).
     let n_top = scene.layers[0].n;
@@ -180,7 +185,9 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
     s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
 
     let mut absorbed = 0.0;
-    let end = walk::<DOPPLER, LENGTH>(scene, settings, &mut s, rng, &mut absorbed, &mut rec.stats.null_collisions);
+    let mut null_collisions = 0;
+    let end = walk::<DOPPLER, LENGTH, NEE>(scene, settings, &mut s, rng, &mut absorbed, &mut null_collisions, rec);
+    rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
     rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
@@ -207,13 +214,15 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool>(
 /// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
 /// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
 #[inline(always)]
-fn walk<const DOPPLER: bool, const LENGTH: bool>(
+#[allow(clippy::too_many_arguments)]
+fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     scene: &Scene,
     settings: &WalkSettings,
     s: &mut PathState,
     rng: &mut PathRng,
     absorbed: &mut f64,
     null_collisions: &mut u64,
+    rec: &mut Recorder,
 ) -> End {
     let mut li = 0usize;
     // The next event count at which `collide` looks at the event cap and renormalises.
@@ -256,7 +265,28 @@ fn walk<const DOPPLER: bool, const LENGTH: bool>(
                     Flight::Boundary { .. } => break,
                 }
             };
-            if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed, &mut checkpoint) {
+            if NEE {
+                s.pos += t * s.dir;
+                if LENGTH {
+                    s.l += n * t;
+                }
+                if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
+                    scene,
+                    li,
+                    s,
+                    medium,
+                    n,
+                    settings,
+                    rng,
+                    absorbed,
+                    &mut checkpoint,
+                    rec,
+                ) {
+                    return end;
+                }
+            } else if let Some(end) =
+                collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed, &mut checkpoint)
+            {
                 return end;
             }
         }
@@ -326,13 +356,97 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     let d = m.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-    if DOPPLER && m.velocity.is_moving() {
-        let v = m.velocity.velocity(s.pos, rng);
+    if DOPPLER && m.is_dynamic() {
+        let v = particle_velocity(m, s.pos, rng);
+        // The Brownian q²D term: the scattering vector is q = (2πn/λ0)(dir_in − dir_out), so
+        // D·q² = (2π/λ0)²·D n²|Δ|² and only the wavelength-free part is carried.
+        if m.motion.diffusion > 0.0 {
+            s.brownian += m.motion.diffusion * n * n * delta.length_squared();
+        }
         s.dldt += doppler_increment(n, v, delta);
         s.doppler_events += 1;
     }
     s.dir = out;
     s.order += 1;
+    end_of_event(s, settings, rng, checkpoint)
+}
+
+/// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
+/// every next-event detector (see [`super::nee`]) is scored with the velocity the vertex's
+/// particle has; then the path scatters on as usual. `s.pos` is already at the vertex.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
+    scene: &Scene,
+    li: usize,
+    s: &mut PathState,
+    m: &Medium,
+    n: f64,
+    settings: &WalkSettings,
+    rng: &mut PathRng,
+    absorbed: &mut f64,
+    checkpoint: &mut u32,
+    rec: &mut Recorder,
+) -> Option<End> {
+    let albedo = m.albedo();
+    *absorbed += s.weight * (1.0 - albedo);
+    s.weight *= albedo;
+    if s.weight <= 0.0 {
+        return Some(End::Absorbed);
+    }
+    let dynamic = DOPPLER && m.is_dynamic();
+    let v = if dynamic { particle_velocity(m, s.pos, rng) } else { DVec3::ZERO };
+    for i in 0..rec.nee.len() {
+        let target = rec.nee[i];
+        let (u1, u2) = (rng.uniform(), rng.uniform());
+        let Some(h) = super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2) else { continue };
+        let mut e = Escape {
+            pos: h.pos,
+            dir: h.dir,
+            weight: s.weight * h.factor,
+            l: if LENGTH { s.l + h.length } else { 0.0 },
+            dldt: s.dldt,
+            order: s.order + 1,
+            doppler_events: s.doppler_events,
+            brownian: s.brownian,
+            specular: false,
+        };
+        if dynamic {
+            let delta = s.dir - h.dir_vertex;
+            e.dldt += doppler_increment(n, v, delta);
+            e.brownian += m.motion.diffusion * n * n * delta.length_squared();
+            e.doppler_events += 1;
+        }
+        rec.next_event(target.detector, &e, scene.n_above);
+    }
+    let d = m.phase.sample(rng.uniform());
+    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    if dynamic {
+        s.dldt += doppler_increment(n, v, delta);
+        s.brownian += m.motion.diffusion * n * n * delta.length_squared();
+        s.doppler_events += 1;
+    }
+    s.dir = out;
+    s.order += 1;
+    end_of_event(s, settings, rng, checkpoint)
+}
+
+/// The velocity of the particle a path scatters on at `p`: the flow plus, for a medium with a
+/// velocity dispersion, a Gaussian random velocity drawn for this event.
+#[inline(always)]
+fn particle_velocity(m: &Medium, p: DVec3, rng: &mut PathRng) -> DVec3 {
+    let mut v = m.velocity.velocity(p, rng);
+    let sd = m.motion.dispersion;
+    if sd > 0.0 {
+        v += sd * DVec3::new(rng.normal(), rng.normal(), rng.normal());
+    }
+    v
+}
+
+/// The end of every real collision: event cap, periodic renormalisation, Russian roulette.
+#[inline(always)]
+fn end_of_event(s: &mut PathState, settings: &WalkSettings, rng: &mut PathRng, checkpoint: &mut u32) -> Option<End> {
     // One comparison per event serves both the event cap and the periodic renormalisation (a
     // separate `order % RENORMALISE_EVERY` test cost 5 instructions per collision).
     if s.order >= *checkpoint {

@@ -210,3 +210,42 @@ fn harness_self_check() {
     assert!((chi2_sf(9.341_818, 10) - 0.5).abs() < 1e-5);
     assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
 }
+
+/// One channel of an LDH ROI spectrum (0 = total, then static, single Doppler, multiple Doppler).
+pub fn roi_channel(r: &Run, detector: usize, roi: usize, channel: usize) -> Channel {
+    let ll = r.out.layout.detectors[detector].ldh.as_ref().expect("an LDH camera");
+    let bins = ll.stride - 2;
+    let o = ll.rois[roi].spectrum + channel * ll.stride;
+    let m = r.out.estimates.mean();
+    let se = r.out.estimates.stderr();
+    Channel {
+        values: m[o..o + bins].to_vec(),
+        stderr: se[o..o + bins].to_vec(),
+        below: m[o + bins],
+        above: m[o + bins + 1],
+    }
+}
+
+/// An LDH ROI's M0+ and M0− with their standard errors: ((m0+, σ), (m0−, σ)).
+pub fn roi_m0(r: &Run, detector: usize, roi: usize) -> ((f64, f64), (f64, f64)) {
+    let ll = r.out.layout.detectors[detector].ldh.as_ref().expect("an LDH camera");
+    let (m, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
+    let rl = &ll.rois[roi];
+    ((m[rl.m0_plus], se[rl.m0_plus]), (m[rl.m0_minus], se[rl.m0_minus]))
+}
+
+/// Chi-square of binned estimates against expected values, using their standard errors; bins
+/// with a zero standard error must match exactly. Returns (chi², dof, p).
+pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) -> (f64, usize, f64) {
+    let mut stat = 0.0;
+    let mut dof = 0;
+    for ((&v, &s), &e) in values.iter().zip(stderr).zip(expected) {
+        if s > 0.0 {
+            stat += ((v - e) / s).powi(2);
+            dof += 1;
+        } else {
+            assert!((v - e).abs() <= 1e-12 * e.abs().max(1e-300), "bin with zero error: {v} vs {e}");
+        }
+    }
+    (stat, dof, chi2_sf(stat, dof.max(1)))
+}

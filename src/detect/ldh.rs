@@ -1,0 +1,326 @@
+//! The laser Doppler holography (LDH) camera: power Doppler images M0± over a band, region-of-
+//! interest (ROI) spectra, and the path records that speckle synthesis needs.
+//!
+//! A camera pixel is an area of the retina's surface seen through the pupil (the detector's area
+//! and acceptance cone); the camera samples the hologram at `f_s` and a short-time Fourier
+//! transform of `N_w` samples with a window `w` gives each pixel's spectrum. The expected
+//! periodogram of a path's line at `f` (Lorentzian half-width `γ`) is the window kernel
+//! `K(ν_k − f, γ)` (Kim et al. 2025 Eq. 28, `S ∗ |W|²`), so the band moments
+//! (Kim et al. Eq. 56, summed over the STFT bins as HoloDoppler does)
+//!
+//! * `M0+ = Σ_{f1 ≤ |ν_k| ≤ f2} P_k` (flow magnitude),
+//! * `M0− = Σ_{f1 ≤ ν_k ≤ f2} P_k − Σ_{f1 ≤ −ν_k ≤ f2} P_k` (axial direction: positive = receding
+//!   with the library's sign convention),
+//! * `M1 = Σ_{f1 ≤ |ν_k| ≤ f2} |ν_k| P_k` (Hz × power, optional),
+//!
+//! are linear in the paths and are accumulated per pixel directly, one exact band evaluation per
+//! detected path ([`BandKernel::eval`]; a static path's is computed once): memory O(pixels), no
+//! per-pixel spectrum. Units: fraction of the emitted power (M1: that times Hz).
+//!
+//! Paths are split into classes by their number of Doppler events (scattering on moving or
+//! diffusing particles): static tissue only (0), one, several.
+
+use crate::spectrum::{BandKernel, BandPowers, FrequencyAxis, Stft};
+
+/// Path classes, by Doppler events: 0, 1, ≥ 2.
+pub const CLASS_NAMES: [&str; 3] = ["static", "single_doppler", "multiple_doppler"];
+
+/// The class of a path with `doppler_events` events on moving particles.
+#[inline(always)]
+pub fn class_of(doppler_events: u32) -> usize {
+    doppler_events.min(2) as usize
+}
+
+/// A named rectangle of the detector plane (m) whose spectrum and M0± are recorded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Roi {
+    pub name: String,
+    pub min: [f64; 2],
+    pub max: [f64; 2],
+}
+
+impl Roi {
+    #[inline]
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        self.min[0] <= x && x < self.max[0] && self.min[1] <= y && y < self.max[1]
+    }
+}
+
+/// Single-measurement speckle for the ROIs (Kim et al. 2025 §5.2–5.3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeckleSpec {
+    /// Independent windows (speckle realisations) per ROI and algorithm.
+    pub windows: u32,
+}
+
+/// The LDH acquisition and what to accumulate.
+#[derive(Debug, Clone)]
+pub struct LdhSpec {
+    pub stft: Stft,
+    /// The band `[f1, f2]`, Hz (0 < f1 < f2).
+    pub band: (f64, f64),
+    pub kernel: BandKernel,
+    /// M0± of a static path (f = 0, γ = 0): the leakage of the DC peak into the band.
+    pub static_powers: BandPowers,
+    /// Report frequencies with the opposite sign (a set-up whose reference arm flips it); applied
+    /// to the outputs only.
+    pub flip_sign: bool,
+    pub m1: bool,
+    pub by_class: bool,
+    pub rois: Vec<Roi>,
+    /// Axis of the ROI (and per-pixel) spectra.
+    pub spectrum_axis: FrequencyAxis,
+    /// Full spectra in every pixel (memory: pixels × bins).
+    pub pixel_spectra: bool,
+    pub speckle: Option<SpeckleSpec>,
+}
+
+impl PartialEq for LdhSpec {
+    fn eq(&self, o: &Self) -> bool {
+        self.stft.sample_rate() == o.stft.sample_rate()
+            && self.stft.samples() == o.stft.samples()
+            && self.stft.window() == o.stft.window()
+            && self.band == o.band
+            && self.flip_sign == o.flip_sign
+            && self.m1 == o.m1
+            && self.by_class == o.by_class
+            && self.rois == o.rois
+            && self.spectrum_axis == o.spectrum_axis
+            && self.pixel_spectra == o.pixel_spectra
+            && self.speckle == o.speckle
+    }
+}
+
+impl LdhSpec {
+    /// Build the band kernel and the static path's band powers. `None` if the band holds no bin.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        stft: Stft,
+        band: (f64, f64),
+        flip_sign: bool,
+        m1: bool,
+        by_class: bool,
+        rois: Vec<Roi>,
+        spectrum_axis: FrequencyAxis,
+        pixel_spectra: bool,
+        speckle: Option<SpeckleSpec>,
+    ) -> Option<Self> {
+        let kernel = BandKernel::new(&stft, band.0, band.1)?;
+        let static_powers = kernel.eval(0.0, 0.0);
+        Some(LdhSpec {
+            stft,
+            band,
+            kernel,
+            static_powers,
+            flip_sign,
+            m1,
+            by_class,
+            rois,
+            spectrum_axis,
+            pixel_spectra,
+            speckle,
+        })
+    }
+
+    /// Band powers of a unit line at `f` with half-width `gamma`.
+    #[inline]
+    pub fn band_powers(&self, f: f64, gamma: f64) -> BandPowers {
+        if f == 0.0 && gamma == 0.0 { self.static_powers } else { self.kernel.eval(f, gamma) }
+    }
+
+    /// Channels of an ROI spectrum: the total, then one per path class.
+    pub const ROI_CHANNELS: usize = 1 + CLASS_NAMES.len();
+
+    /// Lay out this camera's tallies from `start` for an image of `pixels` pixels.
+    pub fn layout(&self, pixels: usize, start: &mut usize) -> LdhLayout {
+        let mut take = |n: usize| {
+            let s = *start;
+            *start += n;
+            s
+        };
+        let stride = self.spectrum_axis.bins + 2;
+        let m0_plus = take(pixels);
+        let m0_minus = take(pixels);
+        let m1 = self.m1.then(|| take(pixels));
+        let classes = self.by_class.then(|| take(2 * CLASS_NAMES.len() * pixels));
+        let rois = self
+            .rois
+            .iter()
+            .map(|_| RoiLayout { m0_plus: take(1), m0_minus: take(1), spectrum: take(Self::ROI_CHANNELS * stride) })
+            .collect();
+        let pixel_spectra = self.pixel_spectra.then(|| take(pixels * stride));
+        LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra }
+    }
+
+    /// Record one detected path of weight `w`, beat frequency `f` (library sign) and line
+    /// half-width `gamma`, landing at `(x, y)` in pixel `pixel` (if inside the image). Returns
+    /// the indices of the ROIs it fell in, for the speckle records.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn record(
+        &self,
+        lay: &LdhLayout,
+        acc: &mut [f64],
+        pixel: Option<usize>,
+        x: f64,
+        y: f64,
+        w: f64,
+        f: f64,
+        gamma: f64,
+        class: usize,
+        mut in_roi: impl FnMut(usize),
+    ) {
+        let mut powers: Option<BandPowers> = None;
+        let mut bp = || *powers.get_or_insert_with(|| self.band_powers(f, gamma));
+        if let Some(p) = pixel {
+            let b = bp();
+            acc[lay.m0_plus + p] += w * b.m0_plus;
+            acc[lay.m0_minus + p] += w * b.m0_minus;
+            if let Some(o) = lay.m1 {
+                acc[o + p] += w * b.m1;
+            }
+            if let Some(o) = lay.classes {
+                let c = o + 2 * class * lay.pixels;
+                acc[c + p] += w * b.m0_plus;
+                acc[c + lay.pixels + p] += w * b.m0_minus;
+            }
+            if let Some(o) = lay.pixel_spectra {
+                let s = o + p * lay.stride;
+                self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+            }
+        }
+        for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
+            if !roi.contains(x, y) {
+                continue;
+            }
+            let b = bp();
+            acc[rl.m0_plus] += w * b.m0_plus;
+            acc[rl.m0_minus] += w * b.m0_minus;
+            let s = rl.spectrum;
+            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+            let s = rl.spectrum + (1 + class) * lay.stride;
+            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+            in_roi(i);
+        }
+    }
+}
+
+/// Offsets of an LDH camera's tallies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LdhLayout {
+    pub pixels: usize,
+    /// Slots of one spectrum: the axis's bins and the below/above tallies.
+    pub stride: usize,
+    pub m0_plus: usize,
+    pub m0_minus: usize,
+    pub m1: Option<usize>,
+    /// `[class][M0+, M0−][pixel]`.
+    pub classes: Option<usize>,
+    pub rois: Vec<RoiLayout>,
+    /// `[pixel][slot]`.
+    pub pixel_spectra: Option<usize>,
+}
+
+/// Offsets of one ROI's tallies: its M0± and its spectra `[channel][slot]` (total, then by class).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoiLayout {
+    pub m0_plus: usize,
+    pub m0_minus: usize,
+    pub spectrum: usize,
+}
+
+/// A detected path inside an ROI, kept for speckle synthesis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordedLine {
+    pub roi: u32,
+    pub class: u8,
+    pub weight: f64,
+    /// Beat frequency, Hz (library sign).
+    pub frequency: f64,
+    /// Lorentzian half-width, Hz.
+    pub gamma: f64,
+}
+
+/// Band sums of a periodogram in fftshift order (as [`Stft::bin_frequency`]): M0± and M1 of a
+/// single window, with the same bins as [`BandKernel`].
+pub fn band_sums(stft: &Stft, band: (f64, f64), p: &[f64]) -> BandPowers {
+    let mut out = BandPowers::default();
+    for (k, &v) in p.iter().enumerate().skip(1) {
+        // Bin 0 is the unpaired −f_s/2 bin, in neither half of the band.
+        let nu = stft.bin_frequency(k);
+        let a = nu.abs();
+        if band.0 <= a && a <= band.1 {
+            out.m0_plus += v;
+            out.m0_minus += if nu > 0.0 { v } else { -v };
+            out.m1 += a * v;
+        }
+    }
+    out
+}
+
+/// Single-window speckle spectra of one ROI (Kim et al. 2025 §5.2–5.3), in fftshift order.
+#[derive(Debug, Clone)]
+pub struct RoiSpeckle {
+    /// Paths recorded in the ROI.
+    pub lines: usize,
+    /// The expected single-window periodogram `S ∗ |W|²` of the recorded paths (N values).
+    pub expected: Vec<f64>,
+    /// Algorithm 1: `expected` times an Exp(1) draw per bin, one row per window (windows × N).
+    pub algorithm1: Vec<f64>,
+    /// Algorithm 2: the field of the recorded paths with random phases, `|FFT|²` (windows × N).
+    pub algorithm2: Vec<f64>,
+    /// Seconds spent in each algorithm (all windows), and on the expected periodogram.
+    pub seconds_expected: f64,
+    pub seconds_algorithm1: f64,
+    pub seconds_algorithm2: f64,
+}
+
+/// Synthesise the speckle spectra of every ROI from the recorded lines of a run of `paths`
+/// paths. A path's line carries power `w/paths` (the run's estimate is the mean over paths), so
+/// the mean of Algorithm 2 over windows converges to `expected`, which is the run's Algorithm 1
+/// estimate convolved with the window kernel. Window `j` of ROI `r` draws from the stream
+/// `(seed, Speckle, r, 2j + algorithm)`.
+pub fn synthesize_speckle(spec: &LdhSpec, recorded: &[RecordedLine], paths: u64, seed: u64) -> Vec<RoiSpeckle> {
+    use crate::sampling::{PathRng, Purpose};
+    use crate::spectrum::{Line, Synthesizer, speckle_draw};
+    let Some(sp) = spec.speckle else { return Vec::new() };
+    let n = spec.stft.samples();
+    let windows = sp.windows as usize;
+    let inv_paths = 1.0 / paths.max(1) as f64;
+    let mut synth = Synthesizer::new(&spec.stft);
+    (0..spec.rois.len())
+        .map(|r| {
+            let lines: Vec<Line> = recorded
+                .iter()
+                .filter(|l| l.roi as usize == r)
+                .map(|l| Line { power: l.weight * inv_paths, frequency: l.frequency, gamma: l.gamma })
+                .collect();
+            let t = std::time::Instant::now();
+            let expected = spec.stft.expected_periodogram(&lines);
+            let seconds_expected = t.elapsed().as_secs_f64();
+            let t = std::time::Instant::now();
+            let mut algorithm1 = vec![0.0; windows * n];
+            for (j, row) in algorithm1.chunks_exact_mut(n).enumerate() {
+                let mut rng = PathRng::new(seed, Purpose::Speckle, r as u64, 2 * j as u64);
+                speckle_draw(&expected, &mut rng, row);
+            }
+            let seconds_algorithm1 = t.elapsed().as_secs_f64();
+            let t = std::time::Instant::now();
+            let mut algorithm2 = vec![0.0; windows * n];
+            for (j, row) in algorithm2.chunks_exact_mut(n).enumerate() {
+                let mut rng = PathRng::new(seed, Purpose::Speckle, r as u64, 2 * j as u64 + 1);
+                synth.periodogram(&lines, &mut rng, row);
+            }
+            let seconds_algorithm2 = t.elapsed().as_secs_f64();
+            RoiSpeckle {
+                lines: lines.len(),
+                expected,
+                algorithm1,
+                algorithm2,
+                seconds_expected,
+                seconds_algorithm1,
+                seconds_algorithm2,
+            }
+        })
+        .collect()
+}

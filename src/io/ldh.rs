@@ -1,0 +1,284 @@
+//! Outputs of an LDH camera: M0± (and M1, per-class) images as `.npy` and `.exr` with their
+//! standard errors, PNG previews, ROI spectra (`.npy` and a dB plot), per-pixel spectra when asked,
+//! and the ROIs' single-window speckle spectra. The sign flag of the set-up is applied here, and
+//! only here (M0− and M1 keep their meaning, spectra are mirrored).
+
+use serde_json::{Map, Value, json};
+
+use super::plot::{PALETTE, Series, line_plot_png};
+use super::png::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
+use super::{exr_bytes, npy};
+use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec, RoiSpeckle, band_sums};
+use crate::detect::{Detector, ImageSpec};
+use crate::error::{Error, Result};
+
+/// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
+pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
+
+fn estimate(v: f64, s: f64) -> Value {
+    json!({ "value": v, "stderr": s })
+}
+
+/// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
+/// mirrored axis `[−f_max, −f_min)` is bin `bins − 1 − k` of the original, and the tails swap.
+fn mirror_slots(v: &[f64], bins: usize) -> Vec<f64> {
+    let mut m: Vec<f64> = v[..bins].iter().rev().copied().collect();
+    m.push(v[bins + 1]);
+    m.push(v[bins]);
+    m
+}
+
+/// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
+/// unpaired `−f_s/2` bin (k = 0) is its own alias.
+fn mirror_fftshift(v: &[f64]) -> Vec<f64> {
+    let n = v.len();
+    (0..n).map(|k| if k == 0 { v[0] } else { v[n - k] }).collect()
+}
+
+/// Power in dB (10 log10), −∞ for zero (breaks a plotted line).
+fn db(v: f64) -> f64 {
+    if v > 0.0 { 10.0 * v.log10() } else { f64::NEG_INFINITY }
+}
+
+/// An image (and its standard error) as `.npy` and `.exr`.
+fn put_image(put: &mut Put, name: &str, im: &ImageSpec, v: &[f64], e: &[f64]) -> Result<()> {
+    put(format!("{name}.npy"), npy::to_bytes(&[im.ny, im.nx], v))?;
+    put(format!("{name}_stderr.npy"), npy::to_bytes(&[im.ny, im.nx], e))?;
+    let exr = exr_bytes(im.nx, im.ny, &[("value", v), ("stderr", e)])
+        .map_err(|m| Error::Write { path: format!("{name}.exr").into(), source: std::io::Error::other(m) })?;
+    put(format!("{name}.exr"), exr)
+}
+
+/// Write the camera's outputs; returns `(estimates, info)` for the manifest: the ROI estimates
+/// go to the top level (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
+#[allow(clippy::too_many_arguments)]
+pub fn write_ldh(
+    put: &mut Put,
+    d: &Detector,
+    spec: &LdhSpec,
+    lay: &LdhLayout,
+    mean: &[f64],
+    se: &[f64],
+    speckle: &[RoiSpeckle],
+    estimates: &mut Map<String, Value>,
+) -> Result<Value> {
+    let im = d.image.expect("an LDH camera has an image");
+    let n = im.nx * im.ny;
+    let sign = if spec.flip_sign { -1.0 } else { 1.0 };
+    let signed = |o: usize| -> (Vec<f64>, Vec<f64>) {
+        (mean[o..o + n].iter().map(|v| sign * v).collect(), se[o..o + n].to_vec())
+    };
+    let (m0p, m0p_se) = (mean[lay.m0_plus..lay.m0_plus + n].to_vec(), se[lay.m0_plus..lay.m0_plus + n].to_vec());
+    let (m0m, m0m_se) = signed(lay.m0_minus);
+    put_image(put, "m0_plus", &im, &m0p, &m0p_se)?;
+    put_image(put, "m0_minus", &im, &m0m, &m0m_se)?;
+    if let Some(o) = lay.m1 {
+        put_image(put, "m1", &im, &mean[o..o + n], &se[o..o + n])?;
+    }
+    if let Some(o) = lay.classes {
+        for (c, cname) in CLASS_NAMES.iter().enumerate() {
+            let base = o + 2 * c * n;
+            put_image(put, &format!("m0_plus_{cname}"), &im, &mean[base..base + n], &se[base..base + n])?;
+            let (v, e) = signed(base + n);
+            put_image(put, &format!("m0_minus_{cname}"), &im, &v, &e)?;
+        }
+    }
+
+    // Previews (y up).
+    let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
+    put(
+        "m0_plus.png".into(),
+        image_png(
+            &m0p,
+            im.nx,
+            im.ny,
+            Colormap::Grey,
+            sequential_range(&m0p, 0.995),
+            &format!("M0+  ({f1}-{f2} kHz)"),
+            "fraction of emitted power",
+        ),
+    )?;
+    put(
+        "m0_minus.png".into(),
+        image_png(
+            &m0m,
+            im.nx,
+            im.ny,
+            Colormap::Diverging,
+            symmetric_range(&m0m, 0.995),
+            &format!("M0-  ({f1}-{f2} kHz, red = receding)"),
+            "fraction of emitted power",
+        ),
+    )?;
+    let pos: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p + m)).collect();
+    let neg: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p - m)).collect();
+    put("m0_directional.png".into(), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
+
+    // ROI spectra.
+    let axis = spec.spectrum_axis;
+    let bins = axis.bins;
+    let (f_lo, f_hi) = if spec.flip_sign { (-axis.f_max, -axis.f_min) } else { (axis.f_min, axis.f_max) };
+    let width = axis.bin_width();
+    let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
+    if !spec.rois.is_empty() || lay.pixel_spectra.is_some() {
+        put("ldh_frequency_hz.npy".into(), npy::to_bytes(&[bins], &centres))?;
+    }
+    let channel_names: Vec<String> =
+        std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
+    let mut rois = Map::new();
+    for (r, (roi, rl)) in spec.rois.iter().zip(&lay.rois).enumerate() {
+        estimates.insert(format!("m0_plus_roi_{}", roi.name), estimate(mean[rl.m0_plus], se[rl.m0_plus]));
+        estimates.insert(format!("m0_minus_roi_{}", roi.name), estimate(sign * mean[rl.m0_minus], se[rl.m0_minus]));
+        let mut v = Vec::with_capacity(LdhSpec::ROI_CHANNELS * bins);
+        let mut e = Vec::with_capacity(LdhSpec::ROI_CHANNELS * bins);
+        let mut out_of_range = Map::new();
+        for (ch, chname) in channel_names.iter().enumerate() {
+            let o = rl.spectrum + ch * lay.stride;
+            let (mv, me) = (&mean[o..o + lay.stride], &se[o..o + lay.stride]);
+            let (mv, me) = if spec.flip_sign {
+                (mirror_slots(mv, bins), mirror_slots(me, bins))
+            } else {
+                (mv.to_vec(), me.to_vec())
+            };
+            v.extend_from_slice(&mv[..bins]);
+            e.extend_from_slice(&me[..bins]);
+            out_of_range.insert(
+                chname.clone(),
+                json!({ "below": estimate(mv[bins], me[bins]), "above": estimate(mv[bins + 1], me[bins + 1]) }),
+            );
+        }
+        let shape = [LdhSpec::ROI_CHANNELS, bins];
+        put(format!("roi_{}_spectrum.npy", roi.name), npy::to_bytes(&shape, &v))?;
+        put(format!("roi_{}_spectrum_stderr.npy", roi.name), npy::to_bytes(&shape, &e))?;
+        let khz: Vec<f64> = centres.iter().map(|f| f / 1e3).collect();
+        let dbs: Vec<Vec<f64>> = v.chunks_exact(bins).map(|c| c.iter().map(|&x| db(x)).collect()).collect();
+        let series: Vec<Series> = channel_names
+            .iter()
+            .zip(&dbs)
+            .enumerate()
+            .map(|(i, (name, y))| Series { label: name, x: &khz, y, color: PALETTE[i % PALETTE.len()] })
+            .collect();
+        put(
+            format!("roi_{}_spectrum.png", roi.name),
+            line_plot_png(
+                &series,
+                &format!("ROI \"{}\": Doppler spectrum by path class", roi.name),
+                "beat frequency (kHz)",
+                "power per bin (dB of emitted)",
+                None,
+            ),
+        )?;
+        let mut info = Map::new();
+        info.insert("x_range_m".into(), json!([roi.min[0], roi.max[0]]));
+        info.insert("y_range_m".into(), json!([roi.min[1], roi.max[1]]));
+        info.insert("spectrum_file".into(), json!(format!("roi_{}_spectrum.npy", roi.name)));
+        info.insert("out_of_range".into(), Value::Object(out_of_range));
+        if let Some(s) = speckle.get(r) {
+            info.insert("speckle".into(), write_speckle(put, spec, &roi.name, s)?);
+        }
+        rois.insert(roi.name.clone(), Value::Object(info));
+    }
+    if let Some(o) = lay.pixel_spectra {
+        let mut v = Vec::with_capacity(n * bins);
+        for p in 0..n {
+            let s = &mean[o + p * lay.stride..o + (p + 1) * lay.stride];
+            if spec.flip_sign {
+                v.extend_from_slice(&mirror_slots(s, bins)[..bins]);
+            } else {
+                v.extend_from_slice(&s[..bins]);
+            }
+        }
+        put("pixel_spectra.npy".into(), npy::to_bytes(&[im.ny, im.nx, bins], &v))?;
+    }
+
+    let total = |v: &[f64]| v.iter().sum::<f64>();
+    estimates.insert("m0_plus_image_total".into(), json!(total(&m0p)));
+    estimates.insert("m0_minus_image_total".into(), json!(total(&m0m)));
+    Ok(json!({
+        "frame_rate_hz": spec.stft.sample_rate(),
+        "window_samples": spec.stft.samples(),
+        "window": spec.stft.window().name(),
+        "bin_width_hz": spec.stft.bin_width(),
+        "band_hz": [spec.band.0, spec.band.1],
+        "flip_sign": spec.flip_sign,
+        "sign_convention": if spec.flip_sign {
+            "flipped: positive = optical path shortening (approaching)"
+        } else {
+            "positive = optical path lengthening (receding)"
+        },
+        "images": {
+            "pixels": [im.nx, im.ny],
+            "x_range_m": [im.min[0], im.max[0]],
+            "y_range_m": [im.min[1], im.max[1]],
+            "layout": "rows = y (ascending), columns = x (ascending)",
+            "m0_units": "fraction of emitted power per pixel (band sum of the expected periodogram)",
+            "m1_units": "Hz × fraction of emitted power per pixel",
+            "classes": CLASS_NAMES,
+        },
+        "spectrum": {
+            "f_min_hz": f_lo,
+            "f_max_hz": f_hi,
+            "bins": bins,
+            "bin_width_hz": width,
+            "frequency_file": "ldh_frequency_hz.npy",
+            "channels": channel_names,
+            "units": "fraction of emitted power per bin (no window kernel)",
+        },
+        "rois": Value::Object(rois),
+    }))
+}
+
+/// Speckle files of one ROI and their summary: the expected periodogram and single windows of
+/// both algorithms (`.npy`), and the single-window M0± statistics.
+fn write_speckle(put: &mut Put, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> Result<Value> {
+    let n = spec.stft.samples();
+    let prep = |v: &[f64]| -> Vec<f64> {
+        if spec.flip_sign { v.chunks_exact(n).flat_map(mirror_fftshift).collect() } else { v.to_vec() }
+    };
+    let windows = s.algorithm1.len() / n.max(1);
+    let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
+    put("stft_frequency_hz.npy".into(), npy::to_bytes(&[n], &freqs))?;
+    put(format!("roi_{name}_periodogram.npy"), npy::to_bytes(&[n], &prep(&s.expected)))?;
+    put(format!("roi_{name}_speckle_algorithm1.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm1)))?;
+    put(format!("roi_{name}_speckle_algorithm2.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm2)))?;
+    let sign = if spec.flip_sign { -1.0 } else { 1.0 };
+    let summary = |rows: &[f64]| -> Value {
+        let m0: Vec<(f64, f64)> = rows
+            .chunks_exact(n)
+            .map(|w| {
+                let b = band_sums(&spec.stft, spec.band, w);
+                (b.m0_plus, sign * b.m0_minus)
+            })
+            .collect();
+        let k = m0.len() as f64;
+        let mean = |f: &dyn Fn(&(f64, f64)) -> f64| m0.iter().map(f).sum::<f64>() / k;
+        let mp = mean(&|x| x.0);
+        let mm = mean(&|x| x.1);
+        let sd =
+            if m0.len() > 1 { (m0.iter().map(|x| (x.0 - mp).powi(2)).sum::<f64>() / (k - 1.0)).sqrt() } else { 0.0 };
+        json!({
+            "m0_plus_mean": mp,
+            "m0_minus_mean": mm,
+            "m0_plus_std": sd,
+            "m0_plus_relative_std": if mp > 0.0 { sd / mp } else { f64::NAN },
+        })
+    };
+    let b = band_sums(&spec.stft, spec.band, &s.expected);
+    Ok(json!({
+        "paths": s.lines,
+        "windows": windows,
+        "expected_m0_plus": b.m0_plus,
+        "expected_m0_minus": sign * b.m0_minus,
+        "algorithm1": summary(&s.algorithm1),
+        "algorithm2": summary(&s.algorithm2),
+        "seconds_expected": s.seconds_expected,
+        "seconds_algorithm1": s.seconds_algorithm1,
+        "seconds_algorithm2": s.seconds_algorithm2,
+        "files": {
+            "frequency": "stft_frequency_hz.npy",
+            "expected": format!("roi_{name}_periodogram.npy"),
+            "algorithm1": format!("roi_{name}_speckle_algorithm1.npy"),
+            "algorithm2": format!("roi_{name}_speckle_algorithm2.npy"),
+        },
+    }))
+}

@@ -1,0 +1,172 @@
+//! Laser Doppler holography against closed forms (validation-values §4.4, §4.8, §4.10): a single-
+//! scattering Poiseuille vessel, Brownian and dispersive particle motion, and the shipped retina
+//! scene (opposite M0− in artery and vein, the spectrum's three parts, √8 speckle noise).
+
+mod common;
+
+use common::{Run, chi_square_estimates, roi_channel, roi_m0, run};
+
+/// Optically thin blood (isotropic scatterers, τ ≈ 3e-3 across the vessel) in a clear layer,
+/// index-matched throughout, a pencil beam through the vessel's axis, and a camera looking back
+/// along the beam through a 0.5° cone (next-event estimation): single backscatter with a fixed
+/// scattering vector q = 2k ẑ. λ0 = 785 nm, n = 1.33.
+const THIN_VESSEL: &str = r#"
+schema_version = 1
+[run]
+samples = 3_000_000
+seed = 11
+batches = 20
+[source]
+wavelength_nm = 785
+position_mm = [0, 0, -0.1]
+[ambient]
+n_above = 1.33
+n_below = 1.33
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[media.blood]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0.01
+phase = { type = "isotropic" }
+[[layers]]
+thickness_mm = 1
+n = 1.33
+medium = "clear"
+[[regions]]
+layer = "layer0"
+medium = "blood"
+# 45° to the beam: the chord through the axis samples r uniformly on [0, R].
+shape = { type = "cylinder", center_um = [0, 0, 500], axis = [0.7071067811865476, 0, 0.7071067811865476], radius_um = 100 }
+velocity = { type = "poiseuille", v_max_mm_per_s = 10 }
+[[detectors]]
+name = "camera"
+area = { type = "rect", size_mm = [0.4, 0.4] }
+acceptance_half_angle_deg = 0.5
+include_specular = false
+[detectors.image]
+pixels = [4, 4]
+[detectors.ldh]
+band_khz = [1, 10]
+spectrum = { f_min_khz = -5, f_max_khz = 30, bins = 70 }
+[[detectors.ldh.roi]]
+name = "spot"
+size_mm = [0.2, 0.2]
+"#;
+
+const N: f64 = 1.33;
+const LAMBDA: f64 = 785e-9;
+
+/// Bin edges of an ROI spectrum axis.
+fn edges(f_min: f64, f_max: f64, bins: usize) -> Vec<f64> {
+    (0..=bins).map(|k| f_min + (f_max - f_min) * k as f64 / bins as f64).collect()
+}
+
+/// The single-Doppler channel of ROI 0 against expected bin fractions of its total.
+fn check_shape(r: &Run, expected_fractions: &[f64], what: &str) {
+    let ch = roi_channel(r, 0, 0, 2);
+    let total: f64 = ch.values.iter().sum::<f64>() + ch.below + ch.above;
+    assert!(total > 0.0, "{what}: nothing detected");
+    let expected: Vec<f64> = expected_fractions.iter().map(|p| p * total).collect();
+    let (stat, dof, p) = chi_square_estimates(&ch.values, &ch.stderr, &expected);
+    assert!(p > 1e-3, "{what}: chi² = {stat:.1} for {dof} bins, p = {p:.2e}");
+}
+
+#[test]
+fn poiseuille_single_scattering_matches_the_pencil_closed_form() {
+    // Pencil through the axis of a tube at 45°: r is uniform along the chord, v = v_max(1 − r²/R²),
+    // so with f = 2 n v_z/λ0 the spectrum is p(f) = 1/(2 f_max √(1 − f/f_max)) on [0, f_max],
+    // CDF 1 − √(1 − f/f_max), f_max = 2 n v_max cos 45°/λ0 = 23.96 kHz (validation-values §4.4).
+    let r = run(THIN_VESSEL, &[]);
+    let f_max = 2.0 * N * 0.01 * std::f64::consts::FRAC_1_SQRT_2 / LAMBDA;
+    let cdf = |f: f64| {
+        if f <= 0.0 {
+            0.0
+        } else if f >= f_max {
+            1.0
+        } else {
+            1.0 - (1.0 - f / f_max).sqrt()
+        }
+    };
+    let e = edges(-5e3, 30e3, 70);
+    let p: Vec<f64> = e.windows(2).map(|w| cdf(w[1]) - cdf(w[0])).collect();
+    check_shape(&r, &p, "Poiseuille pencil");
+    // Nothing single-scattered beyond f_max (the 0.5° cone changes q by < 1e-4 relative).
+    let ch = roi_channel(&r, 0, 0, 2);
+    let beyond: f64 = ch.values[e.iter().position(|&x| x >= f_max * 1.001).unwrap()..].iter().sum();
+    assert_eq!(beyond + ch.above, 0.0, "single scattering beyond f_max");
+    // The static class is the DC bin only (bin 10 covers [0, 500) Hz) and the M0− of the ROI is
+    // positive (receding flow) beyond 3σ.
+    let st = roi_channel(&r, 0, 0, 1);
+    assert!(st.values.iter().enumerate().all(|(k, &v)| k == 10 || v == 0.0));
+    let (_, (m0m, se)) = roi_m0(&r, 0, 0);
+    assert!(m0m > 3.0 * se, "M0− = {m0m:e} ± {se:e}");
+}
+
+#[test]
+fn reversed_flow_mirrors_the_roi_spectrum_and_m0_minus() {
+    // v → −v mirrors every dl/dt exactly (validation-values §4.5); with the same seed, the M0−
+    // changes sign and M0+ is unchanged, up to rounding of the band sums.
+    let a = run(THIN_VESSEL, &["run.samples=200000"]);
+    let b = run(THIN_VESSEL, &["run.samples=200000", "regions.0.velocity.v_max_mm_per_s=-10"]);
+    let ((pa, _), (ma, _)) = roi_m0(&a, 0, 0);
+    let ((pb, _), (mb, _)) = roi_m0(&b, 0, 0);
+    assert!(ma > 0.0 && (pa - pb).abs() <= 1e-12 * pa && (ma + mb).abs() <= 1e-12 * ma, "{pa} {pb} {ma} {mb}");
+}
+
+#[test]
+fn brownian_single_scattering_is_the_stokes_einstein_lorentzian() {
+    // 0.5 µm spheres in water at 293 K (η = 1.002 mPa·s): D = 4.29e-13 m²/s; backscatter at
+    // 785 nm, n = 1.33: q = 4πn/λ0, half-width q²D/2π = 30.9 Hz (validation-values §4.10). The
+    // single-Doppler spectrum is that Lorentzian, integrated over each 10 Hz bin.
+    let sets = [
+        "regions.0.velocity={ type = \"none\" }",
+        "media.blood.motion={ radius_um = 0.5, temperature_k = 293, viscosity_mpa_s = 1.002 }",
+        "detectors.0.ldh.spectrum={ f_min_hz = -300, f_max_hz = 300, bins = 60 }",
+        "run.samples=1000000",
+    ];
+    let r = run(THIN_VESSEL, &sets);
+    let d = ohd::medium::stokes_einstein(0.5e-6, 293.0, 1.002e-3);
+    assert!((d - 4.29e-13).abs() < 0.01e-13, "D = {d:e}");
+    let q = 4.0 * std::f64::consts::PI * N / LAMBDA;
+    let gamma = q * q * d / std::f64::consts::TAU;
+    assert!((gamma - 30.9).abs() < 0.1, "γ = {gamma}");
+    let p: Vec<f64> = edges(-300.0, 300.0, 60)
+        .windows(2)
+        .map(|w| ((w[1] / gamma).atan() - (w[0] / gamma).atan()) / std::f64::consts::PI)
+        .collect();
+    check_shape(&r, &p, "Brownian Lorentzian");
+}
+
+#[test]
+fn velocity_dispersion_gives_the_gaussian_spectrum() {
+    // No flow, a random velocity per event with σ = 1 mm/s per component: backscatter gives
+    // f = 2n v_z/λ0 ~ N(0, (2nσ/λ0)²), σ_f = 3.389 kHz.
+    let sets = [
+        "regions.0.velocity={ type = \"none\" }",
+        "media.blood.motion={ dispersion_mm_per_s = 1 }",
+        "detectors.0.ldh.spectrum={ f_min_khz = -15, f_max_khz = 15, bins = 60 }",
+        "run.samples=1000000",
+    ];
+    let r = run(THIN_VESSEL, &sets);
+    let sd = 2.0 * N * 1e-3 / LAMBDA;
+    let phi = |x: f64| 0.5 * erfc(-x / (sd * std::f64::consts::SQRT_2));
+    let p: Vec<f64> = edges(-15e3, 15e3, 60).windows(2).map(|w| phi(w[1]) - phi(w[0])).collect();
+    check_shape(&r, &p, "dispersion Gaussian");
+}
+
+/// Complementary error function (Numerical Recipes' Chebyshev fit, |error| < 1.2e-7).
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.26551223
+            + t * (1.00002368
+                + t * (0.37409196
+                    + t * (0.09678418
+                        + t * (-0.18628806
+                            + t * (0.27886807
+                                + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
+            .exp();
+    if x >= 0.0 { r } else { 2.0 - r }
+}
