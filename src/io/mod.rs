@@ -2,6 +2,8 @@
 
 pub mod manifest;
 pub mod npy;
+pub mod plot;
+pub mod png;
 pub mod table;
 
 use std::path::{Path, PathBuf};
