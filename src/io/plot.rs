@@ -1,11 +1,209 @@
-//! TEMPORARY stub (replaced by branch `plot`).
-#![allow(dead_code, missing_docs, unused_variables)]
+//! Simple line plots as PNG (spectra, profiles), drawn on a [`Canvas`].
+//!
+//! [`line_plot_png`] draws one or more [`Series`] on linear axes: a frame with "nice" ticks
+//! (1, 2, 5 × 10^k steps, [`nice_ticks`]), light grid lines, numeric tick labels on both axes
+//! ([`tick_label`]), the x-axis label under the axis, the y-axis label rotated on the left, a title
+//! above and a legend box (in the corner of the plot area that the lines cover least).
+//!
+//! Orientation is the usual one for plots: x grows to the right and **y grows upwards** (the
+//! canvas itself has row 0 at the top; the mapping flips it). Points with a non-finite `x` or `y`
+//! (e.g. `−inf` dB) break a series' line; lines are clipped to the plot area.
+
+use super::png::{Canvas, clip_segment, text_width};
+
+/// One line of a plot: `y` against `x` (the longer slice is truncated to the shorter).
+#[derive(Clone, Copy, Debug)]
 pub struct Series<'a> {
     pub label: &'a str,
     pub x: &'a [f64],
     pub y: &'a [f64],
     pub color: [u8; 3],
 }
+
+/// A fixed palette of 8 distinguishable colours for series (readable on white, colour-blind
+/// friendly in its first six).
+pub const PALETTE: [[u8; 3]; 8] = [
+    [0, 114, 178],   // blue
+    [213, 94, 0],    // vermilion
+    [0, 158, 115],   // bluish green
+    [204, 121, 167], // reddish purple
+    [230, 159, 0],   // orange
+    [86, 180, 233],  // sky blue
+    [90, 90, 90],    // dark grey
+    [140, 100, 20],  // brown
+];
+
+const WIDTH: usize = 900;
+const HEIGHT: usize = 560;
+const MARGIN: usize = 16;
+const TITLE_SCALE: usize = 2;
+const AXIS_LABEL_SCALE: usize = 2;
+const TICK_SCALE: usize = 1;
+const LEGEND_SCALE: usize = 1;
+const TICK_LEN: i64 = 5;
+const WHITE: [u8; 3] = [255, 255, 255];
+const TEXT: [u8; 3] = [20, 20, 20];
+const AXIS: [u8; 3] = [40, 40, 40];
+const GRID: [u8; 3] = [228, 228, 228];
+
+/// "Nice" tick positions covering `[lo, hi]` with about `target` ticks: multiples of a step of
+/// 1, 2 or 5 × 10^k, from the largest multiple ≤ `lo` to the smallest ≥ `hi` (so the first and
+/// last may lie outside the range). `lo > hi` is swapped; `lo == hi` gives `[lo]`; a non-finite
+/// end gives no ticks.
+pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
+    if !lo.is_finite() || !hi.is_finite() {
+        return Vec::new();
+    }
+    let (lo, hi) = (lo.min(hi), lo.max(hi));
+    let span = hi - lo;
+    if span == 0.0 {
+        return vec![lo];
+    }
+    if !span.is_finite() {
+        return vec![lo, hi];
+    }
+    let target = target.clamp(2, 100);
+    let raw = span / (target - 1) as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let count = |step: f64| ((hi / step).ceil() - (lo / step).floor()).clamp(0.0, 1e6) as usize + 1;
+    // The candidate step whose tick count is closest to the target (ties: the larger step).
+    let mut best: Option<(usize, f64)> = None;
+    for m in [0.5, 1.0, 2.0, 5.0, 10.0, 20.0] {
+        let step = m * mag;
+        if !step.is_finite() || step <= 0.0 {
+            continue;
+        }
+        let miss = count(step).abs_diff(target);
+        if best.is_none_or(|(b, _)| miss <= b) {
+            best = Some((miss, step));
+        }
+    }
+    let Some((_, step)) = best else {
+        return vec![lo, hi];
+    };
+    let first = (lo / step).floor();
+    let n = count(step).min(1000);
+    (0..n)
+        .map(|k| {
+            let v = (first + k as f64) * step;
+            // Snap float noise (3 × 0.1 = 0.30000000000000004) to the nearest short decimal.
+            if v.abs() < 1e-9 * step { 0.0 } else { v }
+        })
+        .collect()
+}
+
+/// The number of decimals that show multiples of `step` exactly (0 to 9).
+fn decimals_for(step: f64) -> usize {
+    (0..=9)
+        .find(|&d| {
+            let s = step * 10f64.powi(d as i32);
+            (s - s.round()).abs() <= 1e-6 * s.max(1.0)
+        })
+        .unwrap_or(9)
+}
+
+/// `v` in scientific notation, C style ("1e-06", "2.5e+04"), with enough mantissa digits (0–3)
+/// to tell ticks `step` apart, shortened to at most 8 characters.
+fn sci_label(v: f64, step: f64) -> String {
+    if v == 0.0 {
+        return "0".to_string();
+    }
+    let e0 = v.abs().log10().floor() as i32;
+    let step_digits = (e0 - step.abs().log10().floor() as i32).clamp(0, 3) as usize;
+    let mantissa = |e: i32| v / 10f64.powi(e);
+    let own_digits: usize = (0..=3usize)
+        .find(|&d| {
+            let m = mantissa(e0) * 10f64.powi(d as i32);
+            (m - m.round()).abs() <= 1e-6 * m.abs().max(1.0)
+        })
+        .unwrap_or(3);
+    let mut digits = step_digits.max(own_digits);
+    loop {
+        let mut e = e0;
+        let mut m = format!("{:.*}", digits, mantissa(e));
+        if m.trim_start_matches('-').starts_with("10") {
+            e += 1;
+            m = format!("{:.*}", digits, mantissa(e));
+        }
+        if m.contains('.') {
+            m = m.trim_end_matches('0').trim_end_matches('.').to_string();
+        }
+        let s = format!("{m}e{}{:02}", if e < 0 { '-' } else { '+' }, e.unsigned_abs());
+        if s.len() <= 8 || digits == 0 {
+            return s;
+        }
+        digits -= 1;
+    }
+}
+
+/// Tick label text: compact, e.g. "-30", "0.5", "1e-06", "2.5e+04" (at most 8 characters).
+/// Fixed-point with just enough decimals for `step`, scientific when the step is ≥ 10⁴ or
+/// < 10⁻³ or the fixed form would be too long; (near) zero is written as 0 with the step's
+/// decimals ("0", "0.0") or "0" in scientific notation.
+pub fn tick_label(v: f64, step: f64) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let step = if step.is_finite() && step != 0.0 {
+        step.abs()
+    } else if v != 0.0 {
+        v.abs()
+    } else {
+        1.0
+    };
+    // (Near) zero: float noise from `k × step`, or -0.
+    let v = if v.abs() < step * 1e-6 { 0.0 } else { v };
+    if (1e-3..1e4).contains(&step) {
+        let s = format!("{:.*}", decimals_for(step), v);
+        if s.len() <= 8 {
+            let negative_zero = s.starts_with('-') && s.parse::<f64>() == Ok(0.0);
+            return if negative_zero { s[1..].to_string() } else { s };
+        }
+    }
+    sci_label(v, step)
+}
+
+/// A finite axis range from data limits: widened if empty, with `margin` (a fraction of the span)
+/// added on each side.
+fn axis_range(lo: f64, hi: f64, margin: f64) -> (f64, f64) {
+    if !(lo.is_finite() && hi.is_finite()) || lo > hi {
+        return (0.0, 1.0);
+    }
+    if hi - lo == 0.0 {
+        let d = if lo == 0.0 { 1.0 } else { 0.1 * lo.abs() };
+        return (lo - d, hi + d);
+    }
+    let pad = margin * (hi - lo);
+    if (hi - lo + 2.0 * pad).is_finite() { (lo - pad, hi + pad) } else { (lo, hi) }
+}
+
+/// Ticks inside `[lo, hi]` such that neighbouring ticks are at least `min_px(labels)` pixels apart
+/// on an axis `len_px` long: the most ticks (up to 9) that fit, with their labels.
+fn fitting_ticks(lo: f64, hi: f64, len_px: f64, min_px: impl Fn(&[String]) -> f64) -> (Vec<f64>, Vec<String>) {
+    let eps = 1e-9 * (hi - lo);
+    let mut fallback = (vec![], vec![]);
+    for target in (2..=9).rev() {
+        let all = nice_ticks(lo, hi, target);
+        let step = if all.len() >= 2 { all[1] - all[0] } else { hi - lo };
+        let ticks: Vec<f64> = all.into_iter().filter(|&v| v >= lo - eps && v <= hi + eps).collect();
+        let labels: Vec<String> = ticks.iter().map(|&v| tick_label(v, step)).collect();
+        let spacing = step / (hi - lo) * len_px;
+        if ticks.len() <= 1 || spacing >= min_px(&labels) {
+            return (ticks, labels);
+        }
+        fallback = (ticks, labels);
+    }
+    // Even 2 targets do not fit: keep every other tick of the coarsest set.
+    let (t, l) = fallback;
+    (t.into_iter().step_by(2).collect(), l.into_iter().step_by(2).collect())
+}
+
+/// A line plot (900 × 560 px) of `series`: axes with nice ticks and numeric tick labels, `x_label`
+/// under the x axis, `y_label` rotated on the left, `title` above, a legend box with each series'
+/// colour and label (series with an empty label are left out of it). Non-finite points break the
+/// lines. `y_range`: `None` = from the finite data with a 5% margin; `Some((lo, hi))` = fixed,
+/// lines clipped to it (a non-finite or empty range counts as `None`). The x range is that of the
+/// finite data. Never panics; with no finite point the axes say "no data".
 pub fn line_plot_png(
     series: &[Series],
     title: &str,
@@ -13,6 +211,312 @@ pub fn line_plot_png(
     y_label: &str,
     y_range: Option<(f64, f64)>,
 ) -> Vec<u8> {
-    Vec::new()
+    line_plot_canvas(series, title, x_label, y_label, y_range).to_png()
 }
-pub const PALETTE: [[u8; 3]; 8] = [[0, 0, 0]; 8];
+
+/// The points of a series that count (x and y truncated to the shorter).
+fn points<'a>(s: &'a Series) -> impl Iterator<Item = (f64, f64)> + 'a {
+    s.x.iter().zip(s.y).map(|(&x, &y)| (x, y))
+}
+
+/// [`line_plot_png`] before encoding.
+pub fn line_plot_canvas(
+    series: &[Series],
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    y_range: Option<(f64, f64)>,
+) -> Canvas {
+    let finite = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite();
+    let limits = |vals: &mut dyn Iterator<Item = f64>| {
+        vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
+    };
+    let all_x = &mut series.iter().flat_map(points).map(|p| p.0).filter(|x| x.is_finite());
+    let (x_lo, x_hi) = limits(all_x);
+    let (x_lo, x_hi) = axis_range(x_lo, x_hi, 0.0);
+    let fixed_y = y_range
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .filter(|&(a, b)| a.is_finite() && b.is_finite() && b > a && (b - a).is_finite());
+    let any_data = series.iter().flat_map(points).any(|p| finite(&p));
+    let (y_lo, y_hi) = fixed_y.unwrap_or_else(|| {
+        let (lo, hi) = limits(&mut series.iter().flat_map(points).filter(finite).map(|p| p.1));
+        axis_range(lo, hi, 0.05)
+    });
+
+    // Layout, from the outside in: title on top; x label and x tick labels at the bottom;
+    // y label and y tick labels on the left.
+    let tick_h = 8 * TICK_SCALE;
+    let top = MARGIN + 8 * TITLE_SCALE + 16;
+    let bottom = HEIGHT - (MARGIN + 8 * AXIS_LABEL_SCALE + 10 + tick_h + 6 + TICK_LEN as usize);
+    let (y_ticks, y_labels) = fitting_ticks(y_lo, y_hi, (bottom - top) as f64, |_| 2.5 * tick_h as f64);
+    let y_label_w = y_labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0);
+    let left = MARGIN + 8 * AXIS_LABEL_SCALE + 12 + y_label_w + 6 + TICK_LEN as usize;
+    let right = WIDTH - MARGIN - 8;
+    let (x_ticks, x_labels) = fitting_ticks(x_lo, x_hi, (right - left) as f64, |labels| {
+        (labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0) + 3 * 8 * TICK_SCALE) as f64
+    });
+    let (l, r, t, b) = (left as f64, right as f64, top as f64, bottom as f64);
+    let px = |x: f64| l + (x - x_lo) / (x_hi - x_lo) * (r - l);
+    let py = |y: f64| b - (y - y_lo) / (y_hi - y_lo) * (b - t);
+
+    let mut c = Canvas::new(WIDTH, HEIGHT, WHITE);
+    let (li, ri, ti, bi) = (left as i64, right as i64, top as i64, bottom as i64);
+    // Grid, frame, ticks and tick labels.
+    for &x in &x_ticks {
+        let xi = px(x).round() as i64;
+        c.fill_rect(xi, ti, xi, bi, GRID);
+    }
+    for &y in &y_ticks {
+        let yi = py(y).round() as i64;
+        c.fill_rect(li, yi, ri, yi, GRID);
+    }
+    c.rect_outline(li - 1, ti - 1, ri + 1, bi + 1, AXIS);
+    for (&x, label) in x_ticks.iter().zip(&x_labels) {
+        let xi = px(x).round() as i64;
+        c.fill_rect(xi, bi + 1, xi, bi + TICK_LEN, AXIS);
+        let w = text_width(label, TICK_SCALE) as i64;
+        c.text(xi - w / 2, bi + TICK_LEN + 5, label, TEXT, TICK_SCALE);
+    }
+    for (&y, label) in y_ticks.iter().zip(&y_labels) {
+        let yi = py(y).round() as i64;
+        c.fill_rect(li - TICK_LEN - 1, yi, li - 2, yi, AXIS);
+        let w = text_width(label, TICK_SCALE) as i64;
+        c.text(li - TICK_LEN - 6 - w, yi - tick_h as i64 / 2, label, TEXT, TICK_SCALE);
+    }
+    // Axis labels and title.
+    let xw = text_width(x_label, AXIS_LABEL_SCALE) as i64;
+    let x_label_y = (HEIGHT - MARGIN - 8 * AXIS_LABEL_SCALE) as i64;
+    c.text(((li + ri) / 2 - xw / 2).max(MARGIN as i64), x_label_y, x_label, TEXT, AXIS_LABEL_SCALE);
+    let yh = text_width(y_label, AXIS_LABEL_SCALE) as i64;
+    c.text_vertical(MARGIN as i64, ((ti + bi) / 2 - yh / 2).max(0), y_label, TEXT, AXIS_LABEL_SCALE);
+    let tw = text_width(title, TITLE_SCALE) as i64;
+    let title_x = ((li + ri) / 2 - tw / 2).min((WIDTH - MARGIN) as i64 - tw).max(MARGIN as i64);
+    c.text(title_x, MARGIN as i64, title, TEXT, TITLE_SCALE);
+
+    // The lines, clipped to the data range; isolated points as small squares.
+    let rect = (x_lo, x_hi, y_lo, y_hi);
+    for s in series {
+        let pts: Vec<(f64, f64)> = points(s).collect();
+        for (i, &p) in pts.iter().enumerate() {
+            if !finite(&p) {
+                continue;
+            }
+            let next_ok = pts.get(i + 1).is_some_and(finite);
+            let prev_ok = i > 0 && finite(&pts[i - 1]);
+            if next_ok {
+                if let Some([x0, y0, x1, y1]) = clip_segment(p, pts[i + 1], rect) {
+                    c.line_width(px(x0), py(y0), px(x1), py(y1), s.color, 2);
+                }
+            } else if !prev_ok && p.0 >= x_lo && p.0 <= x_hi && p.1 >= y_lo && p.1 <= y_hi {
+                let (xi, yi) = (px(p.0).round() as i64, py(p.1).round() as i64);
+                c.fill_rect(xi - 1, yi - 1, xi + 1, yi + 1, s.color);
+            }
+        }
+    }
+    if !any_data {
+        let msg = "no data";
+        let w = text_width(msg, AXIS_LABEL_SCALE) as i64;
+        c.text((li + ri) / 2 - w / 2, (ti + bi) / 2 - 8, msg, TEXT, AXIS_LABEL_SCALE);
+    }
+    draw_legend(&mut c, series, (li, ri, ti, bi));
+    c
+}
+
+/// The legend box, in the corner of the plot area with the fewest series-coloured pixels.
+fn draw_legend(c: &mut Canvas, series: &[Series], (l, r, t, b): (i64, i64, i64, i64)) {
+    let entries: Vec<&Series> = series.iter().filter(|s| !s.label.is_empty()).collect();
+    if entries.is_empty() {
+        return;
+    }
+    const SWATCH: i64 = 24;
+    const PAD: i64 = 8;
+    let row = (8 * LEGEND_SCALE) as i64 + 8;
+    let text_w = entries.iter().map(|s| text_width(s.label, LEGEND_SCALE)).max().unwrap_or(0) as i64;
+    let (w, h) = (PAD + SWATCH + 8 + text_w + PAD, 2 * PAD + row * entries.len() as i64 - 8);
+    let inset = 10;
+    let corners = [
+        (r - inset - w, t + inset),
+        (l + inset, t + inset),
+        (r - inset - w, b - inset - h),
+        (l + inset, b - inset - h),
+    ];
+    let colors: Vec<[u8; 3]> = entries.iter().map(|s| s.color).collect();
+    let covered = |&(x0, y0): &(i64, i64)| {
+        let mut n = 0usize;
+        for y in y0.max(0)..(y0 + h) {
+            for x in x0.max(0)..(x0 + w) {
+                if c.get(x as usize, y as usize).is_some_and(|p| colors.contains(&p)) {
+                    n += 1;
+                }
+            }
+        }
+        n
+    };
+    let (x0, y0) = corners.iter().copied().min_by_key(|p| covered(p)).unwrap_or(corners[0]);
+    c.fill_rect(x0, y0, x0 + w - 1, y0 + h - 1, WHITE);
+    c.rect_outline(x0, y0, x0 + w - 1, y0 + h - 1, [150, 150, 150]);
+    for (k, s) in entries.iter().enumerate() {
+        let y = y0 + PAD + k as i64 * row;
+        let mid = y + (4 * LEGEND_SCALE) as i64;
+        c.fill_rect(x0 + PAD, mid - 1, x0 + PAD + SWATCH - 1, mid + 1, s.color);
+        c.text(x0 + PAD + SWATCH + 8, y, s.label, TEXT, LEGEND_SCALE);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn decode(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
+        let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+        let mut reader = decoder.read_info().expect("PNG header");
+        let mut buf = vec![0; reader.output_buffer_size().expect("buffer size")];
+        let info = reader.next_frame(&mut buf).expect("PNG frame");
+        buf.truncate(info.buffer_size());
+        (info.width as usize, info.height as usize, buf)
+    }
+
+    fn count_color(rgb: &[u8], c: [u8; 3]) -> usize {
+        rgb.chunks_exact(3).filter(|p| *p == c).count()
+    }
+
+    #[test]
+    fn nice_ticks_steps() {
+        assert_eq!(nice_ticks(-30.0, 30.0, 7), vec![-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0]);
+        assert_eq!(nice_ticks(30.0, -30.0, 7), nice_ticks(-30.0, 30.0, 7));
+        assert_eq!(nice_ticks(0.0, 1.0, 6), vec![0.0, 0.2, 0.4, 0.6000000000000001, 0.8, 1.0]);
+        let t = nice_ticks(0.013, 0.087, 5);
+        assert!(t[0] <= 0.013 && *t.last().unwrap() >= 0.087, "{t:?}");
+        let step = t[1] - t[0];
+        let norm = step / 10f64.powf(step.log10().floor());
+        assert!([1.0, 2.0, 5.0].iter().any(|m| (norm - m).abs() < 1e-9), "{step}");
+        assert_eq!(nice_ticks(3.0, 3.0, 5), vec![3.0]);
+        assert!(nice_ticks(f64::NAN, 1.0, 5).is_empty());
+        assert!(nice_ticks(0.0, f64::INFINITY, 5).is_empty());
+        assert_eq!(nice_ticks(-f64::MAX, f64::MAX, 5).len(), 2);
+        assert!(nice_ticks(0.0, 1.0, 0).len() >= 2);
+        assert!(nice_ticks(1e-300, 2e-300, 5).len() >= 3);
+    }
+
+    #[test]
+    fn tick_labels() {
+        assert_eq!(tick_label(-30.0, 10.0), "-30");
+        assert_eq!(tick_label(0.5, 0.5), "0.5");
+        assert_eq!(tick_label(0.6000000000000001, 0.2), "0.6");
+        assert_eq!(tick_label(1e-6, 1e-6), "1e-06");
+        assert_eq!(tick_label(2.5e4, 5e4), "2.5e+04");
+        assert_eq!(tick_label(1.5e5, 5e4), "1.5e+05");
+        assert_eq!(tick_label(25000.0, 5000.0), "25000");
+        assert_eq!(tick_label(1e-17, 0.1), "0.0");
+        assert_eq!(tick_label(-1e-17, 1.0), "0");
+        assert_eq!(tick_label(1e-22, 1e-6), "0");
+        assert_eq!(tick_label(-0.0, 1.0), "0");
+        assert_eq!(tick_label(-0.01, 1.0), "0");
+        assert_eq!(tick_label(0.0, 0.5), "0.0");
+        assert_eq!(tick_label(9.99999e5, 1e5), "1e+06");
+        assert_eq!(tick_label(f64::NEG_INFINITY, 1.0), "-inf");
+        for (v, step) in [(-1.234567e-12, 1e-15), (123456789.0, 0.1), (-9.87e300, 1e299), (3.0, f64::NAN), (0.1, 0.0)] {
+            let s = tick_label(v, step);
+            assert!(!s.is_empty() && s.len() <= 8, "{v} {step}: {s}");
+        }
+    }
+
+    #[test]
+    fn line_plot_has_every_series_colour() {
+        let x: Vec<f64> = (0..200).map(|i| i as f64 * 0.05 - 5.0).collect();
+        let y1: Vec<f64> = x.iter().map(|x| -30.0 + 10.0 * x.sin()).collect();
+        let y2: Vec<f64> = x.iter().map(|x| if x.abs() < 1.0 { f64::NEG_INFINITY } else { -x * x }).collect();
+        let y3: Vec<f64> = x.iter().map(|x| 0.5 * x).collect();
+        let series = [
+            Series { label: "sin", x: &x, y: &y1, color: PALETTE[0] },
+            Series { label: "parabola with a gap", x: &x, y: &y2, color: PALETTE[1] },
+            Series { label: "", x: &x[..50], y: &y3, color: PALETTE[2] },
+        ];
+        let (w, h, rgb) = decode(&line_plot_png(&series, "test plot", "frequency (kHz)", "power (dB)", None));
+        assert_eq!((w, h), (WIDTH, HEIGHT));
+        for s in &series {
+            assert!(count_color(&rgb, s.color) > 100, "{:?}", s.color);
+        }
+        // The gap: the parabola's colour is missing from the columns of |x| < 1 inside the plot.
+        let c = line_plot_canvas(&series, "test plot", "frequency (kHz)", "power (dB)", Some((-40.0, 10.0)));
+        let col = (c.width as f64 * 0.5) as usize;
+        let hits = (0..c.height).filter(|&y| c.get(col, y) == Some(PALETTE[1])).count();
+        assert_eq!(hits, 0);
+    }
+
+    #[test]
+    fn fixed_range_clips_lines_to_the_plot_area() {
+        let x = [0.0, 1.0, 2.0];
+        let y = [0.0, 1e6, 0.0];
+        let s = [Series { label: "spike", x: &x, y: &y, color: [255, 0, 255] }];
+        let c = line_plot_canvas(&s, "clip", "x", "y", Some((0.0, 1.0)));
+        // Nothing magenta in the title band above the plot.
+        for y in 0..(MARGIN + 8 * TITLE_SCALE + 14) {
+            for x in 0..c.width {
+                assert_ne!(c.get(x, y), Some([255, 0, 255]), "({x}, {y})");
+            }
+        }
+        assert!(count_color(&c.rgb, [255, 0, 255]) > 10);
+    }
+
+    #[test]
+    fn degenerate_inputs_do_not_panic() {
+        let nan = [f64::NAN; 4];
+        let one = [1.0];
+        let x4 = [0.0, 1.0, 2.0, 3.0];
+        let inf = [f64::INFINITY, f64::NEG_INFINITY, 1.0, 2.0];
+        let big = [-f64::MAX, f64::MAX, 0.0, 1.0];
+        let cases: Vec<Vec<Series>> = vec![
+            vec![],
+            vec![Series { label: "empty", x: &[], y: &[], color: PALETTE[0] }],
+            vec![Series { label: "nan", x: &x4, y: &nan, color: PALETTE[1] }],
+            vec![Series { label: "one point", x: &one, y: &one, color: PALETTE[2] }],
+            vec![Series { label: "mismatch", x: &x4, y: &one, color: PALETTE[3] }],
+            vec![Series { label: "flat", x: &x4, y: &[2.0; 4], color: PALETTE[4] }],
+            vec![Series { label: "inf", x: &inf, y: &x4, color: PALETTE[5] }],
+            vec![Series { label: "huge", x: &x4, y: &big, color: PALETTE[6] }],
+            vec![Series { label: "same x", x: &[5.0; 4], y: &x4, color: PALETTE[7] }],
+        ];
+        for s in &cases {
+            for range in [None, Some((1.0, 1.0)), Some((f64::NAN, 0.0)), Some((5.0, -5.0))] {
+                let (w, h, _) = decode(&line_plot_png(s, "degenerate", "", "", range));
+                assert_eq!((w, h), (WIDTH, HEIGHT));
+            }
+        }
+        let label = "x".repeat(500);
+        let s = [Series { label: &label, x: &x4, y: &x4, color: PALETTE[0] }];
+        decode(&line_plot_png(&s, &label, &label, &label, None));
+        // An isolated finite point between breaks is still drawn.
+        let y = [f64::NAN, 1.0, f64::NAN, 2.0];
+        let s = [Series { label: "dots", x: &x4, y: &y, color: [1, 2, 3] }];
+        assert!(count_color(&line_plot_canvas(&s, "", "", "", None).rgb, [1, 2, 3]) >= 18);
+    }
+
+    /// Renders an example plot to `$OHD_PNG_DIR` (for looking at it), when set.
+    #[test]
+    fn render_example_when_asked() {
+        let Ok(dir) = std::env::var("OHD_PNG_DIR") else { return };
+        let f: Vec<f64> = (0..=400).map(|i| -30.0 + 60.0 * i as f64 / 400.0).collect();
+        let lorentz = |f0: f64, w: f64, a: f64| -> Vec<f64> {
+            f.iter().map(|&f| 10.0 * (a / (1.0 + ((f - f0) / w).powi(2)) + 1e-6).log10()).collect()
+        };
+        let s1 = lorentz(0.0, 1.5, 1e-3);
+        let s2 = lorentz(6.0, 4.0, 2e-4);
+        let mut s3 = lorentz(-9.0, 6.0, 5e-5);
+        for v in s3.iter_mut().skip(180).take(40) {
+            *v = f64::NEG_INFINITY;
+        }
+        let series = [
+            Series { label: "static tissue (DC)", x: &f, y: &s1, color: PALETTE[0] },
+            Series { label: "vessel, receding", x: &f, y: &s2, color: PALETTE[1] },
+            Series { label: "vessel, approaching (gap = -inf dB)", x: &f, y: &s3, color: PALETTE[2] },
+        ];
+        let png = line_plot_png(&series, "Doppler power spectrum", "beat frequency (kHz)", "power (dB)", None);
+        std::fs::write(std::path::Path::new(&dir).join("ohd_plot_spectrum.png"), png).unwrap();
+        let x: Vec<f64> = (0..100).map(|i| i as f64 * 1e-6).collect();
+        let y: Vec<f64> = x.iter().map(|x| 2e-5 * (-x / 3e-5).exp()).collect();
+        let series = [Series { label: "M0", x: &x, y: &y, color: PALETTE[3] }];
+        let png = line_plot_png(&series, "Small numbers", "depth (m)", "M0 (fraction)", None);
+        std::fs::write(std::path::Path::new(&dir).join("ohd_plot_small.png"), png).unwrap();
+    }
+}
