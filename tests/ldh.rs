@@ -8,7 +8,7 @@ use common::{Run, chi_square_estimates, roi_channel, roi_m0, run};
 
 /// Optically thin blood (isotropic scatterers, τ ≈ 3e-3 across the vessel) in a clear layer,
 /// index-matched throughout, a pencil beam through the vessel's axis, and a camera looking back
-/// along the beam through a 0.5° cone (next-event estimation): single backscatter with a fixed
+/// along the beam through a 0.05° cone (next-event estimation): single backscatter with a fixed
 /// scattering vector q = 2k ẑ. λ0 = 785 nm, n = 1.33.
 const THIN_VESSEL: &str = r#"
 schema_version = 1
@@ -42,7 +42,7 @@ velocity = { type = "poiseuille", v_max_mm_per_s = 10 }
 [[detectors]]
 name = "camera"
 area = { type = "rect", size_mm = [0.4, 0.4] }
-acceptance_half_angle_deg = 0.5
+acceptance_half_angle_deg = 0.05
 include_specular = false
 [detectors.image]
 pixels = [4, 4]
@@ -91,7 +91,7 @@ fn poiseuille_single_scattering_matches_the_pencil_closed_form() {
     let e = edges(-5e3, 30e3, 70);
     let p: Vec<f64> = e.windows(2).map(|w| cdf(w[1]) - cdf(w[0])).collect();
     check_shape(&r, &p, "Poiseuille pencil");
-    // Nothing single-scattered beyond f_max (the 0.5° cone changes q by < 1e-4 relative).
+    // Nothing single-scattered beyond f_max (the 0.05° cone changes q by < 5e-4 relative).
     let ch = roi_channel(&r, 0, 0, 2);
     let beyond: f64 = ch.values[e.iter().position(|&x| x >= f_max * 1.001).unwrap()..].iter().sum();
     assert_eq!(beyond + ch.above, 0.0, "single scattering beyond f_max");
@@ -145,6 +145,7 @@ fn velocity_dispersion_gives_the_gaussian_spectrum() {
     let sets = [
         "regions.0.velocity={ type = \"none\" }",
         "media.blood.motion={ dispersion_mm_per_s = 1 }",
+        "media.blood.sigma_s_per_mm=0.1",
         "detectors.0.ldh.spectrum={ f_min_khz = -15, f_max_khz = 15, bins = 60 }",
         "run.samples=1000000",
     ];
@@ -169,4 +170,89 @@ fn erfc(x: f64) -> f64 {
                                 + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
             .exp();
     if x >= 0.0 { r } else { 2.0 - r }
+}
+
+/// Relative standard deviation over windows of the single-window M0+ of rows of `n` values.
+fn single_window_m0_spread(spec: &ohd::detect::LdhSpec, rows: &[f64]) -> f64 {
+    let n = spec.stft.samples();
+    let m0: Vec<f64> =
+        rows.chunks_exact(n).map(|w| ohd::detect::ldh::band_sums(&spec.stft, spec.band, w).m0_plus).collect();
+    let k = m0.len() as f64;
+    let mean = m0.iter().sum::<f64>() / k;
+    let var = m0.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0);
+    var.sqrt() / mean
+}
+
+#[test]
+fn single_window_m0_noise_falls_by_about_sqrt8_from_64_to_512_samples() {
+    // Kim et al. 2025 §8.2: with N_w = 512 the 6–18.3 kHz band holds 8× more independent,
+    // exponentially distributed bins than with N_w = 64, so a single window's M0+ fluctuates about
+    // √8 ≈ 2.83× less. Exactly, the relative spread of Algorithm 1's Σ_k P_k E_k is
+    // √(Σ P_k²)/Σ P_k (500 windows: the spread is measured to ±3.2 %). Algorithm 2's bins are
+    // correlated by the window's leakage (adjacent Hann bins), which widens its spread at both N_w
+    // alike: its ratio must agree with the exact one within 20 %.
+    let mut spread = Vec::new();
+    for n in [64, 512] {
+        let wn = format!("detectors.0.ldh.window_samples={n}");
+        let sets = [
+            "run.samples=400000",
+            "detectors.0.ldh.band_khz=[6, 18.3]",
+            // f_max = 96 kHz: nearly flat over the band (and aliased power from above Nyquist,
+            // also flat), as the bin count argument assumes.
+            "regions.0.velocity.v_max_mm_per_s=40",
+            wn.as_str(),
+            "detectors.0.ldh.speckle={ windows = 500 }",
+        ];
+        let r = run(THIN_VESSEL, &sets);
+        let spec = r.exp.detectors[0].ldh.as_ref().unwrap();
+        let s = &r.out.speckle[0];
+        let band: Vec<f64> = (1..n)
+            .filter(|&k| {
+                let f = spec.stft.bin_frequency(k).abs();
+                (6e3..=18.3e3).contains(&f)
+            })
+            .map(|k| s.expected[k])
+            .collect();
+        let exact = band.iter().map(|p| p * p).sum::<f64>().sqrt() / band.iter().sum::<f64>();
+        let a1 = single_window_m0_spread(spec, &s.algorithm1);
+        let a2 = single_window_m0_spread(spec, &s.algorithm2);
+        let tol = 4.0 / (2.0f64 * 499.0).sqrt();
+        assert!((a1 / exact - 1.0).abs() < tol, "N_w = {n}: Algorithm 1 spread {a1:.4} vs {exact:.4}");
+        spread.push((exact, a1, a2));
+    }
+    let ratio = spread[0].0 / spread[1].0;
+    assert!((ratio / 8f64.sqrt() - 1.0).abs() < 0.15, "64 → 512: spread ratio {ratio:.3} vs √8");
+    let ratio2 = spread[0].2 / spread[1].2;
+    assert!((ratio2 / ratio - 1.0).abs() < 0.2, "Algorithm 2: spread ratio {ratio2:.3} vs {ratio:.3}");
+    eprintln!(
+        "single-window M0+ spread 64 → 512: exact {ratio:.3}, Alg. 1 {:.3}, Alg. 2 {:.3}",
+        spread[0].1 / spread[1].1,
+        spread[0].2 / spread[1].2
+    );
+}
+
+#[test]
+fn algorithm2_mean_over_windows_is_the_expected_periodogram_of_the_run() {
+    // E[Algorithm 2] = Algorithm 1 ∗ |W|² (Kim et al. Eq. 28, §5.3) for the recorded paths of a
+    // run: per bin, the mean of W windows has standard error E_k/√W (exponential bins).
+    let r = run(
+        THIN_VESSEL,
+        &["run.samples=200000", "detectors.0.ldh.window_samples=64", "detectors.0.ldh.speckle={ windows = 2000 }"],
+    );
+    let s = &r.out.speckle[0];
+    let n = 64;
+    let w = s.algorithm2.len() / n;
+    let mut stat = 0.0;
+    let mut dof = 0;
+    for k in 0..n {
+        let e = s.expected[k];
+        if e <= 1e-6 * s.expected.iter().cloned().fold(0.0, f64::max) {
+            continue;
+        }
+        let mean = (0..w).map(|j| s.algorithm2[j * n + k]).sum::<f64>() / w as f64;
+        stat += ((mean - e) / (e / (w as f64).sqrt())).powi(2);
+        dof += 1;
+    }
+    let p = common::chi2_sf(stat, dof);
+    assert!(s.lines > 30 && p > 1e-3, "chi² = {stat:.1} for {dof} bins (p = {p:.2e}), {} lines", s.lines);
 }

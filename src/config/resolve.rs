@@ -1018,11 +1018,13 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
         .unwrap_or((LDH_DEFAULT_BAND_HZ, join(path, "band_hz")));
     let nyquist = 0.5 * fs;
     if !(0.0 < band[0] && band[0] < band[1] && band[1] <= nyquist) {
+        let unit = unit_of(&band_path);
         return err(
             band_path,
             format!(
-                "= [{}, {}] Hz: expected 0 < f1 < f2 ≤ f_s/2 = {nyquist} Hz (the camera's Nyquist frequency)",
-                band[0], band[1]
+                "= {:?} {}: expected 0 < f1 < f2 ≤ f_s/2 = {nyquist} Hz (the camera's Nyquist frequency)",
+                l.band_khz.or(l.band_hz).unwrap_or(band),
+                unit
             ),
         );
     }

@@ -115,6 +115,13 @@ pub struct Detector {
     pub next_event: bool,
 }
 
+impl Detector {
+    /// Solid angle of the acceptance cone, sr.
+    pub fn solid_angle(&self) -> f64 {
+        std::f64::consts::TAU * (1.0 - self.cos_acceptance)
+    }
+}
+
 /// Global scalar tallies, in their slots at the start of the tally vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(usize)]
@@ -256,6 +263,8 @@ pub struct Escape {
     /// `Σ D_k n_k² |dir_in − dir_out|²` over events on diffusing particles, m²/s; the Lorentzian
     /// half-width of the path's line is [`BeatModel::brownian_hwhm`] of it.
     pub brownian: f64,
+    /// Next-event estimation's record of the last scattering (`PathState::mis`).
+    pub mis: f64,
     /// The specular reflection of the laser at the top surface.
     pub specular: bool,
 }
@@ -319,17 +328,26 @@ impl Recorder<'_> {
         self.detect_one(i, e, n_ambient);
     }
 
-    /// The detectors' share of [`escape`](Self::escape) (a finite path). Next-event detectors
-    /// only take the paths that never scattered (their shadow rays score the others).
+    /// The detectors' share of [`escape`](Self::escape) (a finite path).
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         for (i, d) in self.detectors.iter().enumerate() {
-            if d.side != side
-                || (e.specular && !d.include_specular)
-                || e.dir.dot(d.axis) < d.cos_acceptance
-                || (d.next_event && e.order > 0)
-            {
+            if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
                 continue;
+            }
+            if d.next_event && e.order > 0 {
+                // A direct escape into a next-event detector's cone: the balance heuristic
+                // against the shadow rays, which sample the same exit directions uniformly in
+                // the cone (pdfs in exit solid angle: the phase function's, p·n0² cos θ0 /
+                // (n_k² cos θ_k), and 1/Ω). Escapes after an interface reflection are not
+                // direct connections, which the shadow rays do not cover: full weight.
+                if e.mis >= 0.0 {
+                    let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
+                    let w = p / (p + 1.0 / d.solid_angle());
+                    let e = Escape { weight: e.weight * w, ..*e };
+                    self.detect_one(i, &e, n_ambient);
+                    continue;
+                }
             }
             self.detect_one(i, e, n_ambient);
         }

@@ -87,7 +87,7 @@ impl FrequencyAxis {
 /// far tails keep full relative precision and are never negative. For `γ = 0` it is exactly the
 /// indicator of `[lo, hi)`. Returns 0 for an empty or reversed interval.
 pub fn lorentzian_bin_fraction(lo: f64, hi: f64, f: f64, gamma: f64) -> f64 {
-    if !(hi > lo) {
+    if hi.is_nan() || lo.is_nan() || hi <= lo {
         return 0.0;
     }
     if gamma == 0.0 {

@@ -61,6 +61,11 @@ pub struct PathState {
     /// `Σ D_k n_k² |dir_in − dir_out|²` over the events on diffusing particles, m²/s: with the
     /// wavenumber `2π/λ0` it gives the path's Brownian line width (see [`Escape::brownian`]).
     pub brownian: f64,
+    /// For next-event estimation: the phase-function density of the last scattering direction
+    /// divided by `n_k² cos θ_k` at the vertex (see [`super::nee`]), or −1 when the path has not
+    /// scattered or was reflected at an interface since (its escape is then not a direct
+    /// connection, which the shadow rays do not cover).
+    pub mis: f64,
 }
 
 impl PathState {
@@ -74,6 +79,7 @@ impl PathState {
             order: self.order,
             doppler_events: self.doppler_events,
             brownian: self.brownian,
+            mis: self.mis,
             specular,
         }
     }
@@ -170,6 +176,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         order: 0,
         doppler_events: 0,
         brownian: 0.0,
+        mis: -1.0,
     };
     // Specular reflection at entry, scored deterministically (as MCML).
     let n_top = scene.layers[0].n;
@@ -317,6 +324,9 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
         if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
             s.dir.z = -s.dir.z;
+            if NEE {
+                s.mis = -1.0;
+            }
             continue;
         }
         s.dir = fresnel::refract(s.dir, n, n2, cos_t);
@@ -409,6 +419,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             order: s.order + 1,
             doppler_events: s.doppler_events,
             brownian: s.brownian,
+            mis: -1.0,
             specular: false,
         };
         if dynamic {
@@ -422,6 +433,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let d = m.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    s.mis = m.phase.eval(d.cos) / (n * n * out.z.abs());
     if dynamic {
         s.dldt += doppler_increment(n, v, delta);
         s.brownian += m.motion.diffusion * n * n * delta.length_squared();
