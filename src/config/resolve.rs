@@ -994,6 +994,28 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
     Ok(Scene { layers, regions, media, n_above, n_below })
 }
 
+/// `name` names output files: a non-empty word of letters, digits, `_` and `-`.
+fn file_name(path: &str, name: &str) -> R<()> {
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+        return err(
+            join(path, "name"),
+            format!("= \"{name}\": expected a non-empty name of letters, digits, _ and - (it names output files)"),
+        );
+    }
+    Ok(())
+}
+
+/// A rectangle of the detector plane from `center_*` (default the origin) and `size_*` (µm, mm,
+/// m): its `(min, max)` corners.
+fn rectangle(path: &str, center: [Option<[f64; 2]>; 3], size: [Option<[f64; 2]>; 3]) -> R<([f64; 2], [f64; 2])> {
+    let c = length_arr(path, "center", center[0], center[1], center[2])?.map_or([0.0; 2], |c| c.0);
+    let (s, sp) = length_arr_req(path, "size", size[0], size[1], size[2])?;
+    if s.iter().any(|&x| x <= 0.0) {
+        return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
+    }
+    Ok(([c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]], [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]]))
+}
+
 /// Defaults of an LDH camera: Kim et al. 2025's replica of Puyo et al. 2018 (39 kHz, N_w = 512)
 /// with HoloDoppler's M0 band (6–18.3 kHz); see `scene-parameters.md` §A4.
 pub const LDH_DEFAULT_FRAME_RATE_HZ: f64 = 39_000.0;
@@ -1049,28 +1071,12 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     let mut rois: Vec<Roi> = Vec::new();
     for (i, r) in l.roi.iter().enumerate() {
         let p = format!("{path}.roi[{i}]");
-        if r.name.is_empty() || !r.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return err(
-                join(&p, "name"),
-                format!(
-                    "= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)",
-                    r.name
-                ),
-            );
-        }
+        file_name(&p, &r.name)?;
         if rois.iter().any(|o| o.name == r.name) {
             return err(join(&p, "name"), format!("= \"{}\": ROI names must be unique", r.name));
         }
-        let c = length_arr(&p, "center", r.center_um, r.center_mm, r.center_m)?.map_or([0.0; 2], |c| c.0);
-        let (s, sp) = length_arr_req(&p, "size", r.size_um, r.size_mm, r.size_m)?;
-        if s.iter().any(|&x| x <= 0.0) {
-            return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
-        }
-        let roi = Roi {
-            name: r.name.clone(),
-            min: [c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]],
-            max: [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]],
-        };
+        let (min, max) = rectangle(&p, [r.center_um, r.center_mm, r.center_m], [r.size_um, r.size_mm, r.size_m])?;
+        let roi = Roi { name: r.name.clone(), min, max };
         let inside = |x: f64, y: f64| im.min[0] <= x && x <= im.max[0] && im.min[1] <= y && y <= im.max[1];
         if !(inside(roi.min[0], roi.min[1]) && inside(roi.max[0], roi.max[1])) {
             return err(
@@ -1125,15 +1131,7 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
     let mut out: Vec<Detector> = Vec::new();
     for (i, d) in ds.iter().enumerate() {
         let path = format!("detectors[{i}]");
-        if d.name.is_empty() || !d.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return err(
-                join(&path, "name"),
-                format!(
-                    "= \"{}\": expected a non-empty name of letters, digits, _ and - (it names output files)",
-                    d.name
-                ),
-            );
-        }
+        file_name(&path, &d.name)?;
         if out.iter().any(|o| o.name == d.name) {
             return err(join(&path, "name"), format!("= \"{}\": detector names must be unique", d.name));
         }
@@ -1188,13 +1186,12 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
                 Area::Disk { center: c, radius: r }
             }
             AreaSection::Rect { center_um, center_mm, center_m, size_um, size_mm, size_m } => {
-                let p = join(&path, "area");
-                let c = length_arr(&p, "center", *center_um, *center_mm, *center_m)?.map_or([0.0; 2], |c| c.0);
-                let (s, sp) = length_arr_req(&p, "size", *size_um, *size_mm, *size_m)?;
-                if s.iter().any(|&x| x <= 0.0) {
-                    return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
-                }
-                Area::Rect { min: [c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]], max: [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]] }
+                let (min, max) = rectangle(
+                    &join(&path, "area"),
+                    [*center_um, *center_mm, *center_m],
+                    [*size_um, *size_mm, *size_m],
+                )?;
+                Area::Rect { min, max }
             }
         };
         let spectrum = match &d.spectrum {

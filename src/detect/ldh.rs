@@ -42,7 +42,7 @@ pub struct Roi {
 impl Roi {
     #[inline]
     pub fn contains(&self, x: f64, y: f64) -> bool {
-        self.min[0] <= x && x < self.max[0] && self.min[1] <= y && y < self.max[1]
+        super::Area::Rect { min: self.min, max: self.max }.contains(x, y)
     }
 }
 

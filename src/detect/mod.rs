@@ -118,8 +118,13 @@ pub struct Detector {
 impl Detector {
     /// Solid angle of the acceptance cone, sr.
     pub fn solid_angle(&self) -> f64 {
-        std::f64::consts::TAU * (1.0 - self.cos_acceptance)
+        cone_solid_angle(self.cos_acceptance)
     }
+}
+
+/// Solid angle (sr) of a cone of half-angle `α`, given `cos α`: `2π(1 − cos α)`.
+pub fn cone_solid_angle(cos_acceptance: f64) -> f64 {
+    std::f64::consts::TAU * (1.0 - cos_acceptance)
 }
 
 /// Global scalar tallies, in their slots at the start of the tally vector.

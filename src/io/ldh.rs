@@ -5,6 +5,7 @@
 
 use serde_json::{Map, Value, json};
 
+use super::manifest::estimate;
 use super::plot::{PALETTE, Series, line_plot_png};
 use super::png::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
 use super::{exr_bytes, npy};
@@ -14,10 +15,6 @@ use crate::error::{Error, Result};
 
 /// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
 pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
-
-fn estimate(v: f64, s: f64) -> Value {
-    json!({ "value": v, "stderr": s })
-}
 
 /// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
 /// mirrored axis `[−f_max, −f_min)` is bin `bins − 1 − k` of the original, and the tails swap.

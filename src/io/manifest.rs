@@ -14,7 +14,7 @@ use crate::experiment::{Experiment, RunOutput};
 use super::{exr_bytes, npy, write_atomic};
 
 /// `{"value": v, "stderr": s}`.
-fn estimate(v: f64, s: f64) -> Value {
+pub(super) fn estimate(v: f64, s: f64) -> Value {
     json!({ "value": v, "stderr": s })
 }
 

@@ -50,7 +50,7 @@ impl NeeTarget {
 
     /// Solid angle of the acceptance cone, sr.
     pub fn solid_angle(&self) -> f64 {
-        std::f64::consts::TAU * (1.0 - self.cos_acceptance)
+        crate::detect::cone_solid_angle(self.cos_acceptance)
     }
 }
 

@@ -356,11 +356,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     if LENGTH {
         s.l += n * t;
     }
-    // Absorption weighting: deposit (1 − albedo) of the weight, carry on with the rest.
-    let albedo = m.albedo();
-    *absorbed += s.weight * (1.0 - albedo);
-    s.weight *= albedo;
-    if s.weight <= 0.0 {
+    if absorb(s, m, absorbed) {
         return Some(End::Absorbed);
     }
     let d = m.phase.sample(rng.uniform());
@@ -368,13 +364,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
     if DOPPLER && m.is_dynamic() {
         let v = particle_velocity(m, s.pos, rng);
-        // The Brownian q²D term: the scattering vector is q = (2πn/λ0)(dir_in − dir_out), so
-        // D·q² = (2π/λ0)²·D n²|Δ|² and only the wavelength-free part is carried.
-        if m.motion.diffusion > 0.0 {
-            s.brownian += m.motion.diffusion * n * n * delta.length_squared();
-        }
-        s.dldt += doppler_increment(n, v, delta);
-        s.doppler_events += 1;
+        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, m, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
@@ -398,10 +388,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     checkpoint: &mut u32,
     rec: &mut Recorder,
 ) -> Option<End> {
-    let albedo = m.albedo();
-    *absorbed += s.weight * (1.0 - albedo);
-    s.weight *= albedo;
-    if s.weight <= 0.0 {
+    if absorb(s, m, absorbed) {
         return Some(End::Absorbed);
     }
     let dynamic = DOPPLER && m.is_dynamic();
@@ -423,10 +410,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             specular: false,
         };
         if dynamic {
-            let delta = s.dir - h.dir_vertex;
-            e.dldt += doppler_increment(n, v, delta);
-            e.brownian += m.motion.diffusion * n * n * delta.length_squared();
-            e.doppler_events += 1;
+            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, m, n, v, s.dir - h.dir_vertex);
         }
         rec.next_event(target.detector, &e, scene.n_above);
     }
@@ -435,13 +419,34 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
     s.mis = m.phase.eval(d.cos) / (n * n * out.z.abs());
     if dynamic {
-        s.dldt += doppler_increment(n, v, delta);
-        s.brownian += m.motion.diffusion * n * n * delta.length_squared();
-        s.doppler_events += 1;
+        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, m, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
     end_of_event(s, settings, rng, checkpoint)
+}
+
+/// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if
+/// no weight is left.
+#[inline(always)]
+fn absorb(s: &mut PathState, m: &Medium, absorbed: &mut f64) -> bool {
+    let albedo = m.albedo();
+    *absorbed += s.weight * (1.0 - albedo);
+    s.weight *= albedo;
+    s.weight <= 0.0
+}
+
+/// A scattering event on a particle of velocity `v` with `dir_in − dir_out = delta`: the Doppler
+/// term, the Brownian `q²D` term and the event count. The scattering vector is
+/// `q = (2πn/λ0)·delta`, so `D·q² = (2π/λ0)²·D n²|delta|²` and only the wavelength-free part is
+/// carried.
+#[inline(always)]
+fn doppler_event(dldt: &mut f64, brownian: &mut f64, events: &mut u32, m: &Medium, n: f64, v: DVec3, delta: DVec3) {
+    *dldt += doppler_increment(n, v, delta);
+    if m.motion.diffusion > 0.0 {
+        *brownian += m.motion.diffusion * n * n * delta.length_squared();
+    }
+    *events += 1;
 }
 
 /// The velocity of the particle a path scatters on at `p`: the flow plus, for a medium with a

@@ -175,7 +175,11 @@ impl Run {
         let lay = &self.out.layout.detectors[detector];
         let (start, stride) = lay.spectra.expect("detector has a spectrum");
         let bins = stride - 2;
-        let o = start + (chirp * lay.channels + channel) * stride;
+        self.slots(start + (chirp * lay.channels + channel) * stride, bins)
+    }
+
+    /// The `bins` values at `o` of the tally vector and the two out-of-range slots after them.
+    pub fn slots(&self, o: usize, bins: usize) -> Channel {
         let m = self.out.estimates.mean();
         let se = self.out.estimates.stderr();
         Channel {
@@ -214,16 +218,7 @@ fn harness_self_check() {
 /// One channel of an LDH ROI spectrum (0 = total, then static, single Doppler, multiple Doppler).
 pub fn roi_channel(r: &Run, detector: usize, roi: usize, channel: usize) -> Channel {
     let ll = r.out.layout.detectors[detector].ldh.as_ref().expect("an LDH camera");
-    let bins = ll.stride - 2;
-    let o = ll.rois[roi].spectrum + channel * ll.stride;
-    let m = r.out.estimates.mean();
-    let se = r.out.estimates.stderr();
-    Channel {
-        values: m[o..o + bins].to_vec(),
-        stderr: se[o..o + bins].to_vec(),
-        below: m[o + bins],
-        above: m[o + bins + 1],
-    }
+    r.slots(ll.rois[roi].spectrum + channel * ll.stride, ll.stride - 2)
 }
 
 /// An LDH ROI's M0+ and M0− with their standard errors: ((m0+, σ), (m0−, σ)).
