@@ -18,6 +18,9 @@ pub enum Purpose {
     Path = 0x5041_5448,
     /// Anything a test needs.
     Test = 0x5445_5354,
+    /// Speckle of single measurements: Algorithm 2's random phases and Cauchy frequencies,
+    /// Algorithm 1's per-bin `Exp(1)` draws ([`crate::spectrum::synth`]).
+    Speckle = 0x5350_4543,
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.

@@ -1,0 +1,502 @@
+//! The short-time Fourier transform of a camera pixel: window, bins, and the exact expected
+//! periodogram of detected paths ("lines").
+//!
+//! ## Normalisation
+//!
+//! A window of `N` samples at rate `f_s` is multiplied by `w[n]`, transformed, and the power in bin
+//! `k` is `P_k = |Σ_n w[n] x[n] e^{−2πi k′n/N}|² / (N Σ_n w[n]²)`, with bins in fftshift order
+//! (`ν_k = (k − N/2)·f_s/N`, DC at `k = N/2`). With this normalisation a unit-power field `x` has
+//! `Σ_k P_k = Σ_n w²|x|² / Σ_n w² = 1`: bin values are *power per bin as a fraction of the emitted
+//! power*, as everywhere in [`crate::spectrum`], and a line of power `p` spreads exactly `p` over
+//! the `N` bins (`Σ_k K = 1`, tested).
+//!
+//! ## Physics
+//!
+//! * Finite window, Kim et al. 2025 Eq. 28: the expected measured spectrum is the path spectrum
+//!   convolved with `|W(ν)|²`. For one line at `f` the DFT is a sampled Dirichlet-type kernel, and
+//!   `E P_k = p · K(ν_k − f, γ)` with
+//!   `K(δ, γ) = (1/(N Σw²)) Σ_{|d|<N} R_w(|d|) ρ^{|d|} cos(2π δ d/f_s)`,
+//!   `R_w(d) = Σ_n w[n] w[n+d]`, `ρ = e^{−2πγ/f_s}` (the Wiener–Khinchin form of `|W|²`, exact).
+//! * Brownian broadening (Lorentzian of half-width `γ`, validation-values §4.10): a line whose
+//!   instantaneous frequency is Cauchy distributed with HWHM `γ` has the per-sample phase step
+//!   `θ = 2π f/f_s` wrapped-Cauchy, with characteristic function `E e^{iθd} = e^{iθ₀d} ρ^{|d|}`; a
+//!   phase-diffusing field `e^{iφ(t)}` (Wiener `φ`) has the same autocorrelation
+//!   `e^{2πi f₀τ − 2πγ|τ|}`. Both give the kernel above exactly (second moments only; their higher
+//!   statistics differ, which the periodogram mean does not see).
+//! * Aliasing: `K` is periodic in `δ` with period `f_s`, as a real camera's sampled spectrum is;
+//!   `|f| > f_s/2` folds back.
+//! * LDH moments (Kim et al. Eq. 56, HoloDoppler's `moment0`/`directional`): [`BandKernel`] gives
+//!   the band integrals `M0±` and `M1` of one line exactly, without storing a spectrum.
+
+use std::f64::consts::PI;
+
+use num_complex::Complex;
+use rustfft::FftPlanner;
+
+/// The analysis window of the STFT.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Window {
+    /// `w[n] = 1`.
+    Rect,
+    /// Periodic ("DFT-even") Hann: `w[n] = 0.5 − 0.5 cos(2πn/N)`, `n = 0..N−1`.
+    Hann,
+}
+
+impl Window {
+    pub fn name(self) -> &'static str {
+        match self {
+            Window::Rect => "rect",
+            Window::Hann => "hann",
+        }
+    }
+
+    /// The `n` window coefficients.
+    pub fn coefficients(self, n: usize) -> Vec<f64> {
+        match self {
+            Window::Rect => vec![1.0; n],
+            Window::Hann => (0..n).map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / n as f64).cos()).collect(),
+        }
+    }
+}
+
+/// One detected path as a spectral line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Line {
+    /// Fraction of the emitted power.
+    pub power: f64,
+    /// Beat frequency, Hz (signed; may exceed Nyquist, then it aliases).
+    pub frequency: f64,
+    /// Lorentzian half width at half maximum, Hz (0 = pure tone).
+    pub gamma: f64,
+}
+
+/// A short-time Fourier transform set-up: `N` samples at `f_s` with a window.
+#[derive(Debug, Clone)]
+pub struct Stft {
+    sample_rate: f64,
+    samples: usize,
+    window: Window,
+    coefficients: Vec<f64>,
+    /// `R_w(d) = Σ_n w[n] w[n+d]`, `d = 0..N−1`.
+    autocorrelation: Vec<f64>,
+    /// `N Σ w²`.
+    norm: f64,
+}
+
+/// `e^{2πi·frac}` for the phase `2π·f/f_s` of a frequency, reduced modulo `f_s` first (the
+/// remainder is exact in floating point, so `|f| ≫ f_s` keeps full precision).
+#[inline]
+pub(crate) fn cycles(f: f64, sample_rate: f64) -> f64 {
+    (f % sample_rate) / sample_rate
+}
+
+impl Stft {
+    /// `None` unless `f_s` is finite and positive and `samples` is even and at least 2.
+    pub fn new(sample_rate: f64, samples: usize, window: Window) -> Option<Self> {
+        if !(sample_rate.is_finite() && sample_rate > 0.0 && samples >= 2 && samples % 2 == 0) {
+            return None;
+        }
+        let coefficients = window.coefficients(samples);
+        let autocorrelation: Vec<f64> = (0..samples)
+            .map(|d| coefficients[..samples - d].iter().zip(&coefficients[d..]).map(|(a, b)| a * b).sum())
+            .collect();
+        let norm = samples as f64 * autocorrelation[0];
+        Some(Stft { sample_rate, samples, window, coefficients, autocorrelation, norm })
+    }
+
+    pub fn sample_rate(&self) -> f64 {
+        self.sample_rate
+    }
+
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    pub fn window(&self) -> Window {
+        self.window
+    }
+
+    /// The window coefficients `w[n]`.
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coefficients
+    }
+
+    /// `R_w(d) = Σ_n w[n] w[n+d]` for `d = 0..N−1`.
+    pub fn autocorrelation(&self) -> &[f64] {
+        &self.autocorrelation
+    }
+
+    /// The periodogram normalisation `N Σ w²`.
+    pub fn norm(&self) -> f64 {
+        self.norm
+    }
+
+    /// `f_s / N`, Hz.
+    pub fn bin_width(&self) -> f64 {
+        self.sample_rate / self.samples as f64
+    }
+
+    /// Frequency of bin `k` in fftshift order: `ν_k = (k − N/2)·f_s/N`, `k = 0..N` (ascending, DC at
+    /// `k = N/2`).
+    pub fn bin_frequency(&self, k: usize) -> f64 {
+        (k as f64 - (self.samples / 2) as f64) * self.bin_width()
+    }
+
+    /// `ρ = e^{−2πγ/f_s}`, the per-sample coherence of a line of HWHM `γ`.
+    pub fn coherence(&self, gamma: f64) -> f64 {
+        (-2.0 * PI * gamma / self.sample_rate).exp()
+    }
+
+    /// Expected normalised periodogram power in a bin centred `offset` Hz away from a line with
+    /// Lorentzian HWHM `gamma`:
+    /// `K(offset, γ) = (1/(N Σw²)) Σ_{d=−(N−1)}^{N−1} R_w(|d|) ρ^{|d|} cos(2π·offset·d/f_s)`,
+    /// `ρ = exp(−2πγ/f_s)`. Exact: `E|DFT|²` of a windowed tone whose frequency is Cauchy distributed
+    /// with HWHM `γ` (equivalently a phase-diffusing line). Periodic in `offset` with period `f_s`
+    /// (aliasing); `Σ_k K(ν_k − f, γ) = 1` for every `f` and `γ`. O(N).
+    pub fn kernel(&self, offset: f64, gamma: f64) -> f64 {
+        let x = cycles(offset, self.sample_rate);
+        let rho = self.coherence(gamma);
+        let mut sum = 0.0;
+        let mut rho_d = 1.0;
+        for (d, &r) in self.autocorrelation.iter().enumerate().skip(1) {
+            rho_d *= rho;
+            // Reduce x·d to a fraction of a cycle before the cosine (|x·d| < N).
+            sum += r * rho_d * (2.0 * PI * (x * d as f64).fract()).cos();
+        }
+        (self.autocorrelation[0] + 2.0 * sum) / self.norm
+    }
+
+    /// Expected periodogram of a set of lines (fftshift order, `N` values):
+    /// `P_k = Σ_j p_j K(ν_k − f_j, γ_j)`.
+    ///
+    /// Cost O(lines × N + N log N): the lines are summed into the `N` lag coefficients
+    /// `C_d = Σ_j p_j ρ_j^d e^{−2πi f_j d/f_s}` (powers by repeated multiplication, error ≲ N·ε), and
+    /// one N-point DFT of `R_w(d) C_d` gives all bins. A reference, not a hot path (it builds an FFT
+    /// plan per call).
+    pub fn expected_periodogram(&self, lines: &[Line]) -> Vec<f64> {
+        let n = self.samples;
+        let mut lag = vec![Complex::new(0.0, 0.0); n];
+        for line in lines {
+            let rho = self.coherence(line.gamma);
+            let step = Complex::from_polar(rho, -2.0 * PI * cycles(line.frequency, self.sample_rate));
+            let mut z = Complex::new(line.power, 0.0);
+            for c in lag.iter_mut() {
+                *c += z;
+                z *= step;
+            }
+        }
+        // P_k = (1/norm) Re Σ_d c_d R(d) C_d e^{2πi ν_k d/f_s}, c_0 = 1, c_d = 2; with
+        // e^{2πi ν_k d/f_s} = (−1)^d e^{2πi k d/N} this is an inverse DFT over d.
+        for (d, c) in lag.iter_mut().enumerate() {
+            let sign = if d % 2 == 0 { 1.0 } else { -1.0 };
+            let weight = if d == 0 { 1.0 } else { 2.0 };
+            *c *= sign * weight * self.autocorrelation[d] / self.norm;
+        }
+        FftPlanner::new().plan_fft_inverse(n).process(&mut lag);
+        lag.iter().map(|c| c.re).collect()
+    }
+}
+
+/// Band integrals of the expected periodogram, evaluated exactly per line in O(N) without storing
+/// spectra.
+///
+/// Band `B+` = bins with `f1 ≤ ν_k ≤ f2`, `B−` = bins with `f1 ≤ −ν_k ≤ f2` (`0 < f1 < f2`; the unpaired
+/// `−f_s/2` bin is in neither, so the band stays mirror symmetric).
+/// `M0+ = Σ_{B+} P_k + Σ_{B−} P_k`, `M0− = Σ_{B+} P_k − Σ_{B−} P_k`, `M1 = Σ_{B+ ∪ B−} |ν_k| P_k`
+/// (Hz × power).
+///
+/// Each band function of a line at `f` with HWHM `γ` is `Re Σ_{d=0}^{N−1} a_d z^d` with
+/// `z = ρ e^{2πi f/f_s}`: with `A_d = Σ_{k∈B+} e^{−2πi ν_k d/f_s}` and `g_d = c_d R_w(d)/(N Σw²)`
+/// (`c_0 = 1`, `c_d = 2`), the coefficients are `g_d·2 Re A_d` (M0+), `g_d·2i Im A_d` (M0−) and
+/// `g_d·2 Σ_{B+} ν_k cos(2π ν_k d/f_s)` (M1). By the band's mirror symmetry they are real, purely
+/// imaginary and real, so only their real magnitudes are stored (`M0− = −Im Σ b_d z^d`).
+#[derive(Debug, Clone)]
+pub struct BandKernel {
+    sample_rate: f64,
+    bins: usize,
+    /// `[M0+, M0− (imaginary part), M1]` coefficients for `d = 0..N−1`.
+    coefficients: Vec<[f64; 3]>,
+}
+
+/// `M0+`, `M0−` (fraction of power) and `M1` (Hz × fraction of power) of a band.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BandPowers {
+    pub m0_plus: f64,
+    pub m0_minus: f64,
+    pub m1: f64,
+}
+
+impl BandKernel {
+    /// `None` if the band is empty or invalid (`f1 ≥ f2`, `f1 ≤ 0`, non-finite).
+    pub fn new(stft: &Stft, f1: f64, f2: f64) -> Option<Self> {
+        if !(f1.is_finite() && f2.is_finite() && f1 > 0.0 && f1 < f2) {
+            return None;
+        }
+        let n = stft.samples;
+        let half = n / 2;
+        // Positive bins k = N/2+1 .. N−1 (ν < f_s/2, so the unpaired bin never enters).
+        let band: Vec<usize> = (half + 1..n)
+            .filter(|&k| {
+                let nu = stft.bin_frequency(k);
+                f1 <= nu && nu <= f2
+            })
+            .collect();
+        if band.is_empty() {
+            return None;
+        }
+        // e^{−2πi m/N} for exact integer phases m = (k − N/2)·d mod N.
+        let table: Vec<(f64, f64)> = (0..n).map(|m| (2.0 * PI * m as f64 / n as f64).sin_cos()).collect();
+        let coefficients = (0..n)
+            .map(|d| {
+                let g = if d == 0 { 1.0 } else { 2.0 } * stft.autocorrelation[d] / stft.norm;
+                let (mut re, mut im, mut first) = (0.0, 0.0, 0.0);
+                for &k in &band {
+                    let m = ((k - half) * d) % n;
+                    let (s, c) = table[m];
+                    re += c; // Re A_d
+                    im -= s; // Im A_d
+                    first += stft.bin_frequency(k) * c;
+                }
+                [g * 2.0 * re, g * 2.0 * im, g * 2.0 * first]
+            })
+            .collect();
+        Some(BandKernel { sample_rate: stft.sample_rate, bins: band.len(), coefficients })
+    }
+
+    /// Number of bins in `B+` (= in `B−`).
+    pub fn bins(&self) -> usize {
+        self.bins
+    }
+
+    /// Exact `M0+`, `M0−`, `M1` of one line of unit power at frequency `f` with HWHM `gamma`, by
+    /// Horner's rule in `z = ρ e^{2πi f/f_s}` (`f` reduced modulo `f_s` first): `N` steps of three
+    /// complex multiply-adds, all three band functions in one pass.
+    pub fn eval(&self, f: f64, gamma: f64) -> BandPowers {
+        let rho = (-2.0 * PI * gamma / self.sample_rate).exp();
+        let z = Complex::from_polar(rho, 2.0 * PI * cycles(f, self.sample_rate));
+        let zero = Complex::new(0.0, 0.0);
+        let (mut a, mut b, mut c) = (zero, zero, zero);
+        for co in self.coefficients.iter().rev() {
+            a = a * z + co[0];
+            b = b * z + co[1];
+            c = c * z + co[2];
+        }
+        BandPowers { m0_plus: a.re, m0_minus: -b.im, m1: c.re }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FS: f64 = 39_000.0;
+
+    /// |Σ_n w[n] e^{2πi (f − ν) n/f_s}|²/(N Σw²), summed directly with exact phases.
+    fn direct_tone_power(stft: &Stft, offset: f64) -> f64 {
+        let x = cycles(offset, stft.sample_rate());
+        let mut s = Complex::new(0.0, 0.0);
+        for (n, &w) in stft.coefficients().iter().enumerate() {
+            s += Complex::from_polar(w, 2.0 * PI * (x * n as f64).fract());
+        }
+        s.norm_sqr() / stft.norm()
+    }
+
+    #[test]
+    fn constructor_and_bins() {
+        assert!(Stft::new(FS, 63, Window::Rect).is_none());
+        assert!(Stft::new(FS, 0, Window::Rect).is_none());
+        assert!(Stft::new(f64::NAN, 64, Window::Rect).is_none());
+        assert!(Stft::new(-1.0, 64, Window::Rect).is_none());
+        let s = Stft::new(FS, 64, Window::Hann).unwrap();
+        assert_eq!(s.bin_frequency(32), 0.0);
+        assert_eq!(s.bin_frequency(0), -FS / 2.0);
+        assert!((s.bin_width() - 609.375).abs() < 1e-12);
+        let w = Window::Hann.coefficients(8);
+        assert_eq!(w[0], 0.0);
+        assert!((w[4] - 1.0).abs() < 1e-15); // periodic: peak at N/2, no trailing zero
+        assert!((w[1] - w[7]).abs() < 1e-15);
+        assert_eq!(Window::Hann.name(), "hann");
+        // Hann: Σw² = 3N/8.
+        assert!((s.norm() - 64.0 * 24.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn kernel_sums_to_one() {
+        for window in [Window::Rect, Window::Hann] {
+            for n in [64, 512] {
+                let s = Stft::new(FS, n, window).unwrap();
+                let delta = s.bin_width();
+                for &f in &[0.0, 123.4, -5_000.7, 19_499.0, 47_311.1, -3.0e5 - 17.3, 2.5e7 + 0.3] {
+                    for &g in &[0.0, 0.3 * delta, 5.0 * delta] {
+                        let sum: f64 = (0..n).map(|k| s.kernel(s.bin_frequency(k) - f, g)).sum();
+                        assert!((sum - 1.0).abs() < 1e-12, "{window:?} N={n} f={f} γ={g}: Σ K = {sum}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn kernel_rect_is_dirichlet() {
+        let n = 64;
+        let s = Stft::new(FS, n, Window::Rect).unwrap();
+        for &offset in &[1.0, 37.3, 304.7, 609.375 * 2.5, -7_777.7, 19_000.0, 60_123.4] {
+            let x: f64 = offset / FS;
+            let nn = n as f64;
+            let dirichlet = (PI * nn * x).sin().powi(2) / (nn * nn * (PI * x).sin().powi(2));
+            let k = s.kernel(offset, 0.0);
+            assert!((k - dirichlet).abs() < 1e-12, "offset {offset}: {k} vs {dirichlet}");
+        }
+        assert!((s.kernel(0.0, 0.0) - 1.0).abs() < 1e-14);
+        assert!(s.kernel(s.bin_width(), 0.0).abs() < 1e-14); // zeros at multiples of 1/T
+    }
+
+    #[test]
+    fn kernel_is_the_windowed_tone_power() {
+        for window in [Window::Rect, Window::Hann] {
+            for n in [64, 512] {
+                let s = Stft::new(FS, n, window).unwrap();
+                for &offset in &[0.0, 11.1, 333.3, -1234.5, 9_876.5, 38_999.9, -123_456.7] {
+                    let (k, d) = (s.kernel(offset, 0.0), direct_tone_power(&s, offset));
+                    assert!((k - d).abs() < 1e-12, "{window:?} N={n} offset {offset}: {k} vs {d}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn kernel_is_periodic_and_lorentzian_for_wide_lines() {
+        let s = Stft::new(FS, 64, Window::Hann).unwrap();
+        for &o in &[10.0, 700.0, -2_000.0] {
+            assert!((s.kernel(o, 50.0) - s.kernel(o + 3.0 * FS, 50.0)).abs() < 1e-13);
+            assert!((s.kernel(o, 50.0) - s.kernel(-o, 50.0)).abs() < 1e-15);
+        }
+        // γ ≫ bin width and ≪ f_s: the kernel approaches the Lorentzian mass of one bin,
+        // Δ·γ/(π(δ² + γ²)), up to aliasing and the window's smoothing (a few percent).
+        let gamma = 3_000.0;
+        for &o in &[0.0, 1_000.0, 4_000.0] {
+            let lorentz = s.bin_width() * gamma / (PI * (o * o + gamma * gamma));
+            let k = s.kernel(o, gamma);
+            assert!((k / lorentz - 1.0).abs() < 0.1, "offset {o}: {k} vs {lorentz}");
+        }
+    }
+
+    #[test]
+    fn expected_periodogram_is_the_kernel_sum() {
+        for window in [Window::Rect, Window::Hann] {
+            let s = Stft::new(FS, 64, window).unwrap();
+            let lines = [
+                Line { power: 0.5, frequency: 1_234.5, gamma: 0.0 },
+                Line { power: 0.25, frequency: -9_876.0, gamma: 80.0 },
+                Line { power: 0.125, frequency: 3.0 * FS + 17.0, gamma: 2_000.0 },
+                Line { power: 0.125, frequency: 19_500.0, gamma: 0.0 },
+            ];
+            let p = s.expected_periodogram(&lines);
+            assert_eq!(p.len(), 64);
+            for (k, &pk) in p.iter().enumerate() {
+                let reference: f64 =
+                    lines.iter().map(|l| l.power * s.kernel(s.bin_frequency(k) - l.frequency, l.gamma)).sum();
+                assert!((pk - reference).abs() < 1e-13, "bin {k}: {pk} vs {reference}");
+            }
+            assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    fn brute_band(s: &Stft, f1: f64, f2: f64, f: f64, gamma: f64) -> BandPowers {
+        let mut out = BandPowers::default();
+        let n = s.samples();
+        for k in 1..n {
+            let nu = s.bin_frequency(k);
+            let p = s.kernel(nu - f, gamma);
+            if f1 <= nu && nu <= f2 {
+                out.m0_plus += p;
+                out.m0_minus += p;
+                out.m1 += nu.abs() * p;
+            }
+            if f1 <= -nu && -nu <= f2 {
+                out.m0_plus += p;
+                out.m0_minus -= p;
+                out.m1 += nu.abs() * p;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn band_kernel_matches_brute_force() {
+        // Scale of the error: 1e-12 of the band functions' natural size (1 for M0±, f2 for M1;
+        // both are attained for a line inside the band), or of the value if larger.
+        let mut worst: f64 = 0.0;
+        for window in [Window::Rect, Window::Hann] {
+            for n in [64, 512] {
+                let s = Stft::new(FS, n, window).unwrap();
+                for &(f1, f2) in &[(6_000.0, 18_300.0), (500.0, 1_500.0), (10_000.0, 19_500.0), (100.0, 30_000.0)] {
+                    let Some(band) = BandKernel::new(&s, f1, f2) else { panic!("band {f1}..{f2} empty") };
+                    for i in 0..40 {
+                        let f = -60_000.0 + 3_001.37 * i as f64;
+                        for &g in &[0.0, 0.3 * s.bin_width(), 5.0 * s.bin_width(), 3_000.0] {
+                            let e = band.eval(f, g);
+                            let b = brute_band(&s, f1, f2, f, g);
+                            let err_p = (e.m0_plus - b.m0_plus).abs() / b.m0_plus.abs().max(1.0);
+                            let err_m = (e.m0_minus - b.m0_minus).abs() / b.m0_minus.abs().max(1.0);
+                            let err_1 = (e.m1 - b.m1).abs() / b.m1.abs().max(f2);
+                            worst = worst.max(err_p).max(err_m).max(err_1);
+                            assert!(
+                                err_p < 1e-12 && err_m < 1e-12 && err_1 < 1e-12,
+                                "{window:?} N={n} band {f1}..{f2} f={f} γ={g}: {e:?} vs {b:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!("band kernel vs brute force: worst scaled error {worst:.2e}");
+    }
+
+    #[test]
+    fn band_kernel_symmetry_and_leakage() {
+        let s = Stft::new(FS, 64, Window::Hann).unwrap();
+        let band = BandKernel::new(&s, 6_000.0, 18_300.0).unwrap();
+        // Bins 6094 … 18281 Hz: k − N/2 = 10 … 30.
+        assert_eq!(band.bins(), 21);
+        for i in 0..50 {
+            let f = -45_000.0 + 1_837.9 * i as f64;
+            for &g in &[0.0, 200.0, 4_000.0] {
+                let (p, m) = (band.eval(f, g), band.eval(-f, g));
+                assert!((p.m0_plus - m.m0_plus).abs() < 1e-14, "M0+ even");
+                assert!((p.m0_minus + m.m0_minus).abs() < 1e-14, "M0− odd");
+                assert!((p.m1 - m.m1).abs() < 1e-14 * 18_300.0, "M1 even");
+            }
+        }
+        // A pure tone in the middle of the band (12.4 kHz = 20.37 bins, ≥ 9.6 bins from either edge):
+        // with Hann the leakage out of the band is 1 − M0+ = 1.48e-7 and into the mirror band B−
+        // (M0+ − M0−)/2 = 2.6e-8 (both also from numpy's FFT of the windowed tone); checked as
+        // < 1e-6 and < 1e-7. A rect window's sinc² tails leak 1 − M0+ = 8.8e-3 (checked in
+        // 0.005..0.05).
+        let f = 20.37 * s.bin_width();
+        let hann = band.eval(f, 0.0);
+        let rect = BandKernel::new(&Stft::new(FS, 64, Window::Rect).unwrap(), 6_000.0, 18_300.0).unwrap().eval(f, 0.0);
+        let mirror = (hann.m0_plus - hann.m0_minus) / 2.0;
+        eprintln!(
+            "tone at {f:.1} Hz: Hann 1 − M0+ = {:.3e}, B− power {mirror:.3e}; rect 1 − M0+ = {:.3e}",
+            1.0 - hann.m0_plus,
+            1.0 - rect.m0_plus
+        );
+        assert!(1.0 - hann.m0_plus < 1e-6 && 1.0 - hann.m0_plus > 0.0);
+        assert!(mirror > 0.0 && mirror < 1e-7);
+        assert!((0.005..0.05).contains(&(1.0 - rect.m0_plus)));
+        // M1/M0+ is the mean |frequency| of the band power: close to the tone for Hann.
+        assert!((hann.m1 / hann.m0_plus - f).abs() < 0.01 * s.bin_width());
+    }
+
+    #[test]
+    fn band_kernel_rejects_bad_bands() {
+        let s = Stft::new(FS, 64, Window::Hann).unwrap();
+        assert!(BandKernel::new(&s, 0.0, 1_000.0).is_none());
+        assert!(BandKernel::new(&s, 2_000.0, 1_000.0).is_none());
+        assert!(BandKernel::new(&s, 100.0, 200.0).is_none()); // between bins 0 and 609 Hz
+        assert!(BandKernel::new(&s, 100.0, f64::INFINITY).is_none());
+        // A band reaching past Nyquist stops at the last paired bin.
+        assert_eq!(BandKernel::new(&s, 18_000.0, 50_000.0).unwrap().bins(), 2);
+    }
+}
