@@ -101,6 +101,8 @@ fn piecewise_scene() -> Scene {
             medium: 0,
             regions: vec![0, 1],
             majorant: 4000.0,
+            minorant: 0.0,
+            tau_above: 0.0,
         }],
         regions,
         media: vec![medium("base", 1000.0), medium("dense", 4000.0), medium("void", 0.0)],

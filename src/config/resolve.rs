@@ -935,6 +935,8 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
             medium: media.len() - 1,
             regions: Vec::new(),
             majorant: 0.0,
+            minorant: 0.0,
+            tau_above: 0.0,
         });
         z += thickness;
     }
@@ -984,12 +986,14 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
     }
+    let mut tau_above = 0.0;
     for layer in &mut layers {
-        let mut majorant = media[layer.medium].sigma_t();
-        for &r in &layer.regions {
-            majorant = majorant.max(media[regions[r].medium].sigma_t());
-        }
-        layer.majorant = majorant;
+        let fill = media[layer.medium].sigma_t();
+        let region_sigma_t = || layer.regions.iter().map(|&r| media[regions[r].medium].sigma_t());
+        layer.majorant = region_sigma_t().fold(fill, f64::max);
+        layer.minorant = region_sigma_t().fold(fill, f64::min);
+        layer.tau_above = tau_above;
+        tau_above += layer.minorant * (layer.z_bottom - layer.z_top);
     }
     Ok(Scene { layers, regions, media, n_above, n_below })
 }

@@ -24,6 +24,20 @@ pub struct Layer {
     pub regions: Vec<usize>,
     /// Largest σt in the layer (m⁻¹): the majorant for delta tracking.
     pub majorant: f64,
+    /// Smallest σt in the layer (m⁻¹).
+    pub minorant: f64,
+    /// Smallest optical depth from the layer's top up to the surface (straight up through the
+    /// minorants of the layers above): bounds what a shadow ray from the layer can carry.
+    pub tau_above: f64,
+}
+
+impl Layer {
+    /// A lower bound on the optical depth of any way from depth `z` in this layer up to the
+    /// surface.
+    #[inline]
+    pub fn min_optical_depth_up(&self, z: f64) -> f64 {
+        self.tau_above + self.minorant * (z - self.z_top)
+    }
 }
 
 /// A solid region of another medium inside one layer (clipped to that layer).

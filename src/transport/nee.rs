@@ -31,6 +31,10 @@ use crate::medium::{Medium, Scene};
 
 use super::fresnel;
 
+/// Shadow rays that cannot carry more than this weight play Russian roulette (the path starts
+/// with weight 1). Measured on `configs/retina_ldh.toml`: see `validation/README.md`.
+pub const SHADOW_ROULETTE_WEIGHT: f64 = 1e-4;
+
 /// A detector scored by next-event estimation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NeeTarget {

@@ -393,14 +393,25 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     }
     let dynamic = DOPPLER && m.is_dynamic();
     let v = if dynamic { particle_velocity(m, s.pos, rng) } else { DVec3::ZERO };
-    for i in 0..rec.nee.len() {
+    // Shadow-ray roulette: no shadow ray carries more than `weight·exp(−τ_min)`, where `τ_min`
+    // is the optical depth straight up through the least dense media. Below
+    // `SHADOW_ROULETTE_WEIGHT`, the shadow rays are traced with probability `bound/threshold`
+    // and weighted by its inverse (unbiased). Deep vertices (under a pigmented layer) cost a
+    // free flight and a phase sample, not a shadow ray through every layer above.
+    let bound = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp();
+    let mut boost = 1.0;
+    if bound < super::nee::SHADOW_ROULETTE_WEIGHT && !rec.nee.is_empty() {
+        let q = bound / super::nee::SHADOW_ROULETTE_WEIGHT;
+        boost = if rng.uniform() < q { 1.0 / q } else { 0.0 };
+    }
+    for i in 0..if boost > 0.0 { rec.nee.len() } else { 0 } {
         let target = rec.nee[i];
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let Some(h) = super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2) else { continue };
         let mut e = Escape {
             pos: h.pos,
             dir: h.dir,
-            weight: s.weight * h.factor,
+            weight: s.weight * h.factor * boost,
             l: if LENGTH { s.l + h.length } else { 0.0 },
             dldt: s.dldt,
             order: s.order + 1,
