@@ -1,6 +1,6 @@
 //! Laser Doppler holography against closed forms (validation-values §4.4, §4.8, §4.10): a single-
-//! scattering Poiseuille vessel, Brownian and dispersive particle motion, and the shipped retina
-//! scene (opposite M0− in artery and vein, the spectrum's three parts, √8 speckle noise).
+//! scattering Poiseuille vessel, Brownian and dispersive particle motion, √8 speckle noise, the
+//! mean of Algorithm 2, and the shipped retina scene (opposite M0− in artery and vein).
 
 mod common;
 
