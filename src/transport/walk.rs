@@ -398,13 +398,17 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     // `SHADOW_ROULETTE_WEIGHT`, the shadow rays are traced with probability `bound/threshold`
     // and weighted by its inverse (unbiased). Deep vertices (under a pigmented layer) cost a
     // free flight and a phase sample, not a shadow ray through every layer above.
-    let bound = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp();
-    let mut boost = 1.0;
-    if bound < super::nee::SHADOW_ROULETTE_WEIGHT && !rec.nee.is_empty() {
-        let q = bound / super::nee::SHADOW_ROULETTE_WEIGHT;
-        boost = if rng.uniform() < q { 1.0 / q } else { 0.0 };
-    }
-    for i in 0..if boost > 0.0 { rec.nee.len() } else { 0 } {
+    // (This walk runs only with next-event targets, so the draw is never wasted.)
+    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    let boost = if q >= 1.0 {
+        1.0
+    } else if rng.uniform() < q {
+        1.0 / q
+    } else {
+        0.0
+    };
+    let targets = if boost > 0.0 { rec.nee.len() } else { 0 };
+    for i in 0..targets {
         let target = rec.nee[i];
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let Some(h) = super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2) else { continue };
