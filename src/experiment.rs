@@ -103,9 +103,9 @@ impl Experiment {
         self.scene.is_moving()
     }
 
-    /// Whether the walk needs the optical path length (a chirp).
+    /// Whether the walk needs the optical path length (a chirp, or range gates).
     pub fn needs_length(&self) -> bool {
-        self.source.chirp.is_some()
+        self.source.chirp.is_some() || self.detectors.iter().any(|d| d.lidar.is_some())
     }
 
     /// The detectors scored by next-event estimation.
@@ -114,7 +114,10 @@ impl Experiment {
             .iter()
             .enumerate()
             .filter(|(_, d)| d.next_event)
-            .map(|(i, d)| NeeTarget::new(i, d.axis, d.cos_acceptance))
+            .map(|(i, d)| match &d.lidar {
+                Some(l) => NeeTarget::receiver(i, l.position, l.aperture_radius, l.axis, l.cos_fov),
+                None => NeeTarget::new(i, d.axis, d.cos_acceptance),
+            })
             .collect()
     }
 
@@ -214,6 +217,7 @@ impl Experiment {
             }
         }
         progress.advance(self.plan.paths_per_batch % PROGRESS_EVERY);
+        layout.finish_batch(&self.detectors, &mut sums);
         (sums, stats, lines)
     }
 }

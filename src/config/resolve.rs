@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use super::schema::*;
 use super::units::unit_of;
-use crate::detect::{Area, Detector, ImageSpec, LdhSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
+use crate::detect::{Area, Detector, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::VelocityField;
@@ -219,7 +219,22 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
     let ctx = Ctx { base, wavelength: source.wavelength };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
-    let detectors = resolve_detectors(&f.detectors, &scene)?;
+    let mut detectors = resolve_detectors(&f.detectors, &scene)?;
+    for (i, d) in f.detectors.iter().enumerate() {
+        if let Some(l) = &d.lidar {
+            let path = format!("detectors[{i}].lidar");
+            if detectors.iter().any(|o| o.lidar.is_some()) {
+                return err(path, "only one detector may be a lidar receiver");
+            }
+            if source.chirp.is_some() {
+                return err(path, "a pulsed lidar receiver needs a single-frequency laser: remove source.chirp");
+            }
+            let spec = resolve_lidar(&path, l, &source, &scene)?;
+            let det = &mut detectors[i];
+            det.lidar = Some(spec);
+            det.next_event = true;
+        }
+    }
     if source.chirp.is_some()
         && let Some(i) = detectors.iter().position(|d| d.ldh.is_some())
     {
@@ -1131,6 +1146,74 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     })
 }
 
+/// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so
+/// every index in the scene must be 1 (the atmosphere; 1.0003 is within the model's accuracy).
+fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -> R<LidarSpec> {
+    if scene.n_above != 1.0 {
+        return err("ambient.n_above", format!("= {}: a lidar receiver needs n = 1 above the stack", scene.n_above));
+    }
+    if let Some((i, layer)) = scene.layers.iter().enumerate().find(|(_, l)| l.n != 1.0) {
+        return err(
+            format!("layers[{i}].n"),
+            format!("= {}: a lidar receiver traces straight rays and needs n = 1 in every layer", layer.n),
+        );
+    }
+    let radius = positive(
+        require(path, &[("aperture_radius_mm", l.aperture_radius_mm, 1e-3), ("aperture_radius_m", l.aperture_radius_m, 1.0)], "the aperture radius")?,
+        "an aperture radius",
+    )?;
+    let fov = require(
+        path,
+        &[
+            ("field_of_view_urad", l.field_of_view_urad, 1e-6),
+            ("field_of_view_mrad", l.field_of_view_mrad, 1e-3),
+            ("field_of_view_deg", l.field_of_view_deg, std::f64::consts::PI / 180.0),
+        ],
+        "the field-of-view half-angle",
+    )?;
+    if !(fov.0 > 0.0 && fov.0 <= std::f64::consts::FRAC_PI_2) {
+        return err(fov.1, format!("= {}: expected a half-angle in (0, 90°]", fov.2));
+    }
+    let fwhm = positive(
+        require(path, &[("pulse_fwhm_ns", l.pulse_fwhm_ns, 1e-9), ("pulse_fwhm_us", l.pulse_fwhm_us, 1e-6)], "the pulse FWHM")?,
+        "a pulse width",
+    )?;
+    let rate = positive(
+        require(path, &[("sample_rate_hz", l.sample_rate_hz, 1.0), ("sample_rate_mhz", l.sample_rate_mhz, 1e6)], "the digitiser rate")?,
+        "a sample rate",
+    )?;
+    let first = match l.first_gate_m {
+        None => 0.0,
+        Some(v) if v.is_finite() && v >= 0.0 => v,
+        Some(v) => return err(join(path, "first_gate_m"), format!("= {v}: expected a range ≥ 0 m")),
+    };
+    let count = |key: &str, v: Option<u64>, default: u64, max: u64| -> R<usize> {
+        let v = v.unwrap_or(default);
+        if (1..=max).contains(&v) { Ok(v as usize) } else { err(join(path, key), format!("= {v}: expected 1 to {max}")) }
+    };
+    let gate_points = count("gate_points", l.gate_points, 10, 4096)?;
+    let gates = count("gates", l.gates, 32, 100_000)?;
+    let fft_points = count("fft_points", l.fft_points, gate_points.next_power_of_two().max(64) as u64, 65_536)?;
+    if fft_points < gate_points {
+        return err(join(path, "fft_points"), format!("= {fft_points}: expected at least gate_points ({gate_points})"));
+    }
+    if gates * fft_points > 20_000_000 {
+        return err(join(path, "gates"), format!("= {gates}: gates × fft_points must stay below 2·10^7 (memory)"));
+    }
+    Ok(LidarSpec {
+        position: source.position,
+        axis: source.direction,
+        aperture_radius: radius,
+        cos_fov: fov.0.cos(),
+        pulse_fwhm: fwhm,
+        sample_rate: rate,
+        first_sample_time: 2.0 * first / crate::SPEED_OF_LIGHT,
+        gate_points,
+        gates,
+        fft_points,
+    })
+}
+
 fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> {
     let mut out: Vec<Detector> = Vec::new();
     for (i, d) in ds.iter().enumerate() {
@@ -1270,6 +1353,7 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             spectrum,
             image,
             ldh: None,
+            lidar: None,
             next_event: false,
         });
         if let Some(l) = &d.ldh {

@@ -376,6 +376,33 @@ pub struct DetectorSection {
     pub image: Option<ImageSection>,
     /// A laser Doppler holography camera over the image's pixels.
     pub ldh: Option<LdhSection>,
+    /// A pulsed lidar receiver at the source (monostatic), with range gates.
+    pub lidar: Option<LidarSection>,
+}
+
+/// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,
+/// looking along the source's direction, and its range gates.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarSection {
+    pub aperture_radius_mm: Option<f64>,
+    pub aperture_radius_m: Option<f64>,
+    /// Field-of-view half-angle.
+    pub field_of_view_urad: Option<f64>,
+    pub field_of_view_mrad: Option<f64>,
+    pub field_of_view_deg: Option<f64>,
+    /// Intensity FWHM of the Gaussian pulse.
+    pub pulse_fwhm_ns: Option<f64>,
+    pub pulse_fwhm_us: Option<f64>,
+    pub sample_rate_mhz: Option<f64>,
+    pub sample_rate_hz: Option<f64>,
+    /// Range of the start of the first gate.
+    pub first_gate_m: Option<f64>,
+    /// Samples per gate (gate length = points·c/(2 f_s)).
+    pub gate_points: Option<u64>,
+    pub gates: Option<u64>,
+    /// Length of the (zero-padded) DFT of a gate.
+    pub fft_points: Option<u64>,
 }
 
 /// `[detectors.ldh]`: the LDH acquisition (camera rate, STFT window, band) and its outputs.

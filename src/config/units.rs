@@ -2,7 +2,7 @@
 //! messages ("µm") and for overrides, which replace a quantity given in another unit.
 
 /// `(suffix, unit as printed)`, longest suffix first so that `_mm_per_s` is not read as `_s`.
-const UNITS: [(&str, &str); 26] = [
+const UNITS: [(&str, &str); 29] = [
     ("_um2_per_s", "µm²/s"),
     ("_m2_per_s", "m²/s"),
     ("_mpa_s", "mPa·s"),
@@ -19,6 +19,8 @@ const UNITS: [(&str, &str); 26] = [
     ("_mhz", "MHz"),
     ("_khz", "kHz"),
     ("_deg", "°"),
+    ("_urad", "µrad"),
+    ("_mrad", "mrad"),
     ("_k", "K"),
     ("_hz", "Hz"),
     ("_um", "µm"),
@@ -26,6 +28,7 @@ const UNITS: [(&str, &str); 26] = [
     ("_mm", "mm"),
     ("_cm", "cm"),
     ("_us", "µs"),
+    ("_ns", "ns"),
     ("_ms", "ms"),
     ("_m", "m"),
     ("_s", "s"),

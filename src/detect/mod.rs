@@ -7,10 +7,12 @@
 //! below/above out-of-range tallies), then the image (`ny × nx`, row-major).
 
 pub mod ldh;
+pub mod lidar;
 
 use glam::DVec3;
 
 pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
+pub use lidar::{LidarLayout, LidarSpec};
 
 use crate::SPEED_OF_LIGHT;
 use crate::spectrum::FrequencyAxis;
@@ -110,6 +112,9 @@ pub struct Detector {
     pub image: Option<ImageSpec>,
     /// An LDH camera over the image's pixels.
     pub ldh: Option<LdhSpec>,
+    /// A pulsed lidar receiver (scored only by its local estimate; the plane, area and cone
+    /// above are unused).
+    pub lidar: Option<LidarSpec>,
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
@@ -220,6 +225,7 @@ pub struct DetectorLayout {
     pub channels: usize,
     pub image: Option<usize>,
     pub ldh: Option<LdhLayout>,
+    pub lidar: Option<LidarLayout>,
 }
 
 impl TallyLayout {
@@ -245,9 +251,20 @@ impl TallyLayout {
             });
             let pixels = d.image.map_or(0, |im| im.nx * im.ny);
             let ldh = d.ldh.as_ref().map(|l| l.layout(pixels, &mut len));
-            layouts.push(DetectorLayout { power, spectra, channels, image, ldh });
+            let lidar = d.lidar.as_ref().map(|l| l.layout(&mut len));
+            layouts.push(DetectorLayout { power, spectra, channels, image, ldh, lidar });
         }
         TallyLayout { len, detectors: layouts }
+    }
+
+    /// Derive a finished batch's non-linear-in-layout outputs from its sums (the lidar gate
+    /// spectra from their lag sums), so that they get batch statistics like everything else.
+    pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64]) {
+        for (d, lay) in detectors.iter().zip(&self.detectors) {
+            if let (Some(spec), Some(ll)) = (&d.lidar, &lay.lidar) {
+                spec.finish_batch(ll, sums);
+            }
+        }
     }
 }
 
@@ -330,6 +347,12 @@ impl Recorder<'_> {
             self.stats.non_finite += 1;
             return;
         }
+        if let (Some(spec), Some(ll)) = (&self.detectors[i].lidar, &self.layout.detectors[i].lidar) {
+            self.acc[self.layout.detectors[i].power] += e.weight;
+            let f = self.beat.frequency(0, e.l, e.dldt);
+            spec.record(ll, self.acc, e.weight, e.l, f, e.order);
+            return;
+        }
         self.detect_one(i, e, n_ambient);
     }
 
@@ -337,7 +360,11 @@ impl Recorder<'_> {
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         for (i, d) in self.detectors.iter().enumerate() {
-            if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
+            if d.lidar.is_some()
+                || d.side != side
+                || (e.specular && !d.include_specular)
+                || e.dir.dot(d.axis) < d.cos_acceptance
+            {
                 continue;
             }
             if d.next_event && e.order > 0 {

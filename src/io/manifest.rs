@@ -146,6 +146,9 @@ pub fn write_run(
             let v = super::ldh::write_ldh(&mut put, d, spec, ll, mean, &se, &out.speckle, &mut estimates)?;
             info.insert("ldh".into(), v);
         }
+        if let (Some(spec), Some(ll)) = (&d.lidar, &lay.lidar) {
+            info.insert("lidar".into(), super::lidar::write_lidar(&mut put, spec, ll, mean, &se)?);
+        }
         det_estimates.insert(d.name.clone(), Value::Object(de));
         det_info.insert(d.name.clone(), Value::Object(info));
     }

@@ -1,6 +1,7 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
 
 pub mod ldh;
+pub mod lidar;
 pub mod manifest;
 pub mod npy;
 pub mod plot;

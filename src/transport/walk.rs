@@ -411,7 +411,11 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     for i in 0..targets {
         let target = rec.nee[i];
         let (u1, u2) = (rng.uniform(), rng.uniform());
-        let Some(h) = super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2) else { continue };
+        let hit = match &target.aperture {
+            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2),
+            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, m, &target, a, u1, u2),
+        };
+        let Some(h) = hit else { continue };
         let mut e = Escape {
             pos: h.pos,
             dir: h.dir,
