@@ -1159,7 +1159,11 @@ fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -
         );
     }
     let radius = positive(
-        require(path, &[("aperture_radius_mm", l.aperture_radius_mm, 1e-3), ("aperture_radius_m", l.aperture_radius_m, 1.0)], "the aperture radius")?,
+        require(
+            path,
+            &[("aperture_radius_mm", l.aperture_radius_mm, 1e-3), ("aperture_radius_m", l.aperture_radius_m, 1.0)],
+            "the aperture radius",
+        )?,
         "an aperture radius",
     )?;
     let fov = require(
@@ -1175,11 +1179,19 @@ fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -
         return err(fov.1, format!("= {}: expected a half-angle in (0, 90°]", fov.2));
     }
     let fwhm = positive(
-        require(path, &[("pulse_fwhm_ns", l.pulse_fwhm_ns, 1e-9), ("pulse_fwhm_us", l.pulse_fwhm_us, 1e-6)], "the pulse FWHM")?,
+        require(
+            path,
+            &[("pulse_fwhm_ns", l.pulse_fwhm_ns, 1e-9), ("pulse_fwhm_us", l.pulse_fwhm_us, 1e-6)],
+            "the pulse FWHM",
+        )?,
         "a pulse width",
     )?;
     let rate = positive(
-        require(path, &[("sample_rate_hz", l.sample_rate_hz, 1.0), ("sample_rate_mhz", l.sample_rate_mhz, 1e6)], "the digitiser rate")?,
+        require(
+            path,
+            &[("sample_rate_hz", l.sample_rate_hz, 1.0), ("sample_rate_mhz", l.sample_rate_mhz, 1e6)],
+            "the digitiser rate",
+        )?,
         "a sample rate",
     )?;
     let first = match l.first_gate_m {
@@ -1189,7 +1201,11 @@ fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -
     };
     let count = |key: &str, v: Option<u64>, default: u64, max: u64| -> R<usize> {
         let v = v.unwrap_or(default);
-        if (1..=max).contains(&v) { Ok(v as usize) } else { err(join(path, key), format!("= {v}: expected 1 to {max}")) }
+        if (1..=max).contains(&v) {
+            Ok(v as usize)
+        } else {
+            err(join(path, key), format!("= {v}: expected 1 to {max}"))
+        }
     };
     let gate_points = count("gate_points", l.gate_points, 10, 4096)?;
     let gates = count("gates", l.gates, 32, 100_000)?;

@@ -87,7 +87,8 @@ impl LidarSpec {
 
     /// Range (m) of the centre of gate `g`: `c·t/2` at the mean time of its samples.
     pub fn gate_range(&self, g: usize) -> f64 {
-        let t = self.first_sample_time + ((g * self.gate_points) as f64 + 0.5 * (self.gate_points as f64 - 1.0)) * self.dt();
+        let t = self.first_sample_time
+            + ((g * self.gate_points) as f64 + 0.5 * (self.gate_points as f64 - 1.0)) * self.dt();
         0.5 * SPEED_OF_LIGHT * t
     }
 
@@ -122,7 +123,7 @@ impl LidarSpec {
         // The samples the pulse touches: |t_j − t_d| ≤ 6σ.
         let lo = ((t_d - PULSE_SUPPORT_SIGMAS * sigma - self.first_sample_time) / dt).ceil().max(0.0);
         let hi = ((t_d + PULSE_SUPPORT_SIGMAS * sigma - self.first_sample_time) / dt).floor().min(samples - 1.0);
-        if !(lo <= hi) {
+        if lo.is_nan() || hi.is_nan() || lo > hi {
             return;
         }
         let (lo, hi) = (lo as usize, hi as usize);

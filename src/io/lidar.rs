@@ -27,7 +27,7 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         put(format!("{stem}_stderr.npy"), npy::to_bytes(&[gates, bins], &se[o..o + gates * bins]))?;
         files.insert((*name).into(), json!(format!("{stem}.npy")));
     }
-    // The map in dB relative to its peak, rows = gates (first gate at the top), columns = bins.
+    // The map in dB relative to its peak: rows = gates (the first at the bottom), columns = bins.
     let o = lay.spectra;
     let total = &mean[o..o + gates * bins];
     let peak = total.iter().cloned().fold(0.0, f64::max);
@@ -40,7 +40,10 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         freq[0] * 1e-6,
         freq[bins - 1] * 1e-6
     );
-    put("range_doppler.png".into(), image_png(&db, bins, gates, Colormap::Viridis, (-60.0, 0.0), &title, "dB re peak"))?;
+    put(
+        "range_doppler.png".into(),
+        image_png(&db, bins, gates, Colormap::Viridis, (-60.0, 0.0), &title, "dB re peak"),
+    )?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths).
     let energy = |c: usize, g: usize| {

@@ -59,7 +59,13 @@ pub struct Aperture {
 
 impl NeeTarget {
     pub fn new(detector: usize, axis: DVec3, cos_acceptance: f64) -> Self {
-        NeeTarget { detector, axis, cos_acceptance, basis: crate::sampling::warp::orthonormal_basis(axis), aperture: None }
+        NeeTarget {
+            detector,
+            axis,
+            cos_acceptance,
+            basis: crate::sampling::warp::orthonormal_basis(axis),
+            aperture: None,
+        }
     }
 
     /// A lidar receiver at `center` looking along `pointing` (light arrives travelling along
