@@ -203,6 +203,7 @@ impl Experiment {
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
             nee: &nee,
+            scratch: Vec::new(),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         for i in 0..self.plan.paths_per_batch {

@@ -116,6 +116,11 @@ fn gate_spectrum(r: &Run, c: usize, g: usize) -> (Vec<f64>, Vec<f64>) {
     (r.out.estimates.mean()[o..o + s.fft_points].to_vec(), f)
 }
 
+/// Index of the largest value.
+fn argmax(p: &[f64]) -> usize {
+    (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap()
+}
+
 #[test]
 fn doppler_peak_sits_at_twice_the_line_of_sight_speed_over_lambda_in_every_gate() {
     // Wind (3, 0, 1) m/s seen straight up: v_LOS = +1 m/s (receding), f = 2v/λ0 = 1.2903 MHz.
@@ -129,7 +134,7 @@ fn doppler_peak_sits_at_twice_the_line_of_sight_speed_over_lambda_in_every_gate(
     let width = spec.sample_rate / spec.fft_points as f64;
     for g in 0..spec.gates {
         let (p, f) = gate_spectrum(&r, 1, g);
-        let k = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap();
+        let k = argmax(&p);
         let (a, b, c) = (p[k - 1], p[k], p[k + 1]);
         let peak = f[k] + 0.5 * (a - c) / (a - 2.0 * b + c) * width;
         assert!((peak - f0).abs() < 0.05 * width, "gate {g}: peak {peak} Hz vs {f0} Hz");
@@ -182,7 +187,7 @@ fft_points = 4096
 "#;
     let r = run(slab, &[]);
     let (p, f) = gate_spectrum(&r, 1, 0);
-    let k = (0..p.len()).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap();
+    let k = argmax(&p);
     let half = 0.5 * p[k];
     let cross = |range: &mut dyn Iterator<Item = usize>| -> f64 {
         let mut prev = k;

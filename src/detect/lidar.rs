@@ -113,8 +113,10 @@ impl LidarSpec {
     }
 
     /// Record a detected path of weight `w`, optical path length `l` (emission to aperture, m) and
-    /// beat frequency `f` (Hz) into channel 0 and the channel of its scattering order.
-    pub fn record(&self, lay: &LidarLayout, acc: &mut [f64], w: f64, l: f64, f: f64, order: u32) {
+    /// beat frequency `f` (Hz) into channel 0 and the channel of its scattering order. `x` is
+    /// scratch space for the pulse samples, reused across calls (no allocation per path).
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(&self, lay: &LidarLayout, acc: &mut [f64], x: &mut Vec<f64>, w: f64, l: f64, f: f64, order: u32) {
         let class = if order <= 1 { 1 } else { 2 };
         let dt = self.dt();
         let sigma = self.pulse_sigma();
@@ -130,12 +132,11 @@ impl LidarSpec {
         // x_j = a(t_j − t_d)·√Δt with a of unit energy.
         let scale = (dt / (sigma * PI.sqrt())).sqrt();
         let inv_2s2 = 1.0 / (2.0 * sigma * sigma);
-        let x: Vec<f64> = (lo..=hi)
-            .map(|j| {
-                let u = self.first_sample_time + j as f64 * dt - t_d;
-                scale * (-u * u * inv_2s2).exp()
-            })
-            .collect();
+        x.clear();
+        x.extend((lo..=hi).map(|j| {
+            let u = self.first_sample_time + j as f64 * dt - t_d;
+            scale * (-u * u * inv_2s2).exp()
+        }));
         let step = Complex::from_polar(1.0, 2.0 * PI * (f * dt).rem_euclid(1.0));
         let m_len = self.gate_points;
         for g in lo / m_len..=hi / m_len {
@@ -207,8 +208,9 @@ mod tests {
         let mut len = 0;
         let lay = s.layout(&mut len);
         let mut acc = vec![0.0; len];
+        let mut x = Vec::new();
         for &(w, l, f, o) in lines {
-            s.record(&lay, &mut acc, w, l, f, o);
+            s.record(&lay, &mut acc, &mut x, w, l, f, o);
         }
         s.finish_batch(&lay, &mut acc);
         (lay, acc)

@@ -302,6 +302,8 @@ pub struct Recorder<'a> {
     pub lines: Option<&'a mut Vec<RecordedLine>>,
     /// The detectors scored by next-event estimation.
     pub nee: &'a [NeeTarget],
+    /// Scratch space of the lidar receiver's pulse samples.
+    pub scratch: Vec<f64>,
 }
 
 impl Recorder<'_> {
@@ -350,7 +352,7 @@ impl Recorder<'_> {
         if let (Some(spec), Some(ll)) = (&self.detectors[i].lidar, &self.layout.detectors[i].lidar) {
             self.acc[self.layout.detectors[i].power] += e.weight;
             let f = self.beat.frequency(0, e.l, e.dldt);
-            spec.record(ll, self.acc, e.weight, e.l, f, e.order);
+            spec.record(ll, self.acc, &mut self.scratch, e.weight, e.l, f, e.order);
             return;
         }
         self.detect_one(i, e, n_ambient);

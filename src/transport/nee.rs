@@ -131,7 +131,7 @@ pub fn receiver_ray(
     for j in (0..=li).rev() {
         let layer = &scene.layers[j];
         let t = (p.z - layer.z_top) / -dir.z;
-        tau += segment_excess_depth(scene, layer, p, dir, t) + scene.media[layer.medium].sigma_t() * t;
+        tau += segment_optical_depth(scene, layer, p, dir, t);
         p += t * dir;
         p.z = layer.z_top;
     }
@@ -140,11 +140,11 @@ pub fn receiver_ray(
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r })
 }
 
-/// Optical depth that the regions of `layer` add over its filling medium along the segment
-/// `p + s·d`, `0 ≤ s ≤ t` (regions assumed not to overlap along it).
-fn segment_excess_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
+/// Optical depth of the segment `p + s·d`, `0 ≤ s ≤ t`, inside `layer`: its filling medium plus
+/// what its regions add over it (regions assumed not to overlap along the segment).
+fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
     let fill = scene.media[layer.medium].sigma_t();
-    let mut tau = 0.0;
+    let mut tau = fill * t;
     for &r in &layer.regions {
         let region = &scene.regions[r];
         if let Some((a, b)) = region.shape.intersect(p, d) {
@@ -197,7 +197,7 @@ pub fn shadow_ray(
         let layer = &scene.layers[j];
         let d = if j == li { dir_vertex } else { direction_in(layer.n)? };
         let t = (p.z - layer.z_top) / -d.z;
-        tau += scene.media[layer.medium].sigma_t() * t + segment_excess_depth(scene, layer, p, d, t);
+        tau += segment_optical_depth(scene, layer, p, d, t);
         length += layer.n * t;
         p += t * d;
         p.z = layer.z_top;
