@@ -59,6 +59,7 @@
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
+//! | [`retrieval`] | wind-lidar gate estimators: spectral moments, Gaussian-component fits, VAD wind |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
@@ -71,6 +72,7 @@ pub mod io;
 pub mod medium;
 pub mod mie;
 pub mod phase;
+pub mod retrieval;
 pub mod sampling;
 pub mod source;
 pub mod spectrum;

@@ -1,0 +1,508 @@
+//! One- and two-Gaussian fits of a gate spectrum, as Wei et al. 2019 (Opt. Express 27:31235)
+//! separate the aerosol and rain peaks of a coherent Doppler lidar.
+//!
+//! **Model.** With `f_k` the bin centres,
+//! `S(f_k) = b + Σ_{j=1..m} A_j·exp(−(f_k − μ_j)²/(2 s_j²))`, `m ∈ {1, 2}`, where `A_j` is the
+//! component's peak value *per bin* (the units of the spectrum), `μ_j` its mean and `s_j` its
+//! standard deviation (Hz), and `b` the white floor per bin, fixed or fitted ([`Floor`]). The
+//! component's power (its sum over bins, for `s_j ≳ Δ` and a component inside the axis) is
+//! `A_j·s_j·√(2π)/Δ`. The model samples the line at the bin centres; for a histogram of a
+//! density the fitted `s_j²` exceeds the density's by `Δ²/12` (see
+//! [`MomentOptions::bin_integrated`](super::MomentOptions::bin_integrated)).
+//!
+//! **Estimator.** Weighted least squares, `χ² = Σ_k ((y_k − S(f_k))/σ_k)²` with the per-bin
+//! standard errors `σ_k` if given (else `σ_k = 1`), minimised by Levenberg–Marquardt (Marquardt
+//! 1963: `(JᵀJ + λ·diag JᵀJ)·δ = Jᵀr`, λ divided by 10 after a step that lowers χ², multiplied
+//! by 10 after one that does not) with the analytic Jacobian. The parameters are
+//! `(ln A_j, μ_j, ln s_j)` (and `b`), so amplitudes and widths stay positive; internally
+//! frequencies are in bins, so every parameter has a natural unit of order 1.
+//!
+//! **Uncertainties.** The covariance of the parameters is `(JᵀWJ)⁻¹` at the minimum, scaled by the
+//! reduced `χ²/dof` when no standard errors are given (the noise level is then estimated from the
+//! residuals); standard errors of derived quantities follow to first order.
+//!
+//! **Labels.** Components are returned sorted by increasing `s_j`: `components[0]` is the
+//! narrow one. In a wind-lidar gate that is the aerosol, which moves with the air and is only
+//! broadened by turbulence and the pulse; rain is the broad one, because drops of different sizes
+//! fall at different terminal speeds (Wei et al. 2019). The rule is the caller's to trust: this
+//! module only sorts by width.
+
+use super::linalg::{cholesky, cholesky_solve, condition_number, spd_inverse};
+use super::special::f_distribution_sf;
+use super::{
+    MomentOptions, RetrievalError, check_finite, check_len, check_stderr, check_wavelength, gate_estimates_with,
+    radial_velocity,
+};
+use crate::spectrum::FrequencyAxis;
+use std::f64::consts::PI;
+
+/// `FWHM = 2√(2 ln 2)·σ` for a Gaussian.
+const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949;
+
+/// The noise floor of the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Floor {
+    /// Known white floor per bin (0 for a floor already subtracted).
+    Fixed(f64),
+    /// Fitted as one more (linear) parameter.
+    Fitted,
+}
+
+/// Fit settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// Default `Floor::Fixed(0.0)`.
+    pub floor: Floor,
+    /// Levenberg–Marquardt iterations (Jacobian evaluations) before
+    /// [`RetrievalError::DidNotConverge`]; default 200.
+    pub max_iterations: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions { floor: Floor::Fixed(0.0), max_iterations: 200 }
+    }
+}
+
+/// One fitted Gaussian component with first-order standard errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussComponent {
+    /// Peak value per bin, `A`.
+    pub amplitude: f64,
+    pub amplitude_stderr: f64,
+    pub mean_hz: f64,
+    pub mean_hz_stderr: f64,
+    /// Standard deviation `s` (Hz).
+    pub sigma_hz: f64,
+    pub sigma_hz_stderr: f64,
+    /// `A·s·√(2π)/Δ`, in the units of the spectrum summed over bins.
+    pub power: f64,
+    pub power_stderr: f64,
+    /// `λ0·μ/2`, positive receding.
+    pub mean_velocity_m_per_s: f64,
+    /// `λ0·s/2`.
+    pub sigma_velocity_m_per_s: f64,
+}
+
+/// A converged fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussianFit {
+    /// Sorted by increasing `sigma_hz` (narrow first: aerosol before rain).
+    pub components: Vec<GaussComponent>,
+    /// The floor per bin (the fixed value, or the fitted one).
+    pub floor: f64,
+    /// Its standard error; 0 when the floor was fixed.
+    pub floor_stderr: f64,
+    /// `Σ ((y − S)/σ)²` at the minimum (with `σ = 1` when no standard errors were given).
+    pub chi2: f64,
+    /// Bins minus fitted parameters.
+    pub dof: usize,
+    /// Jacobian evaluations used.
+    pub iterations: usize,
+    /// Whether the covariance was scaled by `χ²/dof` (no standard errors given).
+    pub covariance_scaled: bool,
+}
+
+/// The outcome of [`fit_one_or_two`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelChoice {
+    /// 1 or 2: the number of components the F-test keeps.
+    pub components: usize,
+    pub one: GaussianFit,
+    /// The two-component fit, or why it failed (then one component is chosen).
+    pub two: Result<GaussianFit, RetrievalError>,
+    /// `F = ((χ²₁ − χ²₂)/3) / (χ²₂/dof₂)`; 0 when the two-component fit failed.
+    pub f_statistic: f64,
+    /// `P(F(3, dof₂) > F)`; 1 when the two-component fit failed.
+    pub p_value: f64,
+}
+
+impl ModelChoice {
+    /// The fit with the chosen number of components.
+    pub fn chosen(&self) -> &GaussianFit {
+        match (&self.two, self.components) {
+            (Ok(two), 2) => two,
+            _ => &self.one,
+        }
+    }
+}
+
+/// The significance level of [`fit_one_or_two`]: two components only when `p < 0.01`.
+pub const MODEL_SELECTION_LEVEL: f64 = 0.01;
+
+/// Fit one and two Gaussian components and keep two only if the nested-model F-test prefers them
+/// at `p <` [`MODEL_SELECTION_LEVEL`] (0.01): `F = ((χ²₁ − χ²₂)/3)/(χ²₂/dof₂)` referred to
+/// `F(3, dof₂)`. The F form is used with or without standard errors because it does not depend on
+/// their absolute scale (Monte Carlo standard errors are themselves estimates).
+///
+/// Caveat: the second component's mean and width are not identified when its amplitude is 0, so
+/// the null distribution of `F` is not exactly `F(3, dof₂)` (Davies 1987, Biometrika 74:33); the
+/// level is nominal. The integration tests measure the false-alarm rate on one-line spectra.
+pub fn fit_one_or_two(
+    axis: &FrequencyAxis,
+    values: &[f64],
+    stderr: Option<&[f64]>,
+    wavelength_m: f64,
+    options: &FitOptions,
+) -> Result<ModelChoice, RetrievalError> {
+    let one = fit_gaussians(axis, values, stderr, 1, wavelength_m, options)?;
+    let two = fit_gaussians(axis, values, stderr, 2, wavelength_m, options);
+    let (f_statistic, p_value) = match &two {
+        Ok(two) if one.chi2 > two.chi2 => {
+            let extra = (one.dof - two.dof) as f64;
+            let f = if two.chi2 > 0.0 {
+                ((one.chi2 - two.chi2) / extra) / (two.chi2 / two.dof as f64)
+            } else {
+                f64::INFINITY
+            };
+            (f, f_distribution_sf(f, extra, two.dof as f64))
+        }
+        Ok(_) => (0.0, 1.0),
+        Err(_) => (0.0, 1.0),
+    };
+    let components = if p_value < MODEL_SELECTION_LEVEL { 2 } else { 1 };
+    Ok(ModelChoice { components, one, two, f_statistic, p_value })
+}
+
+/// Fit `components` (1 or 2) Gaussians on a floor to `values` (one per bin of `axis`), weighted by
+/// `stderr` when given.
+///
+/// Starting points: one component from the gate moments of the floor-subtracted spectrum (peak
+/// position and interpolated height, `s` from the FWHM, or the window width when the FWHM is
+/// undefined; with a fitted floor the start is the median bin). Two components from the better (lower χ²) of two starts: (a) the
+/// one-component fit plus a second Gaussian at the highest bin of its residual (height and width
+/// from the residual's gate moments) — the case of separated peaks; (b) two Gaussians at the
+/// one-component mean with half its amplitude each and `s/2` and `2s` — the case of a narrow line
+/// on a broad one at nearly the same velocity, where the residual of (a) has no clear peak.
+///
+/// Errors: mismatched lengths, non-finite input, non-positive standard errors, `components` not 1
+/// or 2, fewer bins than parameters + 1, no signal above the floor, a singular fit (a component
+/// collapsed or two coincide: [`RetrievalError::Degenerate`]), or no convergence.
+pub fn fit_gaussians(
+    axis: &FrequencyAxis,
+    values: &[f64],
+    stderr: Option<&[f64]>,
+    components: usize,
+    wavelength_m: f64,
+    options: &FitOptions,
+) -> Result<GaussianFit, RetrievalError> {
+    check_len("values", values, axis.bins)?;
+    check_finite("values", values)?;
+    if let Some(se) = stderr {
+        check_len("stderr", se, axis.bins)?;
+        check_stderr(se)?;
+    }
+    check_wavelength(wavelength_m)?;
+    if !(components == 1 || components == 2) {
+        return Err(RetrievalError::InvalidParameter {
+            name: "components",
+            value: components as f64,
+            expected: "1 or 2 Gaussian components",
+        });
+    }
+    if let Floor::Fixed(b) = options.floor
+        && !b.is_finite()
+    {
+        return Err(RetrievalError::InvalidParameter { name: "floor", value: b, expected: "a finite floor per bin" });
+    }
+    let problem = Problem::new(values, stderr, options.floor);
+    let needed = 3 * components + problem.fit_floor as usize + 1;
+    if values.len() < needed {
+        return Err(RetrievalError::TooFewPoints { needed, found: values.len() });
+    }
+
+    // One component from the moments.
+    let floor0 = match options.floor {
+        Floor::Fixed(b) => b,
+        Floor::Fitted => median(values),
+    };
+    let signal: Vec<f64> = values.iter().map(|v| v - floor0).collect();
+    let (a, mu, s) = moment_start(axis, &signal)?;
+    let mut p0 = vec![a.ln(), mu, s.ln()];
+    if problem.fit_floor {
+        p0.push(floor0);
+    }
+    let one = problem.levenberg_marquardt(p0, options.max_iterations)?;
+    let solution = if components == 1 {
+        one
+    } else {
+        let one_p = &one.params;
+        let floor1 = if problem.fit_floor { one_p[3] } else { floor0 };
+        let mut starts = Vec::new();
+        // (a) a second Gaussian on the residual's highest peak.
+        let residual: Vec<f64> = values.iter().enumerate().map(|(k, y)| y - problem.model(one_p, k as f64)).collect();
+        if let Ok((a2, mu2, s2)) = moment_start(axis, &residual) {
+            starts.push(problem.with_floor(vec![one_p[0], one_p[1], one_p[2], a2.ln(), mu2, s2.ln()], floor1));
+        }
+        // (b) a narrow and a broad Gaussian at the one-component mean.
+        let half = one_p[0] - 2f64.ln();
+        let two = 2f64.ln();
+        starts.push(problem.with_floor(vec![half, one_p[1], one_p[2] - two, half, one_p[1], one_p[2] + two], floor1));
+        let mut best: Option<Result<Solution, RetrievalError>> = None;
+        for p0 in starts {
+            let r =
+                problem.levenberg_marquardt(p0, options.max_iterations).and_then(|s| problem.covariance(&s).map(|_| s));
+            best = match (best, r) {
+                (Some(Ok(b)), Ok(s)) => Some(Ok(if s.chi2 < b.chi2 { s } else { b })),
+                (Some(Ok(b)), Err(_)) => Some(Ok(b)),
+                (_, r) => Some(r),
+            };
+        }
+        best.expect("at least one start")?
+    };
+    problem.report(axis, &solution, wavelength_m, options.floor)
+}
+
+/// Height, mean (bins) and standard deviation (bins, ≥ ½) of the main peak of a floor-subtracted
+/// spectrum, from its gate moments.
+fn moment_start(axis: &FrequencyAxis, signal: &[f64]) -> Result<(f64, f64, f64), RetrievalError> {
+    let g = gate_estimates_with(axis, signal, 0.0, 1.0, &MomentOptions::default())?;
+    let dw = axis.bin_width();
+    let mu = (g.peak_frequency_hz - axis.f_min) / dw - 0.5;
+    let s = g.fwhm_hz.map_or(g.width_hz, |w| w / FWHM_PER_SIGMA) / dw;
+    Ok((g.peak_signal, mu, s.max(0.5)))
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+/// The least-squares problem in internal units: bin index `x = k` as the abscissa, parameters
+/// `[ln A, μ, ln s]` per component (μ, s in bins), then the floor if fitted.
+struct Problem<'a> {
+    y: &'a [f64],
+    /// `1/σ_k`.
+    w: Vec<f64>,
+    /// Whether standard errors were given (else `w = 1` and the covariance is scaled).
+    weighted: bool,
+    fixed_floor: f64,
+    fit_floor: bool,
+    /// The natural unit of the floor in the step-size stopping rule: the largest |value|.
+    floor_scale: f64,
+}
+
+/// Where Levenberg–Marquardt stopped.
+struct Solution {
+    params: Vec<f64>,
+    chi2: f64,
+    iterations: usize,
+}
+
+/// Relative χ² decrease below which an accepted step counts as converged (with a small step).
+const CHI2_RTOL: f64 = 1e-10;
+/// Step size below which (in log amplitude, bins, log width, or floor units) a step is small.
+const STEP_TOL: f64 = 1e-8;
+/// Damping beyond which no step lowering χ² exists at the working precision.
+const LAMBDA_MAX: f64 = 1e10;
+
+impl<'a> Problem<'a> {
+    fn new(y: &'a [f64], stderr: Option<&[f64]>, floor: Floor) -> Self {
+        let w = match stderr {
+            Some(se) => se.iter().map(|s| 1.0 / s).collect(),
+            None => vec![1.0; y.len()],
+        };
+        let (fixed_floor, fit_floor) = match floor {
+            Floor::Fixed(b) => (b, false),
+            Floor::Fitted => (0.0, true),
+        };
+        let floor_scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+        Problem { y, w, weighted: stderr.is_some(), fixed_floor, fit_floor, floor_scale }
+    }
+
+    fn components(&self, p: &[f64]) -> usize {
+        p.len() / 3
+    }
+
+    /// `p` with the floor appended when it is fitted.
+    fn with_floor(&self, mut p: Vec<f64>, floor: f64) -> Vec<f64> {
+        if self.fit_floor {
+            p.push(floor);
+        }
+        p
+    }
+
+    fn floor(&self, p: &[f64]) -> f64 {
+        if self.fit_floor { p[p.len() - 1] } else { self.fixed_floor }
+    }
+
+    /// `S(x)` at bin coordinate `x`.
+    fn model(&self, p: &[f64], x: f64) -> f64 {
+        self.floor(p)
+            + (0..self.components(p))
+                .map(|j| {
+                    let (ln_a, mu, ln_s) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+                    let z = (x - mu) * (-ln_s).exp();
+                    (ln_a - 0.5 * z * z).exp()
+                })
+                .sum::<f64>()
+    }
+
+    fn chi2(&self, p: &[f64]) -> f64 {
+        let c: f64 =
+            self.y.iter().zip(&self.w).enumerate().map(|(k, (y, w))| (w * (y - self.model(p, k as f64))).powi(2)).sum();
+        if c.is_finite() { c } else { f64::INFINITY }
+    }
+
+    /// The normal matrix `JᵀWJ` and gradient `JᵀW·r` (`r = y − S`) at `p`, row-major.
+    /// `∂S/∂ln A = g`, `∂S/∂μ = g·(x − μ)/s²`, `∂S/∂ln s = g·(x − μ)²/s²`, `∂S/∂b = 1`.
+    fn normal_equations(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let n = p.len();
+        let mut ata = vec![0.0; n * n];
+        let mut atr = vec![0.0; n];
+        let mut row = vec![0.0; n];
+        for (k, (&y, &w)) in self.y.iter().zip(&self.w).enumerate() {
+            let x = k as f64;
+            let mut model = self.floor(p);
+            for j in 0..self.components(p) {
+                let (ln_a, mu, ln_s) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+                let inv_s = (-ln_s).exp();
+                let u = (x - mu) * inv_s;
+                let g = (ln_a - 0.5 * u * u).exp();
+                model += g;
+                row[3 * j] = w * g;
+                row[3 * j + 1] = w * g * u * inv_s;
+                row[3 * j + 2] = w * g * u * u;
+            }
+            if self.fit_floor {
+                row[n - 1] = w;
+            }
+            let r = w * (y - model);
+            for a in 0..n {
+                atr[a] += row[a] * r;
+                for b in 0..=a {
+                    ata[a * n + b] += row[a] * row[b];
+                }
+            }
+        }
+        for a in 0..n {
+            for b in 0..a {
+                ata[b * n + a] = ata[a * n + b];
+            }
+        }
+        (ata, atr)
+    }
+
+    /// The step-size stopping rule: every component of `delta` below [`STEP_TOL`] in its unit.
+    fn step_is_small(&self, delta: &[f64]) -> bool {
+        let n = delta.len();
+        delta.iter().enumerate().all(|(i, d)| {
+            let unit = if self.fit_floor && i == n - 1 { self.floor_scale } else { 1.0 };
+            d.abs() <= STEP_TOL * unit
+        })
+    }
+
+    /// Levenberg–Marquardt from `p`. Converged when an accepted step both lowers χ² by less than
+    /// [`CHI2_RTOL`] relative and is small ([`Problem::step_is_small`]), or when no step lowers χ²
+    /// even at damping [`LAMBDA_MAX`] (the minimum is resolved to round-off: the steps tried there
+    /// are gradient steps shorter than round-off of χ²).
+    fn levenberg_marquardt(&self, mut p: Vec<f64>, max_iterations: usize) -> Result<Solution, RetrievalError> {
+        let n = p.len();
+        let mut chi2 = self.chi2(&p);
+        if !chi2.is_finite() {
+            return Err(RetrievalError::NonFinite { what: "initial model", index: 0 });
+        }
+        let mut lambda = 1e-3;
+        for iteration in 1..=max_iterations {
+            let (ata, atr) = self.normal_equations(&p);
+            let max_diag = (0..n).map(|i| ata[i * n + i]).fold(0.0f64, f64::max);
+            loop {
+                let mut damped = ata.clone();
+                for i in 0..n {
+                    damped[i * n + i] += lambda * ata[i * n + i].max(1e-15 * max_diag);
+                }
+                let step = cholesky(&damped, n).map(|l| cholesky_solve(&l, n, &atr));
+                if let Some(delta) = step {
+                    let trial: Vec<f64> = p.iter().zip(&delta).map(|(a, d)| a + d).collect();
+                    let trial_chi2 = self.chi2(&trial);
+                    if trial_chi2 <= chi2 {
+                        let decrease = chi2 - trial_chi2;
+                        p = trial;
+                        chi2 = trial_chi2;
+                        lambda = (lambda * 0.1).max(1e-12);
+                        if decrease <= CHI2_RTOL * chi2 && self.step_is_small(&delta) {
+                            return Ok(Solution { params: p, chi2, iterations: iteration });
+                        }
+                        break;
+                    }
+                }
+                lambda *= 10.0;
+                if lambda > LAMBDA_MAX {
+                    return Ok(Solution { params: p, chi2, iterations: iteration });
+                }
+            }
+        }
+        Err(RetrievalError::DidNotConverge { iterations: max_iterations })
+    }
+
+    /// `(JᵀWJ)⁻¹` at the solution, or [`RetrievalError::Degenerate`] with its condition number.
+    fn covariance(&self, s: &Solution) -> Result<Vec<f64>, RetrievalError> {
+        let n = s.params.len();
+        let (ata, _) = self.normal_equations(&s.params);
+        spd_inverse(&ata, n).ok_or_else(|| RetrievalError::Degenerate {
+            what: "the fit does not determine every parameter (a component collapsed, left the axis, or two coincide)",
+            condition: condition_number(&ata, n),
+        })
+    }
+
+    /// Convert a solution to physical units with first-order standard errors, components sorted
+    /// by width.
+    fn report(
+        &self,
+        axis: &FrequencyAxis,
+        s: &Solution,
+        wavelength_m: f64,
+        floor: Floor,
+    ) -> Result<GaussianFit, RetrievalError> {
+        let n = s.params.len();
+        let dof = self.y.len() - n;
+        let scaled = !self.weighted;
+        let mut cov = self.covariance(s)?;
+        if scaled {
+            let r = s.chi2 / dof as f64;
+            cov.iter_mut().for_each(|c| *c *= r);
+        }
+        let dw = axis.bin_width();
+        let p = &s.params;
+        let mut components: Vec<GaussComponent> = (0..self.components(p))
+            .map(|j| {
+                let (i_a, i_mu, i_s) = (3 * j, 3 * j + 1, 3 * j + 2);
+                let c = |a: usize, b: usize| cov[a * n + b];
+                let amplitude = p[i_a].exp();
+                let sigma_bins = p[i_s].exp();
+                let mean_hz = axis.f_min + (p[i_mu] + 0.5) * dw;
+                let sigma_hz = sigma_bins * dw;
+                // Σ_k A·exp(−(k − μ)²/(2s²)) ≈ A·s·√(2π) (s in bins) = A·s_Hz·√(2π)/Δ.
+                let power = amplitude * sigma_bins * (2.0 * PI).sqrt();
+                GaussComponent {
+                    amplitude,
+                    amplitude_stderr: amplitude * c(i_a, i_a).sqrt(),
+                    mean_hz,
+                    mean_hz_stderr: dw * c(i_mu, i_mu).sqrt(),
+                    sigma_hz,
+                    sigma_hz_stderr: sigma_hz * c(i_s, i_s).sqrt(),
+                    power,
+                    power_stderr: power * (c(i_a, i_a) + c(i_s, i_s) + 2.0 * c(i_a, i_s)).max(0.0).sqrt(),
+                    mean_velocity_m_per_s: radial_velocity(mean_hz, wavelength_m),
+                    sigma_velocity_m_per_s: radial_velocity(sigma_hz, wavelength_m),
+                }
+            })
+            .collect();
+        components.sort_by(|a, b| a.sigma_hz.total_cmp(&b.sigma_hz));
+        let (floor, floor_stderr) = match floor {
+            Floor::Fixed(b) => (b, 0.0),
+            Floor::Fitted => (p[n - 1], cov[n * n - 1].sqrt()),
+        };
+        Ok(GaussianFit {
+            components,
+            floor,
+            floor_stderr,
+            chi2: s.chi2,
+            dof,
+            iterations: s.iterations,
+            covariance_scaled: scaled,
+        })
+    }
+}
