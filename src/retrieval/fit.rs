@@ -15,7 +15,13 @@
 //! 1963: `(JᵀJ + λ·diag JᵀJ)·δ = Jᵀr`, λ divided by 10 after a step that lowers χ², multiplied
 //! by 10 after one that does not) with the analytic Jacobian. The parameters are
 //! `(ln A_j, μ_j, ln s_j)` (and `b`), so amplitudes and widths stay positive; internally
-//! frequencies are in bins, so every parameter has a natural unit of order 1.
+//! frequencies are in bins, so every parameter has a natural unit of order 1. Trial points are
+//! projected onto bounds that keep each component's mean on the axis and its width within
+//! `[max(0.1 bin, FitOptions::min_sigma_hz), axis width]` (a narrower line is one bin or noise, a
+//! wider one is indistinguishable from the floor). Stopping: an accepted step that lowers χ² by
+//! less than 10⁻¹⁰ relative and is shorter than 10⁻³ standard errors; or no step lowering χ² at
+//! any damping (round-off); else [`RetrievalError::DidNotConverge`] after
+//! [`FitOptions::max_iterations`].
 //!
 //! **Uncertainties.** The covariance of the parameters is `(JᵀWJ)⁻¹` at the minimum, scaled by the
 //! reduced `χ²/dof` when no standard errors are given (the noise level is then estimated from the
@@ -56,11 +62,16 @@ pub struct FitOptions {
     /// Levenberg–Marquardt iterations (Jacobian evaluations) before
     /// [`RetrievalError::DidNotConverge`]; default 200.
     pub max_iterations: usize,
+    /// The narrowest component standard deviation (Hz) a fit may reach; at least 0.1 bin is
+    /// always enforced. Default 0. Set it to the spectral resolution (the standard deviation of the
+    /// window's or pulse's spectral response): a narrower component can only be a noise bump, and
+    /// such bumps are most of [`fit_one_or_two`]'s false alarms.
+    pub min_sigma_hz: f64,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { floor: Floor::Fixed(0.0), max_iterations: 200 }
+        FitOptions { floor: Floor::Fixed(0.0), max_iterations: 200, min_sigma_hz: 0.0 }
     }
 }
 
@@ -133,7 +144,8 @@ pub const MODEL_SELECTION_LEVEL: f64 = 0.01;
 /// Fit one and two Gaussian components and keep two only if the nested-model F-test prefers them
 /// at `p <` [`MODEL_SELECTION_LEVEL`] (0.01): `F = ((χ²₁ − χ²₂)/3)/(χ²₂/dof₂)` referred to
 /// `F(3, dof₂)`. The F form is used with or without standard errors because it does not depend on
-/// their absolute scale (Monte Carlo standard errors are themselves estimates).
+/// their absolute scale (Monte Carlo standard errors are themselves estimates). A decrease of χ²
+/// below `10⁻²⁰·Σ(y/σ)²` (round-off, as on noiseless data) counts as none: one component is kept.
 ///
 /// Caveat: the second component's mean and width are not identified when its amplitude is 0, so
 /// the null distribution of `F` is not exactly `F(3, dof₂)` (Davies 1987, Biometrika 74:33); the
@@ -147,8 +159,14 @@ pub fn fit_one_or_two(
 ) -> Result<ModelChoice, RetrievalError> {
     let one = fit_gaussians(axis, values, stderr, 1, wavelength_m, options)?;
     let two = fit_gaussians(axis, values, stderr, 2, wavelength_m, options);
+    // A χ² decrease at the round-off level of χ² itself is no evidence (noiseless data).
+    let weighted_sq: f64 = match stderr {
+        Some(se) => values.iter().zip(se).map(|(y, s)| (y / s).powi(2)).sum(),
+        None => values.iter().map(|y| y * y).sum(),
+    };
+    let resolution = 1e-20 * weighted_sq;
     let (f_statistic, p_value) = match &two {
-        Ok(two) if one.chi2 > two.chi2 => {
+        Ok(two) if one.chi2 - two.chi2 > resolution => {
             let extra = (one.dof - two.dof) as f64;
             let f = if two.chi2 > 0.0 {
                 ((one.chi2 - two.chi2) / extra) / (two.chi2 / two.dof as f64)
@@ -205,7 +223,15 @@ pub fn fit_gaussians(
     {
         return Err(RetrievalError::InvalidParameter { name: "floor", value: b, expected: "a finite floor per bin" });
     }
-    let problem = Problem::new(values, stderr, options.floor);
+    let min_sigma = options.min_sigma_hz;
+    if !(min_sigma.is_finite() && min_sigma >= 0.0) {
+        return Err(RetrievalError::InvalidParameter {
+            name: "min_sigma_hz",
+            value: min_sigma,
+            expected: "a finite width ≥ 0 Hz",
+        });
+    }
+    let problem = Problem::new(values, stderr, options.floor, (min_sigma / axis.bin_width()).max(S_MIN_BINS));
     let needed = 3 * components + problem.fit_floor as usize + 1;
     if values.len() < needed {
         return Err(RetrievalError::TooFewPoints { needed, found: values.len() });
@@ -280,8 +306,8 @@ struct Problem<'a> {
     weighted: bool,
     fixed_floor: f64,
     fit_floor: bool,
-    /// The natural unit of the floor in the step-size stopping rule: the largest |value|.
-    floor_scale: f64,
+    /// `ln` of the narrowest component width allowed (bins).
+    ln_s_min: f64,
 }
 
 /// Where Levenberg–Marquardt stopped.
@@ -293,13 +319,16 @@ struct Solution {
 
 /// Relative χ² decrease below which an accepted step counts as converged (with a small step).
 const CHI2_RTOL: f64 = 1e-10;
-/// Step size below which (in log amplitude, bins, log width, or floor units) a step is small.
-const STEP_TOL: f64 = 1e-8;
+/// Step length, in standard errors of the parameters, below which a step is small.
+const STEP_TOL_SE: f64 = 1e-3;
+/// The narrowest component (standard deviation in bins) a fit may reach whatever
+/// [`FitOptions::min_sigma_hz`] says.
+const S_MIN_BINS: f64 = 0.1;
 /// Damping beyond which no step lowering χ² exists at the working precision.
 const LAMBDA_MAX: f64 = 1e10;
 
 impl<'a> Problem<'a> {
-    fn new(y: &'a [f64], stderr: Option<&[f64]>, floor: Floor) -> Self {
+    fn new(y: &'a [f64], stderr: Option<&[f64]>, floor: Floor, s_min_bins: f64) -> Self {
         let w = match stderr {
             Some(se) => se.iter().map(|s| 1.0 / s).collect(),
             None => vec![1.0; y.len()],
@@ -308,8 +337,7 @@ impl<'a> Problem<'a> {
             Floor::Fixed(b) => (b, false),
             Floor::Fitted => (0.0, true),
         };
-        let floor_scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
-        Problem { y, w, weighted: stderr.is_some(), fixed_floor, fit_floor, floor_scale }
+        Problem { y, w, weighted: stderr.is_some(), fixed_floor, fit_floor, ln_s_min: s_min_bins.ln() }
     }
 
     fn components(&self, p: &[f64]) -> usize {
@@ -385,20 +413,34 @@ impl<'a> Problem<'a> {
         (ata, atr)
     }
 
-    /// The step-size stopping rule: every component of `delta` below [`STEP_TOL`] in its unit.
-    fn step_is_small(&self, delta: &[f64]) -> bool {
-        let n = delta.len();
-        delta.iter().enumerate().all(|(i, d)| {
-            let unit = if self.fit_floor && i == n - 1 { self.floor_scale } else { 1.0 };
-            d.abs() <= STEP_TOL * unit
-        })
+    /// `p` projected onto the bounds: each mean on the axis (`−½ ≤ μ ≤ bins − ½`, bin units),
+    /// each width in `[s_min, bins]` (a narrower "line" is one bin or noise, a wider one is a floor).
+    fn clamp_to_box(&self, mut p: Vec<f64>) -> Vec<f64> {
+        let bins = self.y.len() as f64;
+        for j in 0..self.components(&p) {
+            p[3 * j + 1] = p[3 * j + 1].clamp(-0.5, bins - 0.5);
+            p[3 * j + 2] = p[3 * j + 2].clamp(self.ln_s_min, bins.ln().max(self.ln_s_min));
+        }
+        p
     }
 
-    /// Levenberg–Marquardt from `p`. Converged when an accepted step both lowers χ² by less than
+    /// The step-size stopping rule: the step is shorter than [`STEP_TOL_SE`] standard errors,
+    /// `δᵀ(JᵀWJ)δ ≤ STEP_TOL_SE²·χ²/dof` — the standard errors being those the residuals imply
+    /// (for correct weights `χ²/dof ≈ 1`; on noiseless data it is round-off, so the rule waits
+    /// for the round-off rule of [`Problem::levenberg_marquardt`]).
+    fn step_is_small(&self, delta: &[f64], ata: &[f64], chi2: f64) -> bool {
+        let n = delta.len();
+        let quad: f64 = (0..n).map(|a| (0..n).map(|b| delta[a] * ata[a * n + b] * delta[b]).sum::<f64>()).sum();
+        quad <= STEP_TOL_SE * STEP_TOL_SE * chi2 / (self.y.len() - n) as f64
+    }
+
+    /// Levenberg–Marquardt from `p`, kept within bounds by projecting every trial point (and the
+    /// start) with [`Problem::clamp_to_box`]. Converged when an accepted step both lowers χ² by less than
     /// [`CHI2_RTOL`] relative and is small ([`Problem::step_is_small`]), or when no step lowers χ²
     /// even at damping [`LAMBDA_MAX`] (the minimum is resolved to round-off: the steps tried there
     /// are gradient steps shorter than round-off of χ²).
-    fn levenberg_marquardt(&self, mut p: Vec<f64>, max_iterations: usize) -> Result<Solution, RetrievalError> {
+    fn levenberg_marquardt(&self, p: Vec<f64>, max_iterations: usize) -> Result<Solution, RetrievalError> {
+        let mut p = self.clamp_to_box(p);
         let n = p.len();
         let mut chi2 = self.chi2(&p);
         if !chi2.is_finite() {
@@ -415,14 +457,15 @@ impl<'a> Problem<'a> {
                 }
                 let step = cholesky(&damped, n).map(|l| cholesky_solve(&l, n, &atr));
                 if let Some(delta) = step {
-                    let trial: Vec<f64> = p.iter().zip(&delta).map(|(a, d)| a + d).collect();
+                    let trial = self.clamp_to_box(p.iter().zip(&delta).map(|(a, d)| a + d).collect());
                     let trial_chi2 = self.chi2(&trial);
                     if trial_chi2 <= chi2 {
                         let decrease = chi2 - trial_chi2;
+                        let taken: Vec<f64> = trial.iter().zip(&p).map(|(a, b)| a - b).collect();
                         p = trial;
                         chi2 = trial_chi2;
                         lambda = (lambda * 0.1).max(1e-12);
-                        if decrease <= CHI2_RTOL * chi2 && self.step_is_small(&delta) {
+                        if decrease <= CHI2_RTOL * chi2 && self.step_is_small(&taken, &ata, chi2) {
                             return Ok(Solution { params: p, chi2, iterations: iteration });
                         }
                         break;
@@ -504,5 +547,176 @@ impl<'a> Problem<'a> {
             iterations: s.iterations,
             covariance_scaled: scaled,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::doppler_frequency;
+    use super::*;
+
+    const LAMBDA: f64 = 1.55e-6;
+
+    /// ±12.9 MHz (±10 m/s at 1.55 µm) in 256 bins of 100.8 kHz (0.078 m/s).
+    fn axis() -> FrequencyAxis {
+        let f = doppler_frequency(10.0, LAMBDA);
+        FrequencyAxis::new(-f, f, 256).unwrap()
+    }
+
+    /// `b + Σ A·exp(−(f − μ)²/(2s²))` at the bin centres; components as (A, μ_Hz, s_Hz).
+    fn model(axis: &FrequencyAxis, floor: f64, comps: &[(f64, f64, f64)]) -> Vec<f64> {
+        (0..axis.bins)
+            .map(|k| {
+                let f = axis.center(k);
+                floor + comps.iter().map(|&(a, mu, s)| a * (-0.5 * ((f - mu) / s).powi(2)).exp()).sum::<f64>()
+            })
+            .collect()
+    }
+
+    /// Aerosol at +2 m/s (σ 0.3 m/s) and rain at −4 m/s (σ 1.5 m/s), as (A, μ, s) in Hz.
+    fn aerosol_and_rain() -> [(f64, f64, f64); 2] {
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        [(3.0, hz(2.0), hz(0.3)), (1.2, hz(-4.0), hz(1.5))]
+    }
+
+    #[test]
+    fn analytic_gradient_matches_finite_differences() {
+        let y = model(&axis(), 0.1, &aerosol_and_rain());
+        let stderr: Vec<f64> = (0..y.len()).map(|k| 0.05 + 0.001 * k as f64).collect();
+        let problem = Problem::new(&y, Some(&stderr), Floor::Fitted, S_MIN_BINS);
+        // Away from the minimum: Jᵀ W r = −½ ∂χ²/∂p.
+        let p = vec![1.2, 170.0, 1.1, 0.1, 80.0, 2.4, 0.13];
+        let (_, atr) = problem.normal_equations(&p);
+        for i in 0..p.len() {
+            let h = 1e-6;
+            let (mut hi, mut lo) = (p.clone(), p.clone());
+            hi[i] += h;
+            lo[i] -= h;
+            let numeric = -0.5 * (problem.chi2(&hi) - problem.chi2(&lo)) / (2.0 * h);
+            assert!((atr[i] - numeric).abs() < 1e-6 * numeric.abs().max(1.0), "p{i}: {} vs {numeric}", atr[i]);
+        }
+    }
+
+    #[test]
+    fn noiseless_two_gaussians_to_machine_precision() {
+        let axis = axis();
+        let truth = aerosol_and_rain();
+        for floor in [Floor::Fixed(0.25), Floor::Fitted] {
+            let y = model(&axis, 0.25, &truth);
+            let fit = fit_gaussians(&axis, &y, None, 2, LAMBDA, &FitOptions { floor, ..Default::default() }).unwrap();
+            assert_eq!(fit.components.len(), 2);
+            // Narrow (aerosol) first.
+            for (c, &(a, mu, s)) in fit.components.iter().zip(&truth) {
+                assert!((c.amplitude / a - 1.0).abs() < 1e-9, "{floor:?}: A {} vs {a}", c.amplitude);
+                assert!((c.mean_hz - mu).abs() < 1e-9 * axis.bin_width(), "{floor:?}: μ {} vs {mu}", c.mean_hz);
+                assert!((c.sigma_hz / s - 1.0).abs() < 1e-9, "{floor:?}: s {} vs {s}", c.sigma_hz);
+                assert!((c.mean_velocity_m_per_s - LAMBDA * mu / 2.0).abs() < 1e-9);
+                assert!((c.sigma_velocity_m_per_s - LAMBDA * s / 2.0).abs() < 1e-9);
+                // The component's power is its sum over bins (on an axis 4× as wide with the
+                // same bins: the rain line reaches the edge of the fitted one).
+                let dw = axis.bin_width();
+                let wide = FrequencyAxis::new(axis.f_min - 384.0 * dw, axis.f_max + 384.0 * dw, 1024).unwrap();
+                let sum: f64 = model(&wide, 0.0, &[(a, mu, s)]).iter().sum();
+                assert!((c.power / sum - 1.0).abs() < 1e-9, "power {} vs {sum}", c.power);
+            }
+            assert!((fit.floor - 0.25).abs() < 1e-12);
+            assert!(fit.chi2 < 1e-20, "χ² {}", fit.chi2);
+            assert_eq!(fit.dof, 256 - 6 - matches!(floor, Floor::Fitted) as usize);
+            assert!(fit.covariance_scaled);
+        }
+    }
+
+    #[test]
+    fn components_are_sorted_by_width_whatever_their_heights() {
+        // The broad line is the taller one here: it must still come second.
+        let axis = axis();
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let truth = [(0.5, hz(1.0), hz(0.2)), (4.0, hz(-2.0), hz(1.0))];
+        let fit = fit_gaussians(&axis, &model(&axis, 0.0, &truth), None, 2, LAMBDA, &FitOptions::default()).unwrap();
+        assert!((fit.components[0].sigma_hz / hz(0.2) - 1.0).abs() < 1e-9);
+        assert!((fit.components[1].sigma_hz / hz(1.0) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn concentric_narrow_on_broad_is_separated() {
+        // Same mean: the residual of one Gaussian has no single clear peak; start (b) handles it.
+        let axis = axis();
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let truth = [(2.0, hz(0.5), hz(0.25)), (1.0, hz(0.5), hz(2.0))];
+        let fit = fit_gaussians(&axis, &model(&axis, 0.0, &truth), None, 2, LAMBDA, &FitOptions::default()).unwrap();
+        for (c, &(a, mu, s)) in fit.components.iter().zip(&truth) {
+            assert!((c.amplitude / a - 1.0).abs() < 1e-8, "A {} vs {a}", c.amplitude);
+            assert!((c.mean_hz - mu).abs() < 1e-8 * axis.bin_width());
+            assert!((c.sigma_hz / s - 1.0).abs() < 1e-8);
+        }
+    }
+
+    #[test]
+    fn one_component_fit_and_choice_on_noiseless_data() {
+        let axis = axis();
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let y = model(&axis, 0.0, &[(1.0, hz(-3.3), hz(0.7))]);
+        let fit = fit_gaussians(&axis, &y, None, 1, LAMBDA, &FitOptions::default()).unwrap();
+        assert!((fit.components[0].mean_velocity_m_per_s + 3.3).abs() < 1e-9);
+        assert!((fit.components[0].sigma_velocity_m_per_s - 0.7).abs() < 1e-9);
+        // One line: a second component cannot lower χ² (or is degenerate), so one is kept.
+        let choice = fit_one_or_two(&axis, &y, None, LAMBDA, &FitOptions::default()).unwrap();
+        assert_eq!(choice.components, 1);
+        assert_eq!(choice.chosen(), &choice.one);
+        // Two lines: χ²₂ ≈ 0 against a large χ²₁.
+        let choice =
+            fit_one_or_two(&axis, &model(&axis, 0.0, &aerosol_and_rain()), None, LAMBDA, &FitOptions::default())
+                .unwrap();
+        assert_eq!(choice.components, 2);
+        assert!(choice.p_value < 1e-12);
+        assert_eq!(choice.chosen().components.len(), 2);
+    }
+
+    #[test]
+    fn weighted_covariance_is_not_rescaled() {
+        // Noiseless data with stderrs s: χ² ≈ 0 but the standard errors are (JᵀWJ)⁻¹ as given —
+        // doubling every stderr doubles every reported standard error.
+        let axis = axis();
+        let y = model(&axis, 0.0, &aerosol_and_rain());
+        let one = vec![0.01; y.len()];
+        let two = vec![0.02; y.len()];
+        let a = fit_gaussians(&axis, &y, Some(&one), 2, LAMBDA, &FitOptions::default()).unwrap();
+        let b = fit_gaussians(&axis, &y, Some(&two), 2, LAMBDA, &FitOptions::default()).unwrap();
+        assert!(!a.covariance_scaled);
+        for (ca, cb) in a.components.iter().zip(&b.components) {
+            assert!((cb.mean_hz_stderr / ca.mean_hz_stderr - 2.0).abs() < 1e-6);
+            assert!((cb.power_stderr / ca.power_stderr - 2.0).abs() < 1e-6);
+            assert!(ca.mean_hz_stderr > 0.0 && ca.sigma_hz_stderr > 0.0);
+        }
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let axis = FrequencyAxis::new(0.0, 10.0, 10).unwrap();
+        let y = [0.0, 0.1, 1.0, 3.0, 1.0, 0.1, 0.0, 0.0, 0.0, 0.0];
+        let opts = FitOptions::default();
+        assert!(matches!(
+            fit_gaussians(&axis, &y[..9], None, 1, LAMBDA, &opts),
+            Err(RetrievalError::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            fit_gaussians(&axis, &y, None, 3, LAMBDA, &opts),
+            Err(RetrievalError::InvalidParameter { name: "components", .. })
+        ));
+        assert!(matches!(
+            fit_gaussians(&axis, &y, Some(&[1.0; 10].map(|s: f64| s - 1.0)), 1, LAMBDA, &opts),
+            Err(RetrievalError::InvalidParameter { name: "stderr", .. })
+        ));
+        assert_eq!(fit_gaussians(&axis, &[0.0; 10], None, 1, LAMBDA, &opts), Err(RetrievalError::NoSignal));
+        let small = FrequencyAxis::new(0.0, 6.0, 6).unwrap();
+        assert_eq!(
+            fit_gaussians(&small, &y[..6], None, 2, LAMBDA, &opts),
+            Err(RetrievalError::TooFewPoints { needed: 7, found: 6 })
+        );
+        let capped = FitOptions { max_iterations: 1, ..opts };
+        assert_eq!(
+            fit_gaussians(&axis, &model(&axis, 0.0, &[(1.0, 4.3, 1.7)]), None, 1, LAMBDA, &capped),
+            Err(RetrievalError::DidNotConverge { iterations: 1 })
+        );
     }
 }
