@@ -33,9 +33,9 @@ fn spectrum(axis: &FrequencyAxis, floor: f64, comps: &[(f64, f64, f64)]) -> Vec<
         .collect()
 }
 
-/// `clean` plus independent N(0, σ²) per bin from stream `realisation`.
-fn noisy(clean: &[f64], sigma: f64, purpose_element: u64) -> Vec<f64> {
-    let mut rng = PathRng::new(SEED, Purpose::Test, purpose_element, 0);
+/// `clean` plus independent N(0, σ²) per bin, from the test stream `stream` (one per realisation).
+fn noisy(clean: &[f64], sigma: f64, stream: u64) -> Vec<f64> {
+    let mut rng = PathRng::new(SEED, Purpose::Test, stream, 0);
     clean.iter().map(|v| v + sigma * rng.normal()).collect()
 }
 

@@ -83,14 +83,19 @@ impl Default for FitOptions {
 pub struct GaussComponent {
     /// Peak value per bin, `A`.
     pub amplitude: f64,
+    /// Standard error of `A`.
     pub amplitude_stderr: f64,
+    /// Mean `μ` (Hz).
     pub mean_hz: f64,
+    /// Standard error of `μ` (Hz); in m/s multiply by `λ0/2`.
     pub mean_hz_stderr: f64,
     /// Standard deviation `s` (Hz).
     pub sigma_hz: f64,
+    /// Standard error of `s` (Hz).
     pub sigma_hz_stderr: f64,
     /// `A·s·√(2π)/Δ`, in the units of the spectrum summed over bins.
     pub power: f64,
+    /// Standard error of the power (through the covariance of `ln A` and `ln s`).
     pub power_stderr: f64,
     /// `λ0·μ/2`, positive receding.
     pub mean_velocity_m_per_s: f64,
@@ -122,6 +127,7 @@ pub struct GaussianFit {
 pub struct ModelChoice {
     /// 1 or 2: the number of components the F-test keeps.
     pub components: usize,
+    /// The one-component fit.
     pub one: GaussianFit,
     /// The two-component fit, or why it failed (then one component is chosen).
     pub two: Result<GaussianFit, RetrievalError>,

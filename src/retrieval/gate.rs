@@ -55,15 +55,18 @@ pub struct GateEstimate {
     /// The frequency of the largest floor-subtracted bin, refined to a sub-bin position (see
     /// [`gate_estimates_with`]).
     pub peak_frequency_hz: f64,
+    /// `λ0/2 ×` the peak frequency.
     pub peak_velocity_m_per_s: f64,
     /// The interpolated signal at the peak (values per bin, floor subtracted).
     pub peak_signal: f64,
     /// First moment of the floor-subtracted signal over the window.
     pub centroid_frequency_hz: f64,
+    /// `λ0/2 ×` the centroid.
     pub centroid_velocity_m_per_s: f64,
     /// Square root of the second central moment over the window (Sheppard-corrected if
     /// [`MomentOptions::bin_integrated`]).
     pub width_hz: f64,
+    /// `λ0/2 ×` the width.
     pub width_m_per_s: f64,
     /// Full width at half the interpolated peak, from linearly interpolated crossings on both
     /// sides; `None` when the signal does not fall to half the peak on both sides within the axis.

@@ -57,7 +57,8 @@ pub struct VadFit {
     pub condition_number: f64,
     /// `√(V_x² + V_y²)`, m/s.
     pub horizontal_speed: f64,
-    /// First-order standard error: `σ² = (u²C_uu + 2uv·C_uv + v²C_vv)/(u² + v²)`.
+    /// First-order standard error: `σ² = (u²C_uu + 2uv·C_uv + v²C_vv)/(u² + v²)`; for a calm
+    /// (speed exactly 0, where that is undefined) `√max(C_uu, C_vv)`.
     pub horizontal_speed_stderr: Option<f64>,
     /// Meteorological direction: where the wind blows *from*, degrees clockwise from north in
     /// `[0, 360)`: `atan2(−u, −v)` (a wind from the west, `u > 0`, is 270°). 0 for a calm.
@@ -136,7 +137,7 @@ pub fn vad_fit(
         condition: condition_number(&normal, 3),
     })?;
     // Row-major 3×3 → glam's column-major DMat3 (symmetric, so the same either way).
-    let n_inv = DMat3::from_cols_array(&inv.try_into().expect("3×3"));
+    let n_inv = DMat3::from_cols_slice(&inv);
     let wind = n_inv * rhs;
     let residuals: Vec<f64> = pointings.iter().zip(radial_velocities).map(|(d, v)| v - d.dot(wind)).collect();
     let chi2: f64 = residuals.iter().enumerate().map(|(i, r)| weight(i) * r * r).sum();
