@@ -227,46 +227,86 @@ pub fn main() -> ExitCode {
                 Err(e) => return fail(&e),
             };
             let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
-            let output = if !quiet && std::io::stderr().is_terminal() {
-                let bar = indicatif::ProgressBar::new(exp.plan.samples());
-                bar.set_style(
-                    indicatif::ProgressStyle::with_template(
-                        "{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, ETA {eta}",
-                    )
-                    .expect("valid template"),
-                );
-                let bar = Bar(bar);
-                let o = exp.run(&bar);
-                bar.0.finish_and_clear();
-                o
-            } else {
-                exp.run(&ohd::experiment::Silent)
-            };
             let inv = Invocation { config_source: origin, overrides: set };
-            match write_run(&dir, &exp, &output, &table, &inv) {
-                Ok(manifest) => {
-                    let est = &manifest["estimates"];
-                    eprintln!(
-                        "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
-                        exp.plan.samples(),
-                        output.wall_seconds,
-                        exp.plan.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
-                        dir.display()
-                    );
-                    for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"]
-                    {
-                        eprintln!(
-                            "  {k:<24} {:.6} ± {:.6}",
-                            est[k]["value"].as_f64().unwrap_or(f64::NAN),
-                            est[k]["stderr"].as_f64().unwrap_or(f64::NAN)
-                        );
-                    }
-                    ExitCode::SUCCESS
-                }
+            let result = if exp.source.pointings.len() > 1 {
+                run_scan(&exp, &dir, &table, &inv, quiet)
+            } else {
+                run_one(&exp, &dir, &table, &inv, quiet).map(|_| ())
+            };
+            match result {
+                Ok(()) => ExitCode::SUCCESS,
                 Err(e) => fail(&e),
             }
         }
     }
+}
+
+/// Run `exp`, write its outputs into `dir` and report on stderr.
+fn run_one(
+    exp: &Experiment,
+    dir: &Path,
+    table: &toml::Table,
+    inv: &Invocation,
+    quiet: bool,
+) -> Result<ohd::experiment::RunOutput, Error> {
+    let output = if !quiet && std::io::stderr().is_terminal() {
+        let bar = indicatif::ProgressBar::new(exp.plan.samples());
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, ETA {eta}",
+            )
+            .expect("valid template"),
+        );
+        let bar = Bar(bar);
+        let o = exp.run(&bar);
+        bar.0.finish_and_clear();
+        o
+    } else {
+        exp.run(&ohd::experiment::Silent)
+    };
+    let manifest = write_run(dir, exp, &output, table, inv)?;
+    let est = &manifest["estimates"];
+    eprintln!(
+        "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
+        exp.plan.samples(),
+        output.wall_seconds,
+        exp.plan.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
+        dir.display()
+    );
+    for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"] {
+        eprintln!(
+            "  {k:<24} {:.6} ± {:.6}",
+            est[k]["value"].as_f64().unwrap_or(f64::NAN),
+            est[k]["stderr"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    Ok(output)
+}
+
+/// A scan: one run per pointing into `dir/pointing_NN`, then the VAD wind per range gate.
+fn run_scan(exp: &Experiment, dir: &Path, table: &toml::Table, inv: &Invocation, quiet: bool) -> Result<(), Error> {
+    let pointings = &exp.source.pointings;
+    let (mut runs, mut velocities) = (Vec::new(), Vec::new());
+    let mut ranges = Vec::new();
+    for (i, p) in pointings.iter().enumerate() {
+        let name = format!("pointing_{i:02}");
+        eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
+        let e = exp.pointed(p);
+        let output = run_one(&e, &dir.join(&name), table, inv, quiet)?;
+        if let Some(v) = ohd::scan::gate_peak_velocities(&e, &output) {
+            velocities.push(v);
+        }
+        if let Some(l) = e.detectors.iter().find_map(|d| d.lidar.as_ref()) {
+            ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
+        }
+        runs.push(name);
+    }
+    if velocities.len() == pointings.len() {
+        let gates = ohd::scan::vad_per_gate(pointings, exp.source.position.z, &ranges, &velocities);
+        ohd::io::scan::write_scan(dir, pointings, &runs, &gates)?;
+        eprintln!("ohd: VAD wind per gate → {}", dir.join("vad.csv").display());
+    }
+    Ok(())
 }
 
 /// A human-readable account of the resolved experiment.
@@ -285,11 +325,19 @@ fn describe(exp: &Experiment, origin: &str) -> String {
         src.direction.to_array(),
         src.chirp.map_or(String::new(), |c| format!(", chirp B = {} Hz over T = {} s", c.bandwidth, c.duration))
     );
+    if src.divergence > 0.0 {
+        let _ = writeln!(s, "  divergence (1/e² half-angle) {:.1} µrad", src.divergence * 1e6);
+    }
+    if src.pointings.len() > 1 {
+        let list: Vec<String> =
+            src.pointings.iter().map(|p| format!("({}°, {}°)", p.azimuth_deg, p.elevation_deg)).collect();
+        let _ = writeln!(s, "  scan of {} pointings (azimuth, elevation): {}", list.len(), list.join(", "));
+    }
     let _ = writeln!(s, "ambient: n above = {}, n below = {}", exp.scene.n_above, exp.scene.n_below);
     let _ = writeln!(s, "media:");
     let mut shown = std::collections::BTreeSet::new();
     for m in exp.scene.media.iter().filter(|m| shown.insert(m.name.clone())) {
-        let phase = match &m.phase {
+        let phase = match &m.population().phase {
             ohd::phase::PhaseFunction::Tabulated(t) => format!("{t:?}"),
             p => format!("{p:?}"),
         };
@@ -301,8 +349,25 @@ fn describe(exp: &Experiment, origin: &str) -> String {
             m.sigma_s(),
             m.albedo(),
             m.info.g,
-            m.velocity
+            m.population().velocity
         );
+        if m.populations().len() > 1 {
+            for p in m.populations() {
+                let _ = writeln!(
+                    s,
+                    "  {:<14} population {}: σs = {:.6e} /m, g = {:.4}, velocity {}",
+                    "",
+                    p.name,
+                    p.sigma_s,
+                    p.phase.mean_cosine(),
+                    match &p.velocity {
+                        ohd::flow::VelocityField::TerminalFall { fall, .. } =>
+                            format!("wind + fall (σs-weighted mean {:.3} m/s)", fall.mean()),
+                        v => format!("{v:?}"),
+                    }
+                );
+            }
+        }
         if let Some(p) = &m.info.particles {
             let _ = writeln!(
                 s,

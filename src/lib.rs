@@ -74,6 +74,7 @@ pub mod mie;
 pub mod phase;
 pub mod retrieval;
 pub mod sampling;
+pub mod scan;
 pub mod source;
 pub mod spectrum;
 pub mod stats;

@@ -29,7 +29,27 @@ impl Chirp {
     }
 }
 
-/// A collimated laser.
+/// A beam pointing by angles, in the frame x = east, y = north, z = up (an atmosphere's height,
+/// the stack's depth axis).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pointing {
+    /// Degrees clockwise from north.
+    pub azimuth_deg: f64,
+    /// Degrees above the horizontal.
+    pub elevation_deg: f64,
+    /// `(cos e·sin a, cos e·cos a, sin e)`.
+    pub direction: DVec3,
+}
+
+impl Pointing {
+    pub fn new(azimuth_deg: f64, elevation_deg: f64) -> Self {
+        let (sa, ca) = azimuth_deg.to_radians().sin_cos();
+        let (se, ce) = elevation_deg.to_radians().sin_cos();
+        Pointing { azimuth_deg, elevation_deg, direction: DVec3::new(ce * sa, ce * ca, se) }
+    }
+}
+
+/// A laser beam: collimated, or with a Gaussian far-field divergence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Source {
     /// Vacuum wavelength λ0, m.
@@ -40,6 +60,12 @@ pub struct Source {
     /// Unit propagation direction, with `z > 0` (into the stack).
     pub direction: DVec3,
     pub chirp: Option<Chirp>,
+    /// Far-field 1/e² intensity half-angle θ_d of a Gaussian beam, rad (0: collimated). Each
+    /// path leaves at a small angle whose two components are normal with standard deviation θ_d/2
+    /// (the far field of a Gaussian beam, `I ∝ exp(−2θ²/θ_d²)`).
+    pub divergence: f64,
+    /// A scan: the pointings to run in turn (empty: just `direction`). `direction` is the first.
+    pub pointings: Vec<Pointing>,
     /// Precomputed basis of the emission plane.
     basis: (DVec3, DVec3),
 }
@@ -47,7 +73,33 @@ pub struct Source {
 impl Source {
     pub fn new(wavelength: f64, profile: Profile, position: DVec3, direction: DVec3, chirp: Option<Chirp>) -> Self {
         let direction = direction.normalize();
-        Source { wavelength, profile, position, direction, chirp, basis: warp::orthonormal_basis(direction) }
+        Source {
+            wavelength,
+            profile,
+            position,
+            direction,
+            chirp,
+            divergence: 0.0,
+            pointings: Vec::new(),
+            basis: warp::orthonormal_basis(direction),
+        }
+    }
+
+    /// The same source pointing along `direction` (a unit vector).
+    pub fn pointed(&self, direction: DVec3) -> Self {
+        let direction = direction.normalize();
+        Source { direction, basis: warp::orthonormal_basis(direction), ..self.clone() }
+    }
+
+    /// The direction of one path: [`Source::direction`], tilted by the beam's divergence.
+    #[inline(always)]
+    pub fn emit_direction(&self, rng: &mut PathRng) -> DVec3 {
+        if self.divergence == 0.0 {
+            return self.direction;
+        }
+        let sd = 0.5 * self.divergence;
+        let (a, b) = (sd * rng.normal(), sd * rng.normal());
+        (self.direction + a * self.basis.0 + b * self.basis.1).normalize()
     }
 
     /// Emission point of one path (the direction is always [`Source::direction`]).

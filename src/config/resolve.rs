@@ -12,15 +12,15 @@ use super::units::unit_of;
 use crate::detect::{Area, Detector, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
-use crate::flow::VelocityField;
+use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
 use crate::io::table::read_phase_table;
 use crate::medium::{
-    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Motion, ParticleOptics, Region, Scene, Shape, TableInfo,
-    mixture_optics, stokes_einstein,
+    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Motion, ParticleOptics, Population, Region, Scene, Shape,
+    TableInfo, mixture_optics, stokes_einstein,
 };
 use crate::mie::{Concentration, DEFAULT_SIZE_POINTS, EnsembleSpec, Packing, SizeDistribution};
 use crate::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};
-use crate::source::{Chirp, Profile, Source};
+use crate::source::{Chirp, Pointing, Profile, Source};
 use crate::spectrum::{FrequencyAxis, Stft, Window};
 use crate::transport::{Tracking, WalkSettings};
 
@@ -347,16 +347,42 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
         }
         None => DVec3::ZERO,
     };
-    let direction = unit_vector("source.direction", s.direction.unwrap_or([0.0, 0.0, 1.0]))?;
+    let pointings = resolve_pointings(s)?;
+    let direction = match pointings.first() {
+        Some(p) => p.direction,
+        None => unit_vector("source.direction", s.direction.unwrap_or([0.0, 0.0, 1.0]))?,
+    };
     if direction.z < 1e-6 {
         return err(
             "source.direction",
             format!(
                 "= {:?}: the beam must point into the stack, not graze it (z component of the unit vector > 1e-6; +z is depth)",
-                s.direction.unwrap()
+                direction.to_array()
             ),
         );
     }
+    let divergence = match pick(
+        "source",
+        &[("divergence_urad", s.divergence_urad, 1e-6), ("divergence_mrad", s.divergence_mrad, 1e-3)],
+    )? {
+        None => 0.0,
+        Some(d) => {
+            if !(d.0.is_finite() && (0.0..=0.1).contains(&d.0)) {
+                return err(d.1, format!("= {}: expected a 1/e² half-angle divergence from 0 to 0.1 rad", d.2));
+            }
+            if direction.z < 5.0 * d.0 {
+                return err(
+                    d.1,
+                    format!(
+                        "= {}: too wide for a beam {:.2}° above the surface (the beam's z component must exceed 5× the divergence)",
+                        d.2,
+                        direction.z.asin().to_degrees()
+                    ),
+                );
+            }
+            d.0
+        }
+    };
     let chirp = match &s.chirp {
         None => None,
         Some(c) => {
@@ -381,12 +407,84 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
             Some(Chirp { bandwidth: positive(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
         }
     };
-    Ok(Source::new(wl.0, profile, position, direction, chirp))
+    let mut source = Source::new(wl.0, profile, position, direction, chirp);
+    source.divergence = divergence;
+    source.pointings = pointings;
+    Ok(source)
 }
 
-fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -> R<VelocityField> {
+/// The pointing of the beam by azimuth and elevation (degrees), or a scan of several.
+fn resolve_pointings(s: &SourceSection) -> R<Vec<Pointing>> {
+    let angles = |path: &str, az: f64, el: f64| -> R<Pointing> {
+        if !(az.is_finite() && (-360.0..=360.0).contains(&az)) {
+            return err(path, format!("azimuth = {az}°: expected −360 to 360 degrees clockwise from north"));
+        }
+        if !(el.is_finite() && el > 0.0 && el <= 90.0) {
+            return err(
+                path,
+                format!("elevation = {el}°: expected above 0 and at most 90 degrees (the beam must point up, +z)"),
+            );
+        }
+        Ok(Pointing::new(az, el))
+    };
+    let single = s.azimuth_deg.is_some() || s.elevation_deg.is_some();
+    if single && s.direction.is_some() {
+        return err("source", "give the pointing as direction or as azimuth_deg/elevation_deg, not both");
+    }
+    if let Some(list) = &s.pointings_deg {
+        if single || s.direction.is_some() {
+            return err(
+                "source.pointings_deg",
+                "a scan replaces direction, azimuth_deg and elevation_deg: remove them",
+            );
+        }
+        if list.is_empty() || list.len() > 10_000 {
+            return err("source.pointings_deg", format!("{} pointings: expected 1 to 10000", list.len()));
+        }
+        return list
+            .iter()
+            .enumerate()
+            .map(|(i, p)| angles(&format!("source.pointings_deg[{i}]"), p[0], p[1]))
+            .collect();
+    }
+    if single {
+        let el = s.elevation_deg.unwrap_or(90.0);
+        return Ok(vec![angles("source", s.azimuth_deg.unwrap_or(0.0), el)?]);
+    }
+    Ok(Vec::new())
+}
+
+/// What a velocity field may draw on besides its own keys: the region's cylinder (Poiseuille), the
+/// file's `[wind]` and the particle sizes of the population (terminal fall).
+#[derive(Clone, Copy)]
+struct FlowCtx<'a> {
+    cylinder: Option<&'a Shape>,
+    wind: Option<&'a WindProfile>,
+    /// Radii (m) with their σs weights.
+    sizes: &'a [(f64, f64)],
+}
+
+fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> R<VelocityField> {
+    let cylinder = fc.cylinder;
     Ok(match v {
         VelocitySection::None {} => VelocityField::Static,
+        VelocitySection::Wind {} => match fc.wind {
+            Some(w) => VelocityField::Wind(w.clone()),
+            None => return err(join(path, "type"), "= \"wind\" needs a [wind] table (the wind profile)"),
+        },
+        VelocitySection::TerminalFall {} => {
+            if fc.sizes.is_empty() {
+                return err(
+                    join(path, "type"),
+                    "= \"terminal_fall\" needs the medium's particles: the drop sizes give the fall speeds",
+                );
+            }
+            let pairs: Vec<(f64, f64)> = fc.sizes.iter().map(|&(r, w)| (atlas_fall_speed(2.0 * r), w)).collect();
+            let fall = FallSpeeds::new(&pairs)
+                .ok_or_else(|| ConfigError::new(path, "the particles scatter nothing: no drop sizes to fall"))?;
+            let wind = fc.wind.cloned().unwrap_or(WindProfile::Uniform(DVec3::ZERO));
+            VelocityField::TerminalFall { wind, fall: Arc::new(fall) }
+        }
         VelocitySection::Uniform { velocity_mm_per_s, velocity_m_per_s } => {
             let (v, _) = require_arr(
                 path,
@@ -425,6 +523,203 @@ fn resolve_velocity(path: &str, v: &VelocitySection, cylinder: Option<&Shape>) -
                 return err(v.1, "expected a finite speed (negative reverses the flow along the axis)");
             }
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
+        }
+    })
+}
+
+/// `[wind]`: the wind profile.
+fn resolve_wind(w: &WindSection) -> R<WindProfile> {
+    let finite = |key: &str, v: f64, what: &str| -> R<f64> {
+        if v.is_finite() { Ok(v) } else { err(join("wind", key), format!("= {v}: expected a finite {what}")) }
+    };
+    let horizontal = |deg: f64| -> R<DVec3> {
+        let d = finite("direction_from_deg", deg, "direction in degrees clockwise from north")?.to_radians();
+        // Blowing *from* azimuth d, i.e. toward d + 180°: (−sin d, −cos d, 0) in (east, north, up).
+        Ok(DVec3::new(-d.sin(), -d.cos(), 0.0))
+    };
+    let speed = |key: &str, v: f64| -> R<f64> {
+        if v.is_finite() && (0.0..=200.0).contains(&v) {
+            Ok(v)
+        } else {
+            err(join("wind", key), format!("= {v}: expected a wind speed from 0 to 200 m/s"))
+        }
+    };
+    let vertical = |v: Option<f64>| -> R<f64> {
+        let v = v.unwrap_or(0.0);
+        if v.is_finite() && v.abs() <= 100.0 {
+            Ok(v)
+        } else {
+            err("wind.vertical_m_per_s", format!("= {v}: expected a vertical velocity within ±100 m/s"))
+        }
+    };
+    let height = |key: &str, v: f64| -> R<f64> {
+        if v.is_finite() && v > 0.0 { Ok(v) } else { err(join("wind", key), format!("= {v}: expected a height > 0 m")) }
+    };
+    Ok(match w {
+        WindSection::Uniform { velocity_m_per_s } => {
+            let v = DVec3::from_array(*velocity_m_per_s);
+            if !v.is_finite() || v.length() > 200.0 {
+                return err(
+                    "wind.velocity_m_per_s",
+                    format!("= {velocity_m_per_s:?}: expected finite components, |v| ≤ 200 m/s"),
+                );
+            }
+            WindProfile::Uniform(v)
+        }
+        WindSection::PowerLaw { speed_m_per_s, reference_height_m, exponent, direction_from_deg, vertical_m_per_s } => {
+            if !(exponent.is_finite() && (0.0..=1.0).contains(exponent)) {
+                return err(
+                    "wind.exponent",
+                    format!("= {exponent}: expected a shear exponent α in [0, 1] (1/7 onshore)"),
+                );
+            }
+            WindProfile::PowerLaw {
+                direction: horizontal(*direction_from_deg)?,
+                speed_ref: speed("speed_m_per_s", *speed_m_per_s)?,
+                height_ref: height("reference_height_m", *reference_height_m)?,
+                exponent: *exponent,
+                vertical: vertical(*vertical_m_per_s)?,
+            }
+        }
+        WindSection::LogLaw {
+            friction_velocity_m_per_s,
+            speed_m_per_s,
+            reference_height_m,
+            roughness_length_m,
+            displacement_height_m,
+            direction_from_deg,
+            vertical_m_per_s,
+        } => {
+            let z0 = height("roughness_length_m", *roughness_length_m)?;
+            let d = displacement_height_m.unwrap_or(0.0);
+            if !(d.is_finite() && d >= 0.0) {
+                return err("wind.displacement_height_m", format!("= {d}: expected a height ≥ 0 m"));
+            }
+            let u_star = match (friction_velocity_m_per_s, speed_m_per_s, reference_height_m) {
+                (Some(u), None, None) => speed("friction_velocity_m_per_s", *u)?,
+                (None, Some(u), Some(h)) => {
+                    let h = height("reference_height_m", *h)?;
+                    if h - d <= z0 {
+                        return err(
+                            "wind.reference_height_m",
+                            format!(
+                                "= {h}: the reference height must lie above displacement + roughness ({} m)",
+                                d + z0
+                            ),
+                        );
+                    }
+                    // u(h) = (u*/κ) ln((h − d)/z0), solved for u*.
+                    speed("speed_m_per_s", *u)? * VON_KARMAN / ((h - d) / z0).ln()
+                }
+                _ => {
+                    return err(
+                        "wind",
+                        "a log-law wind needs friction_velocity_m_per_s, or speed_m_per_s with reference_height_m (not both)",
+                    );
+                }
+            };
+            WindProfile::LogLaw {
+                direction: horizontal(*direction_from_deg)?,
+                friction_velocity: u_star,
+                roughness: z0,
+                displacement: d,
+                vertical: vertical(*vertical_m_per_s)?,
+            }
+        }
+        WindSection::Table { heights_m, velocities_m_per_s } => {
+            if velocities_m_per_s.is_empty() || heights_m.len() != velocities_m_per_s.len() + 1 {
+                return err(
+                    "wind.heights_m",
+                    format!(
+                        "{} heights for {} velocities: give the n + 1 layer edges of n ≥ 1 velocities",
+                        heights_m.len(),
+                        velocities_m_per_s.len()
+                    ),
+                );
+            }
+            if heights_m.iter().any(|h| !h.is_finite()) || heights_m.windows(2).any(|w| w[1] <= w[0]) {
+                return err("wind.heights_m", "expected finite heights in strictly increasing order (m)");
+            }
+            if let Some(i) = velocities_m_per_s
+                .iter()
+                .position(|v| !DVec3::from_array(*v).is_finite() || DVec3::from_array(*v).length() > 200.0)
+            {
+                return err(
+                    format!("wind.velocities_m_per_s[{i}]"),
+                    format!("= {:?}: expected finite components, |v| ≤ 200 m/s", velocities_m_per_s[i]),
+                );
+            }
+            WindProfile::Table {
+                edges: heights_m.as_slice().into(),
+                velocities: velocities_m_per_s.iter().map(|v| DVec3::from_array(*v)).collect(),
+            }
+        }
+    })
+}
+
+/// A factor on σs and σa as a function of height.
+enum HeightProfile {
+    Exponential { scale: f64 },
+    BoundaryLayer { top: f64, scale: f64 },
+    Table { heights: Vec<f64>, factors: Vec<f64> },
+}
+
+impl HeightProfile {
+    fn factor(&self, h: f64) -> f64 {
+        match self {
+            HeightProfile::Exponential { scale } => (-h / scale).exp(),
+            HeightProfile::BoundaryLayer { top, scale } => {
+                if h <= *top {
+                    1.0
+                } else {
+                    (-(h - top) / scale).exp()
+                }
+            }
+            HeightProfile::Table { heights, factors } => {
+                let i = heights.partition_point(|&x| x <= h);
+                if i == 0 {
+                    factors[0]
+                } else if i == heights.len() {
+                    factors[i - 1]
+                } else {
+                    let t = (h - heights[i - 1]) / (heights[i] - heights[i - 1]);
+                    factors[i - 1] + t * (factors[i] - factors[i - 1])
+                }
+            }
+        }
+    }
+}
+
+fn resolve_height_profile(path: &str, h: &HeightProfileSection) -> R<HeightProfile> {
+    let length = |key: &str, v: f64| -> R<f64> {
+        if v.is_finite() && v > 0.0 { Ok(v) } else { err(join(path, key), format!("= {v}: expected a length > 0 m")) }
+    };
+    Ok(match h {
+        HeightProfileSection::Exponential { scale_height_m } => {
+            HeightProfile::Exponential { scale: length("scale_height_m", *scale_height_m)? }
+        }
+        HeightProfileSection::BoundaryLayer { top_m, scale_height_m } => HeightProfile::BoundaryLayer {
+            top: length("top_m", *top_m)?,
+            scale: length("scale_height_m", *scale_height_m)?,
+        },
+        HeightProfileSection::Table { heights_m, factors } => {
+            if heights_m.is_empty() || heights_m.len() != factors.len() {
+                return err(
+                    join(path, "factors"),
+                    format!(
+                        "{} factors for {} heights: expected one factor per height",
+                        factors.len(),
+                        heights_m.len()
+                    ),
+                );
+            }
+            if heights_m.iter().any(|h| !h.is_finite()) || heights_m.windows(2).any(|w| w[1] <= w[0]) {
+                return err(join(path, "heights_m"), "expected finite heights in strictly increasing order (m)");
+            }
+            if let Some(f) = factors.iter().find(|f| !(f.is_finite() && **f >= 0.0 && **f <= 1e6)) {
+                return err(join(path, "factors"), format!("contains {f}: expected factors in [0, 1e6]"));
+            }
+            HeightProfile::Table { heights: heights_m.clone(), factors: factors.clone() }
         }
     })
 }
@@ -487,6 +782,18 @@ struct Optics {
     sigma_s: f64,
     phase: PhaseFunction,
     info: MediumInfo,
+    /// Particle radii (m) with the σs (m⁻¹) each contributes, when the medium has particles.
+    sizes: Vec<(f64, f64)>,
+    /// With `size_classes`: one population per class (then the fields above are their sums).
+    classes: Vec<ClassOptics>,
+}
+
+/// The optics of one size class of a medium's particles.
+#[derive(Debug, Clone)]
+struct ClassOptics {
+    sigma_s: f64,
+    phase: PhaseFunction,
+    sizes: Vec<(f64, f64)>,
 }
 
 /// Default number of angles of a Mie phase table, and the grid used when only σ and g are needed.
@@ -521,6 +828,9 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
     };
     if let Some(a) = mie_angles.filter(|a| !(16..=100_000).contains(a)) {
         return err(join(path, "phase.angles"), format!("= {a}: expected 16 to 100000 angles"));
+    }
+    if let Some(classes) = m.size_classes {
+        return resolve_classes(path, m, classes, mie_angles, ctx);
     }
     let particles = match &m.particles {
         None => None,
@@ -609,6 +919,7 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
             (PhaseFunction::Tabulated(Arc::new(t)), "mie")
         }
     };
+    let sizes = particles.as_ref().map_or(Vec::new(), |p| p.sizes.iter().map(|&(r, s)| (r, s * scale)).collect());
     let info = MediumInfo {
         preset: m.preset.clone(),
         phase: kind.to_string(),
@@ -617,7 +928,81 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
         particles,
         sigma_s_scale: scale,
     };
-    Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase, info })
+    Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase, info, sizes, classes: Vec::new() })
+}
+
+/// A medium whose particles are split into `classes` size classes, each its own population with
+/// its own Mie phase function (σs, σa and the phase functions all come from Mie theory).
+fn resolve_classes(path: &str, m: &MediumSection, classes: u64, mie_angles: Option<u64>, ctx: &Ctx) -> R<Optics> {
+    let key = join(path, "size_classes");
+    if !(2..=64).contains(&classes) {
+        return err(key, format!("= {classes}: expected 2 to 64 size classes"));
+    }
+    let Some(list) = &m.particles else {
+        return err(key, "splits the medium's particles into size classes: add a particles table");
+    };
+    let explicit = [
+        ("sigma_a_per_m", m.sigma_a_per_m),
+        ("sigma_a_per_cm", m.sigma_a_per_cm),
+        ("sigma_a_per_mm", m.sigma_a_per_mm),
+        ("sigma_s_per_m", m.sigma_s_per_m),
+        ("sigma_s_per_cm", m.sigma_s_per_cm),
+        ("sigma_s_per_mm", m.sigma_s_per_mm),
+    ];
+    if let Some((k, _)) = explicit.iter().find(|(_, v)| v.is_some()) {
+        return err(join(path, k), "with size_classes σs and σa come from the Mie classes: remove this key");
+    }
+    let Some(angles) = mie_angles else {
+        return err(
+            join(path, "phase"),
+            "with size_classes each class has its Mie phase function: remove phase or give type = \"mie\"",
+        );
+    };
+    let scale = m.sigma_s_scale.unwrap_or(1.0);
+    if !(scale.is_finite() && scale >= 0.0) {
+        return err(join(path, "sigma_s_scale"), format!("= {scale}: expected a factor ≥ 0"));
+    }
+    let optics = particle_classes(&join(path, "particles"), list, classes as usize, angles as usize, ctx)?;
+    let mut out = Vec::with_capacity(optics.len());
+    for (i, o) in optics.iter().enumerate() {
+        let origin = format!("Mie, size class {i} of {classes}, λ0 = {:.1} nm", ctx.wavelength * 1e9);
+        let t = TabulatedPhase::from_angles(&o.theta, &o.phase, origin).map_err(|e| {
+            ConfigError::new(
+                join(path, "particles"),
+                format!("size class {i}: the Mie phase function is not a distribution: {e}"),
+            )
+        })?;
+        out.push(ClassOptics {
+            sigma_s: o.sigma_s * scale,
+            phase: PhaseFunction::Tabulated(Arc::new(t)),
+            sizes: o.sizes.iter().map(|&(r, s)| (r, s * scale)).collect(),
+        });
+    }
+    // The whole ensemble, for the record: sums over the classes.
+    let sigma_s: f64 = optics.iter().map(|o| o.sigma_s).sum();
+    let sigma_a: f64 = optics.iter().map(|o| o.sigma_a).sum();
+    let backscatter: f64 = optics.iter().map(|o| o.backscatter).sum();
+    let g = optics.iter().map(|o| o.sigma_s * o.g).sum::<f64>() / sigma_s;
+    let whole = ParticleOptics {
+        sigma_s,
+        sigma_a,
+        g,
+        backscatter,
+        lidar_ratio: (sigma_s + sigma_a) / backscatter,
+        components: optics.iter().flat_map(|o| o.components.clone()).collect(),
+        theta: Vec::new(),
+        phase: Vec::new(),
+        sizes: optics.iter().flat_map(|o| o.sizes.clone()).collect(),
+    };
+    let info = MediumInfo {
+        preset: m.preset.clone(),
+        phase: format!("mie, {} size classes", out.len()),
+        g,
+        table: None,
+        particles: Some(whole),
+        sigma_s_scale: scale,
+    };
+    Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase: out[0].phase.clone(), info, sizes: Vec::new(), classes: out })
 }
 
 /// A positive length given as `NAME_um`, `NAME_mm` or `NAME_m`, if given.
@@ -658,6 +1043,53 @@ fn size_range(
 }
 
 fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usize, ctx: &Ctx) -> R<ParticleOptics> {
+    let specs = particle_specs(path, list, ctx)?;
+    mixture_optics(&specs, angles).map_err(|e| ConfigError::new(path, e.to_string()))
+}
+
+/// The Mie optics of each of `classes` size classes of one Marshall–Palmer component, with
+/// diameters log-spaced over its range and the quadrature nodes shared among them. Classes that
+/// hold essentially no drops (far in the tail) are left out.
+fn particle_classes(
+    path: &str,
+    list: &OneOrMany<ParticlesSection>,
+    classes: usize,
+    angles: usize,
+    ctx: &Ctx,
+) -> R<Vec<ParticleOptics>> {
+    let specs = particle_specs(path, list, ctx)?;
+    let [(name, spec)] = specs.as_slice() else {
+        return err(path, "size_classes splits one particle component: give a single particles table");
+    };
+    let SizeDistribution::MarshallPalmer { rain_rate_mm_per_h, d_min, d_max } = spec.distribution else {
+        return err(
+            join(path, "size.type"),
+            "size_classes needs an absolute size distribution: use type = \"marshall_palmer\" (the others are normalised to their whole range)",
+        );
+    };
+    let size_points = (spec.size_points / classes).max(16);
+    let mut out = Vec::with_capacity(classes);
+    for i in 0..classes {
+        let edge = |j: usize| d_min * (d_max / d_min).powf(j as f64 / classes as f64);
+        let class = EnsembleSpec {
+            distribution: SizeDistribution::MarshallPalmer { rain_rate_mm_per_h, d_min: edge(i), d_max: edge(i + 1) },
+            size_points,
+            ..*spec
+        };
+        match mixture_optics(&[(format!("{name}[{i}]"), class)], angles) {
+            Ok(o) if o.sigma_s > 0.0 => out.push(o),
+            Ok(_) | Err(crate::mie::MieError::EmptyDistribution(_)) => {}
+            Err(e) => return err(path, format!("size class {i}: {e}")),
+        }
+    }
+    if out.is_empty() {
+        return err(path, "no size class holds any drops");
+    }
+    Ok(out)
+}
+
+/// The ensemble specification of every particle component.
+fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> R<Vec<(String, EnsembleSpec)>> {
     let items = list.items();
     if items.is_empty() {
         return err(path, "an empty list: give at least one particle component");
@@ -837,7 +1269,7 @@ fn resolve_particles(path: &str, list: &OneOrMany<ParticlesSection>, angles: usi
             },
         ));
     }
-    mixture_optics(&specs, angles).map_err(|e| ConfigError::new(path, e.to_string()))
+    Ok(specs)
 }
 
 fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
@@ -894,32 +1326,74 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
             .get(name)
             .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
     };
+    let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
     // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
-    let mut optics: BTreeMap<&str, Optics> = BTreeMap::new();
-    let mut make = |path: &str, name: &str, ms: &MediumSection, velocity: VelocityField| -> R<Medium> {
-        let o = match optics.get(name) {
-            Some(o) => o,
-            None => {
-                let o = resolve_optics(path, ms, ctx)?;
-                optics.entry(f.media.get_key_value(name).expect("looked up").0.as_str()).or_insert(o)
-            }
+    let mut optics: BTreeMap<String, Optics> = BTreeMap::new();
+    // A medium at height `height` (for its height profile); `velocity` overrides the medium's
+    // own (a region's), `cylinder` is the region's shape if it is one.
+    let mut make = |path: &str,
+                    name: &str,
+                    ms: &MediumSection,
+                    velocity: Option<(String, &VelocitySection)>,
+                    cylinder: Option<&Shape>,
+                    height: f64|
+     -> R<Medium> {
+        let Some(list) = &ms.populations else {
+            let velocity = velocity.or_else(|| ms.velocity.as_ref().map(|v| (join(path, "velocity"), v)));
+            let (sigma_a, populations, info) =
+                populations_of(&mut optics, ctx, wind.as_ref(), path, name, ms, velocity, cylinder, height)?;
+            let mut m = Medium::mixture(name, sigma_a, populations);
+            m.info = info;
+            return Ok(m);
         };
-        let mut m = Medium::new(name, o.sigma_a, o.sigma_s, o.phase.clone(), velocity);
-        m.info = o.info.clone();
-        if let Some(motion) = &ms.motion {
-            m.motion = resolve_motion(&join(path, "motion"), motion)?;
+        check_mixture(path, ms)?;
+        if let Some((p, _)) = velocity {
+            return err(p, format!("medium \"{name}\" is a mixture: each population keeps its own velocity"));
         }
+        if list.is_empty() {
+            return err(join(path, "populations"), "an empty list: name at least one medium");
+        }
+        let (mut sigma_a, mut all, mut names) = (0.0, Vec::new(), Vec::new());
+        for (j, pname) in list.iter().enumerate() {
+            let key = format!("{}[{j}]", join(path, "populations"));
+            let pms = lookup(key.clone(), pname)?;
+            if pms.populations.is_some() {
+                return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
+            }
+            let ppath = format!("media.{pname}");
+            let pv = pms.velocity.as_ref().map(|v| (join(&ppath, "velocity"), v));
+            let (sa, pops, _) =
+                populations_of(&mut optics, ctx, wind.as_ref(), &ppath, pname, pms, pv, cylinder, height)?;
+            sigma_a += sa;
+            all.extend(pops);
+            names.push(pname.clone());
+        }
+        let mut m = Medium::mixture(name, sigma_a, all);
+        let g =
+            m.populations().iter().map(|p| p.sigma_s * p.phase.mean_cosine()).sum::<f64>() / m.sigma_s().max(1e-300);
+        m.info = MediumInfo {
+            preset: ms.preset.clone(),
+            phase: format!("mixture of {}", names.join(", ")),
+            g,
+            sigma_s_scale: 1.0,
+            ..MediumInfo::default()
+        };
         Ok(m)
     };
     let mut media: Vec<Medium> = Vec::new();
     let mut layers: Vec<Layer> = Vec::new();
     let mut layer_index: BTreeMap<String, usize> = BTreeMap::new();
+    let mut split: Vec<String> = Vec::new();
     let mut z = 0.0;
     for (i, l) in f.layers.iter().enumerate() {
         let path = format!("layers[{i}]");
         let name = l.name.clone().unwrap_or_else(|| format!("layer{i}"));
-        if layer_index.insert(name.clone(), i).is_some() {
+        if layer_index.contains_key(&name) || split.contains(&name) {
             return err(join(&path, "name"), format!("= \"{name}\": layer names must be unique"));
+        }
+        let parts = l.sublayers.unwrap_or(1);
+        if !(1..=100_000).contains(&parts) {
+            return err(join(&path, "sublayers"), format!("= {parts}: expected 1 to 100000 layers"));
         }
         let th = length_req(&path, "thickness", l.thickness_um, l.thickness_mm, l.thickness_m)?;
         let last = i + 1 == f.layers.len();
@@ -936,29 +1410,47 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         )?;
         let ms = lookup(join(&path, "medium"), &l.medium)?;
         let mpath = format!("media.{}", l.medium);
-        let velocity = match &ms.velocity {
-            None => VelocityField::Static,
-            Some(v) => resolve_velocity(&join(&mpath, "velocity"), v, None)
-                .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?,
-        };
-        media.push(make(&mpath, &l.medium, ms, velocity)?);
-        layers.push(Layer {
-            name,
-            z_top: z,
-            z_bottom: z + thickness,
-            n,
-            medium: media.len() - 1,
-            regions: Vec::new(),
-            majorant: 0.0,
-            minorant: 0.0,
-            tau_above: 0.0,
-        });
+        if parts > 1 && thickness == f64::INFINITY {
+            return err(join(&path, "sublayers"), "a semi-infinite layer cannot be split");
+        }
+        let step = thickness / parts as f64;
+        for j in 0..parts {
+            // (The last bottom is exact, and a single semi-infinite layer never forms 0·∞.)
+            let top = if j == 0 { z } else { z + j as f64 * step };
+            let bottom = if j + 1 == parts { z + thickness } else { z + (j + 1) as f64 * step };
+            let height = if bottom.is_finite() { 0.5 * (top + bottom) } else { top };
+            let m = make(&mpath, &l.medium, ms, None, None, height)
+                .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?;
+            media.push(m);
+            layers.push(Layer {
+                name: if parts > 1 { format!("{name}[{j}]") } else { name.clone() },
+                z_top: top,
+                z_bottom: bottom,
+                n,
+                medium: media.len() - 1,
+                regions: Vec::new(),
+                majorant: 0.0,
+                minorant: 0.0,
+                tau_above: 0.0,
+            });
+        }
+        if parts > 1 {
+            split.push(name);
+        } else {
+            layer_index.insert(name, layers.len() - 1);
+        }
         z += thickness;
     }
     let mut regions: Vec<Region> = Vec::new();
     for (i, r) in f.regions.iter().enumerate() {
         let path = format!("regions[{i}]");
         let name = r.name.clone().unwrap_or_else(|| format!("region{i}"));
+        if split.contains(&r.layer) {
+            return err(
+                join(&path, "layer"),
+                format!("= \"{}\" is split into sublayers: regions need an unsplit layer", r.layer),
+            );
+        }
         let li = *layer_index.get(&r.layer).ok_or_else(|| {
             ConfigError::new(
                 join(&path, "layer"),
@@ -992,12 +1484,8 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         }
         let ms = lookup(join(&path, "medium"), &r.medium)?;
         let mpath = format!("media.{}", r.medium);
-        let velocity = match (&r.velocity, &ms.velocity) {
-            (Some(v), _) => resolve_velocity(&join(&path, "velocity"), v, Some(&shape))?,
-            (None, Some(v)) => resolve_velocity(&join(&mpath, "velocity"), v, Some(&shape))?,
-            (None, None) => VelocityField::Static,
-        };
-        media.push(make(&mpath, &r.medium, ms, velocity)?);
+        let velocity = r.velocity.as_ref().map(|v| (join(&path, "velocity"), v));
+        media.push(make(&mpath, &r.medium, ms, velocity, Some(&shape), 0.5 * (zmin + zmax))?);
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
     }
@@ -1011,6 +1499,88 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         tau_above += layer.minorant * (layer.z_bottom - layer.z_top);
     }
     Ok(Scene { layers, regions, media, n_above, n_below })
+}
+
+/// A mixture medium (`populations`) takes everything from its populations.
+fn check_mixture(path: &str, ms: &MediumSection) -> R<()> {
+    let given = [
+        ("particles", ms.particles.is_some()),
+        ("sigma_a_per_m", ms.sigma_a_per_m.is_some()),
+        ("sigma_a_per_cm", ms.sigma_a_per_cm.is_some()),
+        ("sigma_a_per_mm", ms.sigma_a_per_mm.is_some()),
+        ("sigma_s_per_m", ms.sigma_s_per_m.is_some()),
+        ("sigma_s_per_cm", ms.sigma_s_per_cm.is_some()),
+        ("sigma_s_per_mm", ms.sigma_s_per_mm.is_some()),
+        ("sigma_s_scale", ms.sigma_s_scale.is_some()),
+        ("phase", ms.phase.is_some()),
+        ("velocity", ms.velocity.is_some()),
+        ("motion", ms.motion.is_some()),
+        ("size_classes", ms.size_classes.is_some()),
+        ("height_profile", ms.height_profile.is_some()),
+    ];
+    match given.iter().find(|g| g.1) {
+        Some((key, _)) => err(
+            join(path, key),
+            "a mixture medium (populations) takes its optics, velocity and profile from its populations: give this key there",
+        ),
+        None => Ok(()),
+    }
+}
+
+/// The populations of a medium that is not a mixture: one, or one per size class; with its total
+/// σa and its provenance. σs and σa are scaled by the height profile at `height`.
+#[allow(clippy::too_many_arguments)]
+fn populations_of(
+    optics: &mut BTreeMap<String, Optics>,
+    ctx: &Ctx,
+    wind: Option<&WindProfile>,
+    path: &str,
+    name: &str,
+    ms: &MediumSection,
+    velocity: Option<(String, &VelocitySection)>,
+    cylinder: Option<&Shape>,
+    height: f64,
+) -> R<(f64, Vec<Population>, MediumInfo)> {
+    if !optics.contains_key(name) {
+        let o = resolve_optics(path, ms, ctx)?;
+        optics.insert(name.to_string(), o);
+    }
+    let o = &optics[name];
+    let factor = match &ms.height_profile {
+        Some(h) => resolve_height_profile(&join(path, "height_profile"), h)?.factor(height),
+        None => 1.0,
+    };
+    let motion = match &ms.motion {
+        Some(m) => resolve_motion(&join(path, "motion"), m)?,
+        None => Motion::default(),
+    };
+    let field = |sizes: &[(f64, f64)]| -> R<VelocityField> {
+        match &velocity {
+            None => Ok(VelocityField::Static),
+            Some((p, v)) => resolve_velocity(p, v, FlowCtx { cylinder, wind, sizes }),
+        }
+    };
+    if o.classes.is_empty() {
+        let population = Population {
+            name: name.to_string(),
+            phase: o.phase.clone(),
+            velocity: field(&o.sizes)?,
+            motion,
+            sigma_s: o.sigma_s * factor,
+        };
+        return Ok((o.sigma_a * factor, vec![population], o.info.clone()));
+    }
+    let mut populations = Vec::with_capacity(o.classes.len());
+    for (i, c) in o.classes.iter().enumerate() {
+        populations.push(Population {
+            name: format!("{name}[{i}]"),
+            phase: c.phase.clone(),
+            velocity: field(&c.sizes)?,
+            motion,
+            sigma_s: c.sigma_s * factor,
+        });
+    }
+    Ok((o.sigma_a * factor, populations, o.info.clone()))
 }
 
 /// `name` names output files: a non-empty word of letters, digits, `_` and `-`.

@@ -29,6 +29,57 @@ pub struct ExperimentFile {
     pub regions: Vec<RegionSection>,
     #[serde(default)]
     pub detectors: Vec<DetectorSection>,
+    /// The wind of an atmosphere (`z` = height above the ground), used by media with
+    /// `velocity = { type = "wind" }` or `{ type = "terminal_fall" }`.
+    pub wind: Option<WindSection>,
+}
+
+/// `[wind]`: horizontal wind as a function of height, plus a vertical velocity. Directions are
+/// meteorological: `direction_from_deg` is where the wind blows *from*, clockwise from north
+/// (270 = a westerly, blowing toward +x = east); `y` is north, `z` up.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum WindSection {
+    Uniform {
+        velocity_m_per_s: [f64; 3],
+    },
+    /// `u(h) = u_ref·(h/h_ref)^α`.
+    PowerLaw {
+        speed_m_per_s: f64,
+        reference_height_m: f64,
+        exponent: f64,
+        direction_from_deg: f64,
+        vertical_m_per_s: Option<f64>,
+    },
+    /// `u(h) = (u*/κ)·ln((h − d)/z0)`; give u* or the speed at a reference height.
+    LogLaw {
+        friction_velocity_m_per_s: Option<f64>,
+        speed_m_per_s: Option<f64>,
+        reference_height_m: Option<f64>,
+        roughness_length_m: f64,
+        displacement_height_m: Option<f64>,
+        direction_from_deg: f64,
+        vertical_m_per_s: Option<f64>,
+    },
+    /// One velocity per layer of height: `velocities_m_per_s[i]` for
+    /// `heights_m[i] ≤ h < heights_m[i + 1]`.
+    Table {
+        heights_m: Vec<f64>,
+        velocities_m_per_s: Vec<[f64; 3]>,
+    },
+}
+
+/// How a medium's coefficients change with height (`z`, m, above the ground at `z = 0`):
+/// a factor on σs and σa, taken at the middle of each layer the medium fills.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum HeightProfileSection {
+    /// `exp(−h/H)`.
+    Exponential { scale_height_m: f64 },
+    /// 1 up to the boundary-layer top, then `exp(−(h − top)/H)`.
+    BoundaryLayer { top_m: f64, scale_height_m: f64 },
+    /// Piecewise linear through `(heights_m[i], factors[i])`, constant beyond the ends.
+    Table { heights_m: Vec<f64>, factors: Vec<f64> },
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
@@ -71,6 +122,15 @@ pub struct SourceSection {
     pub position_mm: Option<[f64; 3]>,
     pub position_m: Option<[f64; 3]>,
     pub direction: Option<[f64; 3]>,
+    /// Pointing by angles instead of `direction`, in the frame x = east, y = north, z = up (the
+    /// depth axis of the stack): azimuth clockwise from north, elevation above the horizontal.
+    pub azimuth_deg: Option<f64>,
+    pub elevation_deg: Option<f64>,
+    /// A scan: `[[azimuth, elevation], …]` in degrees, one run per pointing (a VAD scan).
+    pub pointings_deg: Option<Vec<[f64; 2]>>,
+    /// Far-field divergence of the Gaussian beam: the 1/e² intensity half-angle.
+    pub divergence_urad: Option<f64>,
+    pub divergence_mrad: Option<f64>,
     pub chirp: Option<ChirpSection>,
 }
 
@@ -127,6 +187,16 @@ pub struct MediumSection {
     pub velocity: Option<VelocitySection>,
     /// Random motion of the particles beyond the flow.
     pub motion: Option<MotionSection>,
+    /// A mixture of other media: each named medium becomes one particle population of this one
+    /// (σs and σa add; at a scattering event the population is drawn in proportion to its σs and
+    /// its phase function and velocity are used). Nothing else may then be given.
+    pub populations: Option<Vec<String>>,
+    /// Split the (single) particle size distribution into this many size classes (diameters
+    /// log-spaced), each a population with its own Mie phase function (and, with
+    /// `velocity.type = "terminal_fall"`, its own drop sizes' fall speeds).
+    pub size_classes: Option<u64>,
+    /// σs and σa scaled with height.
+    pub height_profile: Option<HeightProfileSection>,
 }
 
 /// `[media.X.motion]`: a per-event random velocity and Brownian diffusion.
@@ -302,6 +372,11 @@ pub enum VelocitySection {
         speed_mm_per_s: Option<f64>,
         speed_m_per_s: Option<f64>,
     },
+    /// Carried by the `[wind]` at the particle's height.
+    Wind {},
+    /// Falling drops: the `[wind]` (calm without one) plus each drop size's terminal fall speed
+    /// (Atlas et al. 1973) downward; the drop sizes are the medium's particles.
+    TerminalFall {},
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -314,6 +389,9 @@ pub struct LayerSection {
     pub thickness_m: Option<f64>,
     pub n: Option<f64>,
     pub medium: String,
+    /// Split the layer into this many equal layers (named `NAME[i]`), e.g. 100 layers of 10 m for
+    /// an atmosphere with a wind or density profile.
+    pub sublayers: Option<u64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

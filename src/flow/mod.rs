@@ -4,12 +4,155 @@
 //! looks a velocity up, and a scene in which nothing moves compiles its random walk without the
 //! Doppler term at all (see `transport::walk`).
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::sampling::{PathRng, warp};
 
+/// Von Kármán's constant of the logarithmic wind profile (scene-parameters §B5).
+pub const VON_KARMAN: f64 = 0.40;
+
+/// Wind as a function of height. In an atmosphere the scene's `z` is the height above the ground
+/// (`z = 0`), with the lidar at `z ≤ 0` looking up; `x` is east and `y` north.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WindProfile {
+    /// The same velocity at every height.
+    Uniform(DVec3),
+    /// Power law (Hellmann): horizontal speed `u(h) = u_ref·(h/h_ref)^α` along the unit
+    /// horizontal `direction` (0 at `h ≤ 0`), plus a constant vertical velocity.
+    PowerLaw { direction: DVec3, speed_ref: f64, height_ref: f64, exponent: f64, vertical: f64 },
+    /// Logarithmic surface layer: `u(h) = (u*/κ)·ln((h − d)/z0)` for `h − d > z0`, else 0
+    /// (friction velocity `u*`, roughness length `z0`, displacement height `d`).
+    LogLaw { direction: DVec3, friction_velocity: f64, roughness: f64, displacement: f64, vertical: f64 },
+    /// A table per layer of height: `velocities[i]` for `edges[i] ≤ h < edges[i + 1]`, the first
+    /// below `edges[0]` and the last above the top edge.
+    Table { edges: Arc<[f64]>, velocities: Arc<[DVec3]> },
+}
+
+impl WindProfile {
+    /// The wind at height `h`, m/s.
+    #[inline]
+    pub fn at(&self, h: f64) -> DVec3 {
+        match self {
+            WindProfile::Uniform(v) => *v,
+            WindProfile::PowerLaw { direction, speed_ref, height_ref, exponent, vertical } => {
+                let u = if h > 0.0 { speed_ref * (h / height_ref).powf(*exponent) } else { 0.0 };
+                *direction * u + DVec3::new(0.0, 0.0, *vertical)
+            }
+            WindProfile::LogLaw { direction, friction_velocity, roughness, displacement, vertical } => {
+                let above = h - displacement;
+                let u =
+                    if above > *roughness { friction_velocity / VON_KARMAN * (above / roughness).ln() } else { 0.0 };
+                *direction * u + DVec3::new(0.0, 0.0, *vertical)
+            }
+            WindProfile::Table { edges, velocities } => {
+                // Layers are few (≈ 100): the partition point is a short binary search.
+                let i = edges.partition_point(|&e| e <= h).saturating_sub(1).min(velocities.len() - 1);
+                velocities[i]
+            }
+        }
+    }
+
+    /// Whether the wind is zero everywhere.
+    pub fn is_calm(&self) -> bool {
+        match self {
+            WindProfile::Uniform(v) => *v == DVec3::ZERO,
+            WindProfile::PowerLaw { speed_ref, vertical, .. } => *speed_ref == 0.0 && *vertical == 0.0,
+            WindProfile::LogLaw { friction_velocity, vertical, .. } => *friction_velocity == 0.0 && *vertical == 0.0,
+            WindProfile::Table { velocities, .. } => velocities.iter().all(|v| *v == DVec3::ZERO),
+        }
+    }
+
+    /// The same profile with every velocity reversed.
+    pub fn reversed(&self) -> Self {
+        match self {
+            WindProfile::Uniform(v) => WindProfile::Uniform(-*v),
+            WindProfile::PowerLaw { direction, speed_ref, height_ref, exponent, vertical } => WindProfile::PowerLaw {
+                direction: -*direction,
+                speed_ref: *speed_ref,
+                height_ref: *height_ref,
+                exponent: *exponent,
+                vertical: -vertical,
+            },
+            WindProfile::LogLaw { direction, friction_velocity, roughness, displacement, vertical } => {
+                WindProfile::LogLaw {
+                    direction: -*direction,
+                    friction_velocity: *friction_velocity,
+                    roughness: *roughness,
+                    displacement: *displacement,
+                    vertical: -vertical,
+                }
+            }
+            WindProfile::Table { edges, velocities } => {
+                WindProfile::Table { edges: edges.clone(), velocities: velocities.iter().map(|v| -*v).collect() }
+            }
+        }
+    }
+}
+
+/// Terminal fall speed (m/s) of a raindrop of diameter `d` (m) in still air near the ground:
+/// Atlas, Srivastava & Sekhon (1973, Rev. Geophys. 11:1, Eq. 24),
+/// `v = 9.65 − 10.3·exp(−0.6·D/mm)` m/s, a fit to Gunn & Kinzer (1949) for D ≈ 0.1–6 mm; it turns
+/// negative below D = 0.109 mm, where it is clamped to 0 (those drops hardly fall: Stokes gives
+/// 0.3 m/s at 0.1 mm).
+pub fn atlas_fall_speed(d: f64) -> f64 {
+    (9.65 - 10.3 * (-0.6 * d * 1e3).exp()).max(0.0)
+}
+
+/// A discrete distribution of fall speeds (m/s): the speeds of the drop sizes of one population,
+/// each with its share of the population's σs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FallSpeeds {
+    speeds: Vec<f64>,
+    /// Cumulative share of σs, the last exactly 1.
+    cumulative: Vec<f64>,
+}
+
+impl FallSpeeds {
+    /// From `(speed, weight)` pairs with weights ≥ 0 and a positive sum; `None` otherwise.
+    pub fn new(pairs: &[(f64, f64)]) -> Option<Self> {
+        let total: f64 = pairs.iter().map(|p| p.1).sum();
+        if !(total > 0.0 && total.is_finite()) || pairs.iter().any(|p| p.1 < 0.0 || !p.0.is_finite()) {
+            return None;
+        }
+        let mut acc = 0.0;
+        let mut cumulative: Vec<f64> = pairs
+            .iter()
+            .map(|p| {
+                acc += p.1;
+                acc / total
+            })
+            .collect();
+        *cumulative.last_mut()? = 1.0;
+        Some(FallSpeeds { speeds: pairs.iter().map(|p| p.0).collect(), cumulative })
+    }
+
+    /// The speed of the uniform number `u ∈ [0, 1)`.
+    #[inline]
+    pub fn sample(&self, u: f64) -> f64 {
+        let i = self.cumulative.partition_point(|&c| c <= u).min(self.speeds.len() - 1);
+        self.speeds[i]
+    }
+
+    /// The speeds (m/s) with their shares of σs (summing to 1).
+    pub fn shares(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let mut prev = 0.0;
+        self.speeds.iter().zip(&self.cumulative).map(move |(&s, &c)| {
+            let w = c - prev;
+            prev = c;
+            (s, w)
+        })
+    }
+
+    /// The σs-weighted mean speed, m/s.
+    pub fn mean(&self) -> f64 {
+        self.shares().map(|(s, w)| s * w).sum()
+    }
+}
+
 /// The velocity (m/s) of the scatterers of a medium.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum VelocityField {
     /// Nothing moves.
     Static,
@@ -28,6 +171,11 @@ pub enum VelocityField {
     /// Each scattering event draws a fresh direction, uniform on the sphere, at fixed speed
     /// (an ensemble of particles moving in random directions).
     RandomDirection { speed: f64 },
+    /// Particles carried by the wind at their height ([`WindProfile`]).
+    Wind(WindProfile),
+    /// Falling drops: the wind at their height plus a terminal fall speed toward `−z` (down, in
+    /// an atmosphere), the speed drawn per scattering event from the population's drop sizes.
+    TerminalFall { wind: WindProfile, fall: Arc<FallSpeeds> },
 }
 
 impl VelocityField {
@@ -38,6 +186,10 @@ impl VelocityField {
             VelocityField::Uniform(v) => v != DVec3::ZERO,
             VelocityField::Poiseuille { v_max, .. } => v_max != 0.0,
             VelocityField::RandomDirection { speed } => speed != 0.0,
+            VelocityField::Wind(ref w) => !w.is_calm(),
+            VelocityField::TerminalFall { ref wind, ref fall } => {
+                !wind.is_calm() || fall.speeds.iter().any(|&s| s != 0.0)
+            }
         }
     }
 
@@ -57,6 +209,10 @@ impl VelocityField {
                 let (u1, u2) = (rng.uniform(), rng.uniform());
                 warp::uniform_sphere(u1, u2) * speed
             }
+            VelocityField::Wind(ref w) => w.at(p.z),
+            VelocityField::TerminalFall { ref wind, ref fall } => {
+                wind.at(p.z) - DVec3::new(0.0, 0.0, fall.sample(rng.uniform()))
+            }
         }
     }
 
@@ -69,6 +225,14 @@ impl VelocityField {
                 VelocityField::Poiseuille { origin, axis, radius, v_max: -v_max }
             }
             VelocityField::RandomDirection { speed } => VelocityField::RandomDirection { speed: -speed },
+            VelocityField::Wind(ref w) => VelocityField::Wind(w.reversed()),
+            VelocityField::TerminalFall { ref wind, ref fall } => VelocityField::TerminalFall {
+                wind: wind.reversed(),
+                fall: Arc::new(FallSpeeds {
+                    speeds: fall.speeds.iter().map(|s| -s).collect(),
+                    cumulative: fall.cumulative.clone(),
+                }),
+            },
         }
     }
 }
@@ -87,6 +251,68 @@ mod tests {
         // r = 1 = R/2 → v_max · 3/4, along the axis, whatever the axial position.
         assert_eq!(f.velocity(DVec3::new(-7.0, 1.0, 1.0), &mut r), DVec3::new(2.25, 0.0, 0.0));
         assert_eq!(f.velocity(DVec3::new(0.0, 0.0, 3.5), &mut r), DVec3::ZERO);
+    }
+
+    #[test]
+    fn wind_profiles_follow_their_laws() {
+        let east = DVec3::X;
+        // Log law: u(h) = (u*/κ) ln((h − d)/z0), zero at and below d + z0.
+        let log = WindProfile::LogLaw {
+            direction: east,
+            friction_velocity: 0.4,
+            roughness: 0.03,
+            displacement: 2.0,
+            vertical: 0.1,
+        };
+        let u = |h: f64| log.at(h);
+        assert!((u(102.0).x - (100.0f64 / 0.03).ln()).abs() < 1e-12);
+        assert_eq!(u(102.0).z, 0.1);
+        assert_eq!(u(2.01).x, 0.0);
+        // Power law: u_ref at h_ref, (h/h_ref)^α elsewhere, zero at the ground.
+        let pow = WindProfile::PowerLaw {
+            direction: DVec3::Y,
+            speed_ref: 5.0,
+            height_ref: 10.0,
+            exponent: 1.0 / 7.0,
+            vertical: 0.0,
+        };
+        assert!((pow.at(10.0).y - 5.0).abs() < 1e-12);
+        assert!((pow.at(1280.0).y - 5.0 * 2.0).abs() < 1e-12); // 128^(1/7) = 2
+        assert_eq!(pow.at(-1.0), DVec3::ZERO);
+        // Table: constant per layer, clamped beyond the edges.
+        let table =
+            WindProfile::Table { edges: vec![0.0, 10.0, 20.0].into(), velocities: vec![DVec3::X, DVec3::Y].into() };
+        assert_eq!(table.at(-5.0), DVec3::X);
+        assert_eq!(table.at(9.999), DVec3::X);
+        assert_eq!(table.at(10.0), DVec3::Y);
+        assert_eq!(table.at(1e9), DVec3::Y);
+        assert_eq!(table.reversed().at(15.0), -DVec3::Y);
+        assert!(!table.is_calm() && WindProfile::Uniform(DVec3::ZERO).is_calm());
+    }
+
+    #[test]
+    fn atlas_fall_speeds_match_gunn_and_kinzer() {
+        // Atlas et al. 1973 against the Gunn & Kinzer values of scene-parameters §B4.
+        for (d_mm, v) in [(0.5, 2.0), (2.0, 6.5), (5.0, 9.1)] {
+            assert!((atlas_fall_speed(d_mm * 1e-3) - v).abs() < 0.1, "{d_mm} mm");
+        }
+        assert_eq!(atlas_fall_speed(0.05e-3), 0.0);
+    }
+
+    #[test]
+    fn fall_speeds_are_drawn_by_weight() {
+        let f = FallSpeeds::new(&[(1.0, 1.0), (2.0, 3.0)]).unwrap();
+        assert_eq!((f.sample(0.0), f.sample(0.2499), f.sample(0.25), f.sample(0.999)), (1.0, 1.0, 2.0, 2.0));
+        assert!((f.mean() - 1.75).abs() < 1e-15);
+        assert!(FallSpeeds::new(&[(1.0, 0.0)]).is_none() && FallSpeeds::new(&[]).is_none());
+        // A falling drop in still air moves down (−z) at its speed.
+        let field = VelocityField::TerminalFall { wind: WindProfile::Uniform(DVec3::X), fall: Arc::new(f) };
+        let mut r = PathRng::new(1, Purpose::Test, 0, 0);
+        let n = 100_000;
+        let mean_w = (0..n).map(|_| field.velocity(DVec3::ZERO, &mut r).z).sum::<f64>() / n as f64;
+        // Var of the speed is 0.25·0.75 = 0.1875: 5σ of the mean is 0.0069.
+        assert!((mean_w + 1.75).abs() < 5.0 * (0.1875f64 / n as f64).sqrt(), "{mean_w}");
+        assert_eq!(field.velocity(DVec3::ZERO, &mut r).x, 1.0);
     }
 
     #[test]

@@ -6,6 +6,7 @@ pub mod manifest;
 pub mod npy;
 pub mod plot;
 pub mod png;
+pub mod scan;
 pub mod table;
 
 use std::path::{Path, PathBuf};

@@ -8,10 +8,13 @@ pub use particles::{ComponentOptics, ParticleOptics, mixture_optics, relative_sp
 pub use scene::{Layer, MAX_REGIONS_PER_LAYER, Region, Scene};
 pub use shape::Shape;
 
+#[cfg(test)]
+use glam::DVec3;
 use serde::Serialize;
 
 use crate::flow::VelocityField;
 use crate::phase::PhaseFunction;
+use crate::sampling::PathRng;
 
 /// Where a medium's optics came from, for the manifest (nothing here is read by the walk).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -67,18 +70,45 @@ pub fn stokes_einstein(radius: f64, temperature: f64, viscosity: f64) -> f64 {
     BOLTZMANN * temperature / (6.0 * std::f64::consts::PI * viscosity * radius)
 }
 
-/// A homogeneous participating medium with the velocity field of its particles.
-///
-/// The coefficients are fixed at construction so that the derived constants the random walk
-/// uses at every collision (σt, 1/σt, albedo) are computed once.
+/// One population of particles in a medium: how it scatters and how it moves. A medium holds one
+/// (most media) or several (air with aerosol and raindrops, each raindrop size class with its own
+/// phase function and fall speed).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Medium {
-    /// Name in the configuration (for messages and the manifest).
+pub struct Population {
+    /// Name in the configuration (the medium's own name for a single population).
     pub name: String,
     pub phase: PhaseFunction,
     pub velocity: VelocityField,
     /// Random motion beyond the flow (none by default).
     pub motion: Motion,
+    /// This population's scattering coefficient, m⁻¹.
+    pub sigma_s: f64,
+}
+
+impl Population {
+    /// Whether scattering on these particles changes `dl/dt` or broadens the line (a "Doppler
+    /// event").
+    #[inline(always)]
+    pub fn is_dynamic(&self) -> bool {
+        self.velocity.is_moving() || self.motion.is_random()
+    }
+}
+
+/// A homogeneous participating medium: one or several particle populations.
+///
+/// The coefficients are fixed at construction so that the derived constants the random walk
+/// uses at every collision (σt, 1/σt, albedo) are computed once. At a scattering event the
+/// scatterer's population is drawn in proportion to its σs ([`Medium::pick`]); its phase
+/// function, velocity and motion then serve the event, and the next-event estimate from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Medium {
+    /// Name in the configuration (for messages and the manifest).
+    pub name: String,
+    /// At least one; several make a mixture (an external mixture: coefficients add).
+    populations: Box<[Population]>,
+    /// `cumulative[i]` = share of σs of populations `0..=i` (the last is 1); empty for one
+    /// population.
+    cumulative: Box<[f64]>,
     /// Provenance of the optics, for the manifest.
     pub info: MediumInfo,
     sigma_a: f64,
@@ -86,10 +116,11 @@ pub struct Medium {
     sigma_t: f64,
     inv_sigma_t: f64,
     albedo: f64,
+    dynamic: bool,
 }
 
 impl Medium {
-    /// A medium with absorption σa and scattering σs (m⁻¹, finite and ≥ 0).
+    /// A medium of one population with absorption σa and scattering σs (m⁻¹, finite and ≥ 0).
     pub fn new(
         name: impl Into<String>,
         sigma_a: f64,
@@ -97,26 +128,89 @@ impl Medium {
         phase: PhaseFunction,
         velocity: VelocityField,
     ) -> Self {
+        let name = name.into();
+        let population = Population { name: name.clone(), phase, velocity, motion: Motion::default(), sigma_s };
+        Medium::mixture(name, sigma_a, vec![population])
+    }
+
+    /// A medium of the given populations (at least one; their σs add) and total absorption σa.
+    pub fn mixture(name: impl Into<String>, sigma_a: f64, populations: Vec<Population>) -> Self {
+        assert!(!populations.is_empty(), "a medium needs at least one particle population");
+        let sigma_s: f64 = populations.iter().map(|p| p.sigma_s).sum();
+        let cumulative: Box<[f64]> = if populations.len() == 1 {
+            Box::new([])
+        } else {
+            let mut acc = 0.0;
+            let mut c: Vec<f64> = populations
+                .iter()
+                .map(|p| {
+                    acc += p.sigma_s;
+                    if sigma_s > 0.0 { acc / sigma_s } else { 1.0 }
+                })
+                .collect();
+            // Exactly 1 at the end, so that every u < 1 finds a population.
+            *c.last_mut().expect("non-empty") = 1.0;
+            c.into()
+        };
         let sigma_t = sigma_a + sigma_s;
-        Medium {
+        let mut m = Medium {
             name: name.into(),
-            phase,
-            velocity,
-            motion: Motion::default(),
+            populations: populations.into(),
+            cumulative,
             info: MediumInfo::default(),
             sigma_a,
             sigma_s,
             sigma_t,
             inv_sigma_t: if sigma_t > 0.0 { 1.0 / sigma_t } else { f64::INFINITY },
             albedo: if sigma_t > 0.0 { sigma_s / sigma_t } else { 0.0 },
-        }
+            dynamic: false,
+        };
+        m.update();
+        m
     }
 
-    /// Whether scattering on this medium's particles changes `dl/dt` or broadens the line (a
-    /// "Doppler event").
+    fn update(&mut self) {
+        self.dynamic = self.populations.iter().any(Population::is_dynamic);
+    }
+
+    /// The populations (one for most media).
+    pub fn populations(&self) -> &[Population] {
+        &self.populations
+    }
+
+    /// The first (for most media the only) population.
+    pub fn population(&self) -> &Population {
+        &self.populations[0]
+    }
+
+    /// Change the populations' motion and velocity fields (not their σs) through `f`.
+    pub fn update_populations(&mut self, mut f: impl FnMut(&mut Population)) {
+        for p in self.populations.iter_mut() {
+            let sigma_s = p.sigma_s;
+            f(p);
+            p.sigma_s = sigma_s;
+        }
+        self.update();
+    }
+
+    /// The population a scattering event happens on: drawn in proportion to σs (one uniform
+    /// number, only for a mixture).
+    #[inline(always)]
+    pub fn pick(&self, rng: &mut PathRng) -> &Population {
+        if self.cumulative.is_empty() { &self.populations[0] } else { self.pick_with(rng.uniform()) }
+    }
+
+    /// The population of the uniform number `u ∈ [0, 1)` (the first whose cumulative share
+    /// exceeds `u`).
+    pub fn pick_with(&self, u: f64) -> &Population {
+        let i = self.cumulative.partition_point(|&c| c <= u).min(self.populations.len() - 1);
+        &self.populations[i]
+    }
+
+    /// Whether scattering on any of this medium's particles changes `dl/dt` or broadens the line.
     #[inline(always)]
     pub fn is_dynamic(&self) -> bool {
-        self.velocity.is_moving() || self.motion.is_random()
+        self.dynamic
     }
 
     /// Absorption coefficient σa, m⁻¹.
@@ -145,5 +239,52 @@ impl Medium {
     #[inline(always)]
     pub fn albedo(&self) -> f64 {
         self.albedo
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::phase::HenyeyGreenstein;
+    use crate::sampling::Purpose;
+
+    fn population(name: &str, sigma_s: f64, g: f64) -> Population {
+        Population {
+            name: name.into(),
+            phase: PhaseFunction::HenyeyGreenstein(HenyeyGreenstein::new(g).unwrap()),
+            velocity: VelocityField::Static,
+            motion: Motion::default(),
+            sigma_s,
+        }
+    }
+
+    #[test]
+    fn populations_are_drawn_in_proportion_to_sigma_s() {
+        let m = Medium::mixture("air", 0.5, vec![population("a", 1.0, 0.1), population("b", 3.0, 0.2)]);
+        assert_eq!((m.sigma_s(), m.sigma_t()), (4.0, 4.5));
+        assert_eq!((m.pick_with(0.0).name.as_str(), m.pick_with(0.2499).name.as_str()), ("a", "a"));
+        assert_eq!((m.pick_with(0.25).name.as_str(), m.pick_with(0.999_999).name.as_str()), ("b", "b"));
+        let mut rng = PathRng::new(2, Purpose::Test, 0, 0);
+        let n = 400_000;
+        let a = (0..n).filter(|_| m.pick(&mut rng).name == "a").count() as f64 / n as f64;
+        // Binomial: σ = √(0.25·0.75/n) = 6.8e-4.
+        assert!((a - 0.25).abs() < 5.0 * (0.1875 / n as f64).sqrt(), "{a}");
+        // One population: no draw at all.
+        let one = Medium::new("x", 0.0, 1.0, PhaseFunction::Isotropic, VelocityField::Static);
+        let before = rng.clone().uniform();
+        one.pick(&mut rng);
+        assert_eq!(rng.uniform(), before);
+    }
+
+    #[test]
+    fn a_mixture_is_dynamic_if_any_population_moves() {
+        let mut m = Medium::mixture("air", 0.0, vec![population("a", 1.0, 0.0), population("b", 1.0, 0.0)]);
+        assert!(!m.is_dynamic());
+        m.update_populations(|p| {
+            if p.name == "b" {
+                p.velocity = VelocityField::Uniform(DVec3::Z)
+            }
+        });
+        assert!(m.is_dynamic() && !m.populations()[0].is_dynamic());
     }
 }

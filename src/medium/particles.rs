@@ -47,6 +47,10 @@ pub struct ParticleOptics {
     /// The mixture's phase function at `theta`, sr⁻¹.
     #[serde(skip)]
     pub phase: Vec<f64>,
+    /// Particle radii (m) with the σs each contributes (m⁻¹), over all components (see
+    /// [`crate::mie::EnsembleOptics::sizes`]).
+    #[serde(skip)]
+    pub sizes: Vec<(f64, f64)>,
 }
 
 /// A sphere of diameter `d` (m) and index `n_p − i k_p` in a host of index `n_m`, lit at vacuum
@@ -76,12 +80,14 @@ pub fn mixture_optics(components: &[(String, EnsembleSpec)], angles: usize) -> R
     let mut phase = vec![0.0; theta.len()];
     let (mut sigma_s, mut sigma_a, mut g_sum, mut backscatter) = (0.0, 0.0, 0.0, 0.0);
     let mut parts = Vec::with_capacity(components.len());
+    let mut sizes = Vec::new();
     for (name, spec) in components {
         let e = ensemble_optics(spec, &theta)?;
         for (p, q) in phase.iter_mut().zip(&e.phase) {
             *p += e.sigma_s * q;
         }
         sigma_s += e.sigma_s;
+        sizes.extend_from_slice(&e.sizes);
         sigma_a += e.sigma_a;
         g_sum += e.sigma_s * e.g;
         backscatter += e.backscatter;
@@ -101,5 +107,5 @@ pub fn mixture_optics(components: &[(String, EnsembleSpec)], angles: usize) -> R
     }
     let g = if sigma_s > 0.0 { g_sum / sigma_s } else { 0.0 };
     let lidar_ratio = if backscatter > 0.0 { (sigma_s + sigma_a) / backscatter } else { f64::INFINITY };
-    Ok(ParticleOptics { sigma_s, sigma_a, g, backscatter, lidar_ratio, components: parts, theta, phase })
+    Ok(ParticleOptics { sigma_s, sigma_a, g, backscatter, lidar_ratio, components: parts, theta, phase, sizes })
 }

@@ -140,6 +140,10 @@ pub struct EnsembleOptics {
     pub phase: Vec<f64>,
     /// Number of radii solved.
     pub size_points: usize,
+    /// The radii solved (m) with the scattering coefficient each quadrature node contributes
+    /// (m⁻¹, summing to `sigma_s`): the σs-weighted size distribution as the quadrature sees it
+    /// (e.g. to draw a drop size per scattering event).
+    pub sizes: Vec<(f64, f64)>,
 }
 
 impl EnsembleOptics {
@@ -426,6 +430,13 @@ pub fn ensemble_optics(spec: &EnsembleSpec, theta: &[f64]) -> Result<EnsembleOpt
         None => 1.0,
     };
     let sigma_s = packing * sigma_s_independent;
+    let sizes = nodes
+        .radius
+        .iter()
+        .zip(&nodes.weight)
+        .zip(&results)
+        .map(|((&r, &w), res)| (r, packing * scale * w * res.csca))
+        .collect();
     let backscatter = packing * scale * back / (4.0 * PI);
     let sigma_ext = sigma_s + sigma_a;
     // p(θ) = Σ w (|S1|²+|S2|²)/(2k²) / Σ w Csca; the packing factor cancels.
@@ -445,6 +456,7 @@ pub fn ensemble_optics(spec: &EnsembleSpec, theta: &[f64]) -> Result<EnsembleOpt
         effective_radius: r3_sum / r2_sum,
         phase,
         size_points: nodes.radius.len(),
+        sizes,
     })
 }
 

@@ -27,7 +27,8 @@
 
 use glam::DVec3;
 
-use crate::medium::{Medium, Scene};
+use crate::medium::Scene;
+use crate::phase::PhaseFunction;
 
 use super::fresnel;
 
@@ -109,7 +110,7 @@ pub fn receiver_ray(
     li: usize,
     pos: DVec3,
     dir_in: DVec3,
-    m: &Medium,
+    phase: &PhaseFunction,
     target: &NeeTarget,
     aperture: &Aperture,
     u1: f64,
@@ -136,7 +137,7 @@ pub fn receiver_ray(
         p.z = layer.z_top;
     }
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
-    let factor = m.phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * (-tau).exp();
+    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * (-tau).exp();
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r })
 }
 
@@ -157,16 +158,17 @@ fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, 
     tau
 }
 
-/// The shadow ray from a scattering vertex at `pos` in layer `li` (medium `m`), reached along
-/// `dir_in`, for the exit direction drawn from the uniforms `(u1, u2)`. `None` when nothing can
-/// come out that way (the direction cannot exist in some layer: total internal reflection).
+/// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
+/// function `phase`, reached along `dir_in`, for the exit direction drawn from the uniforms
+/// `(u1, u2)`. `None` when nothing can come out that way (the direction cannot exist in some
+/// layer: total internal reflection).
 #[allow(clippy::too_many_arguments)]
 pub fn shadow_ray(
     scene: &Scene,
     li: usize,
     pos: DVec3,
     dir_in: DVec3,
-    m: &Medium,
+    phase: &PhaseFunction,
     target: &NeeTarget,
     u1: f64,
     u2: f64,
@@ -214,7 +216,7 @@ pub fn shadow_ray(
     // Balance heuristic against the direct escapes of phase-sampled directions (in exit solid
     // angle: pdf p·etendue for those, 1/Ω for the cone): f/pdf_cone · w = p·et·T·e^{−τ}/(p·et + 1/Ω),
     // never above T·e^{−τ} ≤ 1, so a forward-peaked phase function cannot make a huge weight.
-    let pe = m.phase.eval(dir_in.dot(dir_vertex)) * etendue;
+    let pe = phase.eval(dir_in.dot(dir_vertex)) * etendue;
     let factor = pe / (pe + 1.0 / target.solid_angle()) * transmit * (-tau).exp();
     Some(ShadowHit { pos: p, dir, dir_vertex, factor, length })
 }

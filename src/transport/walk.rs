@@ -13,7 +13,7 @@
 use glam::DVec3;
 
 use crate::detect::{Escape, Recorder, Scalar, Side};
-use crate::medium::{Medium, Scene};
+use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
 use crate::source::Source;
@@ -164,7 +164,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
 ) {
     rec.stats.paths += 1;
     let start = source.emit(rng);
-    let dir = source.direction;
+    let dir = source.emit_direction(rng);
     // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
     let t0 = (0.0 - start.z) / dir.z;
     let mut s = PathState {
@@ -359,12 +359,13 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     if absorb(s, m, absorbed) {
         return Some(End::Absorbed);
     }
-    let d = m.phase.sample(rng.uniform());
+    let pop = m.pick(rng);
+    let d = pop.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-    if DOPPLER && m.is_dynamic() {
-        let v = particle_velocity(m, s.pos, rng);
-        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, m, n, v, delta);
+    if DOPPLER && pop.is_dynamic() {
+        let v = particle_velocity(pop, s.pos, rng);
+        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
@@ -391,8 +392,11 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     if absorb(s, m, absorbed) {
         return Some(End::Absorbed);
     }
-    let dynamic = DOPPLER && m.is_dynamic();
-    let v = if dynamic { particle_velocity(m, s.pos, rng) } else { DVec3::ZERO };
+    // One population serves the shadow rays and the continuation (so that the balance heuristic
+    // of `shadow_ray` weighs against the density the continuation is drawn from).
+    let pop = m.pick(rng);
+    let dynamic = DOPPLER && pop.is_dynamic();
+    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
     // Shadow-ray roulette: no shadow ray carries more than `weight·exp(−τ_min)`, where `τ_min`
     // is the optical depth straight up through the least dense media. Below
     // `SHADOW_ROULETTE_WEIGHT`, the shadow rays are traced with probability `bound/threshold`
@@ -412,8 +416,8 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         let target = rec.nee[i];
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let hit = match &target.aperture {
-            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, m, &target, u1, u2),
-            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, m, &target, a, u1, u2),
+            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, &pop.phase, &target, u1, u2),
+            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, &target, a, u1, u2),
         };
         let Some(h) = hit else { continue };
         let mut e = Escape {
@@ -429,16 +433,16 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             specular: false,
         };
         if dynamic {
-            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, m, n, v, s.dir - h.dir_vertex);
+            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, pop, n, v, s.dir - h.dir_vertex);
         }
         rec.next_event(target.detector, &e, scene.n_above);
     }
-    let d = m.phase.sample(rng.uniform());
+    let d = pop.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-    s.mis = m.phase.eval(d.cos) / (n * n * out.z.abs());
+    s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
     if dynamic {
-        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, m, n, v, delta);
+        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
@@ -460,7 +464,7 @@ fn absorb(s: &mut PathState, m: &Medium, absorbed: &mut f64) -> bool {
 /// `q = (2πn/λ0)·delta`, so `D·q² = (2π/λ0)²·D n²|delta|²` and only the wavelength-free part is
 /// carried.
 #[inline(always)]
-fn doppler_event(dldt: &mut f64, brownian: &mut f64, events: &mut u32, m: &Medium, n: f64, v: DVec3, delta: DVec3) {
+fn doppler_event(dldt: &mut f64, brownian: &mut f64, events: &mut u32, m: &Population, n: f64, v: DVec3, delta: DVec3) {
     *dldt += doppler_increment(n, v, delta);
     if m.motion.diffusion > 0.0 {
         *brownian += m.motion.diffusion * n * n * delta.length_squared();
@@ -471,7 +475,7 @@ fn doppler_event(dldt: &mut f64, brownian: &mut f64, events: &mut u32, m: &Mediu
 /// The velocity of the particle a path scatters on at `p`: the flow plus, for a medium with a
 /// velocity dispersion, a Gaussian random velocity drawn for this event.
 #[inline(always)]
-fn particle_velocity(m: &Medium, p: DVec3, rng: &mut PathRng) -> DVec3 {
+fn particle_velocity(m: &Population, p: DVec3, rng: &mut PathRng) -> DVec3 {
     let mut v = m.velocity.velocity(p, rng);
     let sd = m.motion.dispersion;
     if sd > 0.0 {

@@ -318,3 +318,25 @@ pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) ->
     }
     (stat, dof, chi2_sf(stat, dof.max(1)))
 }
+
+/// The lag-`d` pulse product a lidar gate `g` collects from a return delayed by `t_d`:
+/// `Σ_m a(t_{m+d} − t_d)·a(t_m − t_d)·Δt` over the gate's sample pairs, `a` the unit-energy
+/// Gaussian pulse amplitude (intensity FWHM τ_p). Lag 0 is the pulse energy in the gate.
+pub fn gate_lag_weight(s: &ohd::detect::LidarSpec, g: usize, t_d: f64, d: usize) -> f64 {
+    let sigma = s.pulse_sigma();
+    let a = |m: usize| {
+        let t = s.first_sample_time + (g * s.gate_points + m) as f64 * s.dt();
+        (-(t - t_d).powi(2) / (2.0 * sigma * sigma)).exp() / (sigma * std::f64::consts::PI.sqrt()).sqrt()
+    };
+    (0..s.gate_points.saturating_sub(d)).map(|m| a(m + d) * a(m) * s.dt()).sum()
+}
+
+/// Simpson's rule for `f` over `[a, b]` with an even number `n` of intervals.
+pub fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
+    let h = (b - a) / n as f64;
+    let mut sum = f(a) + f(b);
+    for i in 1..n {
+        sum += f(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    sum * h / 3.0
+}

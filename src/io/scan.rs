@@ -1,0 +1,85 @@
+//! Outputs of a scan: `vad.csv` (the wind retrieved in every range gate, with the radial velocity
+//! each pointing measured) and `scan.json` (the pointings, the run directory of each, and the same
+//! table). Each pointing's own outputs are a complete run directory of their own.
+
+use std::path::Path;
+
+use serde_json::{Value, json};
+
+use super::write_atomic;
+use crate::error::Result;
+use crate::scan::GateWind;
+use crate::source::Pointing;
+
+/// Write `vad.csv` and `scan.json` into `dir`; `runs[i]` is the directory of pointing `i`
+/// (relative to `dir`). Returns the JSON as written.
+pub fn write_scan(dir: &Path, pointings: &[Pointing], runs: &[String], gates: &[GateWind]) -> Result<Value> {
+    let mut csv = String::from(
+        "gate,range_m,height_m,u_east_m_per_s,v_north_m_per_s,w_up_m_per_s,u_stderr,v_stderr,w_stderr,\
+         horizontal_speed_m_per_s,direction_from_deg,chi2,dof,pointings_used,error",
+    );
+    for i in 0..pointings.len() {
+        csv.push_str(&format!(",radial_velocity_{i}_m_per_s"));
+    }
+    csv.push('\n');
+    let num = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
+    let mut table = Vec::with_capacity(gates.len());
+    for (g, w) in gates.iter().enumerate() {
+        let used = w.radial_velocities.iter().filter(|v| v.is_some()).count();
+        let mut row = json!({
+            "range_m": w.range_m,
+            "height_m": w.height_m,
+            "radial_velocities_m_per_s": w.radial_velocities,
+            "pointings_used": used,
+        });
+        csv.push_str(&format!("{g},{:.3},{:.3},", w.range_m, w.height_m));
+        match &w.fit {
+            Ok(f) => {
+                let se = f.wind_stderr();
+                csv.push_str(&format!(
+                    "{:.6},{:.6},{:.6},{},{},{},{:.6},{:.3},{:.6e},{},{used},",
+                    f.wind.x,
+                    f.wind.y,
+                    f.wind.z,
+                    num(se.map(|s| s.x)),
+                    num(se.map(|s| s.y)),
+                    num(se.map(|s| s.z)),
+                    f.horizontal_speed,
+                    f.direction_from_deg,
+                    f.chi2,
+                    f.dof
+                ));
+                row["wind_m_per_s"] = json!(f.wind.to_array());
+                row["wind_stderr_m_per_s"] = json!(se.map(|s| s.to_array()));
+                row["horizontal_speed_m_per_s"] = json!(f.horizontal_speed);
+                row["direction_from_deg"] = json!(f.direction_from_deg);
+                row["chi2"] = json!(f.chi2);
+                row["dof"] = json!(f.dof);
+            }
+            Err(e) => {
+                csv.push_str(&format!(",,,,,,,,,,{used},\"{e}\""));
+                row["error"] = json!(e.to_string());
+            }
+        }
+        for v in &w.radial_velocities {
+            csv.push_str(&format!(",{}", num(*v)));
+        }
+        csv.push('\n');
+        table.push(row);
+    }
+    write_atomic(&dir.join("vad.csv"), csv.as_bytes())?;
+    let scan = json!({
+        "pointings": pointings.iter().zip(runs).map(|(p, r)| json!({
+            "azimuth_deg": p.azimuth_deg,
+            "elevation_deg": p.elevation_deg,
+            "direction": p.direction.to_array(),
+            "run": r,
+        })).collect::<Vec<_>>(),
+        "frame": "x = east, y = north, z = up; azimuth clockwise from north; wind direction is where it blows from",
+        "radial_velocity": "peak of each gate's expected spectrum (all orders), λ0·f/2, positive receding",
+        "gates": table,
+    });
+    let text = serde_json::to_string_pretty(&scan).unwrap_or_default();
+    write_atomic(&dir.join("scan.json"), text.as_bytes())?;
+    Ok(scan)
+}
