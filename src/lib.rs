@@ -59,7 +59,7 @@
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
-//! | [`retrieval`] | wind-lidar gate estimators: spectral moments, Gaussian-component fits, VAD wind |
+//! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
