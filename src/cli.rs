@@ -280,6 +280,20 @@ fn run_one(
             est[k]["stderr"].as_f64().unwrap_or(f64::NAN)
         );
     }
+    for d in &exp.detectors {
+        let (e, fmcw) = (&est["detectors"][&d.name], &manifest["detectors"][&d.name]["fmcw"]);
+        if let (Some(r), Some(v)) = (e["range_m"].as_f64(), e["radial_velocity_m_per_s"].as_f64()) {
+            eprintln!(
+                "  {}: FMCW range {r:.4} m, radial velocity {v:+.4} m/s (bins {:.4} m, {:.4} m/s)",
+                d.name,
+                e["range_bin_m"].as_f64().unwrap_or(f64::NAN),
+                e["velocity_bin_m_per_s"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        if let Some(note) = fmcw["note"].as_str() {
+            eprintln!("  {}: FMCW {note}", d.name);
+        }
+    }
     Ok(output)
 }
 

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
 use crate::medium::Scene;
+use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::Source;
 use crate::stats::{BatchAccumulator, RunStats};
@@ -84,6 +85,23 @@ pub struct RunOutput {
     pub speckle_seconds: f64,
 }
 
+impl RunOutput {
+    /// The estimated spectrum (power per bin, without the out-of-range tallies) of detector `i`,
+    /// chirp `chirp` (0 = up-chirp or single frequency, 1 = down-chirp) and channel `channel` (0 =
+    /// total, then the splits; see [`SpectrumSpec::channels`](crate::detect::SpectrumSpec::channels)).
+    /// `None` if the detector has no spectrum or there is no such chirp or channel.
+    pub fn spectrum(&self, exp: &Experiment, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
+        let spec = exp.detectors.get(i)?.spectrum.as_ref()?;
+        let lay = self.layout.detectors.get(i)?;
+        let (start, stride) = lay.spectra?;
+        if chirp >= self.beat.chirps() || channel >= lay.channels {
+            return None;
+        }
+        let o = start + (chirp * lay.channels + channel) * stride;
+        Some(&self.estimates.mean()[o..o + spec.axis.bins])
+    }
+}
+
 const PROGRESS_EVERY: u64 = 4096;
 
 /// One batch's tally sums, counters and recorded lines.
@@ -119,6 +137,16 @@ impl Experiment {
                 None => NeeTarget::new(i, d.axis, d.cos_acceptance),
             })
             .collect()
+    }
+
+    /// FMCW range and radial velocity of detector `i` from its total up- and down-chirp spectra
+    /// in `out` ([`fmcw_estimates`]). `None` without a chirp or without a spectrum on the detector;
+    /// an error when they cannot be read off (no signal).
+    pub fn fmcw_estimates(&self, out: &RunOutput, i: usize) -> Option<Result<FmcwEstimate, RetrievalError>> {
+        let chirp = self.source.chirp?;
+        let axis = self.detectors.get(i)?.spectrum.as_ref()?.axis;
+        let (up, down) = (out.spectrum(self, i, 0, 0)?, out.spectrum(self, i, 1, 0)?);
+        Some(fmcw_estimates(&axis, up, down, self.source.wavelength, chirp.bandwidth, chirp.duration))
     }
 
     /// Whether detected paths are kept for speckle synthesis.

@@ -40,7 +40,9 @@
 //!   are power per bin as a fraction of the emitted power (not per Hz), so a spectrum summed over
 //!   its bins plus its out-of-range tallies equals the detected power of the same paths (Parseval).
 //! * **Estimates** are means over paths of the fraction of emitted power; every estimate carries
-//!   the standard error of the mean over `batches` independent batches of equal size.
+//!   the standard error of the mean over `batches` independent batches of equal size. The FMCW
+//!   range and velocity read off the spectra afterwards ([`retrieval::fmcw`]) are the exception:
+//!   they come with the range and velocity one bin spans instead (the reason is given there).
 //! * **Random numbers** are a pure function of `(seed, purpose, element, sample)`
 //!   ([`sampling::rng`]); work is split by the configuration, never by the thread count, and batches
 //!   are reduced in a fixed order, so output is bit-identical for any number of threads.
@@ -59,7 +61,7 @@
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
-//! | [`retrieval`] | wind-lidar gate estimators: spectral moments, Gaussian-component fits, VAD wind |
+//! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 

@@ -1928,6 +1928,13 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
                 Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
             }
         };
+        let next_event = d.next_event.unwrap_or(false);
+        if next_event && side != Side::Top {
+            return err(
+                join(&path, "next_event"),
+                "= true: next-event estimation scores top detectors only (shadow rays leave through z = 0)",
+            );
+        }
         out.push(Detector {
             name: d.name.clone(),
             side,
@@ -1940,7 +1947,7 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
             image,
             ldh: None,
             lidar: None,
-            next_event: false,
+            next_event,
         });
         if let Some(l) = &d.ldh {
             let p = join(&path, "ldh");

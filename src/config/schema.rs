@@ -450,6 +450,10 @@ pub struct DetectorSection {
     pub distance_mm: Option<f64>,
     pub distance_m: Option<f64>,
     pub include_specular: Option<bool>,
+    /// Score the detector by next-event estimation (a shadow ray from every scattering vertex into
+    /// its cone) as well as by the paths that escape into it; top detectors only. Always on for
+    /// LDH cameras and lidar receivers.
+    pub next_event: Option<bool>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
     /// A laser Doppler holography camera over the image's pixels.

@@ -1,7 +1,8 @@
 //! Writing a finished run: `manifest.json` (version, config as run, seed, samples, threads, wall
 //! time, run statistics, every scalar estimate with its standard error) plus, per detector, its
-//! spectra (`.npy`, with per-bin standard errors and the frequency axis) and image (`.exr`,
-//! `.npy`). Data files are written first and the manifest last, each atomically.
+//! spectra (`.npy`, with per-bin standard errors and the frequency axis), FMCW range and velocity
+//! estimates with a chirp (`fmcw_estimates.csv`, see [`super::fmcw`]) and image (`.exr`, `.npy`).
+//! Data files are written first and the manifest last, each atomically.
 
 use std::path::Path;
 
@@ -54,7 +55,9 @@ pub fn write_run(
     let mut out_of_range_total = 0.0;
     let chirp_names: &[&str] = if out.beat.chirps() == 2 { &["_up", "_down"] } else { &[""] };
 
-    for (d, lay) in exp.detectors.iter().zip(&out.layout.detectors) {
+    let mut fmcw_rows: Vec<String> = Vec::new();
+    let mut fmcw_any = false;
+    for (i, (d, lay)) in exp.detectors.iter().zip(&out.layout.detectors).enumerate() {
         let mut de = serde_json::Map::new();
         de.insert("detected_power".into(), estimate(mean[lay.power], se[lay.power]));
         let mut info = serde_json::Map::new();
@@ -121,6 +124,11 @@ pub fn write_run(
                 }),
             );
         }
+        if let Some(entry) = super::fmcw::detector_entry(exp, out, i, &mut de) {
+            fmcw_any = true;
+            info.insert("fmcw".into(), entry.info);
+            fmcw_rows.extend(entry.row);
+        }
         if let (Some(im), Some(start)) = (&d.image, lay.image) {
             let n = im.nx * im.ny;
             let (v, e) = (&mean[start..start + n], &se[start..start + n]);
@@ -151,6 +159,9 @@ pub fn write_run(
         }
         det_estimates.insert(d.name.clone(), Value::Object(de));
         det_info.insert(d.name.clone(), Value::Object(info));
+    }
+    if fmcw_any {
+        put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
     }
     if !det_estimates.is_empty() {
         estimates.insert("detectors".into(), Value::Object(det_estimates));

@@ -1,5 +1,6 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
 
+pub mod fmcw;
 pub mod ldh;
 pub mod lidar;
 pub mod manifest;

@@ -1,11 +1,15 @@
 //! Per-range-gate estimators for a coherent Doppler wind lidar: what is read off one gate's
-//! spectrum, and the wind vector read off several gates' radial velocities.
+//! spectrum, and the wind vector read off several gates' radial velocities; and the range and
+//! velocity of an FMCW target.
 //!
 //! * [`gate`]: spectral moments of one gate — total and signal power, peak (sub-bin interpolated),
 //!   centroid, width, FWHM and the narrowband SNR ([`gate_estimates`]).
 //! * [`fit`]: one- or two-Gaussian fits of a gate spectrum on a floor by weighted
 //!   Levenberg–Marquardt, and the F-test that chooses between them ([`fit_one_or_two`]), as Wei et
 //!   al. 2019 (Opt. Express 27:31235) separate aerosol and rain.
+//! * [`fmcw`]: range and radial velocity of an FMCW target from its up- and down-chirp spectra
+//!   (peaks and centroids), with the range and velocity one frequency bin spans
+//!   ([`fmcw_estimates`]).
 //! * [`vad`]: velocity–azimuth display — the least-squares wind vector from radial velocities
 //!   along several pointings, with its covariance and the horizontal speed and direction
 //!   ([`vad_fit`]).
@@ -18,12 +22,14 @@
 //! Nothing here panics on bad input: every entry point returns [`RetrievalError`].
 
 pub mod fit;
+pub mod fmcw;
 pub mod gate;
 mod linalg;
 mod special;
 pub mod vad;
 
 pub use fit::{FitOptions, Floor, GaussComponent, GaussianFit, ModelChoice, fit_gaussians, fit_one_or_two};
+pub use fmcw::{FmcwEstimate, fmcw_estimates};
 pub use gate::{GateEstimate, MomentOptions, gate_estimates, gate_estimates_with};
 pub use vad::{VadFit, pointing, vad_fit};
 
