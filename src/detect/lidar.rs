@@ -518,4 +518,30 @@ mod tests {
         let avg = mean.iter().sum::<f64>() / k_len as f64;
         assert!((avg / floor - 1.0).abs() < 5.0 / ((reps * m) as f64).sqrt(), "{avg:.4e} vs {floor:.4e}");
     }
+
+    #[test]
+    fn gate_retrieval_substitutes_zero_errors_and_reports_empty_gates() {
+        // A Gaussian line at +2 MHz (1.55 m/s) with 1 % errors, one of them 0: that bin gets the
+        // smallest positive error, and one component at the line is found.
+        let s = LidarSpec { fft_points: 256, ..spec() };
+        let floor = s.noise_floor_per_bin();
+        let signal: Vec<f64> =
+            (0..256).map(|k| 1e3 * floor * (-0.5 * ((s.bin_frequency(k) - 2e6) / 1e6).powi(2)).exp()).collect();
+        let mut stderr: Vec<f64> = signal.iter().map(|v| 0.01 * v + 1e-3 * floor).collect();
+        stderr[10] = 0.0;
+        let r = s.retrieve_gate(&signal, &stderr);
+        assert_eq!(r.stderr_substituted, 1);
+        assert_eq!(r.noise_floor, floor);
+        let m = r.moments.unwrap();
+        assert!((m.peak_frequency_hz - 2e6).abs() < 1e3, "{}", m.peak_frequency_hz);
+        let fit = r.fit.unwrap();
+        assert_eq!(fit.components, 1);
+        let c = &fit.one.components[0];
+        assert!((c.mean_hz - 2e6).abs() < 1e3 && (c.sigma_hz / 1e6 - 1.0).abs() < 1e-3, "{c:?}");
+        assert!((c.mean_velocity_m_per_s - 0.5 * s.wavelength * 2e6).abs() < 1e-3);
+        // An empty gate: no signal for both, never a panic.
+        let r = s.retrieve_gate(&[0.0; 256], &[0.0; 256]);
+        assert_eq!(r.moments, Err(RetrievalError::NoSignal));
+        assert_eq!(r.fit, Err(RetrievalError::NoSignal));
+    }
 }

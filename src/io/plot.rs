@@ -598,6 +598,47 @@ mod tests {
         assert!(count_color(&line_plot_canvas(&s, "", "", "", None).rgb, [1, 2, 3]) >= 18);
     }
 
+    #[test]
+    fn image_with_axes_puts_row_zero_at_the_bottom_and_marks_missing_values() {
+        // 2 × 3 cells: row 0 = 0 (bottom, dark), row 2 = 10 (top, bright); one NaN cell.
+        let values = vec![0.0, 0.0, 5.0, 5.0, 10.0, 10.0];
+        let mut holed = values.clone();
+        holed[3] = f64::NAN;
+        let base = AxesImage {
+            values: &values,
+            nx: 2,
+            ny: 3,
+            x_range: (-20.0, 20.0),
+            y_range: (90.0, 690.0),
+            x_label: "radial velocity (m/s)",
+            y_label: "range (m)",
+            title: "test",
+            cmap: Colormap::Grey,
+            value_range: (0.0, 10.0),
+            colorbar_label: "dB",
+        };
+        let c = image_with_axes(&base);
+        assert_eq!((c.width, c.height), (WIDTH, HEIGHT));
+        let axes = Axes::layout(WIDTH, HEIGHT, 8, (-20.0, 20.0), (90.0, 690.0));
+        let x = axes.left + 40;
+        let (top, bottom) = (c.get(x, axes.top + 5).unwrap(), c.get(x, axes.bottom - 5).unwrap());
+        assert_eq!(top, Colormap::Grey.color(1.0));
+        assert_eq!(bottom, Colormap::Grey.color(0.0));
+        assert_eq!(count_color(&c.rgb, NO_DATA), 0);
+        let c = image_with_axes(&AxesImage { values: &holed, ..base });
+        assert!(count_color(&c.rgb, NO_DATA) > 1000);
+        // Degenerate inputs draw something and never panic.
+        for (v, nx, ny, xr) in [
+            (&[][..], 0, 0, (0.0, 1.0)),
+            (&values[..5], 2, 3, (f64::NAN, 1.0)),
+            (&values[..], usize::MAX, 2, (1.0, 1.0)),
+            (&values[..], 6, 1, (5.0, -5.0)),
+        ] {
+            let c = image_with_axes(&AxesImage { values: v, nx, ny, x_range: xr, value_range: (1.0, 1.0), ..base });
+            assert_eq!((c.width, c.height), (WIDTH, HEIGHT));
+        }
+    }
+
     /// Renders an example plot to `$OHD_PNG_DIR` (for looking at it), when set.
     #[test]
     fn render_example_when_asked() {
