@@ -57,6 +57,16 @@
 //! for one pulse) by `√N`. A gate's SNR as [`crate::retrieval::gate_estimates`] reports it,
 //! `Σ_k (P_k − floor)/(K·floor) = D_0/(Mσ²)`, is therefore the wideband CNR averaged over the
 //! gate's samples.
+//!
+//! ## Per-gate estimates
+//!
+//! [`LidarSpec::retrieve_gate`] reads a gate's total spectrum plus that floor with the
+//! [`crate::retrieval`] estimators: moments (peak, centroid, width, FWHM, SNR) and one or two
+//! Gaussians on the fixed floor, chosen by an F-test at [`FIT_SELECTION_LEVEL`]. A Gaussian is the
+//! gate's kernel only when the gate holds whole echoes (a gate much longer than the pulse around
+//! a thin layer); a short rectangular gate in a filled volume has a nearly Fejér (sinc²) kernel
+//! with ~10 % of its power in sidelobes, which the fit keeps as a broad concentric second
+//! component (measured in `validation/README.md`).
 
 use std::f64::consts::PI;
 
