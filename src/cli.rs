@@ -445,6 +445,24 @@ fn describe(exp: &Experiment, origin: &str) -> String {
             )),
             d.image.map_or(String::new(), |im| format!(", image {}×{} px", im.nx, im.ny))
         );
+        if let Some(l) = &d.lidar {
+            let _ = writeln!(
+                s,
+                "  {:<12} lidar: {} gates of {} samples at {:.3} MHz from {:.1} m, {}-point DFT, pulse {:.1} ns, {:.3e} J, η = {} × {}: shot-noise floor {:.4e} per bin ({:.1} dB)",
+                "",
+                l.gates,
+                l.gate_points,
+                l.sample_rate * 1e-6,
+                0.5 * ohd::SPEED_OF_LIGHT * l.first_sample_time,
+                l.fft_points,
+                l.pulse_fwhm * 1e9,
+                l.pulse_energy,
+                l.quantum_efficiency,
+                l.heterodyne_efficiency,
+                l.noise_floor_per_bin(),
+                10.0 * l.noise_floor_per_bin().log10()
+            );
+        }
     }
     if exp.detectors.is_empty() {
         let _ = writeln!(s, "  (none: only the scalar tallies)");

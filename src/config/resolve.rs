@@ -1786,6 +1786,27 @@ fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -
     if gates * fft_points > 20_000_000 {
         return err(join(path, "gates"), format!("= {gates}: gates × fft_points must stay below 2·10^7 (memory)"));
     }
+    let pulse_energy = match pick(
+        path,
+        &[("pulse_energy_uj", l.pulse_energy_uj, 1e-6), ("pulse_energy_mj", l.pulse_energy_mj, 1e-3)],
+    )? {
+        Some(v) => positive(v, "a pulse energy")?,
+        None => crate::detect::lidar::DEFAULT_PULSE_ENERGY,
+    };
+    let efficiency = |key: &str, v: Option<f64>, default: f64| -> R<f64> {
+        match v {
+            None => Ok(default),
+            Some(v) if v > 0.0 && v <= 1.0 => Ok(v),
+            Some(v) => err(join(path, key), format!("= {v}: expected an efficiency in (0, 1]")),
+        }
+    };
+    let quantum_efficiency =
+        efficiency("quantum_efficiency", l.quantum_efficiency, crate::detect::lidar::DEFAULT_QUANTUM_EFFICIENCY)?;
+    let heterodyne_efficiency = efficiency(
+        "heterodyne_efficiency",
+        l.heterodyne_efficiency,
+        crate::detect::lidar::DEFAULT_HETERODYNE_EFFICIENCY,
+    )?;
     Ok(LidarSpec {
         position: source.position,
         axis: source.direction,
@@ -1797,6 +1818,10 @@ fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -
         gate_points,
         gates,
         fft_points,
+        wavelength: source.wavelength,
+        pulse_energy,
+        quantum_efficiency,
+        heterodyne_efficiency,
     })
 }
 

@@ -485,6 +485,13 @@ pub struct LidarSection {
     pub gates: Option<u64>,
     /// Length of the (zero-padded) DFT of a gate.
     pub fft_points: Option<u64>,
+    /// Transmitted pulse energy (sets the shot-noise floor; default 100 µJ).
+    pub pulse_energy_uj: Option<f64>,
+    pub pulse_energy_mj: Option<f64>,
+    /// Detector quantum efficiency in (0, 1] (default 0.8).
+    pub quantum_efficiency: Option<f64>,
+    /// Heterodyne (mixing, mode-matching) efficiency in (0, 1] (default 0.4).
+    pub heterodyne_efficiency: Option<f64>,
 }
 
 /// `[detectors.ldh]`: the LDH acquisition (camera rate, STFT window, band) and its outputs.

@@ -2,7 +2,7 @@
 //! messages ("µm") and for overrides, which replace a quantity given in another unit.
 
 /// `(suffix, unit as printed)`, longest suffix first so that `_mm_per_s` is not read as `_s`.
-const UNITS: [(&str, &str); 29] = [
+const UNITS: [(&str, &str); 31] = [
     ("_um2_per_s", "µm²/s"),
     ("_m2_per_s", "m²/s"),
     ("_mpa_s", "mPa·s"),
@@ -30,6 +30,8 @@ const UNITS: [(&str, &str); 29] = [
     ("_us", "µs"),
     ("_ns", "ns"),
     ("_ms", "ms"),
+    ("_uj", "µJ"),
+    ("_mj", "mJ"),
     ("_m", "m"),
     ("_s", "s"),
 ];

@@ -1,22 +1,33 @@
 //! Outputs of a pulsed lidar receiver: the range–Doppler spectra (gates × bins; total, single and
-//! multiple scattering) as `.npy` with standard errors, their axes, a dB map, and the per-gate
-//! energies as CSV and in the manifest.
+//! multiple scattering) as `.npy` with standard errors, their axes, a range–Doppler map and a plot
+//! of a few gates' spectra as PNG, and per gate (CSV and the manifest) the energies by class, the
+//! shot-noise SNR, the spectral moments and the one- or two-Gaussian fit of the total spectrum
+//! ([`LidarSpec::retrieve_gate`]).
 
 use serde_json::{Value, json};
 
 use super::ldh::Put;
 use super::manifest::estimate;
 use super::npy;
-use super::png::{Colormap, image_png};
-use crate::detect::lidar::LIDAR_CHANNELS;
+use super::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
+use super::png::Colormap;
+use crate::detect::lidar::{FIT_SELECTION_LEVEL, GateRetrieval, LIDAR_CHANNELS};
 use crate::detect::{LidarLayout, LidarSpec};
 use crate::error::Result;
+use crate::retrieval::{RetrievalError, radial_velocity};
 
-/// Write the receiver's outputs; returns the manifest entry (axes, files, per-gate energies).
+/// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).
+const PLOTTED_GATES: usize = 4;
+/// Dynamic range of `range_doppler.png` below the map's peak, dB.
+const MAP_RANGE_DB: f64 = 60.0;
+
+/// Write the receiver's outputs; returns the manifest entry (axes, files, noise model, per-gate
+/// energies and estimates).
 pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f64], se: &[f64]) -> Result<Value> {
     let (gates, bins, m) = (spec.gates, spec.fft_points, spec.gate_points);
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
+    let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
     put("range_m.npy".into(), npy::to_bytes(&[gates], &range))?;
     put("frequency_hz.npy".into(), npy::to_bytes(&[bins], &freq))?;
     let mut files = serde_json::Map::new();
@@ -27,34 +38,34 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         put(format!("{stem}_stderr.npy"), npy::to_bytes(&[gates, bins], &se[o..o + gates * bins]))?;
         files.insert((*name).into(), json!(format!("{stem}.npy")));
     }
-    // The map in dB relative to its peak: rows = gates (the first at the bottom), columns = bins.
-    let o = lay.spectra;
-    let total = &mean[o..o + gates * bins];
-    let peak = total.iter().cloned().fold(0.0, f64::max);
-    let db: Vec<f64> =
-        total.iter().map(|&v| if v > 0.0 && peak > 0.0 { 10.0 * (v / peak).log10() } else { f64::NAN }).collect();
-    let title = format!(
-        "range-Doppler: {:.0}-{:.0} m (rows), {:.1} to {:.1} MHz (columns)",
-        range[0],
-        range[gates - 1],
-        freq[0] * 1e-6,
-        freq[bins - 1] * 1e-6
-    );
-    put(
-        "range_doppler.png".into(),
-        image_png(&db, bins, gates, Colormap::Viridis, (-60.0, 0.0), &title, "dB re peak"),
-    )?;
+    let spectrum = |c: usize, g: usize| {
+        let o = lay.spectra + (c * gates + g) * bins;
+        (&mean[o..o + bins], &se[o..o + bins])
+    };
+    put("range_doppler.png".into(), range_doppler_png(spec, &range, mean, lay))?;
+    put("gate_spectra.png".into(), gate_spectra_png(spec, &range, &velocity, mean, lay))?;
 
-    // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths).
+    // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
+    // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
     let energy = |c: usize, g: usize| {
         let o = lay.lags + ((c * gates + g) * m) * 2;
         (mean[o], se[o])
     };
+    let noise_energy = m as f64 * spec.noise_variance_per_sample();
     let mut csv = String::from("gate,range_m");
     for name in LIDAR_CHANNELS {
         csv.push_str(&format!(",energy_{name},energy_{name}_stderr"));
     }
-    csv.push('\n');
+    csv.push_str(",snr,snr_stderr,snr_db");
+    csv.push_str(",peak_velocity_m_per_s,centroid_velocity_m_per_s,width_m_per_s,fwhm_m_per_s,moments_status");
+    csv.push_str(",fit_components,fit_p_value");
+    for j in 1..=2 {
+        csv.push_str(&format!(
+            ",fit{j}_velocity_m_per_s,fit{j}_velocity_stderr_m_per_s,fit{j}_width_m_per_s,\
+             fit{j}_width_stderr_m_per_s,fit{j}_power,fit{j}_power_stderr"
+        ));
+    }
+    csv.push_str(",fit_status\n");
     let mut table = Vec::with_capacity(gates);
     for (g, r) in range.iter().enumerate() {
         csv.push_str(&format!("{g},{r}"));
@@ -65,6 +76,15 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
             csv.push_str(&format!(",{v:e},{e:e}"));
             row.insert(format!("energy_{name}"), estimate(v, e));
         }
+        let (d0, d0_se) = energy(0, g);
+        let (snr, snr_se) = (d0 / noise_energy, d0_se / noise_energy);
+        let snr_db = 10.0 * snr.log10();
+        csv.push_str(&format!(",{snr:e},{snr_se:e},{snr_db:.3}"));
+        row.insert("snr".into(), estimate(snr, snr_se));
+        row.insert("snr_db".into(), json!(snr_db));
+        let (values, errors) = spectrum(0, g);
+        let gate = spec.retrieve_gate(values, errors);
+        gate_columns(&mut csv, &mut row, &gate, spec.wavelength);
         csv.push('\n');
         table.push(Value::Object(row));
     }
@@ -75,13 +95,191 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         "range_file": "range_m.npy",
         "frequency_file": "frequency_hz.npy",
         "spectra": Value::Object(files),
+        "plots": ["range_doppler.png", "gate_spectra.png"],
         "layout": "gates × bins, bins in fftshift order (ν_k = (k − K/2)·f_s/K)",
-        "units": "fraction of the pulse energy per bin (expected periodogram, |X_k|²/K)",
+        "units": "fraction of the pulse energy per bin (expected periodogram, |X_k|²/K), without noise",
         "gate_points": m,
         "sample_rate_hz": spec.sample_rate,
         "pulse_fwhm_s": spec.pulse_fwhm,
         "aperture_radius_m": spec.aperture_radius,
         "field_of_view_rad": spec.cos_fov.acos(),
+        "wavelength_m": spec.wavelength,
+        "noise": {
+            "model": "shot-noise-limited heterodyne: hν/(η E_p) per complex sample, white",
+            "pulse_energy_j": spec.pulse_energy,
+            "quantum_efficiency": spec.quantum_efficiency,
+            "heterodyne_efficiency": spec.heterodyne_efficiency,
+            "photon_energy_j": spec.photon_energy(),
+            "variance_per_sample": spec.noise_variance_per_sample(),
+            "floor_per_bin": spec.noise_floor_per_bin(),
+        },
+        "gate_estimates": {
+            "spectrum": "total, plus the shot-noise floor (known, fixed in the fits)",
+            "velocity_sign": "positive = receding (v = λ0·f/2)",
+            "snr": "gate energy D_0 over the gate's noise energy M·σ² (wideband CNR averaged over the gate)",
+            "fit_selection_level": FIT_SELECTION_LEVEL,
+            "fit_weights": "batch standard errors; a zero one replaced by the gate's smallest positive one",
+        },
         "gates": table,
     }))
+}
+
+/// A CSV field holding free text (quoted, quotes doubled).
+fn csv_text(s: &str) -> String {
+    format!("\"{}\"", s.replace('"', "\"\""))
+}
+
+/// "ok", or the error's message.
+fn status<T>(r: &std::result::Result<T, RetrievalError>) -> String {
+    match r {
+        Ok(_) => "ok".to_string(),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Append one gate's moment and fit columns to `csv` and fields to `row` (NaN in the CSV and
+/// null in the manifest for what could not be estimated, with the reason in the status).
+fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate: &GateRetrieval, wavelength: f64) {
+    let v = |f: f64| radial_velocity(f, wavelength);
+    match &gate.moments {
+        Ok(e) => {
+            let fwhm = e.fwhm_hz.map_or(f64::NAN, v);
+            csv.push_str(&format!(
+                ",{:e},{:e},{:e},{fwhm:e}",
+                e.peak_velocity_m_per_s, e.centroid_velocity_m_per_s, e.width_m_per_s
+            ));
+            row.insert("peak_velocity_m_per_s".into(), json!(e.peak_velocity_m_per_s));
+            row.insert("centroid_velocity_m_per_s".into(), json!(e.centroid_velocity_m_per_s));
+            row.insert("width_m_per_s".into(), json!(e.width_m_per_s));
+            row.insert("fwhm_m_per_s".into(), json!(e.fwhm_hz.map(v)));
+        }
+        Err(_) => {
+            csv.push_str(",NaN,NaN,NaN,NaN");
+            for key in ["peak_velocity_m_per_s", "centroid_velocity_m_per_s", "width_m_per_s", "fwhm_m_per_s"] {
+                row.insert(key.into(), Value::Null);
+            }
+        }
+    }
+    let moments_status = status(&gate.moments);
+    csv.push_str(&format!(",{}", csv_text(&moments_status)));
+    row.insert("moments_status".into(), json!(moments_status));
+
+    let mut fit_status = status(&gate.fit);
+    match &gate.fit {
+        Ok(choice) => {
+            let fit = choice.chosen();
+            csv.push_str(&format!(",{},{:e}", choice.components, choice.p_value));
+            let mut list = Vec::new();
+            for j in 0..2 {
+                match fit.components.get(j) {
+                    Some(c) => {
+                        let (vel, vel_se) = (v(c.mean_hz), v(c.mean_hz_stderr));
+                        let (wid, wid_se) = (v(c.sigma_hz), v(c.sigma_hz_stderr));
+                        csv.push_str(&format!(
+                            ",{vel:e},{vel_se:e},{wid:e},{wid_se:e},{:e},{:e}",
+                            c.power, c.power_stderr
+                        ));
+                        list.push(json!({
+                            "velocity_m_per_s": estimate(vel, vel_se),
+                            "width_m_per_s": estimate(wid, wid_se),
+                            "power": estimate(c.power, c.power_stderr),
+                        }));
+                    }
+                    None => csv.push_str(",NaN,NaN,NaN,NaN,NaN,NaN"),
+                }
+            }
+            if let Err(e) = &choice.two {
+                fit_status = format!("ok (one component kept: the two-component fit failed: {e})");
+            }
+            row.insert(
+                "fit".into(),
+                json!({
+                    "components": choice.components,
+                    "p_value": choice.p_value,
+                    "f_statistic": choice.f_statistic,
+                    "chi2": fit.chi2,
+                    "dof": fit.dof,
+                    "list": list,
+                }),
+            );
+        }
+        Err(_) => {
+            csv.push_str(",NaN,NaN");
+            csv.push_str(&",NaN".repeat(12));
+            row.insert("fit".into(), Value::Null);
+        }
+    }
+    csv.push_str(&format!(",{}", csv_text(&fit_status)));
+    row.insert("fit_status".into(), json!(fit_status));
+    row.insert("stderr_substituted".into(), json!(gate.stderr_substituted));
+}
+
+/// The total range–Doppler map in dB re its peak: x = radial velocity, y = range.
+fn range_doppler_png(spec: &LidarSpec, range: &[f64], mean: &[f64], lay: &LidarLayout) -> Vec<u8> {
+    let (gates, bins) = (spec.gates, spec.fft_points);
+    let total = &mean[lay.spectra..lay.spectra + gates * bins];
+    let peak = total.iter().cloned().fold(0.0, f64::max);
+    let db: Vec<f64> =
+        total.iter().map(|&v| if v > 0.0 && peak > 0.0 { 10.0 * (v / peak).log10() } else { f64::NAN }).collect();
+    let half_bin = 0.5 * spec.sample_rate / bins as f64;
+    let v = |f: f64| radial_velocity(f, spec.wavelength);
+    let x_range = (v(spec.bin_frequency(0) - half_bin), v(spec.bin_frequency(bins - 1) + half_bin));
+    // Each row spans its gate: M samples of c/(2 f_s) each, centred on the gate's range.
+    let half_gate = 0.25 * crate::SPEED_OF_LIGHT * spec.gate_points as f64 / spec.sample_rate;
+    let y_range = (range[0] - half_gate, range[gates - 1] + half_gate);
+    let title = format!("Range-Doppler spectrum (total), {} gates x {} bins", gates, bins);
+    image_with_axes(&AxesImage {
+        values: &db,
+        nx: bins,
+        ny: gates,
+        x_range,
+        y_range,
+        x_label: "radial velocity (m/s), + receding",
+        y_label: "range (m)",
+        title: &title,
+        cmap: Colormap::Viridis,
+        value_range: (-MAP_RANGE_DB, 0.0),
+        colorbar_label: "power (dB re peak)",
+    })
+    .to_png()
+}
+
+/// A colour halfway to white.
+fn tint(c: [u8; 3]) -> [u8; 3] {
+    c.map(|v| v + (255 - v) / 2)
+}
+
+/// A few evenly spaced gates' total and multiple-scattering spectra (dB re the pulse energy per
+/// bin) against radial velocity, with the shot-noise floor.
+fn gate_spectra_png(spec: &LidarSpec, range: &[f64], velocity: &[f64], mean: &[f64], lay: &LidarLayout) -> Vec<u8> {
+    let (gates, bins) = (spec.gates, spec.fft_points);
+    let spectrum = |c: usize, g: usize| {
+        let o = lay.spectra + (c * gates + g) * bins;
+        &mean[o..o + bins]
+    };
+    let n = PLOTTED_GATES.min(gates);
+    let mut chosen: Vec<usize> =
+        (0..n).map(|i| if n == 1 { 0 } else { (i * (gates - 1) + (n - 1) / 2) / (n - 1) }).collect();
+    chosen.dedup();
+    let db = |p: &[f64]| -> Vec<f64> {
+        p.iter().map(|&v| if v > 0.0 { 10.0 * v.log10() } else { f64::NEG_INFINITY }).collect()
+    };
+    let mut curves: Vec<(String, Vec<f64>, [u8; 3])> = Vec::new();
+    for (i, &g) in chosen.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        curves.push((format!("{:.0} m total", range[g]), db(spectrum(0, g)), color));
+        curves.push((format!("{:.0} m multiple", range[g]), db(spectrum(2, g)), tint(color)));
+    }
+    let floor_db = 10.0 * spec.noise_floor_per_bin().log10();
+    curves.push(("shot-noise floor".into(), vec![floor_db; velocity.len()], [90, 90, 90]));
+    let top =
+        curves.iter().flat_map(|c| c.1.iter()).copied().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, f64::max);
+    let y_range = top.is_finite().then(|| {
+        let lo = (top - 80.0).min(floor_db - 10.0);
+        (lo, top + 5.0)
+    });
+    let series: Vec<Series> =
+        curves.iter().map(|(label, y, color)| Series { label, x: velocity, y, color: *color }).collect();
+    let title = format!("Gate spectra, E_p = {:.3e} J, eta = {:.2}", spec.pulse_energy, spec.efficiency());
+    line_plot_png(&series, &title, "radial velocity (m/s), + receding", "dB re pulse energy per bin", y_range)
 }

@@ -1,4 +1,5 @@
-//! Simple line plots as PNG (spectra, profiles), drawn on a [`Canvas`].
+//! Simple line plots as PNG (spectra, profiles), and images on labelled axes (range–Doppler
+//! maps, [`image_with_axes`]), drawn on a [`Canvas`].
 //!
 //! [`line_plot_png`] draws one or more [`Series`] on linear axes: a frame with "nice" ticks
 //! (1, 2, 5 × 10^k steps, [`nice_ticks`]), light grid lines, numeric tick labels on both axes
@@ -9,7 +10,7 @@
 //! canvas itself has row 0 at the top; the mapping flips it). Points with a non-finite `x` or `y`
 //! (e.g. `−inf` dB) break a series' line; lines are clipped to the plot area.
 
-use super::png::{Canvas, clip_segment, text_width};
+use super::png::{Canvas, ColorBar, Colormap, NO_DATA, clip_segment, text_width};
 
 /// One line of a plot: `y` against `x` (the longer slice is truncated to the shorter).
 #[derive(Clone, Copy, Debug)]
@@ -243,55 +244,11 @@ pub fn line_plot_canvas(
         axis_range(lo, hi, 0.05)
     });
 
-    // Layout, from the outside in: title on top; x label and x tick labels at the bottom;
-    // y label and y tick labels on the left.
-    let tick_h = 8 * TICK_SCALE;
-    let top = MARGIN + 8 * TITLE_SCALE + 16;
-    let bottom = HEIGHT - (MARGIN + 8 * AXIS_LABEL_SCALE + 10 + tick_h + 6 + TICK_LEN as usize);
-    let (y_ticks, y_labels) = fitting_ticks(y_lo, y_hi, (bottom - top) as f64, |_| 2.5 * tick_h as f64);
-    let y_label_w = y_labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0);
-    let left = MARGIN + 8 * AXIS_LABEL_SCALE + 12 + y_label_w + 6 + TICK_LEN as usize;
-    let right = WIDTH - MARGIN - 8;
-    let (x_ticks, x_labels) = fitting_ticks(x_lo, x_hi, (right - left) as f64, |labels| {
-        (labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0) + 3 * 8 * TICK_SCALE) as f64
-    });
-    let (l, r, t, b) = (left as f64, right as f64, top as f64, bottom as f64);
-    let px = |x: f64| l + (x - x_lo) / (x_hi - x_lo) * (r - l);
-    let py = |y: f64| b - (y - y_lo) / (y_hi - y_lo) * (b - t);
-
+    let axes = Axes::layout(WIDTH, HEIGHT, 8, (x_lo, x_hi), (y_lo, y_hi));
     let mut c = Canvas::new(WIDTH, HEIGHT, WHITE);
-    let (li, ri, ti, bi) = (left as i64, right as i64, top as i64, bottom as i64);
-    // Grid, frame, ticks and tick labels.
-    for &x in &x_ticks {
-        let xi = px(x).round() as i64;
-        c.fill_rect(xi, ti, xi, bi, GRID);
-    }
-    for &y in &y_ticks {
-        let yi = py(y).round() as i64;
-        c.fill_rect(li, yi, ri, yi, GRID);
-    }
-    c.rect_outline(li - 1, ti - 1, ri + 1, bi + 1, AXIS);
-    for (&x, label) in x_ticks.iter().zip(&x_labels) {
-        let xi = px(x).round() as i64;
-        c.fill_rect(xi, bi + 1, xi, bi + TICK_LEN, AXIS);
-        let w = text_width(label, TICK_SCALE) as i64;
-        c.text(xi - w / 2, bi + TICK_LEN + 5, label, TEXT, TICK_SCALE);
-    }
-    for (&y, label) in y_ticks.iter().zip(&y_labels) {
-        let yi = py(y).round() as i64;
-        c.fill_rect(li - TICK_LEN - 1, yi, li - 2, yi, AXIS);
-        let w = text_width(label, TICK_SCALE) as i64;
-        c.text(li - TICK_LEN - 6 - w, yi - tick_h as i64 / 2, label, TEXT, TICK_SCALE);
-    }
-    // Axis labels and title.
-    let xw = text_width(x_label, AXIS_LABEL_SCALE) as i64;
-    let x_label_y = (HEIGHT - MARGIN - 8 * AXIS_LABEL_SCALE) as i64;
-    c.text(((li + ri) / 2 - xw / 2).max(MARGIN as i64), x_label_y, x_label, TEXT, AXIS_LABEL_SCALE);
-    let yh = text_width(y_label, AXIS_LABEL_SCALE) as i64;
-    c.text_vertical(MARGIN as i64, ((ti + bi) / 2 - yh / 2).max(0), y_label, TEXT, AXIS_LABEL_SCALE);
-    let tw = text_width(title, TITLE_SCALE) as i64;
-    let title_x = ((li + ri) / 2 - tw / 2).min((WIDTH - MARGIN) as i64 - tw).max(MARGIN as i64);
-    c.text(title_x, MARGIN as i64, title, TEXT, TITLE_SCALE);
+    axes.draw(&mut c, true, title, x_label, y_label);
+    let (px, py) = (|x| axes.px(x), |y| axes.py(y));
+    let (li, ri, ti, bi) = (axes.left as i64, axes.right as i64, axes.top as i64, axes.bottom as i64);
 
     // The lines, clipped to the data range; isolated points as small squares.
     let rect = (x_lo, x_hi, y_lo, y_hi);
@@ -319,6 +276,155 @@ pub fn line_plot_canvas(
         c.text((li + ri) / 2 - w / 2, (ti + bi) / 2 - 8, msg, TEXT, AXIS_LABEL_SCALE);
     }
     draw_legend(&mut c, series, (li, ri, ti, bi));
+    c
+}
+
+/// The frame of a plot: the plot area in pixels, the data ranges it shows, ticks and labels.
+struct Axes {
+    left: usize,
+    right: usize,
+    top: usize,
+    bottom: usize,
+    x: (f64, f64),
+    y: (f64, f64),
+    x_ticks: Vec<f64>,
+    x_labels: Vec<String>,
+    y_ticks: Vec<f64>,
+    y_labels: Vec<String>,
+}
+
+impl Axes {
+    /// Lay out, from the outside in, a `width × height` canvas: the title on top; the x label and
+    /// x tick labels at the bottom; the y label and y tick labels on the left; `right_reserve`
+    /// pixels (beyond the margin) free on the right. `x` and `y` are finite, non-empty ranges.
+    fn layout(width: usize, height: usize, right_reserve: usize, x: (f64, f64), y: (f64, f64)) -> Axes {
+        let tick_h = 8 * TICK_SCALE;
+        let top = MARGIN + 8 * TITLE_SCALE + 16;
+        let bottom = height - (MARGIN + 8 * AXIS_LABEL_SCALE + 10 + tick_h + 6 + TICK_LEN as usize);
+        let (y_ticks, y_labels) = fitting_ticks(y.0, y.1, (bottom - top) as f64, |_| 2.5 * tick_h as f64);
+        let y_label_w = y_labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0);
+        let left = MARGIN + 8 * AXIS_LABEL_SCALE + 12 + y_label_w + 6 + TICK_LEN as usize;
+        let right = width.saturating_sub(MARGIN + right_reserve).max(left + 1);
+        let (x_ticks, x_labels) = fitting_ticks(x.0, x.1, (right - left) as f64, |labels| {
+            (labels.iter().map(|s| text_width(s, TICK_SCALE)).max().unwrap_or(0) + 3 * 8 * TICK_SCALE) as f64
+        });
+        Axes { left, right, top, bottom, x, y, x_ticks, x_labels, y_ticks, y_labels }
+    }
+
+    /// Canvas column of data `x`.
+    fn px(&self, x: f64) -> f64 {
+        let (l, r) = (self.left as f64, self.right as f64);
+        l + (x - self.x.0) / (self.x.1 - self.x.0) * (r - l)
+    }
+
+    /// Canvas row of data `y` (y grows upwards).
+    fn py(&self, y: f64) -> f64 {
+        let (t, b) = (self.top as f64, self.bottom as f64);
+        b - (y - self.y.0) / (self.y.1 - self.y.0) * (b - t)
+    }
+
+    /// Grid lines (if `grid`), the frame, ticks and tick labels, the axis labels and the title.
+    fn draw(&self, c: &mut Canvas, grid: bool, title: &str, x_label: &str, y_label: &str) {
+        let tick_h = 8 * TICK_SCALE;
+        let (li, ri, ti, bi) = (self.left as i64, self.right as i64, self.top as i64, self.bottom as i64);
+        if grid {
+            for &x in &self.x_ticks {
+                let xi = self.px(x).round() as i64;
+                c.fill_rect(xi, ti, xi, bi, GRID);
+            }
+            for &y in &self.y_ticks {
+                let yi = self.py(y).round() as i64;
+                c.fill_rect(li, yi, ri, yi, GRID);
+            }
+        }
+        c.rect_outline(li - 1, ti - 1, ri + 1, bi + 1, AXIS);
+        for (&x, label) in self.x_ticks.iter().zip(&self.x_labels) {
+            let xi = self.px(x).round() as i64;
+            c.fill_rect(xi, bi + 1, xi, bi + TICK_LEN, AXIS);
+            let w = text_width(label, TICK_SCALE) as i64;
+            c.text(xi - w / 2, bi + TICK_LEN + 5, label, TEXT, TICK_SCALE);
+        }
+        for (&y, label) in self.y_ticks.iter().zip(&self.y_labels) {
+            let yi = self.py(y).round() as i64;
+            c.fill_rect(li - TICK_LEN - 1, yi, li - 2, yi, AXIS);
+            let w = text_width(label, TICK_SCALE) as i64;
+            c.text(li - TICK_LEN - 6 - w, yi - tick_h as i64 / 2, label, TEXT, TICK_SCALE);
+        }
+        let width = c.width as i64;
+        let height = c.height as i64;
+        let xw = text_width(x_label, AXIS_LABEL_SCALE) as i64;
+        let x_label_y = height - (MARGIN + 8 * AXIS_LABEL_SCALE) as i64;
+        c.text(((li + ri) / 2 - xw / 2).max(MARGIN as i64), x_label_y, x_label, TEXT, AXIS_LABEL_SCALE);
+        let yh = text_width(y_label, AXIS_LABEL_SCALE) as i64;
+        c.text_vertical(MARGIN as i64, ((ti + bi) / 2 - yh / 2).max(0), y_label, TEXT, AXIS_LABEL_SCALE);
+        let tw = text_width(title, TITLE_SCALE) as i64;
+        let title_x = ((li + ri) / 2 - tw / 2).min(width - MARGIN as i64 - tw).max(MARGIN as i64);
+        c.text(title_x, MARGIN as i64, title, TEXT, TITLE_SCALE);
+    }
+}
+
+/// A false-colour image on labelled axes ([`image_with_axes`]).
+#[derive(Clone, Copy, Debug)]
+pub struct AxesImage<'a> {
+    /// `ny × nx` values, row-major, row 0 = the smallest `y` (drawn at the bottom), column 0 the
+    /// smallest `x`.
+    pub values: &'a [f64],
+    pub nx: usize,
+    pub ny: usize,
+    /// Data coordinates of the left edge of column 0 and the right edge of column `nx − 1`.
+    pub x_range: (f64, f64),
+    /// Data coordinates of the bottom edge of row 0 and the top edge of row `ny − 1`.
+    pub y_range: (f64, f64),
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub title: &'a str,
+    pub cmap: Colormap,
+    /// Values mapped to the bottom and top of the colour bar (clamped beyond).
+    pub value_range: (f64, f64),
+    pub colorbar_label: &'a str,
+}
+
+/// An image (900 × 560 px) on axes in data coordinates: the cells stretched over the plot area
+/// (nearest cell per pixel, y up), a frame with nice ticks and numeric tick labels on both axes,
+/// the axis labels, the title above and a colour bar with its unit label on the right. Non-finite
+/// values (and a `values.len()` that is not `nx · ny`) are drawn in [`NO_DATA`], listed under the
+/// colour bar. Ranges that are not finite or empty fall back to the cell indices. Never panics.
+pub fn image_with_axes(im: &AxesImage) -> Canvas {
+    let usable = |(a, b): (f64, f64), n: usize| {
+        if a.is_finite() && b.is_finite() && b > a && (b - a).is_finite() { (a, b) } else { (0.0, n.max(1) as f64) }
+    };
+    let (x_range, y_range) = (usable(im.x_range, im.nx), usable(im.y_range, im.ny));
+    const BAR_GAP: usize = 20;
+    let shape_ok = im.nx.checked_mul(im.ny).is_some_and(|n| n == im.values.len() && n > 0);
+    // The bar spans the plot area: lay out once for its height, then with its width reserved.
+    let probe = Axes::layout(WIDTH, HEIGHT, 8, x_range, y_range);
+    let bar = ColorBar::new(im.cmap, im.value_range, im.colorbar_label, probe.bottom - probe.top + 1);
+    let axes = Axes::layout(WIDTH, HEIGHT, BAR_GAP + bar.width(), x_range, y_range);
+    let mut c = Canvas::new(WIDTH, HEIGHT, WHITE);
+    let (lo, hi) = (bar.lo(), bar.hi());
+    let mut any_missing = !shape_ok;
+    let (w, h) = (axes.right - axes.left + 1, axes.bottom - axes.top + 1);
+    for py in 0..h {
+        // Pixel rows from the top: the top row shows the largest y.
+        let iy = im.ny.saturating_sub(1).saturating_sub(py * im.ny.max(1) / h);
+        for px in 0..w {
+            let ix = (px * im.nx.max(1) / w).min(im.nx.saturating_sub(1));
+            let v = if shape_ok { im.values[iy * im.nx + ix] } else { f64::NAN };
+            let color = if v.is_finite() {
+                im.cmap.color((v - lo) / (hi - lo))
+            } else {
+                any_missing = true;
+                NO_DATA
+            };
+            c.set((axes.left + px) as i64, (axes.top + py) as i64, color);
+        }
+    }
+    axes.draw(&mut c, false, im.title, im.x_label, im.y_label);
+    let bar_x = axes.right + BAR_GAP;
+    bar.draw(&mut c, bar_x, axes.top);
+    if any_missing {
+        ColorBar::draw_no_data(&mut c, bar_x, (axes.bottom + 12).min(HEIGHT - 12));
+    }
     c
 }
 
@@ -490,6 +596,47 @@ mod tests {
         let y = [f64::NAN, 1.0, f64::NAN, 2.0];
         let s = [Series { label: "dots", x: &x4, y: &y, color: [1, 2, 3] }];
         assert!(count_color(&line_plot_canvas(&s, "", "", "", None).rgb, [1, 2, 3]) >= 18);
+    }
+
+    #[test]
+    fn image_with_axes_puts_row_zero_at_the_bottom_and_marks_missing_values() {
+        // 2 × 3 cells: row 0 = 0 (bottom, dark), row 2 = 10 (top, bright); one NaN cell.
+        let values = vec![0.0, 0.0, 5.0, 5.0, 10.0, 10.0];
+        let mut holed = values.clone();
+        holed[3] = f64::NAN;
+        let base = AxesImage {
+            values: &values,
+            nx: 2,
+            ny: 3,
+            x_range: (-20.0, 20.0),
+            y_range: (90.0, 690.0),
+            x_label: "radial velocity (m/s)",
+            y_label: "range (m)",
+            title: "test",
+            cmap: Colormap::Grey,
+            value_range: (0.0, 10.0),
+            colorbar_label: "dB",
+        };
+        let c = image_with_axes(&base);
+        assert_eq!((c.width, c.height), (WIDTH, HEIGHT));
+        let axes = Axes::layout(WIDTH, HEIGHT, 8, (-20.0, 20.0), (90.0, 690.0));
+        let x = axes.left + 40;
+        let (top, bottom) = (c.get(x, axes.top + 5).unwrap(), c.get(x, axes.bottom - 5).unwrap());
+        assert_eq!(top, Colormap::Grey.color(1.0));
+        assert_eq!(bottom, Colormap::Grey.color(0.0));
+        assert_eq!(count_color(&c.rgb, NO_DATA), 0);
+        let c = image_with_axes(&AxesImage { values: &holed, ..base });
+        assert!(count_color(&c.rgb, NO_DATA) > 1000);
+        // Degenerate inputs draw something and never panic.
+        for (v, nx, ny, xr) in [
+            (&[][..], 0, 0, (0.0, 1.0)),
+            (&values[..5], 2, 3, (f64::NAN, 1.0)),
+            (&values[..], usize::MAX, 2, (1.0, 1.0)),
+            (&values[..], 6, 1, (5.0, -5.0)),
+        ] {
+            let c = image_with_axes(&AxesImage { values: v, nx, ny, x_range: xr, value_range: (1.0, 1.0), ..base });
+            assert_eq!((c.width, c.height), (WIDTH, HEIGHT));
+        }
     }
 
     /// Renders an example plot to `$OHD_PNG_DIR` (for looking at it), when set.

@@ -513,58 +513,114 @@ pub fn image_png(
     let to_t = |v: f64| if v.is_finite() { (v - lo) / (hi - lo) } else { f64::NAN };
     let geo = PreviewGeometry::new(nx, ny);
 
-    // Colour bar: the bar, tick marks and labels, then the rotated unit label.
     const BAR_GAP: usize = 16;
-    const BAR_W: usize = 18;
-    const TICK_LEN: usize = 4;
     let bar_h = geo.height.max(160);
-    let (tmin, tmax) = (lo.min(hi), lo.max(hi));
-    let mut ticks = colorbar_ticks(tmin, tmax);
-    if ticks.len() < 2 {
-        ticks = vec![tmin, tmax];
-    }
-    let step = (ticks[1] - ticks[0]).abs();
-    let labels: Vec<String> = ticks.iter().map(|&v| tick_label(v, step)).collect();
-    let label_w = labels.iter().map(|s| text_width(s, LABEL_SCALE)).max().unwrap_or(0);
-    let unit_scale = if text_width(colorbar_label, 2) <= bar_h { 2 } else { 1 };
-    let unit_len = text_width(colorbar_label, unit_scale);
+    let bar = ColorBar::new(cmap, (lo, hi), colorbar_label, bar_h);
     let has_no_data = values.iter().any(|v| !v.is_finite());
     let no_data_h = if has_no_data { 8 * LABEL_SCALE + 14 } else { 0 };
 
     let bar_x = geo.left + geo.width + BAR_GAP;
-    let label_x = bar_x + BAR_W + TICK_LEN + 4;
-    let unit_x = label_x + label_w + 10;
-    let content_w = unit_x + 8 * unit_scale - MARGIN;
-    let content_h = (geo.height + CAPTION_H).max(geo.height.max(bar_h).max(unit_len) + no_data_h);
+    let content_w = bar_x + bar.width() - MARGIN;
+    let content_h = (geo.height + CAPTION_H).max(geo.height.max(bar_h).max(bar.unit_len) + no_data_h);
     let mut canvas = titled_canvas(title, content_w, content_h);
     geo.caption(&mut canvas);
 
     geo.paint(&mut canvas, |ix, iy| cmap.color(to_t(values[iy * nx + ix])));
-
-    let bar_top = geo.top as i64;
-    let bar_bottom = bar_top + bar_h as i64 - 1;
-    for y in bar_top..=bar_bottom {
-        let t = (bar_bottom - y) as f64 / (bar_h - 1) as f64;
-        canvas.fill_rect(bar_x as i64, y, (bar_x + BAR_W - 1) as i64, y, cmap.color(t));
-    }
-    canvas.rect_outline(bar_x as i64 - 1, bar_top - 1, (bar_x + BAR_W) as i64, bar_bottom + 1, FRAME);
-    for (&v, label) in ticks.iter().zip(&labels) {
-        let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
-        let y = (bar_bottom as f64 - t * (bar_h - 1) as f64).round() as i64;
-        let x0 = (bar_x + BAR_W) as i64;
-        canvas.fill_rect(x0, y, x0 + TICK_LEN as i64 - 1, y, FRAME);
-        let ty = (y - 4 * LABEL_SCALE as i64).clamp(bar_top - 4, bar_bottom + 4 - 8 * LABEL_SCALE as i64);
-        canvas.text(label_x as i64, ty, label, TEXT, LABEL_SCALE);
-    }
-    let unit_y = bar_top + (bar_h as i64 - unit_len as i64) / 2;
-    canvas.text_vertical(unit_x as i64, unit_y.max(bar_top), colorbar_label, TEXT, unit_scale);
+    bar.draw(&mut canvas, bar_x, geo.top);
     if has_no_data {
-        let y = (geo.top + geo.height.max(bar_h).max(unit_len) + 10) as i64;
-        canvas.fill_rect(bar_x as i64, y, (bar_x + BAR_W - 1) as i64, y + 7, NO_DATA);
-        canvas.rect_outline(bar_x as i64 - 1, y - 1, (bar_x + BAR_W) as i64, y + 8, FRAME);
-        canvas.text(label_x as i64, y, "no data", TEXT, LABEL_SCALE);
+        ColorBar::draw_no_data(&mut canvas, bar_x, geo.top + geo.height.max(bar_h).max(bar.unit_len) + 10);
     }
     canvas.to_png()
+}
+
+/// A vertical colour bar: the colour ramp (low at the bottom), tick marks with 3–5 labels in the
+/// value's units on its right, and a rotated unit label right of those.
+pub(crate) struct ColorBar<'a> {
+    cmap: Colormap,
+    /// The value range mapped to the ramp's bottom and top (finite, non-empty).
+    lo: f64,
+    hi: f64,
+    ticks: Vec<f64>,
+    labels: Vec<String>,
+    label_w: usize,
+    unit: &'a str,
+    unit_scale: usize,
+    /// Length in pixels of the rotated unit label.
+    pub unit_len: usize,
+    /// Height of the ramp in pixels.
+    pub height: usize,
+}
+
+impl<'a> ColorBar<'a> {
+    /// Width of the ramp, px.
+    pub const BAR_W: usize = 18;
+    const TICK_LEN: usize = 4;
+    /// Offset of the tick labels from the bar's left edge, px.
+    pub const LABEL_OFFSET: usize = Self::BAR_W + Self::TICK_LEN + 4;
+
+    /// A bar `height` px tall (at least 2) for `range` (made usable: finite and non-empty).
+    pub fn new(cmap: Colormap, range: (f64, f64), unit: &'a str, height: usize) -> Self {
+        let (lo, hi) = usable_range(range);
+        let (tmin, tmax) = (lo.min(hi), lo.max(hi));
+        let mut ticks = colorbar_ticks(tmin, tmax);
+        if ticks.len() < 2 {
+            ticks = vec![tmin, tmax];
+        }
+        let step = (ticks[1] - ticks[0]).abs();
+        let labels: Vec<String> = ticks.iter().map(|&v| tick_label(v, step)).collect();
+        let label_w = labels.iter().map(|s| text_width(s, LABEL_SCALE)).max().unwrap_or(0);
+        let height = height.max(2);
+        let unit_scale = if text_width(unit, 2) <= height { 2 } else { 1 };
+        let unit_len = text_width(unit, unit_scale);
+        ColorBar { cmap, lo, hi, ticks, labels, label_w, unit, unit_scale, unit_len, height }
+    }
+
+    /// The value at the bottom of the ramp.
+    pub fn lo(&self) -> f64 {
+        self.lo
+    }
+
+    /// The value at the top of the ramp.
+    pub fn hi(&self) -> f64 {
+        self.hi
+    }
+
+    /// Total width: ramp, ticks, labels and the unit label, px.
+    pub fn width(&self) -> usize {
+        Self::LABEL_OFFSET + self.label_w + 10 + 8 * self.unit_scale
+    }
+
+    /// Draw with the ramp's top-left corner at `(x, top)`.
+    pub fn draw(&self, canvas: &mut Canvas, x: usize, top: usize) {
+        let (lo, hi, bar_h) = (self.lo, self.hi, self.height);
+        let bar_top = top as i64;
+        let bar_bottom = bar_top + bar_h as i64 - 1;
+        for y in bar_top..=bar_bottom {
+            let t = (bar_bottom - y) as f64 / (bar_h - 1) as f64;
+            canvas.fill_rect(x as i64, y, (x + Self::BAR_W - 1) as i64, y, self.cmap.color(t));
+        }
+        canvas.rect_outline(x as i64 - 1, bar_top - 1, (x + Self::BAR_W) as i64, bar_bottom + 1, FRAME);
+        let label_x = x + Self::LABEL_OFFSET;
+        for (&v, label) in self.ticks.iter().zip(&self.labels) {
+            let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
+            let y = (bar_bottom as f64 - t * (bar_h - 1) as f64).round() as i64;
+            let x0 = (x + Self::BAR_W) as i64;
+            canvas.fill_rect(x0, y, x0 + Self::TICK_LEN as i64 - 1, y, FRAME);
+            let ty = (y - 4 * LABEL_SCALE as i64).clamp(bar_top - 4, bar_bottom + 4 - 8 * LABEL_SCALE as i64);
+            canvas.text(label_x as i64, ty, label, TEXT, LABEL_SCALE);
+        }
+        let unit_x = label_x + self.label_w + 10;
+        let unit_y = bar_top + (bar_h as i64 - self.unit_len as i64) / 2;
+        canvas.text_vertical(unit_x as i64, unit_y.max(bar_top), self.unit, TEXT, self.unit_scale);
+    }
+
+    /// The "no data" swatch and label, its top-left corner at `(x, y)` (8 px tall).
+    pub fn draw_no_data(canvas: &mut Canvas, x: usize, y: usize) {
+        let (x, y) = (x as i64, y as i64);
+        canvas.fill_rect(x, y, x + Self::BAR_W as i64 - 1, y + 7, NO_DATA);
+        canvas.rect_outline(x - 1, y - 1, x + Self::BAR_W as i64, y + 8, FRAME);
+        canvas.text(x + Self::LABEL_OFFSET as i64, y, "no data", TEXT, LABEL_SCALE);
+    }
 }
 
 /// Nice ticks inside `[lo, hi]`: the most of them up to 5 (at least 3 when the nice steps allow).
