@@ -121,7 +121,7 @@ fn cloud_slab_range_inside_and_velocity_within_one_bin() {
     // β·A/R²·exp(−2σt(R − 10 m)) per unit range into the 50 mm receiver (the local estimate of its
     // shadow rays), with β = σs·p(π) of the cloud's (tabulated Mie) phase function.
     let m = &r.exp.scene.media[0];
-    let beta = m.sigma_s() * m.phase.eval(-1.0);
+    let beta = m.sigma_s() * m.population().phase.eval(-1.0);
     let area = std::f64::consts::PI * 0.05f64.powi(2);
     let density = |range: f64| beta * area / (range * range) * (-2.0 * m.sigma_t() * (range - near)).exp();
     let power = simpson(density, near, far, 1000);
