@@ -13,7 +13,11 @@
 //!   `sigma_s_per_mm`, `speed_mm_per_s`, …); [`config::resolve()`] converts once.
 //! * **Frame.** Right-handed, `z` is depth: the layer stack starts at the top surface `z = 0` and
 //!   extends towards `+z` (as in MCML). "Top" detectors sit on the `z = 0` side, "bottom" ones
-//!   below the last finite layer. Layers are laterally infinite.
+//!   below the last finite layer. Layers are laterally infinite. **In an atmosphere** (wind lidar)
+//!   the same axis is the height above the ground: the lidar sits at `z ≤ 0` looking up, `x` is
+//!   east and `y` north; azimuths are clockwise from north, elevations above the horizontal, and a
+//!   wind direction is where it blows *from* (meteorological: 270° blows toward `+x`). Falling
+//!   drops move toward `−z`.
 //! * **Directions are propagation directions.** `dir_in` is the direction travelled before an
 //!   event, `dir_out` after it; `cos θ = dir_in · dir_out`, `+1` = forward. Henyey–Greenstein `g > 0`
 //!   is forward scattering, as published. `cos θ` is sampled directly (never through `acos`).
@@ -55,8 +59,9 @@
 //! | [`sampling`] | random-number streams and warps (pure maps from uniforms) |
 //! | [`phase`] | phase functions (isotropic, Henyey–Greenstein, tabulated) |
 //! | [`mie`] | Lorenz–Mie scattering by spheres, particle ensembles and their bulk optics |
-//! | [`flow`] | velocity fields attached to media |
-//! | [`medium`] | homogeneous media (with particle mixtures), region shapes, the layer stack (the scene) |
+//! | [`flow`] | velocity fields attached to media: flows, wind profiles, terminal fall of drops |
+//! | [`scan`] | one run per beam pointing and the VAD wind per range gate |
+//! | [`medium`] | homogeneous media of one or several particle populations, region shapes, the layer stack (the scene) |
 //! | [`transport`] | Fresnel interfaces, free-flight tracking, the random walk |
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
