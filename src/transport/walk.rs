@@ -359,11 +359,11 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     if absorb(s, m, absorbed) {
         return Some(End::Absorbed);
     }
-    let pop = m.pick(rng);
+    let (pop, dynamic) = m.pick_dynamic(rng);
     let d = pop.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-    if DOPPLER && pop.is_dynamic() {
+    if DOPPLER && dynamic {
         let v = particle_velocity(pop, s.pos, rng);
         doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
@@ -394,8 +394,8 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     }
     // One population serves the shadow rays and the continuation (so that the balance heuristic
     // of `shadow_ray` weighs against the density the continuation is drawn from).
-    let pop = m.pick(rng);
-    let dynamic = DOPPLER && pop.is_dynamic();
+    let (pop, dynamic) = m.pick_dynamic(rng);
+    let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
     // Shadow-ray roulette: no shadow ray carries more than `weight·exp(−τ_min)`, where `τ_min`
     // is the optical depth straight up through the least dense media. Below
