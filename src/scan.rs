@@ -12,7 +12,6 @@
 use crate::experiment::{Experiment, RunOutput};
 use crate::retrieval::{RetrievalError, VadFit, gate_estimates, vad_fit};
 use crate::source::Pointing;
-use crate::spectrum::FrequencyAxis;
 
 impl Experiment {
     /// The same experiment with the beam (and the lidar receiver's axis) along `p`.
@@ -29,15 +28,14 @@ impl Experiment {
 }
 
 /// The peak radial velocity (m/s, positive receding) of every gate of the run's lidar receiver,
-/// from the expected spectrum of all scattering orders; `None` for a gate without signal. `None`
-/// altogether without a lidar receiver.
+/// from the expected spectrum of all scattering orders (the `peak_velocity_m_per_s` of
+/// `gates.csv`: the shot-noise floor, a constant, does not move the peak); `None` for a gate
+/// without signal. `None` altogether without a lidar receiver.
 pub fn gate_peak_velocities(exp: &Experiment, out: &RunOutput) -> Option<Vec<Option<f64>>> {
     let (i, spec) = exp.detectors.iter().enumerate().find_map(|(i, d)| d.lidar.as_ref().map(|l| (i, l)))?;
     let lay = out.layout.detectors[i].lidar.as_ref()?;
     let k = spec.fft_points;
-    // The bins in fftshift order are centred on ν_k = (k − K/2)·f_s/K, ascending.
-    let width = spec.sample_rate / k as f64;
-    let axis = FrequencyAxis::new(spec.bin_frequency(0) - 0.5 * width, spec.bin_frequency(k - 1) + 0.5 * width, k)?;
+    let axis = spec.frequency_axis()?;
     let mean = out.estimates.mean();
     Some(
         (0..spec.gates)

@@ -353,7 +353,6 @@ fn in_rain_a_second_component_sits_at_the_backscatter_weighted_fall_speed() {
     // minimum, found by scipy from another start, is 0.72–0.80 v_β with σ 2.9 m/s). Asserted:
     // aerosol within 0.15 m/s of 0; rain approaching at 0.6–1.3 v_β and at least 1.4× as wide.
     use ohd::retrieval::{FitOptions, Floor, fit_one_or_two};
-    use ohd::spectrum::FrequencyAxis;
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/wind_rainy.toml")).unwrap();
     let r = run(
         &text,
@@ -369,9 +368,7 @@ fn in_rain_a_second_component_sits_at_the_backscatter_weighted_fall_speed() {
     let b: f64 = classes.iter().map(|c| c.0).sum();
     let v_beta = classes.iter().map(|c| c.0 * c.2).sum::<f64>() / b;
     let k = spec.fft_points;
-    let width = spec.sample_rate / k as f64;
-    let axis =
-        FrequencyAxis::new(spec.bin_frequency(0) - 0.5 * width, spec.bin_frequency(k - 1) + 0.5 * width, k).unwrap();
+    let axis = spec.frequency_axis().unwrap();
     let (mean, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
     let options = FitOptions { floor: Floor::Fitted, selection_level: 1e-3, ..FitOptions::default() };
     let mut found = Vec::new();

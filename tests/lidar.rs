@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{Run, chi2_sf, run};
+use common::{Run, chi2_sf, gate_lag_weight, run, simpson};
 use ohd::SPEED_OF_LIGHT;
 
 /// Homogeneous haze (HG g = 0.7, σs = 5e-3 /m, σa = 5e-4 /m) from 0 to 1200 m, a pencil beam
@@ -58,18 +58,6 @@ fn gate_energy(r: &Run, c: usize, g: usize) -> (f64, f64) {
     (r.out.estimates.mean()[o], r.out.estimates.stderr()[o])
 }
 
-/// The pulse energy that gate `g` collects from a return delayed by `t_d`: Σ_m a(t_m − t_d)²Δt
-/// over its samples (a of unit energy, Gaussian with intensity FWHM τ_p).
-fn gate_weight(s: &ohd::detect::LidarSpec, g: usize, t_d: f64) -> f64 {
-    let sigma = s.pulse_sigma();
-    (0..s.gate_points)
-        .map(|m| {
-            let t = s.first_sample_time + (g * s.gate_points + m) as f64 * s.dt();
-            (-(t - t_d).powi(2) / (sigma * sigma)).exp() / (sigma * std::f64::consts::PI.sqrt()) * s.dt()
-        })
-        .sum()
-}
-
 #[test]
 fn single_scattering_follows_the_lidar_equation_in_every_gate() {
     // E_g = ∫ σs·p(π)·A/R²·exp(−2σt·s)·W_g(2R/c) ds with R = s + 1 m the range from the
@@ -86,15 +74,9 @@ fn single_scattering_follows_the_lidar_equation_in_every_gate() {
             let range = s + 1.0;
             sigma_s * p_back * area / (range * range)
                 * (-2.0 * sigma_t * s).exp()
-                * gate_weight(spec, gate, 2.0 * range / SPEED_OF_LIGHT)
+                * gate_lag_weight(spec, gate, 2.0 * range / SPEED_OF_LIGHT, 0)
         };
-        let h = 0.02;
-        let n = (1200.0 / h) as usize;
-        let mut sum = f(0.0) + f(1200.0);
-        for i in 1..n {
-            sum += f(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
-        }
-        let expected = sum * h / 3.0;
+        let expected = simpson(f, 0.0, 1200.0, 60_000);
         let (v, e) = gate_energy(&r, 1, gate);
         let z = (v - expected) / e;
         eprintln!(
