@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::{Run, chi2_sf, experiment, gate_lag_weight, run, simpson};
+use common::{Run, chi2_sf, experiment, gate_lag_weight, hg_backscatter, run, simpson};
 use num_complex::Complex64;
 use ohd::SPEED_OF_LIGHT;
 use ohd::flow::VelocityField;
@@ -63,19 +63,6 @@ gates = 20
 fft_points = 64
 "#;
 
-fn lidar(r: &Run) -> (&ohd::detect::LidarSpec, &ohd::detect::LidarLayout) {
-    (r.exp.detectors[0].lidar.as_ref().unwrap(), r.out.layout.detectors[0].lidar.as_ref().unwrap())
-}
-
-/// Lag sum `D_d` of channel `c` (0 total, 1 single, 2 multiple) in gate `g`, with the standard
-/// errors of its real and imaginary parts.
-fn lag(r: &Run, c: usize, g: usize, d: usize) -> (Complex64, (f64, f64)) {
-    let (s, lay) = lidar(r);
-    let o = lay.lags + ((c * s.gates + g) * s.gate_points + d) * 2;
-    let (m, e) = (r.out.estimates.mean(), r.out.estimates.stderr());
-    (Complex64::new(m[o], m[o + 1]), (e[o], e[o + 1]))
-}
-
 /// `∫ A/R²·e^{−2σt s}·W_{g,d}(2R/c) ds` over a layer of thickness `depth` starting 1 m above the
 /// transceiver (Simpson, 0.02 m steps).
 fn geometry(spec: &ohd::detect::LidarSpec, g: usize, d: usize, sigma_t: f64, depth: f64) -> f64 {
@@ -91,12 +78,12 @@ fn geometry(spec: &ohd::detect::LidarSpec, g: usize, d: usize, sigma_t: f64, dep
 /// gate against `E[D_d] = B_d·geometry`, with `B_d = Σ_i β_i E[e^{2πi f_i d Δt}]` given per lag;
 /// asserts each |z| < 4.5 and the χ² over all of them p > 1e-3.
 fn check_lags(r: &Run, b: [Complex64; 2], sigma_t: f64, depth: f64) {
-    let (spec, _) = lidar(r);
+    let (spec, _) = r.lidar();
     let (mut stat, mut dof) = (0.0, 0);
     for g in 0..spec.gates {
         for (d, bd) in b.iter().enumerate() {
             let expected = bd * geometry(spec, g, d, sigma_t, depth);
-            let (v, (se_re, se_im)) = lag(r, 1, g, d);
+            let (v, (se_re, se_im)) = r.lag(1, g, d);
             let mut parts = vec![("re", v.re, se_re, expected.re)];
             if d == 1 {
                 parts.push(("im", v.im, se_im, expected.im));
@@ -115,23 +102,19 @@ fn check_lags(r: &Run, b: [Complex64; 2], sigma_t: f64, depth: f64) {
     assert!(p > 1e-3, "χ² = {stat:.1} for {dof} values, p = {p:.2e}");
 }
 
-fn hg_back(g: f64) -> f64 {
-    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g).powi(3))
-}
-
 #[test]
 fn populations_scatter_in_proportion_to_sigma_s_with_their_own_phase_and_velocity() {
     // Lag 0 tests β = Σ σs_i p_i(π) (the choice ∝ σs and each population's phase in the local
     // estimate); lag 1 the Doppler phase 2π f_i Δt of each (+0.162 and −0.324 rad), i.e. that the
     // chosen population's velocity is used.
     let r = run(MIXTURE, &[]);
-    let dt = lidar(&r).0.dt();
+    let dt = r.lidar().0.dt();
     let b = |d: usize| {
         [(3e-3, 0.7, 1.0), (2e-3, 0.9, -2.0)]
             .iter()
             .map(|&(sigma_s, g, v)| {
                 Complex64::from_polar(
-                    sigma_s * hg_back(g),
+                    sigma_s * hg_backscatter(g),
                     2.0 * std::f64::consts::PI * 2.0 * v / LAMBDA * d as f64 * dt,
                 )
             })
@@ -174,18 +157,10 @@ gates = 20
 fft_points = 64
 "#;
 
-/// `(σs_c p_c(π), E[e^{iθ}] over the class's fall speeds, mean fall speed)` of every population
-/// of the first layer's medium, with `θ = 2π·(−2v/λ0)·Δt` (falling toward the lidar: negative).
-fn rain_classes(exp: &ohd::experiment::Experiment, dt: f64) -> Vec<(f64, Complex64, f64)> {
-    rain_classes_with(exp, "", dt)
-}
-
-/// [`rain_classes`] for the populations whose names start with `prefix`, at Δt = 0.
-fn rain_classes_of(exp: &ohd::experiment::Experiment, prefix: &str) -> Vec<(f64, Complex64, f64)> {
-    rain_classes_with(exp, prefix, 0.0)
-}
-
-fn rain_classes_with(exp: &ohd::experiment::Experiment, prefix: &str, dt: f64) -> Vec<(f64, Complex64, f64)> {
+/// `(σs_c p_c(π), E[e^{iθ}] over the class's fall speeds, mean fall speed)` of the populations of
+/// the first layer's medium whose names start with `prefix`, with `θ = 2π·(−2v/λ0)·Δt` (falling
+/// toward the lidar: negative).
+fn rain_classes(exp: &ohd::experiment::Experiment, prefix: &str, dt: f64) -> Vec<(f64, Complex64, f64)> {
     let m = &exp.scene.media[exp.scene.layers[0].medium];
     m.populations()
         .iter()
@@ -206,8 +181,8 @@ fn raindrops_fall_at_their_atlas_speeds_with_their_class_phase_functions() {
     // Lag 0: the lidar equation with β = Σ_c σs_c p_c(π) from the 8 Mie classes; lag 1: the
     // Doppler phase averaged over every class's drop sizes, Σ_c β_c Σ_n w_n e^{−2πi(2v_n/λ0)Δt}.
     let r = run(RAIN, &[]);
-    let dt = lidar(&r).0.dt();
-    let classes = rain_classes(&r.exp, dt);
+    let dt = r.lidar().0.dt();
+    let classes = rain_classes(&r.exp, "", dt);
     assert_eq!(classes.len(), 8);
     let b0: f64 = classes.iter().map(|c| c.0).sum();
     let b1: Complex64 = classes.iter().map(|c| c.1 * c.0).sum();
@@ -260,10 +235,10 @@ fft_points = 64
 /// (from the multiple channel's errors, gates combined in quadrature; the total's relative error
 /// is 30× smaller and left out).
 fn multiple_fraction(r: &Run) -> (f64, f64) {
-    let gates = lidar(r).0.gates;
-    let total: f64 = (0..gates).map(|g| lag(r, 0, g, 0).0.re).sum();
-    let multiple: f64 = (0..gates).map(|g| lag(r, 2, g, 0).0.re).sum();
-    let se = (0..gates).map(|g| lag(r, 2, g, 0).1.0.powi(2)).sum::<f64>().sqrt();
+    let gates = r.lidar().0.gates;
+    let total: f64 = (0..gates).map(|g| r.lag(0, g, 0).0.re).sum();
+    let multiple: f64 = (0..gates).map(|g| r.lag(2, g, 0).0.re).sum();
+    let se = (0..gates).map(|g| r.lag(2, g, 0).1.0.powi(2)).sum::<f64>().sqrt();
     (multiple / total, se / total)
 }
 
@@ -363,8 +338,8 @@ fn in_rain_a_second_component_sits_at_the_backscatter_weighted_fall_speed() {
             "detectors.0.lidar.first_gate_m=100",
         ],
     );
-    let (spec, lay) = lidar(&r);
-    let classes = rain_classes_of(&r.exp, "rain");
+    let (spec, lay) = r.lidar();
+    let classes = rain_classes(&r.exp, "rain", 0.0);
     let b: f64 = classes.iter().map(|c| c.0).sum();
     let v_beta = classes.iter().map(|c| c.0 * c.2).sum::<f64>() / b;
     let k = spec.fft_points;

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{Run, chi2_sf, gate_lag_weight, run, simpson};
+use common::{Run, chi2_sf, gate_lag_weight, hg_backscatter, run, simpson};
 use ohd::SPEED_OF_LIGHT;
 
 /// Homogeneous haze (HG g = 0.7, σs = 5e-3 /m, σa = 5e-4 /m) from 0 to 1200 m, a pencil beam
@@ -47,15 +47,10 @@ fft_points = 256
 /// Vacuum wavelength, m.
 const LAMBDA: f64 = 1550e-9;
 
-fn lidar(r: &Run) -> (&ohd::detect::LidarSpec, &ohd::detect::LidarLayout) {
-    (r.exp.detectors[0].lidar.as_ref().unwrap(), r.out.layout.detectors[0].lidar.as_ref().unwrap())
-}
-
 /// Gate energy of channel `c` (0 total, 1 single, 2 multiple): the lag sum D_0, with its error.
 fn gate_energy(r: &Run, c: usize, g: usize) -> (f64, f64) {
-    let (s, lay) = lidar(r);
-    let o = lay.lags + ((c * s.gates + g) * s.gate_points) * 2;
-    (r.out.estimates.mean()[o], r.out.estimates.stderr()[o])
+    let (d0, (se, _)) = r.lag(c, g, 0);
+    (d0.re, se)
 }
 
 #[test]
@@ -64,9 +59,9 @@ fn single_scattering_follows_the_lidar_equation_in_every_gate() {
     // transceiver, s the depth into the haze (Simpson's rule, 0.02 m steps; the aperture's
     // offset from the axis, ≤ 4e-5 rad, changes p and R by < 1e-8 relative).
     let r = run(HAZE, &[]);
-    let (spec, _) = lidar(&r);
+    let (spec, _) = r.lidar();
     let (sigma_s, sigma_t, g): (f64, f64, f64) = (5e-3, 5.5e-3, 0.7);
-    let p_back = (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g).powi(3));
+    let p_back = hg_backscatter(g);
     let area = spec.aperture_area();
     let (mut stat, mut dof) = (0.0, 0);
     for gate in 0..spec.gates {
@@ -93,7 +88,7 @@ fn single_scattering_follows_the_lidar_equation_in_every_gate() {
 
 /// Spectrum of channel `c` in gate `g` (fftshift order) and its bin frequencies.
 fn gate_spectrum(r: &Run, c: usize, g: usize) -> (Vec<f64>, Vec<f64>) {
-    let (s, lay) = lidar(r);
+    let (s, lay) = r.lidar();
     let o = lay.spectra + (c * s.gates + g) * s.fft_points;
     let f = (0..s.fft_points).map(|k| s.bin_frequency(k)).collect();
     (r.out.estimates.mean()[o..o + s.fft_points].to_vec(), f)
@@ -113,7 +108,7 @@ fn doppler_peak_sits_at_twice_the_line_of_sight_speed_over_lambda_in_every_gate(
     // bin (195 kHz bins).
     let r = run(HAZE, &["run.samples=100000"]);
     let f0 = 2.0 * 1.0 / LAMBDA;
-    let (spec, _) = lidar(&r);
+    let (spec, _) = r.lidar();
     let width = spec.sample_rate / spec.fft_points as f64;
     for g in 0..spec.gates {
         let (p, f) = gate_spectrum(&r, 1, g);
@@ -253,7 +248,7 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
     // (< 1 % per bin) resolve them. The second component is that pedestal, not a population: it
     // is concentric with the first (within 0.5 m/s) and more than 4 times as wide.
     let (r, dir, entry) = run_and_write(HAZE, &[]);
-    let (spec, _) = lidar(&r);
+    let (spec, _) = r.lidar();
     let bin_v = 0.5 * LAMBDA * spec.sample_rate / spec.fft_points as f64;
     let sigma2 = 6.626_070_15e-34 * SPEED_OF_LIGHT / LAMBDA / (0.8 * 0.4 * 100e-6);
     assert!((f(&entry["noise"]["variance_per_sample"]) / sigma2 - 1.0).abs() < 1e-12);
@@ -427,7 +422,7 @@ fn one_gaussian_per_slab_gate_and_an_empty_gate_reports_no_signal() {
     // 0.726 m/s, within 1 %. The empty gate 0 writes NaN and null with the reason, and the run
     // goes on.
     let (r, dir, entry) = run_and_write(SLABS, &[]);
-    let (spec, _) = lidar(&r);
+    let (spec, _) = r.lidar();
     let rows = entry["gates"].as_array().unwrap();
     let row = &rows[0];
     assert_eq!(f(&row["snr"]["value"]), 0.0);

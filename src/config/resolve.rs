@@ -941,15 +941,7 @@ fn resolve_classes(path: &str, m: &MediumSection, classes: u64, mie_angles: Opti
     let Some(list) = &m.particles else {
         return err(key, "splits the medium's particles into size classes: add a particles table");
     };
-    let explicit = [
-        ("sigma_a_per_m", m.sigma_a_per_m),
-        ("sigma_a_per_cm", m.sigma_a_per_cm),
-        ("sigma_a_per_mm", m.sigma_a_per_mm),
-        ("sigma_s_per_m", m.sigma_s_per_m),
-        ("sigma_s_per_cm", m.sigma_s_per_cm),
-        ("sigma_s_per_mm", m.sigma_s_per_mm),
-    ];
-    if let Some((k, _)) = explicit.iter().find(|(_, v)| v.is_some()) {
+    if let Some((k, _)) = coefficient_keys(m).iter().find(|(_, given)| *given) {
         return err(join(path, k), "with size_classes σs and σa come from the Mie classes: remove this key");
     }
     let Some(angles) = mie_angles else {
@@ -1069,8 +1061,8 @@ fn particle_classes(
     };
     let size_points = (spec.size_points / classes).max(16);
     let mut out = Vec::with_capacity(classes);
+    let edge = |j: usize| d_min * (d_max / d_min).powf(j as f64 / classes as f64);
     for i in 0..classes {
-        let edge = |j: usize| d_min * (d_max / d_min).powf(j as f64 / classes as f64);
         let class = EnsembleSpec {
             distribution: SizeDistribution::MarshallPalmer { rain_rate_mm_per_h, d_min: edge(i), d_max: edge(i + 1) },
             size_points,
@@ -1501,16 +1493,22 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
     Ok(Scene { layers, regions, media, n_above, n_below })
 }
 
+/// The explicit σa and σs keys of a medium, with whether each is given.
+fn coefficient_keys(m: &MediumSection) -> [(&'static str, bool); 6] {
+    [
+        ("sigma_a_per_m", m.sigma_a_per_m.is_some()),
+        ("sigma_a_per_cm", m.sigma_a_per_cm.is_some()),
+        ("sigma_a_per_mm", m.sigma_a_per_mm.is_some()),
+        ("sigma_s_per_m", m.sigma_s_per_m.is_some()),
+        ("sigma_s_per_cm", m.sigma_s_per_cm.is_some()),
+        ("sigma_s_per_mm", m.sigma_s_per_mm.is_some()),
+    ]
+}
+
 /// A mixture medium (`populations`) takes everything from its populations.
 fn check_mixture(path: &str, ms: &MediumSection) -> R<()> {
-    let given = [
-        ("particles", ms.particles.is_some()),
-        ("sigma_a_per_m", ms.sigma_a_per_m.is_some()),
-        ("sigma_a_per_cm", ms.sigma_a_per_cm.is_some()),
-        ("sigma_a_per_mm", ms.sigma_a_per_mm.is_some()),
-        ("sigma_s_per_m", ms.sigma_s_per_m.is_some()),
-        ("sigma_s_per_cm", ms.sigma_s_per_cm.is_some()),
-        ("sigma_s_per_mm", ms.sigma_s_per_mm.is_some()),
+    let particles = [("particles", ms.particles.is_some())];
+    let others = [
         ("sigma_s_scale", ms.sigma_s_scale.is_some()),
         ("phase", ms.phase.is_some()),
         ("velocity", ms.velocity.is_some()),
@@ -1518,7 +1516,7 @@ fn check_mixture(path: &str, ms: &MediumSection) -> R<()> {
         ("size_classes", ms.size_classes.is_some()),
         ("height_profile", ms.height_profile.is_some()),
     ];
-    match given.iter().find(|g| g.1) {
+    match particles.iter().chain(&coefficient_keys(ms)).chain(&others).find(|g| g.1) {
         Some((key, _)) => err(
             join(path, key),
             "a mixture medium (populations) takes its optics, velocity and profile from its populations: give this key there",

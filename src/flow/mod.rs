@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::sampling::{PathRng, warp};
+use crate::sampling::{Discrete, PathRng, warp};
 
 /// Von Kármán's constant of the logarithmic wind profile (scene-parameters §B5).
 pub const VON_KARMAN: f64 = 0.40;
@@ -105,44 +105,29 @@ pub fn atlas_fall_speed(d: f64) -> f64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FallSpeeds {
     speeds: Vec<f64>,
-    /// Cumulative share of σs, the last exactly 1.
-    cumulative: Vec<f64>,
+    /// Each speed's share of σs.
+    shares: Discrete,
 }
 
 impl FallSpeeds {
     /// From `(speed, weight)` pairs with weights ≥ 0 and a positive sum; `None` otherwise.
     pub fn new(pairs: &[(f64, f64)]) -> Option<Self> {
-        let total: f64 = pairs.iter().map(|p| p.1).sum();
-        if !(total > 0.0 && total.is_finite()) || pairs.iter().any(|p| p.1 < 0.0 || !p.0.is_finite()) {
+        if pairs.iter().any(|p| !p.0.is_finite()) {
             return None;
         }
-        let mut acc = 0.0;
-        let mut cumulative: Vec<f64> = pairs
-            .iter()
-            .map(|p| {
-                acc += p.1;
-                acc / total
-            })
-            .collect();
-        *cumulative.last_mut()? = 1.0;
-        Some(FallSpeeds { speeds: pairs.iter().map(|p| p.0).collect(), cumulative })
+        let shares = Discrete::new(pairs.iter().map(|p| p.1))?;
+        Some(FallSpeeds { speeds: pairs.iter().map(|p| p.0).collect(), shares })
     }
 
     /// The speed of the uniform number `u ∈ [0, 1)`.
     #[inline]
     pub fn sample(&self, u: f64) -> f64 {
-        let i = self.cumulative.partition_point(|&c| c <= u).min(self.speeds.len() - 1);
-        self.speeds[i]
+        self.speeds[self.shares.index(u)]
     }
 
     /// The speeds (m/s) with their shares of σs (summing to 1).
     pub fn shares(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
-        let mut prev = 0.0;
-        self.speeds.iter().zip(&self.cumulative).map(move |(&s, &c)| {
-            let w = c - prev;
-            prev = c;
-            (s, w)
-        })
+        self.speeds.iter().copied().zip(self.shares.shares())
     }
 
     /// The σs-weighted mean speed, m/s.
@@ -230,7 +215,7 @@ impl VelocityField {
                 wind: wind.reversed(),
                 fall: Arc::new(FallSpeeds {
                     speeds: fall.speeds.iter().map(|s| -s).collect(),
-                    cumulative: fall.cumulative.clone(),
+                    shares: fall.shares.clone(),
                 }),
             },
         }

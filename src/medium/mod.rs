@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use crate::flow::VelocityField;
 use crate::phase::PhaseFunction;
-use crate::sampling::PathRng;
+use crate::sampling::{Discrete, PathRng};
 
 /// Where a medium's optics came from, for the manifest (nothing here is read by the walk).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -111,9 +111,8 @@ pub struct Medium {
     /// 5·10⁴ paths, one thread: 1469.2M instructions before populations existed, 1534.7M with
     /// the list and a per-collision `is_dynamic` call, 1416.6M with this copy and `dynamic_of`.)
     primary: Population,
-    /// `cumulative[i]` = share of σs of populations `0..=i` (the last is 1); empty for one
-    /// population.
-    cumulative: Box<[f64]>,
+    /// The populations' shares of σs, for a mixture (`None` for one population).
+    choice: Option<Discrete>,
     /// Provenance of the optics, for the manifest.
     pub info: MediumInfo,
     sigma_a: f64,
@@ -145,27 +144,14 @@ impl Medium {
     pub fn mixture(name: impl Into<String>, sigma_a: f64, populations: Vec<Population>) -> Self {
         assert!(!populations.is_empty(), "a medium needs at least one particle population");
         let sigma_s: f64 = populations.iter().map(|p| p.sigma_s).sum();
-        let cumulative: Box<[f64]> = if populations.len() == 1 {
-            Box::new([])
-        } else {
-            let mut acc = 0.0;
-            let mut c: Vec<f64> = populations
-                .iter()
-                .map(|p| {
-                    acc += p.sigma_s;
-                    if sigma_s > 0.0 { acc / sigma_s } else { 1.0 }
-                })
-                .collect();
-            // Exactly 1 at the end, so that every u < 1 finds a population.
-            *c.last_mut().expect("non-empty") = 1.0;
-            c.into()
-        };
+        // One population needs no draw; a mixture that scatters nothing never draws.
+        let choice = if populations.len() == 1 { None } else { Discrete::new(populations.iter().map(|p| p.sigma_s)) };
         let sigma_t = sigma_a + sigma_s;
         let mut m = Medium {
             name: name.into(),
             primary: populations[0].clone(),
             populations: populations.into(),
-            cumulative,
+            choice,
             info: MediumInfo::default(),
             sigma_a,
             sigma_s,
@@ -209,28 +195,25 @@ impl Medium {
     /// number, only for a mixture).
     #[inline(always)]
     pub fn pick(&self, rng: &mut PathRng) -> &Population {
-        if self.cumulative.is_empty() { &self.primary } else { self.pick_with(rng.uniform()) }
+        self.pick_dynamic(rng).0
     }
 
     /// [`Medium::pick`] with whether the population drawn is dynamic.
     #[inline(always)]
     pub fn pick_dynamic(&self, rng: &mut PathRng) -> (&Population, bool) {
-        if self.cumulative.is_empty() {
-            (&self.primary, self.dynamic)
-        } else {
-            let i = self.index_of(rng.uniform());
-            (&self.populations[i], self.dynamic_of[i])
+        match &self.choice {
+            None => (&self.primary, self.dynamic),
+            Some(c) => {
+                let i = c.index(rng.uniform());
+                (&self.populations[i], self.dynamic_of[i])
+            }
         }
     }
 
     /// The population of the uniform number `u ∈ [0, 1)` (the first whose cumulative share
     /// exceeds `u`).
     pub fn pick_with(&self, u: f64) -> &Population {
-        &self.populations[self.index_of(u)]
-    }
-
-    fn index_of(&self, u: f64) -> usize {
-        self.cumulative.partition_point(|&c| c <= u).min(self.populations.len() - 1)
+        self.choice.as_ref().map_or(&self.primary, |c| &self.populations[c.index(u)])
     }
 
     /// Whether scattering on any of this medium's particles changes `dl/dt` or broadens the line.

@@ -194,6 +194,25 @@ impl Run {
     pub fn paths(&self) -> f64 {
         self.exp.plan.samples() as f64
     }
+
+    /// The lidar receiver (the first detector) and its tally layout.
+    pub fn lidar(&self) -> (&ohd::detect::LidarSpec, &ohd::detect::LidarLayout) {
+        (self.exp.detectors[0].lidar.as_ref().unwrap(), self.out.layout.detectors[0].lidar.as_ref().unwrap())
+    }
+
+    /// Lag sum `D_d` of the lidar's channel `c` (0 total, 1 single, 2 multiple) in gate `g`, with
+    /// the standard errors of its real and imaginary parts. `D_0` is the gate energy.
+    pub fn lag(&self, c: usize, g: usize, d: usize) -> (num_complex::Complex64, (f64, f64)) {
+        let (s, lay) = self.lidar();
+        let o = lay.lags + ((c * s.gates + g) * s.gate_points + d) * 2;
+        let (m, e) = (self.out.estimates.mean(), self.out.estimates.stderr());
+        (num_complex::Complex64::new(m[o], m[o + 1]), (e[o], e[o + 1]))
+    }
+}
+
+/// Henyey–Greenstein backscatter `p(π) = (1 − g²)/(4π(1 + g)³)`, sr⁻¹.
+pub fn hg_backscatter(g: f64) -> f64 {
+    (1.0 - g * g) / (4.0 * std::f64::consts::PI * (1.0 + g).powi(3))
 }
 
 /// Assert |measured − reference| ≤ k·σ, with a message.
