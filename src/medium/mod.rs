@@ -1,5 +1,6 @@
 //! Media and the scene they fill: homogeneous media, region shapes, the layer stack.
 
+pub mod grid;
 mod particles;
 mod scene;
 mod shape;
