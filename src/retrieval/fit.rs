@@ -10,6 +10,21 @@
 //! density the fitted `s_j²` exceeds the density's by `Δ²/12` (see
 //! [`MomentOptions::bin_integrated`](super::MomentOptions::bin_integrated)).
 //!
+//! **Components seen through a gate's kernel.** A range gate of a pulsed lidar does not show a
+//! line as a Gaussian: its expected periodogram is the scatterers' velocity distribution seen
+//! through the gate's own spectral kernel (for a short rectangular gate nearly a Fejér, sinc²,
+//! kernel). Given a [`GateKernel`] ([`fit_one_or_two_with_kernel`], [`fit_gaussians_with_kernel`])
+//! each component is instead the expected `K`-point periodogram of a Gaussian spread of beat
+//! frequencies (mean `μ_j`, standard deviation `s_j`) through the gate's lag window `L_d`:
+//! `S_j(ν) = (P_j/K)·[L_0 + 2 Re Σ_{d=1}^{M−1} L_d·e^{−2π² s_j² d² Δt²}·e^{2πi(μ_j − ν)dΔt}]/L_0`
+//! (derivation at [`GateKernel`]), where `P_j` is the component's power (its sum over the `K`
+//! bins of the DFT). `s_j` is then the scatterers' own spread (the kernel's width deconvolved,
+//! 0 for one velocity) and `μ_j` the line's centre. The parameters are `(ln P_j, μ_j, s_j²)`
+//! (`s²` in bins², bounded below by `min_sigma_hz²`, default 0, and above by the axis width²:
+//! the model is smooth in `s²` down to and at 0, where `ln s` would not be), with the analytic
+//! Jacobian of the lag sum. Everything else (floor, weights, Levenberg–Marquardt, bounds on the
+//! means, F-test, uncertainties) is as for plain Gaussians.
+//!
 //! **Estimator.** Weighted least squares, `χ² = Σ_k ((y_k − S(f_k))/σ_k)²` with the per-bin
 //! standard errors `σ_k` if given (else `σ_k = 1`), minimised by Levenberg–Marquardt (Marquardt
 //! 1963: `(JᵀJ + λ·diag JᵀJ)·δ = Jᵀr`, λ divided by 10 after a step that lowers χ², multiplied
@@ -78,10 +93,128 @@ impl Default for FitOptions {
     }
 }
 
+/// The spectral kernel of a range gate: its lag window `L_d` (`d = 0 … M − 1`), sample interval
+/// `Δt` and DFT length `K`, for fits of components seen through the gate
+/// ([`fit_one_or_two_with_kernel`]).
+///
+/// **Derivation.** A gate's expected periodogram (`K`-point zero-padded DFT of its `M` samples,
+/// `P = |X|²/K`, bins `ν`) is `P(ν) = (1/K)·[D_0 + 2 Re Σ_{d=1}^{M−1} D_d e^{−2πiνdΔt}]` with the
+/// lag sums `D_d = Σ_paths w·e^{2πi f dΔt}·Σ_m x_{m+d} x_m` (the receiver's own accumulation,
+/// [`LidarSpec::finish_batch`](crate::detect::LidarSpec::finish_batch)). When the beat frequencies
+/// `f` of the scatterers are independent of their echo delays, the expectation over `f`
+/// factorises: `D_d = W·L_d·φ(dΔt)` with `L_d` the delay-averaged `Σ_m x_{m+d} x_m` (the lag
+/// window, up to a constant) and `φ(τ) = E e^{2πifτ}` the characteristic function of the
+/// frequencies; for a Gaussian of mean `μ` and standard deviation `s`,
+/// `φ(τ) = e^{2πiμτ − 2π²s²τ²}`. Hence
+/// `P(ν) = (W/K)·[L_0 + 2 Re Σ_{d≥1} L_d·e^{−2π²s²d²Δt²}·e^{2πi(μ − ν)dΔt}]`. Over the `K` bins
+/// `ν_k = (k − K/2)/(KΔt)` of the DFT, `Σ_k e^{−2πiν_k dΔt} = 0` for `0 < d < K`, so
+/// `Σ_k P(ν_k) = W·L_0` (Parseval): dividing by `L_0` makes the amplitude the component's power.
+/// `s = 0` gives the kernel itself. Only the shape of `L_d` matters (its scale cancels).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GateKernel {
+    /// The lag window `L_d`, `d = 0 … M − 1`; `L_0 > 0`.
+    pub lags: Vec<f64>,
+    /// Sample interval `Δt`, s.
+    pub dt: f64,
+    /// DFT length `K ≥ M`.
+    pub fft_points: usize,
+}
+
+impl GateKernel {
+    /// Errors unless the lags are finite with `L_0 > 0`, `Δt` is finite and positive, and
+    /// `K ≥ M ≥ 1`.
+    pub fn validate(&self) -> Result<(), RetrievalError> {
+        check_finite("kernel lags", &self.lags)?;
+        let l0 = self.lags.first().copied().unwrap_or(0.0);
+        if l0 <= 0.0 {
+            return Err(RetrievalError::InvalidParameter {
+                name: "kernel lag 0",
+                value: l0,
+                expected: "a positive zero-lag window L_0 (at least one lag)",
+            });
+        }
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return Err(RetrievalError::InvalidParameter {
+                name: "kernel dt",
+                value: self.dt,
+                expected: "a finite positive sample interval",
+            });
+        }
+        if self.fft_points < self.lags.len() {
+            return Err(RetrievalError::InvalidParameter {
+                name: "kernel fft_points",
+                value: self.fft_points as f64,
+                expected: "a DFT at least as long as the lag window",
+            });
+        }
+        Ok(())
+    }
+
+    /// The expected periodogram at `nu_hz` of a Gaussian spread of beat frequencies of total power
+    /// `power` (summed over the `K` bins), mean `mean_hz` and standard deviation `sigma_hz`, seen
+    /// through this kernel (the model of [`GateKernel`]'s derivation).
+    pub fn periodogram(&self, power: f64, mean_hz: f64, sigma_hz: f64, nu_hz: f64) -> f64 {
+        let dt = self.dt;
+        let sum: f64 = self
+            .lags
+            .iter()
+            .enumerate()
+            .skip(1)
+            .map(|(d, l)| {
+                let t = d as f64 * dt;
+                l * (-2.0 * PI * PI * sigma_hz * sigma_hz * t * t).exp() * (2.0 * PI * (mean_hz - nu_hz) * t).cos()
+            })
+            .sum();
+        power * (1.0 + 2.0 * sum / self.lags[0]) / self.fft_points as f64
+    }
+}
+
+/// A [`GateKernel`] in the fit's internal units (frequencies in bins of the axis).
+#[derive(Debug, Clone)]
+struct KernelModel {
+    /// `L_d/(K·L_0)`: the lag window of a component of unit power.
+    c: Vec<f64>,
+    /// `2π·Δ·Δt`: the phase per bin of frequency offset and per lag.
+    omega: f64,
+    /// `2π²·Δ²·Δt²`: `s²d²` (`s` in bins) to the exponent of the spread's damping.
+    gamma: f64,
+    /// The squared width (bins²) of a Gaussian with the kernel's curvature at its peak,
+    /// `(c_0 + 2Σc_d)/(2Σc_d ω² d²)`: what the kernel adds to a line's apparent width², for
+    /// starting points only.
+    s2: f64,
+}
+
+impl KernelModel {
+    /// The kernel on an axis of `bins` bins of `bin_width` Hz.
+    fn new(kernel: &GateKernel, bin_width: f64, bins: usize) -> Self {
+        let norm = kernel.fft_points as f64 * kernel.lags[0];
+        let c: Vec<f64> = kernel.lags.iter().map(|l| l / norm).collect();
+        let omega = 2.0 * PI * bin_width * kernel.dt;
+        let gamma = 0.5 * omega * omega;
+        let peak = c[0] + 2.0 * c.iter().skip(1).sum::<f64>();
+        let curvature: f64 = 2.0 * c.iter().enumerate().map(|(d, c)| c * (omega * d as f64).powi(2)).sum::<f64>();
+        // A flat kernel (one sample) has no peak: the widest start, the axis.
+        let s2 = if curvature > 0.0 && peak > 0.0 { peak / curvature } else { (bins * bins) as f64 };
+        KernelModel { c, omega, gamma, s2 }
+    }
+
+    /// A unit-power component's value at its centre, and its derivative in `s²`.
+    fn peak(&self, v: f64) -> (f64, f64) {
+        let (mut value, mut dv) = (self.c[0], 0.0);
+        for (d, c) in self.c.iter().enumerate().skip(1) {
+            let d2 = (d * d) as f64;
+            let a = 2.0 * c * (-self.gamma * v * d2).exp();
+            value += a;
+            dv -= a * self.gamma * d2;
+        }
+        (value, dv)
+    }
+}
+
 /// One fitted Gaussian component with first-order standard errors.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GaussComponent {
-    /// Peak value per bin, `A`.
+    /// Peak value per bin, `A` (with a [`GateKernel`]: the component's model at its centre).
     pub amplitude: f64,
     /// Standard error of `A`.
     pub amplitude_stderr: f64,
@@ -89,13 +222,18 @@ pub struct GaussComponent {
     pub mean_hz: f64,
     /// Standard error of `μ` (Hz); in m/s multiply by `λ0/2`.
     pub mean_hz_stderr: f64,
-    /// Standard deviation `s` (Hz).
+    /// Standard deviation `s` (Hz); with a [`GateKernel`], the scatterers' spread with the
+    /// kernel deconvolved.
     pub sigma_hz: f64,
-    /// Standard error of `s` (Hz).
+    /// Standard error of `s` (Hz). With a [`GateKernel`] the fit determines `s²` (standard error
+    /// `e`), and this is `min(e/(2s), √e)`: the first-order error where `s ≫ √e`, and `√e` (the
+    /// spread at which `s²` is one standard error above 0) where `s` is not resolved from 0.
     pub sigma_hz_stderr: f64,
-    /// `A·s·√(2π)/Δ`, in the units of the spectrum summed over bins.
+    /// `A·s·√(2π)/Δ`, in the units of the spectrum summed over bins; with a [`GateKernel`], the
+    /// fitted power itself (the component's sum over the `K` bins of the DFT).
     pub power: f64,
-    /// Standard error of the power (through the covariance of `ln A` and `ln s`).
+    /// Standard error of the power (through the covariance of `ln A` and `ln s`; with a kernel,
+    /// of `ln P`).
     pub power_stderr: f64,
     /// `λ0·μ/2`, positive receding.
     pub mean_velocity_m_per_s: f64,
@@ -170,7 +308,33 @@ pub fn fit_one_or_two(
     wavelength_m: f64,
     options: &FitOptions,
 ) -> Result<ModelChoice, RetrievalError> {
-    let problem = Problem::validated(axis, values, stderr, wavelength_m, options)?;
+    choose(Problem::validated(axis, values, stderr, wavelength_m, options, None)?, axis, wavelength_m, options)
+}
+
+/// [`fit_one_or_two`] with components seen through a gate's spectral kernel (module docs): each
+/// component's `sigma_hz` is the scatterers' spread, its `power` the fitted power. The kernel's
+/// `K` need not equal the axis' bins (the model is evaluated at the bin centres), but `Δt` must be
+/// the sampling interval of the spectrum's DFT. Errors as [`fit_one_or_two`], and for an invalid
+/// kernel ([`GateKernel::validate`]).
+pub fn fit_one_or_two_with_kernel(
+    axis: &FrequencyAxis,
+    values: &[f64],
+    stderr: Option<&[f64]>,
+    wavelength_m: f64,
+    options: &FitOptions,
+    kernel: &GateKernel,
+) -> Result<ModelChoice, RetrievalError> {
+    let problem = Problem::validated(axis, values, stderr, wavelength_m, options, Some(kernel))?;
+    choose(problem, axis, wavelength_m, options)
+}
+
+/// The one- and two-component fits of `problem` and the F-test between them.
+fn choose(
+    problem: Problem<'_>,
+    axis: &FrequencyAxis,
+    wavelength_m: f64,
+    options: &FitOptions,
+) -> Result<ModelChoice, RetrievalError> {
     problem.check_points(1)?;
     let one_solution = problem.fit_one(axis)?;
     let one = problem.report(axis, &one_solution, wavelength_m)?;
@@ -225,7 +389,31 @@ pub fn fit_gaussians(
     wavelength_m: f64,
     options: &FitOptions,
 ) -> Result<GaussianFit, RetrievalError> {
-    let problem = Problem::validated(axis, values, stderr, wavelength_m, options)?;
+    fit_n(Problem::validated(axis, values, stderr, wavelength_m, options, None)?, axis, components, wavelength_m)
+}
+
+/// [`fit_gaussians`] with components seen through a gate's spectral kernel (module docs; starting
+/// points as [`fit_gaussians`]'s with the kernel's width taken off the widths and its peak off the
+/// heights).
+pub fn fit_gaussians_with_kernel(
+    axis: &FrequencyAxis,
+    values: &[f64],
+    stderr: Option<&[f64]>,
+    components: usize,
+    wavelength_m: f64,
+    options: &FitOptions,
+    kernel: &GateKernel,
+) -> Result<GaussianFit, RetrievalError> {
+    let problem = Problem::validated(axis, values, stderr, wavelength_m, options, Some(kernel))?;
+    fit_n(problem, axis, components, wavelength_m)
+}
+
+fn fit_n(
+    problem: Problem<'_>,
+    axis: &FrequencyAxis,
+    components: usize,
+    wavelength_m: f64,
+) -> Result<GaussianFit, RetrievalError> {
     if !(components == 1 || components == 2) {
         return Err(RetrievalError::InvalidParameter {
             name: "components",
@@ -277,7 +465,8 @@ fn median(values: &[f64]) -> f64 {
 }
 
 /// The least-squares problem in internal units: bin index `x = k` as the abscissa, parameters
-/// `[ln A, μ, ln s]` per component (μ, s in bins), then the floor if fitted.
+/// `[ln A, μ, ln s]` per component (μ, s in bins), or `[ln P, μ, s²]` with a gate kernel, then
+/// the floor if fitted.
 struct Problem<'a> {
     y: &'a [f64],
     /// `1/σ_k`.
@@ -288,6 +477,10 @@ struct Problem<'a> {
     fit_floor: bool,
     /// `ln` of the narrowest component width allowed (bins).
     ln_s_min: f64,
+    /// The gate kernel the components are seen through, if any.
+    kernel: Option<KernelModel>,
+    /// With a kernel, the smallest `s²` allowed (bins²): `min_sigma_hz²`.
+    v_min: f64,
     /// [`FitOptions::max_iterations`].
     max_iterations: usize,
 }
@@ -317,8 +510,12 @@ impl<'a> Problem<'a> {
         stderr: Option<&[f64]>,
         wavelength_m: f64,
         options: &FitOptions,
+        kernel: Option<&GateKernel>,
     ) -> Result<Self, RetrievalError> {
         check_len("values", values, axis.bins)?;
+        if let Some(k) = kernel {
+            k.validate()?;
+        }
         check_finite("values", values)?;
         if let Some(se) = stderr {
             check_len("stderr", se, axis.bins)?;
@@ -350,8 +547,11 @@ impl<'a> Problem<'a> {
                 expected: "a significance level in (0, 1)",
             });
         }
-        let mut problem = Problem::new(values, stderr, options.floor, (min_sigma / axis.bin_width()).max(S_MIN_BINS));
+        let dw = axis.bin_width();
+        let mut problem = Problem::new(values, stderr, options.floor, (min_sigma / dw).max(S_MIN_BINS));
         problem.max_iterations = options.max_iterations;
+        problem.kernel = kernel.map(|k| KernelModel::new(k, dw, axis.bins));
+        problem.v_min = (min_sigma / dw).powi(2);
         Ok(problem)
     }
 
@@ -366,7 +566,21 @@ impl<'a> Problem<'a> {
         let floor0 = if self.fit_floor { median(self.y) } else { self.fixed_floor };
         let signal: Vec<f64> = self.y.iter().map(|v| v - floor0).collect();
         let (a, mu, s) = moment_start(axis, &signal)?;
-        self.levenberg_marquardt(self.with_floor(vec![a.ln(), mu, s.ln()], floor0))
+        let p = match &self.kernel {
+            None => vec![a.ln(), mu, s.ln()],
+            // The kernel's own width off the apparent one, its peak off the height.
+            Some(km) => {
+                let v = self.clamp_v(s * s - km.s2);
+                vec![(a / km.peak(v).0).ln(), mu, v]
+            }
+        };
+        self.levenberg_marquardt(self.with_floor(p, floor0))
+    }
+
+    /// `s²` (bins²) within its bounds.
+    fn clamp_v(&self, v: f64) -> f64 {
+        let bins = self.y.len() as f64;
+        v.clamp(self.v_min, (bins * bins).max(self.v_min))
     }
 
     /// Two components from the better of starts (a) and (b) of [`fit_gaussians`].
@@ -379,15 +593,36 @@ impl<'a> Problem<'a> {
         // as wide as the first component (a matched filter: a single noisy bin must not set the
         // start), its moments deconvolved: a line (A, s) smoothed by a unit-sum kernel of width
         // k has width √(s² + k²) and height A·s/√(s² + k²).
-        let residual: Vec<f64> = self.y.iter().enumerate().map(|(k, y)| y - self.model(p1, k as f64)).collect();
-        let kernel = p1[2].exp().max(1.0);
-        if let Ok((h, mu2, w)) = moment_start(axis, &gaussian_smooth(&residual, kernel)) {
-            let s2 = (w * w - kernel * kernel).max(0.25).sqrt();
-            let a2 = h * (s2 * s2 + kernel * kernel).sqrt() / s2;
-            starts.push(self.with_floor(vec![p1[0], p1[1], p1[2], a2.ln(), mu2, s2.ln()], floor1));
+        // With a gate kernel the widths are apparent ones, √(s² + kernel's s²), and heights
+        // are converted to powers through the kernel's peak.
+        let residual: Vec<f64> = self.y.iter().zip(self.values(p1)).map(|(y, m)| y - m).collect();
+        let apparent1 = match &self.kernel {
+            None => p1[2].exp(),
+            Some(km) => (p1[2] + km.s2).sqrt(),
+        };
+        let smoothing = apparent1.max(1.0);
+        if let Ok((h, mu2, w)) = moment_start(axis, &gaussian_smooth(&residual, smoothing)) {
+            let s2 = (w * w - smoothing * smoothing).max(0.25).sqrt();
+            let a2 = h * (s2 * s2 + smoothing * smoothing).sqrt() / s2;
+            let second = match &self.kernel {
+                None => [a2.ln(), mu2, s2.ln()],
+                Some(km) => {
+                    let v2 = self.clamp_v(s2 * s2 - km.s2);
+                    [(a2 / km.peak(v2).0).ln(), mu2, v2]
+                }
+            };
+            starts.push(self.with_floor(vec![p1[0], p1[1], p1[2], second[0], second[1], second[2]], floor1));
         }
         // (b) a narrow and a broad Gaussian at the one-component mean.
-        starts.push(self.with_floor(vec![p1[0] - ln2, p1[1], p1[2] - ln2, p1[0] - ln2, p1[1], p1[2] + ln2], floor1));
+        match &self.kernel {
+            None => starts
+                .push(self.with_floor(vec![p1[0] - ln2, p1[1], p1[2] - ln2, p1[0] - ln2, p1[1], p1[2] + ln2], floor1)),
+            // s²/4 and 4s² + the kernel's: a broad component at least as wide as the kernel.
+            Some(km) => {
+                let (narrow, broad) = (self.clamp_v(0.25 * p1[2]), self.clamp_v(4.0 * p1[2] + km.s2));
+                starts.push(self.with_floor(vec![p1[0] - ln2, p1[1], narrow, p1[0] - ln2, p1[1], broad], floor1));
+            }
+        }
         // (b) is always there, so the initial error is always replaced.
         let mut best: Result<Solution, _> = Err(RetrievalError::DidNotConverge { iterations: 0 });
         for p0 in starts {
@@ -417,6 +652,8 @@ impl<'a> Problem<'a> {
             fixed_floor,
             fit_floor,
             ln_s_min: s_min_bins.ln(),
+            kernel: None,
+            v_min: 0.0,
             max_iterations: FitOptions::default().max_iterations,
         }
     }
@@ -438,43 +675,84 @@ impl<'a> Problem<'a> {
         if self.fit_floor { p[p.len() - 1] } else { self.fixed_floor }
     }
 
-    /// `S(x)` at bin coordinate `x`.
-    fn model(&self, p: &[f64], x: f64) -> f64 {
-        self.floor(p)
-            + (0..self.components(p))
-                .map(|j| {
-                    let (ln_a, mu, ln_s) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
-                    let z = (x - mu) * (-ln_s).exp();
-                    (ln_a - 0.5 * z * z).exp()
-                })
-                .sum::<f64>()
+    /// Component `j` at every bin: its value `g` and its derivatives in its mean and in its
+    /// width parameter (`∂g/∂ln A = g` for both models).
+    /// Gaussian: `∂g/∂μ = g·(x − μ)/s²`, `∂g/∂ln s = g·(x − μ)²/s²`.
+    /// Kernel, with `a_d = P·c_d·e^{−γ s² d²}` and `θ = ω(μ − x)`:
+    /// `g = P c_0 + 2Σ a_d cos dθ`, `∂g/∂μ = −2Σ a_d ω d sin dθ`, `∂g/∂s² = −2Σ a_d γ d² cos dθ`.
+    fn profile(&self, p: &[f64], j: usize) -> Vec<[f64; 3]> {
+        let (ln_a, mu, width) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+        match &self.kernel {
+            None => {
+                let inv_s = (-width).exp();
+                (0..self.y.len())
+                    .map(|k| {
+                        let u = (k as f64 - mu) * inv_s;
+                        let g = (ln_a - 0.5 * u * u).exp();
+                        [g, g * u * inv_s, g * u * u]
+                    })
+                    .collect()
+            }
+            Some(km) => {
+                let amp = ln_a.exp();
+                let a: Vec<f64> =
+                    km.c.iter()
+                        .enumerate()
+                        .map(|(d, c)| 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp())
+                        .collect();
+                (0..self.y.len())
+                    .map(|k| {
+                        let (sin1, cos1) = (km.omega * (mu - k as f64)).sin_cos();
+                        let (mut sin, mut cos) = (0.0, 1.0);
+                        let (mut g, mut dmu, mut dv) = (amp * km.c[0], 0.0, 0.0);
+                        for (d, a) in a.iter().enumerate().skip(1) {
+                            // (cos, sin) of dθ from (d − 1)θ by one rotation.
+                            (cos, sin) = (cos * cos1 - sin * sin1, sin * cos1 + cos * sin1);
+                            let d = d as f64;
+                            g += a * cos;
+                            dmu -= a * km.omega * d * sin;
+                            dv -= a * km.gamma * d * d * cos;
+                        }
+                        [g, dmu, dv]
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// `S` at every bin.
+    fn values(&self, p: &[f64]) -> Vec<f64> {
+        let mut s = vec![self.floor(p); self.y.len()];
+        for j in 0..self.components(p) {
+            for (v, g) in s.iter_mut().zip(self.profile(p, j)) {
+                *v += g[0];
+            }
+        }
+        s
     }
 
     fn chi2(&self, p: &[f64]) -> f64 {
-        let c: f64 =
-            self.y.iter().zip(&self.w).enumerate().map(|(k, (y, w))| (w * (y - self.model(p, k as f64))).powi(2)).sum();
+        let c: f64 = self.y.iter().zip(&self.w).zip(self.values(p)).map(|((y, w), m)| (w * (y - m)).powi(2)).sum();
         if c.is_finite() { c } else { f64::INFINITY }
     }
 
-    /// The normal matrix `JᵀWJ` and gradient `JᵀW·r` (`r = y − S`) at `p`, row-major.
-    /// `∂S/∂ln A = g`, `∂S/∂μ = g·(x − μ)/s²`, `∂S/∂ln s = g·(x − μ)²/s²`, `∂S/∂b = 1`.
+    /// The normal matrix `JᵀWJ` and gradient `JᵀW·r` (`r = y − S`) at `p`, row-major, from the
+    /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`.
     fn normal_equations(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let n = p.len();
+        let m = self.components(p);
+        let profiles: Vec<Vec<[f64; 3]>> = (0..m).map(|j| self.profile(p, j)).collect();
         let mut ata = vec![0.0; n * n];
         let mut atr = vec![0.0; n];
         let mut row = vec![0.0; n];
         for (k, (&y, &w)) in self.y.iter().zip(&self.w).enumerate() {
-            let x = k as f64;
             let mut model = self.floor(p);
-            for j in 0..self.components(p) {
-                let (ln_a, mu, ln_s) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
-                let inv_s = (-ln_s).exp();
-                let u = (x - mu) * inv_s;
-                let g = (ln_a - 0.5 * u * u).exp();
+            for (j, prof) in profiles.iter().enumerate() {
+                let [g, d_mu, d_width] = prof[k];
                 model += g;
                 row[3 * j] = w * g;
-                row[3 * j + 1] = w * g * u * inv_s;
-                row[3 * j + 2] = w * g * u * u;
+                row[3 * j + 1] = w * d_mu;
+                row[3 * j + 2] = w * d_width;
             }
             if self.fit_floor {
                 row[n - 1] = w;
@@ -496,12 +774,16 @@ impl<'a> Problem<'a> {
     }
 
     /// `p` projected onto the bounds: each mean on the axis (`−½ ≤ μ ≤ bins − ½`, bin units),
-    /// each width in `[s_min, bins]` (a narrower "line" is one bin or noise, a wider one is a floor).
+    /// each width in `[s_min, bins]` (a narrower "line" is one bin or noise, a wider one is a floor);
+    /// with a kernel, `s²` in `[min_sigma², bins²]` (the kernel already has the resolution's width).
     fn clamp_to_box(&self, mut p: Vec<f64>) -> Vec<f64> {
         let bins = self.y.len() as f64;
         for j in 0..self.components(&p) {
             p[3 * j + 1] = p[3 * j + 1].clamp(-0.5, bins - 0.5);
-            p[3 * j + 2] = p[3 * j + 2].clamp(self.ln_s_min, bins.ln().max(self.ln_s_min));
+            p[3 * j + 2] = match self.kernel {
+                None => p[3 * j + 2].clamp(self.ln_s_min, bins.ln().max(self.ln_s_min)),
+                Some(_) => self.clamp_v(p[3 * j + 2]),
+            };
         }
         p
     }
@@ -532,12 +814,22 @@ impl<'a> Problem<'a> {
         for iteration in 1..=self.max_iterations {
             let (ata, atr) = self.normal_equations(&p);
             let max_diag = (0..n).map(|i| ata[i * n + i]).fold(0.0f64, f64::max);
+            let frozen = self.held_at_bounds(&p, &atr);
             loop {
                 let mut damped = ata.clone();
+                let mut rhs = atr.clone();
                 for i in 0..n {
                     damped[i * n + i] += lambda * ata[i * n + i].max(1e-15 * max_diag);
                 }
-                let step = cholesky(&damped, n).map(|l| cholesky_solve(&l, n, &atr));
+                for i in (0..n).filter(|&i| frozen[i]) {
+                    for j in 0..n {
+                        damped[i * n + j] = 0.0;
+                        damped[j * n + i] = 0.0;
+                    }
+                    damped[i * n + i] = 1.0;
+                    rhs[i] = 0.0;
+                }
+                let step = cholesky(&damped, n).map(|l| cholesky_solve(&l, n, &rhs));
                 if let Some(delta) = step {
                     let trial = self.clamp_to_box(p.iter().zip(&delta).map(|(a, d)| a + d).collect());
                     let trial_chi2 = self.chi2(&trial);
@@ -560,6 +852,29 @@ impl<'a> Problem<'a> {
             }
         }
         Err(RetrievalError::DidNotConverge { iterations: self.max_iterations })
+    }
+
+    /// With a gate kernel, the parameters that sit on a bound of [`Problem::clamp_to_box`] with the
+    /// gradient pushing them out (`JᵀWr`, the descent direction, pointing outside): they are held
+    /// for the step, which then solves for the others only. A one-velocity line has `s² = 0` on
+    /// its bound; a projected full step there would move the other parameters as if `s²` had
+    /// gone negative, and the fit would crawl. (Plain Gaussians are fitted as before: nothing is
+    /// held.)
+    fn held_at_bounds(&self, p: &[f64], atr: &[f64]) -> Vec<bool> {
+        let mut held = vec![false; p.len()];
+        if self.kernel.is_none() {
+            return held;
+        }
+        let bins = self.y.len() as f64;
+        for j in 0..self.components(p) {
+            for (i, lo, hi) in [
+                (3 * j + 1, -0.5, bins - 0.5),
+                (3 * j + 2, self.clamp_v(f64::NEG_INFINITY), self.clamp_v(f64::INFINITY)),
+            ] {
+                held[i] = (p[i] <= lo && atr[i] < 0.0) || (p[i] >= hi && atr[i] > 0.0);
+            }
+        }
+        held
     }
 
     /// `(JᵀWJ)⁻¹` at the solution, or [`RetrievalError::Degenerate`] with its condition number.
@@ -589,21 +904,54 @@ impl<'a> Problem<'a> {
             .map(|j| {
                 let (i_a, i_mu, i_s) = (3 * j, 3 * j + 1, 3 * j + 2);
                 let c = |a: usize, b: usize| cov[a * n + b];
-                let amplitude = p[i_a].exp();
-                let sigma_bins = p[i_s].exp();
                 let mean_hz = axis.f_min + (p[i_mu] + 0.5) * dw;
-                let sigma_hz = sigma_bins * dw;
-                // Σ_k A·exp(−(k − μ)²/(2s²)) ≈ A·s·√(2π) (s in bins) = A·s_Hz·√(2π)/Δ.
-                let power = amplitude * sigma_bins * (2.0 * PI).sqrt();
+                let (amplitude, amplitude_stderr, sigma_hz, sigma_hz_stderr, power, power_stderr) = match &self.kernel {
+                    None => {
+                        let amplitude = p[i_a].exp();
+                        let sigma_bins = p[i_s].exp();
+                        let sigma_hz = sigma_bins * dw;
+                        // Σ_k A·exp(−(k − μ)²/(2s²)) ≈ A·s·√(2π) (s in bins) = A·s_Hz·√(2π)/Δ.
+                        let power = amplitude * sigma_bins * (2.0 * PI).sqrt();
+                        (
+                            amplitude,
+                            amplitude * c(i_a, i_a).sqrt(),
+                            sigma_hz,
+                            sigma_hz * c(i_s, i_s).sqrt(),
+                            power,
+                            power * (c(i_a, i_a) + c(i_s, i_s) + 2.0 * c(i_a, i_s)).max(0.0).sqrt(),
+                        )
+                    }
+                    Some(km) => {
+                        let power = p[i_a].exp();
+                        let v = p[i_s];
+                        // The peak P·h(s²): ln peak = ln P + ln h, ∂ln h/∂s² = h'/h.
+                        let (h, dh) = km.peak(v);
+                        let q = dh / h;
+                        let amplitude = power * h;
+                        let ln_amp_var = c(i_a, i_a) + q * q * c(i_s, i_s) + 2.0 * q * c(i_a, i_s);
+                        let sigma_bins = v.max(0.0).sqrt();
+                        let v_se = c(i_s, i_s).max(0.0).sqrt();
+                        let sigma_se =
+                            if sigma_bins > 0.0 { (0.5 * v_se / sigma_bins).min(v_se.sqrt()) } else { v_se.sqrt() };
+                        (
+                            amplitude,
+                            amplitude * ln_amp_var.max(0.0).sqrt(),
+                            sigma_bins * dw,
+                            sigma_se * dw,
+                            power,
+                            power * c(i_a, i_a).max(0.0).sqrt(),
+                        )
+                    }
+                };
                 GaussComponent {
                     amplitude,
-                    amplitude_stderr: amplitude * c(i_a, i_a).sqrt(),
+                    amplitude_stderr,
                     mean_hz,
                     mean_hz_stderr: dw * c(i_mu, i_mu).sqrt(),
                     sigma_hz,
-                    sigma_hz_stderr: sigma_hz * c(i_s, i_s).sqrt(),
+                    sigma_hz_stderr,
                     power,
-                    power_stderr: power * (c(i_a, i_a) + c(i_s, i_s) + 2.0 * c(i_a, i_s)).max(0.0).sqrt(),
+                    power_stderr,
                     mean_velocity_m_per_s: radial_velocity(mean_hz, wavelength_m),
                     sigma_velocity_m_per_s: radial_velocity(sigma_hz, wavelength_m),
                 }
@@ -783,6 +1131,145 @@ mod tests {
             assert!((cb.mean_hz_stderr / ca.mean_hz_stderr - 2.0).abs() < 1e-6);
             assert!((cb.power_stderr / ca.power_stderr - 2.0).abs() < 1e-6);
             assert!(ca.mean_hz_stderr > 0.0 && ca.sigma_hz_stderr > 0.0);
+        }
+    }
+
+    /// A 10-sample gate at 50 MHz on a 200 ns pulse (σ_p = 6.0 samples), 256-point DFT: the lag
+    /// window `(M − d)·e^{−d²Δt²/(4σ_p²)}`.
+    fn gate_kernel() -> GateKernel {
+        let dt = 20e-9;
+        let sigma_p = 200e-9 / (2.0 * std::f64::consts::LN_2.sqrt());
+        let lags = (0..10).map(|d| (10 - d) as f64 * (-((d as f64 * dt) / sigma_p).powi(2) / 4.0).exp()).collect();
+        GateKernel { lags, dt, fft_points: 256 }
+    }
+
+    /// The DFT axis of [`gate_kernel`]: bins `ν_k = (k − 128)·f_s/256` (195.3 kHz, 0.151 m/s).
+    fn gate_axis() -> FrequencyAxis {
+        let w = 50e6 / 256.0;
+        FrequencyAxis::new(-128.5 * w, 127.5 * w, 256).unwrap()
+    }
+
+    /// The expected periodogram of lines `(P, μ, s)` (Gaussian spreads of frequency) through
+    /// `kernel`, built independently of the fit's model: the lag sums
+    /// `D_d = Σ P·(L_d/L_0)·e^{2πiμdΔt − 2π²s²d²Δt²}` (the characteristic function of a
+    /// Gaussian), `D_{−d} = conj D_d`, and `P_k = (1/K)·Σ_{|d|<M} D_d e^{−2πiν_k dΔt}` summed in
+    /// complex arithmetic.
+    fn lag_sum_spectrum(kernel: &GateKernel, axis: &FrequencyAxis, floor: f64, lines: &[(f64, f64, f64)]) -> Vec<f64> {
+        use num_complex::Complex64;
+        let m = kernel.lags.len() as i64;
+        let lag = |d: i64| -> Complex64 {
+            let t = d.abs() as f64 * kernel.dt;
+            let z: Complex64 = lines
+                .iter()
+                .map(|&(p, mu, s)| {
+                    p * kernel.lags[d.unsigned_abs() as usize] / kernel.lags[0]
+                        * Complex64::from_polar((-2.0 * PI * PI * s * s * t * t).exp(), 2.0 * PI * mu * t)
+                })
+                .sum();
+            if d < 0 { z.conj() } else { z }
+        };
+        (0..axis.bins)
+            .map(|k| {
+                let nu = axis.center(k);
+                let z: Complex64 = (1 - m..m)
+                    .map(|d| lag(d) * Complex64::from_polar(1.0, -2.0 * PI * nu * d as f64 * kernel.dt))
+                    .sum();
+                floor + z.re / kernel.fft_points as f64
+            })
+            .collect()
+    }
+
+    #[test]
+    fn kernel_gradient_matches_finite_differences() {
+        let (kernel, axis) = (gate_kernel(), gate_axis());
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let y = lag_sum_spectrum(&kernel, &axis, 0.01, &[(3.0, hz(1.0), hz(0.3)), (1.0, hz(-2.0), hz(1.5))]);
+        let stderr: Vec<f64> = (0..y.len()).map(|k| 0.005 + 1e-5 * k as f64).collect();
+        let mut problem = Problem::new(&y, Some(&stderr), Floor::Fitted, S_MIN_BINS);
+        problem.kernel = Some(KernelModel::new(&kernel, axis.bin_width(), axis.bins));
+        // Away from the minimum, s² (bins²) of 3 and 150, and at s² = 0.
+        for p in [vec![1.2, 135.0, 3.0, 0.1, 112.0, 150.0, 0.013], vec![0.9, 140.3, 0.0, -0.5, 100.0, 80.0, 0.0]] {
+            let (_, atr) = problem.normal_equations(&p);
+            for i in 0..p.len() {
+                let h = 1e-5;
+                let (mut hi, mut lo) = (p.clone(), p.clone());
+                hi[i] += h;
+                lo[i] -= h;
+                let numeric = -0.5 * (problem.chi2(&hi) - problem.chi2(&lo)) / (2.0 * h);
+                assert!((atr[i] - numeric).abs() < 1e-6 * numeric.abs().max(1.0), "p{i}: {} vs {numeric}", atr[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn kernel_periodogram_is_the_lag_sum_spectrum_and_sums_to_its_power() {
+        let (kernel, axis) = (gate_kernel(), gate_axis());
+        let (p, mu, s) = (2.5, 1.7e6, 0.4e6);
+        let want = lag_sum_spectrum(&kernel, &axis, 0.0, &[(p, mu, s)]);
+        let got: Vec<f64> = (0..axis.bins).map(|k| kernel.periodogram(p, mu, s, axis.center(k))).collect();
+        for (k, (a, b)) in got.iter().zip(&want).enumerate() {
+            assert!((a - b).abs() < 1e-13 * p, "bin {k}: {a} vs {b}");
+        }
+        assert!((got.iter().sum::<f64>() / p - 1.0).abs() < 1e-12);
+        // s = 0 is the kernel itself: a ~sinc² with zeros near every f_s/M = 5 MHz.
+        let zero: Vec<f64> = (0..axis.bins).map(|k| kernel.periodogram(1.0, 0.0, 0.0, axis.center(k))).collect();
+        let first_min = (129..160).find(|&k| zero[k + 1] > zero[k]).unwrap();
+        assert!((25..=32).contains(&(first_min - 128)), "first minimum {} bins out", first_min - 128);
+        let sidelobes: f64 =
+            zero.iter().enumerate().filter(|(k, _)| k.abs_diff(128) >= first_min - 128).map(|(_, v)| v).sum();
+        eprintln!("first minimum {} bins out, sidelobe power {sidelobes:.4}", first_min - 128);
+        assert!((0.05..0.15).contains(&sidelobes), "sidelobe power {sidelobes}");
+    }
+
+    #[test]
+    fn noiseless_kernel_lines_are_recovered() {
+        // One and two Gaussian velocity spreads through a 10-sample gate's kernel (no plain
+        // Gaussian fits these: the kernel is ~sinc²), on a floor: every parameter to 1e-6
+        // relative (means to 1e-6 bin), the one-line data choose one component, and a single
+        // velocity (s = 0) comes back with s = 0.
+        let (kernel, axis) = (gate_kernel(), gate_axis());
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let dw = axis.bin_width();
+        let check = |c: &GaussComponent, (p, mu, s): (f64, f64, f64)| {
+            assert!((c.power / p - 1.0).abs() < 1e-6, "P {} vs {p}", c.power);
+            assert!((c.mean_hz - mu).abs() < 1e-6 * dw, "μ {} vs {mu}", c.mean_hz);
+            assert!((c.sigma_hz - s).abs() < 1e-6 * s.max(dw), "s {} vs {s}", c.sigma_hz);
+            assert!((c.amplitude / kernel.periodogram(p, mu, s, mu) - 1.0).abs() < 1e-6);
+        };
+        for floor in [Floor::Fixed(0.02), Floor::Fitted] {
+            let opts = FitOptions { floor, ..Default::default() };
+            for line in [(2.0, hz(1.0), hz(0.3)), (0.7, hz(-3.1), hz(1.2)), (1.0, hz(0.37), 0.0)] {
+                let y = lag_sum_spectrum(&kernel, &axis, 0.02, &[line]);
+                let fit = fit_gaussians_with_kernel(&axis, &y, None, 1, LAMBDA, &opts, &kernel).unwrap();
+                check(&fit.components[0], line);
+                let choice = fit_one_or_two_with_kernel(&axis, &y, None, LAMBDA, &opts, &kernel).unwrap();
+                assert_eq!(choice.components, 1, "{line:?}: p = {}", choice.p_value);
+                // Plain Gaussians miss the kernel's sidelobes.
+                if line.2 == 0.0 {
+                    let plain = fit_gaussians(&axis, &y, None, 1, LAMBDA, &opts).unwrap();
+                    assert!(plain.chi2 > 1e6 * fit.chi2.max(1e-30), "{} vs {}", plain.chi2, fit.chi2);
+                }
+            }
+            // Aerosol and rain in one gate, 3 m/s apart: narrow first.
+            let truth = [(2.0, hz(0.0), hz(0.3)), (1.0, hz(-3.0), hz(1.2))];
+            let y = lag_sum_spectrum(&kernel, &axis, 0.02, &truth);
+            let fit = fit_gaussians_with_kernel(&axis, &y, None, 2, LAMBDA, &opts, &kernel).unwrap();
+            for (c, &t) in fit.components.iter().zip(&truth) {
+                check(c, t);
+            }
+            let choice = fit_one_or_two_with_kernel(&axis, &y, None, LAMBDA, &opts, &kernel).unwrap();
+            assert_eq!(choice.components, 2);
+        }
+        // An invalid kernel is an error, not a panic.
+        let y = lag_sum_spectrum(&kernel, &axis, 0.0, &[(1.0, 0.0, 1e5)]);
+        for bad in [
+            GateKernel { lags: vec![], ..kernel.clone() },
+            GateKernel { lags: vec![0.0, 1.0], ..kernel.clone() },
+            GateKernel { dt: 0.0, ..kernel.clone() },
+            GateKernel { fft_points: 5, ..kernel.clone() },
+        ] {
+            let r = fit_one_or_two_with_kernel(&axis, &y, None, LAMBDA, &FitOptions::default(), &bad);
+            assert!(matches!(r, Err(RetrievalError::InvalidParameter { .. })), "{bad:?}: {r:?}");
         }
     }
 

@@ -28,7 +28,10 @@ mod linalg;
 mod special;
 pub mod vad;
 
-pub use fit::{FitOptions, Floor, GaussComponent, GaussianFit, ModelChoice, fit_gaussians, fit_one_or_two};
+pub use fit::{
+    FitOptions, Floor, GateKernel, GaussComponent, GaussianFit, ModelChoice, fit_gaussians, fit_gaussians_with_kernel,
+    fit_one_or_two, fit_one_or_two_with_kernel,
+};
 pub use fmcw::{FmcwEstimate, fmcw_estimates};
 pub use gate::{GateEstimate, MomentOptions, gate_estimates, gate_estimates_with};
 pub use vad::{VadFit, pointing, vad_fit};
