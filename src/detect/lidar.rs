@@ -62,11 +62,31 @@
 //!
 //! [`LidarSpec::retrieve_gate`] reads a gate's total spectrum plus that floor with the
 //! [`crate::retrieval`] estimators: moments (peak, centroid, width, FWHM, SNR) and one or two
-//! Gaussians on the fixed floor, chosen by an F-test at [`FIT_SELECTION_LEVEL`]. A Gaussian is the
-//! gate's kernel only when the gate holds whole echoes (a gate much longer than the pulse around
-//! a thin layer); a short rectangular gate in a filled volume has a nearly Fejér (sinc²) kernel
-//! with ~10 % of its power in sidelobes, which the fit keeps as a broad concentric second
-//! component (measured in `validation/README.md`).
+//! components on the fixed floor, chosen by an F-test at [`FIT_SELECTION_LEVEL`]. Each component
+//! is a Gaussian spread of velocities seen through the gate's spectral kernel
+//! ([`LidarSpec::gate_kernel`], [`fit_one_or_two_with_kernel`]), not a Gaussian in the spectrum:
+//! a short rectangular gate in a filled volume has a nearly Fejér (sinc²) kernel with ~10 % of
+//! its power in sidelobes, which a plain Gaussian misses and the F-test then takes for a second
+//! population (measured in `validation/README.md`). The fitted widths are the scatterers'
+//! spreads, the kernel deconvolved.
+//!
+//! ## The gate's kernel
+//!
+//! For echoes whose beat frequencies are independent of their delays, the lag sums factorise
+//! (see [`GateKernel`]): `E D_d = W·L_d·φ(dΔt)`, with `φ` the characteristic function of the
+//! frequencies and `L_d` the lag window, `Σ_m x_{m+d}x_m` averaged over the echo delays `t_e`
+//! with their density `ρ(t_e)`. With `x_m = a(t_m − t_e)√Δt` and the unit-energy pulse's
+//! autocorrelation `∫a(u + τ)a(u)du = e^{−τ²/(4σ_p²)}`, a density uniform over the gate and
+//! the pulse's reach around it gives
+//!
+//! `L_d = (M − d)·e^{−d²Δt²/(4σ_p²)}`  ([`LidarSpec::gate_kernel`], up to the constant `ρΔt`):
+//!
+//! the triangle of the rectangular window times the pulse's autocorrelation. A density linear in
+//! delay across the gate (the `1/R²` and extinction trends of a filled volume, to first order)
+//! leaves it unchanged: the product `a(t_{m+d} − t_e)·a(t_m − t_e)` is centred on the midpoint of
+//! the two samples, and over `m = 0 … M − 1 − d` those midpoints average to the gate's centre
+//! for every `d`. It is not the kernel of a thin layer inside a long gate (there
+//! `L_d ∝ e^{−d²Δt²/(4σ_p²)}`, without the triangle: the pulse's Gaussian spectrum).
 
 use std::f64::consts::PI;
 
@@ -74,7 +94,10 @@ use glam::DVec3;
 use num_complex::Complex;
 
 use crate::SPEED_OF_LIGHT;
-use crate::retrieval::{FitOptions, Floor, GateEstimate, ModelChoice, RetrievalError, fit_one_or_two, gate_estimates};
+use crate::retrieval::{
+    FitOptions, Floor, GateEstimate, GateKernel, ModelChoice, RetrievalError, fit_one_or_two_with_kernel,
+    gate_estimates,
+};
 use crate::spectrum::FrequencyAxis;
 
 /// Path classes of the range–Doppler outputs: every path, single scattering, multiple.
@@ -171,6 +194,20 @@ impl LidarSpec {
             self.bin_frequency(self.fft_points - 1) + half,
             self.fft_points,
         )
+    }
+
+    /// The spectral kernel of a gate filled uniformly with echoes (module docs, "The gate's
+    /// kernel"): the lag window `L_d = (M − d)·exp(−d²Δt²/(4σ_p²))`, `d = 0 … M − 1`, with
+    /// `σ_p` = [`pulse_sigma`](Self::pulse_sigma), on this receiver's `Δt` and `K`.
+    pub fn gate_kernel(&self) -> GateKernel {
+        let (dt, sigma, m) = (self.dt(), self.pulse_sigma(), self.gate_points);
+        let lags = (0..m)
+            .map(|d| {
+                let tau = d as f64 * dt;
+                (m - d) as f64 * (-tau * tau / (4.0 * sigma * sigma)).exp()
+            })
+            .collect();
+        GateKernel { lags, dt, fft_points: self.fft_points }
     }
 
     /// Photon energy `hν = hc/λ0`, J.
@@ -285,7 +322,7 @@ impl LidarSpec {
 
 /// Nominal level of the F-test that keeps a second Gaussian component in a gate fit. At the
 /// retrieval module's default 0.01 the measured false-alarm rate on one-line spectra is 12 %
-/// ([`fit_one_or_two`]); at 10⁻³ it is 1.6 %.
+/// ([`crate::retrieval::fit_one_or_two`]); at 10⁻³ it is 1.6 %.
 pub const FIT_SELECTION_LEVEL: f64 = 1e-3;
 
 /// What is read off one gate's total spectrum: the spectral moments and the one- or
@@ -298,7 +335,8 @@ pub struct GateRetrieval {
     pub stderr_substituted: usize,
     /// Peak, centroid, width, FWHM and SNR ([`gate_estimates`]).
     pub moments: Result<GateEstimate, RetrievalError>,
-    /// One or two Gaussians on the fixed floor, chosen by the F-test at [`FIT_SELECTION_LEVEL`].
+    /// One or two components (Gaussian velocity spreads through the gate's kernel) on the fixed
+    /// floor, chosen by the F-test at [`FIT_SELECTION_LEVEL`].
     pub fit: Result<ModelChoice, RetrievalError>,
 }
 
@@ -309,8 +347,9 @@ impl LidarSpec {
     /// The spectrum a lidar would measure is the signal plus the shot-noise floor
     /// ([`noise_floor_per_bin`](Self::noise_floor_per_bin)), so the moments and fits are taken
     /// on `signal + floor` with that floor known: [`gate_estimates`] subtracts it (its SNR is the
-    /// gate's wideband CNR), and [`fit_one_or_two`] fits with `Floor::Fixed(floor)` and the
-    /// standard errors as weights.
+    /// gate's wideband CNR), and [`fit_one_or_two_with_kernel`] fits components seen through
+    /// [`gate_kernel`](Self::gate_kernel) with `Floor::Fixed(floor)` and the standard errors as
+    /// weights.
     ///
     /// **Zero standard errors.** A bin whose batch standard error is 0 (every batch gave the
     /// same value, usually a gate no path reached) would be an infinite weight. It is given the
@@ -348,7 +387,8 @@ impl LidarSpec {
         let moments = gate_estimates(&axis, &values, floor, self.wavelength);
         let options =
             FitOptions { floor: Floor::Fixed(floor), selection_level: FIT_SELECTION_LEVEL, ..FitOptions::default() };
-        let fit = fit_one_or_two(&axis, &values, se.as_deref(), self.wavelength, &options);
+        let fit =
+            fit_one_or_two_with_kernel(&axis, &values, se.as_deref(), self.wavelength, &options, &self.gate_kernel());
         GateRetrieval { noise_floor: floor, stderr_substituted: substituted, moments, fit }
     }
 }
@@ -530,13 +570,82 @@ mod tests {
     }
 
     #[test]
+    fn gate_kernel_model_matches_echoes_spread_uniformly_in_delay() {
+        // Echoes on a fine grid of delays (σ_p/4 apart, uniform weight) covering gate 20 and 8σ_p
+        // of pulse around it, each with beat frequencies on a fine grid (σ/10 apart, ±8σ) weighted
+        // by a Gaussian of mean μ and standard deviation σ: the receiver's own lag sums and
+        // periodogram of gate 20. Both grids are Riemann sums of Gaussians, exact far below
+        // 1e-9 (Poisson summation), and the pulse's ±6σ_p support truncates at 1.5e-8 of the
+        // amplitude. The one-component fit through gate_kernel() returns μ and σ to 1e-6 and
+        // the gate's energy D_0 as the power; σ = 0 (one velocity) comes back as 0.
+        let s = LidarSpec { fft_points: 256, ..spec() };
+        let (g, sp) = (20, s.pulse_sigma());
+        let t0 = s.first_sample_time + (g * s.gate_points) as f64 * s.dt();
+        let t1 = t0 + (s.gate_points - 1) as f64 * s.dt();
+        let delays: Vec<f64> = {
+            let (a, h) = (t0 - 8.0 * sp, 0.25 * sp);
+            (0..).map(|i| a + i as f64 * h).take_while(|&t| t <= t1 + 8.0 * sp).collect()
+        };
+        let axis = s.frequency_axis().unwrap();
+        let kernel = s.gate_kernel();
+        let dw = axis.bin_width();
+        for (mu, sigma) in [(1.3e6, 0.4e6), (-2.1e6, 1.5e6), (0.77e6, 0.0)] {
+            let lines: Vec<(f64, f64)> = if sigma == 0.0 {
+                vec![(mu, 1.0)]
+            } else {
+                let raw: Vec<(f64, f64)> = (-80..=80)
+                    .map(|i| {
+                        let z = i as f64 / 10.0;
+                        (mu + z * sigma, (-0.5 * z * z).exp())
+                    })
+                    .collect();
+                let total: f64 = raw.iter().map(|l| l.1).sum();
+                raw.into_iter().map(|(f, w)| (f, w / total)).collect()
+            };
+            let mut paths = Vec::new();
+            for &t in &delays {
+                for &(f, w) in &lines {
+                    paths.push((w, t * SPEED_OF_LIGHT, f, 1));
+                }
+            }
+            let (lay, acc) = run(&s, &paths);
+            let o = lay.spectra + g * s.fft_points;
+            let p = &acc[o..o + s.fft_points];
+            let d0 = acc[lay.lags + g * s.gate_points * 2];
+            let fit = crate::retrieval::fit_gaussians_with_kernel(
+                &axis,
+                p,
+                None,
+                1,
+                s.wavelength,
+                &FitOptions::default(),
+                &kernel,
+            )
+            .unwrap();
+            let c = &fit.components[0];
+            eprintln!(
+                "μ {mu:e}, σ {sigma:e}: fitted {:.9e} ± {:.1e}, σ {:.9e}, P/D_0 − 1 = {:.1e}",
+                c.mean_hz,
+                c.mean_hz_stderr,
+                c.sigma_hz,
+                c.power / d0 - 1.0
+            );
+            assert!((c.mean_hz - mu).abs() < 1e-6 * dw, "μ {} vs {mu}", c.mean_hz);
+            assert!((c.sigma_hz - sigma).abs() < 1e-6 * sigma.max(dw), "σ {} vs {sigma}", c.sigma_hz);
+            assert!((c.power / d0 - 1.0).abs() < 1e-6, "P {} vs D_0 {d0}", c.power);
+        }
+    }
+
+    #[test]
     fn gate_retrieval_substitutes_zero_errors_and_reports_empty_gates() {
-        // A Gaussian line at +2 MHz (1.55 m/s) with 1 % errors, one of them 0: that bin gets the
-        // smallest positive error, and one component at the line is found.
+        // A Gaussian spread of velocities at +2 MHz (1.55 m/s), σ 1 MHz, seen through the gate's
+        // kernel, with 1 % errors, one of them 0: that bin gets the smallest positive error, and
+        // one component at the line is found.
         let s = LidarSpec { fft_points: 256, ..spec() };
         let floor = s.noise_floor_per_bin();
+        let kernel = s.gate_kernel();
         let signal: Vec<f64> =
-            (0..256).map(|k| 1e3 * floor * (-0.5 * ((s.bin_frequency(k) - 2e6) / 1e6).powi(2)).exp()).collect();
+            (0..256).map(|k| kernel.periodogram(1e5 * floor, 2e6, 1e6, s.bin_frequency(k))).collect();
         let mut stderr: Vec<f64> = signal.iter().map(|v| 0.01 * v + 1e-3 * floor).collect();
         stderr[10] = 0.0;
         let r = s.retrieve_gate(&signal, &stderr);
