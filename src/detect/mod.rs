@@ -12,7 +12,7 @@ pub mod lidar;
 use glam::DVec3;
 
 pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
-pub use lidar::{LidarLayout, LidarSpec};
+pub use lidar::{LidarLayout, LidarSpec, LineShape};
 
 use crate::SPEED_OF_LIGHT;
 use crate::spectrum::FrequencyAxis;

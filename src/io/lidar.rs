@@ -1,7 +1,7 @@
 //! Outputs of a pulsed lidar receiver: the range–Doppler spectra (gates × bins; total, single and
 //! multiple scattering) as `.npy` with standard errors, their axes, a range–Doppler map and a plot
 //! of a few gates' spectra as PNG, and per gate (CSV and the manifest) the energies by class, the
-//! shot-noise SNR, the spectral moments and the one- or two-Gaussian fit of the total spectrum
+//! shot-noise SNR, the spectral moments and the one- or two-component fit of the total spectrum
 //! ([`LidarSpec::retrieve_gate`]).
 
 use serde_json::{Value, json};
@@ -52,13 +52,15 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         (mean[o], se[o])
     };
     let noise_energy = m as f64 * spec.noise_variance_per_sample();
+    // The total channel's gate energies: the echo density that shapes each gate's kernel.
+    let total_energies: Vec<f64> = (0..gates).map(|g| energy(0, g).0).collect();
     let mut csv = String::from("gate,range_m");
     for name in LIDAR_CHANNELS {
         csv.push_str(&format!(",energy_{name},energy_{name}_stderr"));
     }
     csv.push_str(",snr,snr_stderr,snr_db");
     csv.push_str(",peak_velocity_m_per_s,centroid_velocity_m_per_s,width_m_per_s,fwhm_m_per_s,moments_status");
-    csv.push_str(",fit_components,fit_p_value");
+    csv.push_str(",fit_components,fit_p_value,fit_line_shape");
     for j in 1..=2 {
         csv.push_str(&format!(
             ",fit{j}_velocity_m_per_s,fit{j}_velocity_stderr_m_per_s,fit{j}_width_m_per_s,\
@@ -83,7 +85,7 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         row.insert("snr".into(), estimate(snr, snr_se));
         row.insert("snr_db".into(), json!(snr_db));
         let (values, errors) = spectrum(0, g);
-        let gate = spec.retrieve_gate(values, errors);
+        let gate = spec.retrieve_gate(values, errors, &spec.gate_kernel_in(g, &total_energies));
         gate_columns(&mut csv, &mut row, &gate, spec.wavelength);
         csv.push('\n');
         table.push(Value::Object(row));
@@ -168,7 +170,7 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
     match &gate.fit {
         Ok(choice) => {
             let fit = choice.chosen();
-            csv.push_str(&format!(",{},{:e}", choice.components, choice.p_value));
+            csv.push_str(&format!(",{},{:e},{}", choice.components, choice.p_value, gate.line_shape.name()));
             let mut list = Vec::new();
             for j in 0..2 {
                 match fit.components.get(j) {
@@ -196,6 +198,7 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
                 json!({
                     "components": choice.components,
                     "p_value": choice.p_value,
+                    "line_shape": gate.line_shape.name(),
                     "f_statistic": choice.f_statistic,
                     "chi2": fit.chi2,
                     "dof": fit.dof,
@@ -204,7 +207,7 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
             );
         }
         Err(_) => {
-            csv.push_str(",NaN,NaN");
+            csv.push_str(",NaN,NaN,NaN");
             csv.push_str(&",NaN".repeat(12));
             row.insert("fit".into(), Value::Null);
         }
