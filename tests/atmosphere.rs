@@ -391,8 +391,8 @@ fn on_the_shipped_30_m_gates_the_kernel_fit_separates_aerosol_and_rain() {
     // 0.1 m/s of 0 with σ in 0.2–0.4 m/s; rain at 1.0–1.4 v_β and at least 4 times as wide.
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/wind_rainy.toml")).unwrap();
     let r = run(&text, &["run.samples=500000"]);
-    let (spec, lay) = lidar(&r);
-    let classes = rain_classes_of(&r.exp, "rain");
+    let (spec, lay) = r.lidar();
+    let classes = rain_classes(&r.exp, "rain", 0.0);
     let b: f64 = classes.iter().map(|c| c.0).sum();
     let v_beta = classes.iter().map(|c| c.0 * c.2).sum::<f64>() / b;
     let k = spec.fft_points;
