@@ -76,6 +76,9 @@ use crate::medium::grid::{IndexTransform, VoxelGrid};
 /// grids use. Fixtures exist for 224.
 pub const SUPPORTED_FORMAT_VERSIONS: std::ops::RangeInclusive<u32> = 222..=224;
 
+/// An inclusive index box: smallest and largest index.
+pub type IndexBox = ([i32; 3], [i32; 3]);
+
 /// Default memory budget for a dense block (and for the sparse tree), bytes.
 pub const DEFAULT_MAX_DENSE_BYTES: u64 = 1 << 30;
 
@@ -140,7 +143,7 @@ pub struct GridInfo {
     /// Active voxel count from the file's statistics metadata (`file_voxel_count`), if stored.
     pub file_voxel_count: Option<u64>,
     /// Active-voxel bounding box from the statistics metadata (`file_bbox_min/max`), if stored.
-    pub file_bbox: Option<([i32; 3], [i32; 3])>,
+    pub file_bbox: Option<IndexBox>,
 }
 
 /// A value type this reader can decode.
@@ -254,7 +257,7 @@ pub struct VdbGrid<T> {
     /// Active voxels, tiles counted by their volume (as `activeVoxelCount()`).
     pub active_voxel_count: u64,
     /// Smallest and largest index of the active voxels (`None` if there are none).
-    pub active_bbox: Option<([i32; 3], [i32; 3])>,
+    pub active_bbox: Option<IndexBox>,
 }
 
 struct Leaf<T> {
@@ -396,7 +399,7 @@ impl<T: VdbValue> VdbTree<T> {
     }
 
     /// Number of active voxels (tiles by their volume) and their bounding box.
-    pub fn active_stats(&self) -> (u64, Option<([i32; 3], [i32; 3])>) {
+    pub fn active_stats(&self) -> (u64, Option<IndexBox>) {
         let mut count = 0u64;
         let mut bbox = BBox::default();
         self.regions(|min, edge, _v, on, leaf| match leaf {
@@ -419,7 +422,7 @@ impl<T: VdbValue> VdbTree<T> {
 
     /// The stored block: bounding box of the leaves and of the tiles that are active or differ
     /// from the background (`None`: the grid is background everywhere).
-    pub fn stored_bbox(&self) -> Option<([i32; 3], [i32; 3])> {
+    pub fn stored_bbox(&self) -> Option<IndexBox> {
         let mut bbox = BBox::default();
         let bg = self.background;
         self.regions(|min, edge, v, on, _leaf| {
@@ -525,7 +528,7 @@ impl BBox {
     fn add_point(&mut self, p: [i32; 3]) {
         self.add_box(p, 1);
     }
-    fn get(&self) -> Option<([i32; 3], [i32; 3])> {
+    fn get(&self) -> Option<IndexBox> {
         // Tile boxes of aligned origins end at most at i32::MAX.
         self.0.map(|(a, b)| {
             (a.map(|v| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32), b.map(|v| v.min(i32::MAX as i64) as i32))
@@ -546,10 +549,10 @@ struct Cur<'a> {
 
 impl<'a> Cur<'a> {
     fn left(&self) -> usize {
-        self.buf.len() - self.pos
+        self.buf.len().saturating_sub(self.pos)
     }
     fn take(&mut self, n: usize, what: &str) -> R<&'a [u8]> {
-        if n > self.left() {
+        if self.pos > self.buf.len() || n > self.left() {
             return Err(format!(
                 "file truncated or corrupt: {what} needs {n} bytes at offset {}, only {} remain",
                 self.pos,
@@ -844,7 +847,7 @@ pub fn blosc_decode(chunk: &[u8], expected: usize) -> std::result::Result<Vec<u8
     let shuffle = flags & 0x01 != 0 && typesize > 1;
     let dont_split = flags & 0x10 != 0;
     let mut out = vec![0u8; nbytes];
-    let mut tmp = vec![0u8; if shuffle { blocksize } else { 0 }];
+    let mut tmp = vec![0u8; if shuffle { blocksize.min(nbytes) } else { 0 }];
     for b in 0..nblocks {
         let start = b * blocksize;
         let bsize = blocksize.min(nbytes - start);
@@ -1024,11 +1027,11 @@ fn read_tree_data<T: VdbValue>(c: &mut Cur, info: GridInfo, transform: IndexTran
         let u = tree.upper.len() as u32;
         tree.root.push((origin, RootEntry::Child(u)));
         charge(32768 * (value_bytes + 4) + 8192)?;
-        let upper = read_internal(c, &codec, origin, 5, 7)?;
+        let upper = read_internal(c, &codec, origin, 5)?;
         for s in 0..32768 {
             if upper.child[s] != NONE {
                 charge(4096 * (value_bytes + 4) + 1024)?;
-                let lo = read_internal(c, &codec, slot_origin(origin, s, 5, 7), 4, 3)?;
+                let lo = read_internal(c, &codec, slot_origin(origin, s, 5, 7), 4)?;
                 for t in 0..4096 {
                     if lo.child[t] != NONE {
                         charge(512 * value_bytes + 64)?;
@@ -1061,7 +1064,7 @@ fn read_tree_data<T: VdbValue>(c: &mut Cur, info: GridInfo, transform: IndexTran
             nl += 1;
         }
     }
-    tree.root.sort_by(|a, b| a.0.cmp(&b.0));
+    tree.root.sort_by_key(|e| e.0);
     if tree.root.windows(2).any(|w| w[0].0 == w[1].0) {
         return Err("corrupt file: two root entries at the same origin".into());
     }
@@ -1074,19 +1077,12 @@ fn read_tree_data<T: VdbValue>(c: &mut Cur, info: GridInfo, transform: IndexTran
     Ok(tree)
 }
 
-fn read_internal<T: VdbValue>(
-    c: &mut Cur,
-    codec: &Codec<T>,
-    origin: [i32; 3],
-    log2: u32,
-    log2_child: u32,
-) -> R<Internal<T>> {
+fn read_internal<T: VdbValue>(c: &mut Cur, codec: &Codec<T>, origin: [i32; 3], log2: u32) -> R<Internal<T>> {
     let n = 1usize << (3 * log2);
     let child_mask = c.mask(n, "an internal node's child mask")?;
     let value_mask = c.mask(n, "an internal node's value mask")?;
     let values = codec.read(c, n, &value_mask)?;
     let child = (0..n).map(|s| if bit(&child_mask, s) { 0 } else { NONE }).collect();
-    let _ = log2_child;
     Ok(Internal { origin, value_mask, values, child })
 }
 
@@ -1143,6 +1139,9 @@ pub fn read_tree<T: VdbValue>(path: impl AsRef<Path>, name: Option<&str>, option
             return Err(format!("instanced grids (sharing the tree of \"{}\") are not supported", d.instance_parent));
         }
         let transform = read_map(&mut c, &info.map_type)?;
+        if c.pos > d.end_pos {
+            return Err(format!("corrupt file: the grid's header runs past its end offset {}", d.end_pos));
+        }
         let mut sub = Cur { buf: &bytes[..d.end_pos], pos: c.pos };
         read_tree_data(&mut sub, info, transform, options.max_dense_bytes)
     };
@@ -1177,7 +1176,7 @@ mod tests {
         assert_eq!(slot([-1, -1, -1], 3, 0), 511);
         assert_eq!(slot([-8, 0, 0], 3, 0), 0);
         assert_eq!(slot([8 * 3 + 1, 8 * 5, 8 * 15 + 7], 4, 3), (3 << 8) | (5 << 4) | 15);
-        assert_eq!(slot([-128, 0, 127], 5, 7), (31 << 10) | 0 | 0);
+        assert_eq!(slot([-128, 0, 127], 5, 7), 31 << 10);
         assert_eq!(slot_origin([-4096, 0, 4096], (31 << 10) | (1 << 5) | 2, 5, 7), [-128, 128, 4096 + 256]);
     }
 
@@ -1241,5 +1240,8 @@ mod tests {
         assert!(c.count(u64::from(u32::MAX), 12, "records").is_err());
         assert!(c.take(17, "x").is_err());
         assert_eq!(c.count(1, 16, "records"), Ok(1));
+        let mut past = Cur { buf: &bytes[..4], pos: 8 };
+        assert!(past.take(0, "x").is_err() && past.u8("x").is_err());
+        assert_eq!(past.left(), 0);
     }
 }
