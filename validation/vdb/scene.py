@@ -8,7 +8,7 @@ Usage (from make_fixtures.sh):
 
 The scenes are designed so that every case of OpenVDB's per-node value codec (io/Compression.h:
 the seven mask-compression metadata values) occurs in some leaf, with tiles at the leaf, internal
-and root levels, negative coordinates and non-zero backgrounds. See validation/vdb/README.md.
+and root levels, negative coordinates and non-zero backgrounds (validation/vdb/README.md).
 """
 import gzip
 import math
