@@ -32,6 +32,9 @@ pub enum Error {
     /// A file that could not be written (exit status 1).
     #[error("cannot write {path}: {source}")]
     Write { path: PathBuf, source: std::io::Error },
+    /// An OpenVDB file that cannot be read (exit status 2: it is input).
+    #[error(transparent)]
+    Vdb(#[from] crate::io::vdb::VdbError),
     /// Any other bad input (a command-line value out of range), with its message (exit status 2).
     #[error("{0}")]
     Input(String),
@@ -40,7 +43,7 @@ pub enum Error {
 impl Error {
     /// Whether the error is the user's input (exit status 2) rather than a failure to run.
     pub fn is_input_error(&self) -> bool {
-        matches!(self, Error::Config(_) | Error::Read { .. } | Error::Input(_))
+        matches!(self, Error::Config(_) | Error::Read { .. } | Error::Vdb(_) | Error::Input(_))
     }
 }
 

@@ -1,4 +1,5 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
+//! Input: OpenVDB grids ([`vdb`]).
 
 pub mod fmcw;
 pub mod ldh;
@@ -9,6 +10,7 @@ pub mod plot;
 pub mod png;
 pub mod scan;
 pub mod table;
+pub mod vdb;
 
 use std::path::{Path, PathBuf};
 
