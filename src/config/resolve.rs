@@ -931,7 +931,6 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
         table,
         particles,
         sigma_s_scale: scale,
-        density: None,
     };
     Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase, info, sizes, classes: Vec::new() })
 }
@@ -998,7 +997,6 @@ fn resolve_classes(path: &str, m: &MediumSection, classes: u64, mie_angles: Opti
         table: None,
         particles: Some(whole),
         sigma_s_scale: scale,
-        density: None,
     };
     Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase: out[0].phase.clone(), info, sizes: Vec::new(), classes: out })
 }
@@ -2002,9 +2000,7 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
 /// Give `m` the density of its section, if it has one.
 fn attach_density(path: &str, ms: &MediumSection, m: &mut Medium) -> R<()> {
     let Some(d) = &ms.density else { return Ok(()) };
-    let h = resolve_density(&join(path, "density"), d)?;
-    m.info.density = Some(h.info.clone());
-    m.set_heterogeneity(h);
+    m.set_heterogeneity(resolve_density(&join(path, "density"), d)?);
     Ok(())
 }
 

@@ -104,7 +104,7 @@ impl Ramp {
     /// `None` unless the planes differ and the values are finite and ≥ 0.
     pub fn new(axis: usize, from_at: f64, to_at: f64, from: f64, to: f64, kind: MajorantKind) -> Option<Self> {
         let ok = axis < 3 && from_at.is_finite() && to_at.is_finite() && from_at != to_at;
-        if !ok || !(from >= 0.0 && to >= 0.0 && from.is_finite() && to.is_finite()) {
+        if !(ok && from >= 0.0 && to >= 0.0 && from.is_finite() && to.is_finite()) {
             return None;
         }
         let (lo, hi, v_lo, v_hi) =
@@ -395,7 +395,7 @@ impl GridDensity {
         if !(placement.scale.is_finite() && placement.scale > 0.0 && placement.translation.is_finite()) {
             return Err(GridError::Placement);
         }
-        if !(1..=1 << 16).contains(&spec.cell_voxels) {
+        if !(1..=4096).contains(&spec.cell_voxels) {
             return Err(GridError::CellVoxels(spec.cell_voxels));
         }
         if !grid.background.is_finite() {
@@ -490,7 +490,9 @@ impl Field for GridDensity {
     }
 }
 
-/// A medium's density field (a closed set).
+/// A medium's density field (a closed set). Held once per medium behind its `Arc`, so the size
+/// of the grid variant costs nothing; boxing it would add a pointer chase per lookup.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Density {
     Ramp(Ramp),

@@ -90,7 +90,8 @@ impl MajorantGrid {
         if t1 <= t0 {
             return dda;
         }
-        if !(a < b) {
+        // (Also a NaN bound: no overlap.)
+        if a.partial_cmp(&b) != Some(std::cmp::Ordering::Less) {
             dda.state = State::After;
             return dda;
         }

@@ -1,4 +1,5 @@
-//! Media and the scene they fill: homogeneous media, region shapes, the layer stack.
+//! Media and the scene they fill: media (homogeneous, or scaled by a density field), region
+//! shapes, the layer stack.
 
 pub mod density;
 pub mod grid;
@@ -35,8 +36,6 @@ pub struct MediumInfo {
     /// Mie optics of the particles, before explicit σ values and `sigma_s_scale` were applied.
     pub particles: Option<ParticleOptics>,
     pub sigma_s_scale: f64,
-    /// The density field of a heterogeneous medium.
-    pub density: Option<density::DensityInfo>,
 }
 
 /// A phase table as loaded.
