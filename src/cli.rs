@@ -382,6 +382,26 @@ fn describe(exp: &Experiment, origin: &str) -> String {
                 );
             }
         }
+        if let Some(h) = m.heterogeneity() {
+            let d = &h.info;
+            let _ = writeln!(
+                s,
+                "  {:<12} density {} in [{}, {}] (σ above at density 1), majorant {:?}{}{}{}{}",
+                "",
+                d.kind,
+                d.min,
+                d.max,
+                d.majorant,
+                d.voxels.map_or(String::new(), |v| format!(", voxels {v:?}")),
+                d.majorant_cells.map_or(String::new(), |c| format!(", majorant cells {c:?}")),
+                if d.negative_voxels_clamped > 0 {
+                    format!(", {} negative voxels clamped to 0", d.negative_voxels_clamped)
+                } else {
+                    String::new()
+                },
+                if d.albedo_grid { ", albedo grid" } else { "" }
+            );
+        }
         if let Some(p) = &m.info.particles {
             let _ = writeln!(
                 s,
@@ -408,14 +428,15 @@ fn describe(exp: &Experiment, origin: &str) -> String {
     for l in &exp.scene.layers {
         let _ = writeln!(
             s,
-            "  {:<12} z = {:.4} … {:.4} mm, n = {}, medium {}, majorant {:.4} /mm, {} region(s)",
+            "  {:<12} z = {:.4} … {:.4} mm, n = {}, medium {}, majorant {:.4} /mm, {} region(s){}",
             l.name,
             mm(l.z_top),
             mm(l.z_bottom),
             l.n,
             exp.scene.media[l.medium].name,
             l.majorant / 1e3,
-            l.regions.len()
+            l.regions.len(),
+            if l.heterogeneous { ", heterogeneous" } else { "" }
         );
     }
     if !exp.scene.regions.is_empty() {

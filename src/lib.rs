@@ -61,8 +61,8 @@
 //! | [`mie`] | Lorenz–Mie scattering by spheres, particle ensembles and their bulk optics |
 //! | [`flow`] | velocity fields attached to media: flows, wind profiles, terminal fall of drops |
 //! | [`scan`] | one run per beam pointing and the VAD wind per range gate |
-//! | [`medium`] | homogeneous media of one or several particle populations, region shapes, the layer stack (the scene) |
-//! | [`transport`] | Fresnel interfaces, free-flight tracking, the random walk |
+//! | [`medium`] | media of one or several particle populations, density fields (ramp, voxel grid) with their majorant grids, region shapes, the layer stack (the scene) |
+//! | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta tracking over majorant segments, ratio tracking), the random walk |
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |

@@ -6,7 +6,12 @@ use ohd::io::manifest::{Invocation, write_run};
 
 #[test]
 fn one_and_two_threads_write_identical_outputs() {
-    for (name, text) in [("default", ohd::DEFAULT_CONFIG), ("vdh", include_str!("../validation/vdh_slab.toml"))] {
+    for (name, text) in [
+        ("default", ohd::DEFAULT_CONFIG),
+        ("vdh", include_str!("../validation/vdh_slab.toml")),
+        // Delta tracking over majorant segments and ratio-tracked shadow rays.
+        ("density_ramp", include_str!("configs/good/density_ramp.toml")),
+    ] {
         let dirs: Vec<tempfile::TempDir> = (0..2).map(|_| tempfile::tempdir().unwrap()).collect();
         let mut manifests = Vec::new();
         for (threads, dir) in [1, 2].iter().zip(&dirs) {
@@ -20,6 +25,10 @@ fn one_and_two_threads_write_identical_outputs() {
         assert_eq!(
             manifests[0]["run_statistics"]["scattering_events"],
             manifests[1]["run_statistics"]["scattering_events"]
+        );
+        assert_eq!(
+            manifests[0]["run_statistics"]["null_collisions"],
+            manifests[1]["run_statistics"]["null_collisions"]
         );
         let files = manifests[0]["files"].as_array().unwrap();
         for f in files {

@@ -102,6 +102,7 @@ fn piecewise_scene() -> Scene {
             regions: vec![0, 1],
             majorant: 4000.0,
             minorant: 0.0,
+            heterogeneous: false,
             tau_above: 0.0,
         }],
         regions,

@@ -14,9 +14,13 @@ use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
 use crate::io::table::read_phase_table;
+use crate::medium::density::{
+    Density, DensityInfo, GridDensity, GridError, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
+};
+use crate::medium::grid::VoxelGrid;
 use crate::medium::{
-    Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Motion, ParticleOptics, Population, Region, Scene, Shape,
-    TableInfo, mixture_optics, stokes_einstein,
+    Heterogeneity, Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Motion, ParticleOptics, Population, Region, Scene,
+    Shape, TableInfo, mixture_optics, stokes_einstein,
 };
 use crate::mie::{Concentration, DEFAULT_SIZE_POINTS, EnsembleSpec, Packing, SizeDistribution};
 use crate::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};
@@ -1336,6 +1340,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
                 populations_of(&mut optics, ctx, wind.as_ref(), path, name, ms, velocity, cylinder, height)?;
             let mut m = Medium::mixture(name, sigma_a, populations);
             m.info = info;
+            attach_density(path, ms, &mut m)?;
             return Ok(m);
         };
         check_mixture(path, ms)?;
@@ -1351,6 +1356,14 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
             let pms = lookup(key.clone(), pname)?;
             if pms.populations.is_some() {
                 return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
+            }
+            if pms.density.is_some() {
+                return err(
+                    format!("media.{pname}.density"),
+                    format!(
+                        "medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"
+                    ),
+                );
             }
             let ppath = format!("media.{pname}");
             let pv = pms.velocity.as_ref().map(|v| (join(&ppath, "velocity"), v));
@@ -1370,6 +1383,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
             sigma_s_scale: 1.0,
             ..MediumInfo::default()
         };
+        attach_density(path, ms, &mut m)?;
         Ok(m)
     };
     let mut media: Vec<Medium> = Vec::new();
@@ -1423,6 +1437,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
                 regions: Vec::new(),
                 majorant: 0.0,
                 minorant: 0.0,
+                heterogeneous: false,
                 tau_above: 0.0,
             });
         }
@@ -1481,16 +1496,9 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
     }
-    let mut tau_above = 0.0;
-    for layer in &mut layers {
-        let fill = media[layer.medium].sigma_t();
-        let region_sigma_t = || layer.regions.iter().map(|&r| media[regions[r].medium].sigma_t());
-        layer.majorant = region_sigma_t().fold(fill, f64::max);
-        layer.minorant = region_sigma_t().fold(fill, f64::min);
-        layer.tau_above = tau_above;
-        tau_above += layer.minorant * (layer.z_bottom - layer.z_top);
-    }
-    Ok(Scene { layers, regions, media, n_above, n_below })
+    let mut scene = Scene { layers, regions, media, n_above, n_below };
+    scene.update_layers();
+    Ok(scene)
 }
 
 /// The explicit σa and σs keys of a medium, with whether each is given.
@@ -1987,4 +1995,145 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
         }
     }
     Ok(out)
+}
+
+/// Give `m` the density of its section, if it has one.
+fn attach_density(path: &str, ms: &MediumSection, m: &mut Medium) -> R<()> {
+    let Some(d) = &ms.density else { return Ok(()) };
+    m.set_heterogeneity(resolve_density(&join(path, "density"), d)?);
+    Ok(())
+}
+
+fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
+    match m {
+        None | Some(MajorantSection::Grid) => MajorantKind::Grid,
+        Some(MajorantSection::Global) => MajorantKind::Global,
+    }
+}
+
+/// `density = { type = "ramp", … }` (and, later, the file-backed grids).
+fn resolve_density(path: &str, d: &DensitySection) -> R<Heterogeneity> {
+    match d {
+        DensitySection::Ramp {
+            axis,
+            from_um,
+            from_mm,
+            from_m,
+            to_um,
+            to_mm,
+            to_m,
+            density_from,
+            density_to,
+            majorant,
+        } => {
+            let a = match axis.as_str() {
+                "x" => 0,
+                "y" => 1,
+                "z" => 2,
+                other => return err(join(path, "axis"), format!("= \"{other}\": expected \"x\", \"y\" or \"z\"")),
+            };
+            let from = length_req(path, "from", *from_um, *from_mm, *from_m)?;
+            let to = length_req(path, "to", *to_um, *to_mm, *to_m)?;
+            for g in [&from, &to] {
+                if !g.0.is_finite() {
+                    return err(g.1.clone(), format!("= {}: expected a finite position {}", g.2, unit_of(&g.1)));
+                }
+            }
+            if from.0 == to.0 {
+                return err(
+                    to.1,
+                    format!("= {}: the ramp's two planes coincide (from = to); give two different positions", to.2),
+                );
+            }
+            for (key, v) in [("density_from", density_from), ("density_to", density_to)] {
+                if !(v.is_finite() && *v >= 0.0) {
+                    return err(
+                        join(path, key),
+                        format!("= {v}: expected a density ≥ 0 (a factor on σa and σs, no unit)"),
+                    );
+                }
+            }
+            let kind = majorant_kind(*majorant);
+            let ramp = Ramp::new(a, from.0, to.0, *density_from, *density_to, kind)
+                .ok_or_else(|| ConfigError::new(path, "not a valid ramp"))?;
+            let (min, max) = ramp.range();
+            let info = DensityInfo { kind: "ramp".into(), majorant: Some(kind), min, max, ..DensityInfo::default() };
+            Ok(Heterogeneity { density: Density::Ramp(ramp), albedo: None, info })
+        }
+    }
+}
+
+/// The majorant settings of a grid density from its keys `majorant` and `majorant_cell_voxels`
+/// under `path` (for the file-backed densities).
+pub fn resolve_majorant(path: &str, kind: Option<MajorantSection>, cell_voxels: Option<u64>) -> R<MajorantSpec> {
+    let kind = majorant_kind(kind);
+    let cell_voxels = match cell_voxels {
+        None => crate::medium::density::DEFAULT_CELL_VOXELS,
+        Some(_) if kind == MajorantKind::Global => {
+            return err(join(path, "majorant_cell_voxels"), "only applies with majorant = \"grid\"");
+        }
+        Some(n) if (1..=4096).contains(&n) => n as usize,
+        Some(n) => {
+            return err(
+                join(path, "majorant_cell_voxels"),
+                format!("= {n}: expected 1 to 4096 voxels per majorant cell edge"),
+            );
+        }
+    };
+    Ok(MajorantSpec { kind, cell_voxels })
+}
+
+/// The medium fields of a voxel-grid density: the hook the file loaders call (`path` is the key
+/// of the `density` table, for messages). `density` is scaled onto σa and σs (negative voxels
+/// are clamped to 0 and counted in the manifest), `albedo` (values in [0, 1]) overrides the
+/// single-scattering albedo at a collision; both are placed by their own index-to-world map and
+/// then `placement`, and read with `interpolation`.
+pub fn grid_heterogeneity(
+    path: &str,
+    density: VoxelGrid<f32>,
+    albedo: Option<VoxelGrid<f32>>,
+    placement: Placement,
+    interpolation: Interpolation,
+    majorant: MajorantSpec,
+) -> R<Heterogeneity> {
+    let voxels = density.dims;
+    let describe = |e: GridError, what: &str| -> ConfigError {
+        let (key, msg) = match e {
+            GridError::NotFinite(None) => (what.to_string(), "the background value is not a finite number".to_string()),
+            GridError::NotFinite(Some(ijk)) => (what.to_string(), format!("voxel {ijk:?} is not a finite number")),
+            GridError::AlbedoRange(None, v) => (what.to_string(), format!("background albedo {v}: expected 0 to 1")),
+            GridError::AlbedoRange(Some(ijk), v) => {
+                (what.to_string(), format!("voxel {ijk:?} = {v}: expected an albedo from 0 to 1"))
+            }
+            GridError::Placement => (
+                "placement".to_string(),
+                format!(
+                    "scale {} / translation {:?}: expected a finite scale > 0 and a finite translation in m",
+                    placement.scale,
+                    placement.translation.to_array()
+                ),
+            ),
+            GridError::CellVoxels(n) => ("majorant_cell_voxels".to_string(), format!("= {n}: expected 1 to 4096")),
+        };
+        ConfigError::new(join(path, &key), msg)
+    };
+    let (grid, clamped) =
+        GridDensity::new(density, interpolation, placement, majorant).map_err(|e| describe(e, "density"))?;
+    let albedo = albedo
+        .map(|a| Heterogeneity::albedo_grid(a, interpolation, placement))
+        .transpose()
+        .map_err(|e| describe(e, "albedo"))?;
+    let info = DensityInfo {
+        kind: "grid".into(),
+        interpolation: Some(interpolation),
+        majorant: Some(majorant.kind),
+        majorant_cells: grid.majorant.as_ref().map(|m| m.dims),
+        majorant_cell_voxels: grid.majorant.as_ref().map(|_| majorant.cell_voxels),
+        voxels: Some(voxels),
+        negative_voxels_clamped: clamped,
+        min: grid.min,
+        max: grid.max,
+        albedo_grid: albedo.is_some(),
+    };
+    Ok(Heterogeneity { density: Density::Grid(grid), albedo, info })
 }

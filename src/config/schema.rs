@@ -197,6 +197,37 @@ pub struct MediumSection {
     pub size_classes: Option<u64>,
     /// σs and σa scaled with height.
     pub height_profile: Option<HeightProfileSection>,
+    /// A density field `d(x) ≥ 0` scaling σa and σs in space (`σ(x) = d(x)·σ`).
+    pub density: Option<DensitySection>,
+}
+
+/// `density = {…}` of a medium: a heterogeneous medium.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum DensitySection {
+    /// Linear along `axis` ("x", "y" or "z") from `density_from` at the plane `from_*` to
+    /// `density_to` at the plane `to_*`, constant beyond the planes.
+    Ramp {
+        axis: String,
+        from_um: Option<f64>,
+        from_mm: Option<f64>,
+        from_m: Option<f64>,
+        to_um: Option<f64>,
+        to_mm: Option<f64>,
+        to_m: Option<f64>,
+        density_from: f64,
+        density_to: f64,
+        /// "grid" (default: bounds per piece of the ray between the planes) or "global" (one
+        /// bound, the larger end value).
+        majorant: Option<MajorantSection>,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MajorantSection {
+    Grid,
+    Global,
 }
 
 /// `[media.X.motion]`: a per-event random velocity and Brownian diffusion.

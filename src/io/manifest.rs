@@ -176,6 +176,8 @@ pub fn write_run(
                 "sigma_s_per_m": m.sigma_s(),
                 "albedo": m.albedo(),
                 "optics": serde_json::to_value(&m.info).unwrap_or(Value::Null),
+                // A heterogeneous medium: σa and σs above are at density 1.
+                "density": m.heterogeneity().map_or(Value::Null, |h| serde_json::to_value(&h.info).unwrap_or(Value::Null)),
             })
         });
     }

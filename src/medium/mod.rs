@@ -1,17 +1,22 @@
-//! Media and the scene they fill: homogeneous media, region shapes, the layer stack.
+//! Media and the scene they fill: media (homogeneous, or scaled by a density field), region
+//! shapes, the layer stack.
 
+pub mod density;
 pub mod grid;
+pub mod majorant;
 mod particles;
 mod scene;
 mod shape;
 
+pub use density::{Density, Heterogeneity};
 pub use particles::{ComponentOptics, ParticleOptics, mixture_optics, relative_sphere};
 pub use scene::{Layer, MAX_REGIONS_PER_LAYER, Region, Scene};
 pub use shape::Shape;
 
-#[cfg(test)]
 use glam::DVec3;
 use serde::Serialize;
+
+use std::sync::Arc;
 
 use crate::flow::VelocityField;
 use crate::phase::PhaseFunction;
@@ -125,6 +130,9 @@ pub struct Medium {
     /// [`Population::is_dynamic`] of each population, computed once (the velocity field's own
     /// test is a match the walk would otherwise call per collision).
     dynamic_of: Box<[bool]>,
+    /// A density field (and albedo grid) scaling σa and σs in space; `None` for a homogeneous
+    /// medium, which then never looks anything up.
+    heterogeneity: Option<Arc<Heterogeneity>>,
 }
 
 impl Medium {
@@ -161,6 +169,7 @@ impl Medium {
             albedo: if sigma_t > 0.0 { sigma_s / sigma_t } else { 0.0 },
             dynamic: false,
             dynamic_of: Box::new([]),
+            heterogeneity: None,
         };
         m.update();
         m
@@ -249,6 +258,49 @@ impl Medium {
     #[inline(always)]
     pub fn albedo(&self) -> f64 {
         self.albedo
+    }
+
+    /// Give the medium a density (σa and σs become `d(x)·σa`, `d(x)·σs`) and possibly an albedo
+    /// grid.
+    pub fn set_heterogeneity(&mut self, h: Heterogeneity) {
+        self.heterogeneity = Some(Arc::new(h));
+    }
+
+    /// The medium's density and albedo grid (`None`: homogeneous).
+    #[inline(always)]
+    pub fn heterogeneity(&self) -> Option<&Heterogeneity> {
+        self.heterogeneity.as_deref()
+    }
+
+    /// The density field, if any.
+    #[inline(always)]
+    pub fn density(&self) -> Option<&Density> {
+        self.heterogeneity.as_deref().map(|h| &h.density)
+    }
+
+    /// σt at `p`, m⁻¹.
+    pub fn sigma_t_at(&self, p: DVec3) -> f64 {
+        self.density().map_or(self.sigma_t, |d| self.sigma_t * d.at(p))
+    }
+
+    /// The albedo at a collision at `p`: the albedo grid's value where there is one.
+    #[inline(always)]
+    pub fn albedo_at(&self, p: DVec3) -> f64 {
+        match self.heterogeneity.as_deref() {
+            Some(Heterogeneity { albedo: Some(a), .. }) => a.value(p).clamp(0.0, 1.0),
+            _ => self.albedo,
+        }
+    }
+
+    /// Smallest and largest σt anywhere in the medium, m⁻¹.
+    pub fn sigma_t_range(&self) -> (f64, f64) {
+        match self.density() {
+            None => (self.sigma_t, self.sigma_t),
+            Some(d) => {
+                let (lo, hi) = d.range();
+                (lo * self.sigma_t, hi * self.sigma_t)
+            }
+        }
     }
 }
 

@@ -26,6 +26,9 @@ pub struct Layer {
     pub majorant: f64,
     /// Smallest σt in the layer (m⁻¹).
     pub minorant: f64,
+    /// Whether the layer's medium or one of its regions' has a density field: its free flights
+    /// and shadow rays then go through the majorant segments (`transport::tracking`).
+    pub heterogeneous: bool,
     /// Smallest optical depth from the layer's top up to the surface (straight up through the
     /// minorants of the layers above): bounds what a shadow ray from the layer can carry.
     pub tau_above: f64,
@@ -73,6 +76,20 @@ impl Scene {
             }
         }
         layer.medium
+    }
+
+    /// Derive what each layer caches of its media (the σt bounds, whether it is heterogeneous,
+    /// the optical depth above it); call after changing the media or regions.
+    pub fn update_layers(&mut self) {
+        let mut tau_above = 0.0;
+        for layer in &mut self.layers {
+            let media = || std::iter::once(layer.medium).chain(layer.regions.iter().map(|&r| self.regions[r].medium));
+            layer.majorant = media().map(|m| self.media[m].sigma_t_range().1).fold(0.0, f64::max);
+            layer.minorant = media().map(|m| self.media[m].sigma_t_range().0).fold(f64::INFINITY, f64::min);
+            layer.heterogeneous = media().any(|m| self.media[m].density().is_some());
+            layer.tau_above = tau_above;
+            tau_above += layer.minorant * (layer.z_bottom - layer.z_top);
+        }
     }
 
     /// Whether any particle in the scene moves (otherwise no Doppler term is computed at all).

@@ -29,6 +29,9 @@ use glam::DVec3;
 
 use crate::medium::Scene;
 use crate::phase::PhaseFunction;
+use crate::sampling::PathRng;
+
+use super::tracking::ratio_transmittance;
 
 use super::fresnel;
 
@@ -115,6 +118,7 @@ pub fn receiver_ray(
     aperture: &Aperture,
     u1: f64,
     u2: f64,
+    rng: &mut PathRng,
 ) -> Option<ShadowHit> {
     let (x, y) = crate::sampling::warp::uniform_disk(u1, u2);
     let point = aperture.center + aperture.radius * (x * target.basis.0 + y * target.basis.1);
@@ -128,16 +132,21 @@ pub fn receiver_ray(
     }
     // Straight up through the layers to z = 0, then the (clear) ambient medium to the aperture.
     let mut tau = 0.0;
+    let mut ratio = 1.0;
     let mut p = pos;
     for j in (0..=li).rev() {
         let layer = &scene.layers[j];
         let t = (p.z - layer.z_top) / -dir.z;
-        tau += segment_optical_depth(scene, layer, p, dir, t);
+        if layer.heterogeneous {
+            ratio *= ratio_transmittance(scene, layer, p, dir, t, rng);
+        } else {
+            tau += segment_optical_depth(scene, layer, p, dir, t);
+        }
         p += t * dir;
         p.z = layer.z_top;
     }
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
-    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * (-tau).exp();
+    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * ratio * (-tau).exp();
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r })
 }
 
@@ -172,6 +181,7 @@ pub fn shadow_ray(
     target: &NeeTarget,
     u1: f64,
     u2: f64,
+    rng: &mut PathRng,
 ) -> Option<ShadowHit> {
     // Exit direction uniform in the cone: cos θ' uniform on [cos α, 1] about the axis.
     let c = 1.0 - u1 * (1.0 - target.cos_acceptance);
@@ -199,7 +209,11 @@ pub fn shadow_ray(
         let layer = &scene.layers[j];
         let d = if j == li { dir_vertex } else { direction_in(layer.n)? };
         let t = (p.z - layer.z_top) / -d.z;
-        tau += segment_optical_depth(scene, layer, p, d, t);
+        if layer.heterogeneous {
+            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
+        } else {
+            tau += segment_optical_depth(scene, layer, p, d, t);
+        }
         length += layer.n * t;
         p += t * d;
         p.z = layer.z_top;

@@ -10,10 +10,25 @@
 //!   the layer and its regions, optionally inflated for tests); tentative collisions are accepted
 //!   with probability σt(x)/σ̄ after a point lookup, the rest are null collisions (not vertices).
 //!
-//! Both sample the same distance distribution; the test `analytic_and_delta_agree` checks it.
+//! Both sample the same distance distribution (`tests/sampling.rs`).
+//!
+//! A layer whose medium or regions have a density field (`Layer::heterogeneous`) is tracked by
+//! [`heterogeneous`]: the ray is cut into spans of one medium; a homogeneous span is one segment
+//! with majorant σt (so it never makes a null collision, unless `Tracking::Delta` inflates it),
+//! a span of a density medium is cut further into its majorant segments (DDA through the
+//! majorant grid, or the ramp's pieces), and delta tracking runs segment by segment: one
+//! exponential optical depth per tentative collision, consumed across segments at their own
+//! majorants (pbrt-v4's `SampleT_maj`, §14.2; Woodcock et al. 1965). The loop over a density
+//! span is generic over the field type ([`Field`]), so each is compiled on its own after one
+//! `match` per span; homogeneous layers never reach it.
+//!
+//! Transmittance along a shadow ray through such a layer is estimated by residual ratio tracking
+//! ([`ratio_transmittance`]; Novák, Selle & Jarosz 2014) with the segment's lower bound as the
+//! control: `T = Π_segments exp(−σc·ℓ) · Π_tentative (1 − (σt(x) − σc)/(σ̄ − σc))`.
 
 use glam::DVec3;
 
+use crate::medium::density::{Density, Field};
 use crate::medium::{Layer, MAX_REGIONS_PER_LAYER, Scene};
 use crate::sampling::PathRng;
 
@@ -56,6 +71,16 @@ pub fn free_flight(
     rng: &mut PathRng,
     null_collisions: &mut u64,
 ) -> Flight {
+    if layer.heterogeneous {
+        let scale = match tracking {
+            Tracking::Analytic => 1.0,
+            Tracking::Delta { majorant_scale } => majorant_scale,
+        };
+        let (flight, advanced) =
+            heterogeneous(scene, layer, pos, dir, dz / abs_dir_z, scale, rng.clone(), null_collisions);
+        *rng = advanced;
+        return flight;
+    }
     if layer.regions.is_empty() {
         let t = rng.exponential() * scene.media[layer.medium].inv_sigma_t();
         return if t * abs_dir_z < dz {
@@ -174,4 +199,230 @@ fn delta(
         }
         *null_collisions += 1;
     }
+}
+
+/// Most spans of one medium a ray can cross in a layer.
+const MAX_SPANS: usize = 2 * MAX_REGIONS_PER_LAYER + 1;
+
+/// The ray `pos + t·dir`, `0 ≤ t ≤ t_end`, in `layer` cut into consecutive spans of one medium
+/// (`(t0, t1, medium)`, in order; regions listed first win where they overlap).
+fn spans(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_end: f64) -> ([(f64, f64, usize); MAX_SPANS], usize) {
+    let mut out = [(0.0, 0.0, 0usize); MAX_SPANS];
+    let mut hits = [(0.0f64, 0.0f64, 0usize); MAX_REGIONS_PER_LAYER];
+    let mut n_hits = 0;
+    for &r in &layer.regions {
+        let region = &scene.regions[r];
+        if let Some((a, b)) = region.shape.intersect(pos, dir) {
+            let (a, b) = (a.max(0.0), b.min(t_end));
+            if b > a {
+                hits[n_hits] = (a, b, region.medium);
+                n_hits += 1;
+            }
+        }
+    }
+    if n_hits == 0 {
+        out[0] = (0.0, t_end, layer.medium);
+        return (out, 1);
+    }
+    let mut cuts = [0.0f64; 2 * MAX_REGIONS_PER_LAYER + 2];
+    let mut n_cuts = 0;
+    for &(a, b, _) in &hits[..n_hits] {
+        cuts[n_cuts] = a;
+        cuts[n_cuts + 1] = b;
+        n_cuts += 2;
+    }
+    cuts[n_cuts] = 0.0;
+    cuts[n_cuts + 1] = t_end;
+    n_cuts += 2;
+    let cuts = &mut cuts[..n_cuts];
+    cuts.sort_unstable_by(f64::total_cmp);
+    let mut n = 0;
+    for w in cuts.windows(2) {
+        let (t0, t1) = (w[0], w[1]);
+        if t1 <= t0 {
+            continue;
+        }
+        // The midpoint of an infinite piece is infinite: its medium is the one just past t0.
+        let mid = if t1.is_finite() { 0.5 * (t0 + t1) } else { t0 + 1.0 };
+        let medium = hits[..n_hits].iter().find(|&&(a, b, _)| a <= mid && mid < b).map_or(layer.medium, |h| h.2);
+        if n > 0 && out[n - 1].2 == medium {
+            out[n - 1].1 = t1;
+        } else {
+            out[n] = (t0, t1, medium);
+            n += 1;
+        }
+    }
+    (out, n)
+}
+
+/// Delta tracking over majorant segments through a layer with density media (see the module
+/// docs); `scale ≥ 1` inflates every majorant. Gets the generator by value (see `PathRng`).
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn heterogeneous(
+    scene: &Scene,
+    layer: &Layer,
+    pos: DVec3,
+    dir: DVec3,
+    t_boundary: f64,
+    scale: f64,
+    mut rng: PathRng,
+    null_collisions: &mut u64,
+) -> (Flight, PathRng) {
+    let (spans, n) = spans(scene, layer, pos, dir, t_boundary);
+    let mut tau = rng.exponential();
+    let mut nulls = 0;
+    for &(a, b, medium) in &spans[..n] {
+        let m = &scene.media[medium];
+        let sigma_t = m.sigma_t();
+        let hit = match m.density() {
+            None => constant_segment(sigma_t, sigma_t * scale, a, b, &mut tau, &mut rng, &mut nulls),
+            Some(Density::Ramp(f)) => delta_field(f, sigma_t, scale, pos, dir, a, b, &mut tau, &mut rng, &mut nulls),
+            Some(Density::Grid(f)) => delta_field(f, sigma_t, scale, pos, dir, a, b, &mut tau, &mut rng, &mut nulls),
+        };
+        if let Some(t) = hit {
+            *null_collisions += nulls;
+            return (Flight::Collision { t, medium }, rng);
+        }
+    }
+    *null_collisions += nulls;
+    (Flight::Boundary { t: t_boundary }, rng)
+}
+
+/// Delta tracking on `[t0, t1)` where σt is the constant `sigma_t` and the majorant `majorant`
+/// (≥ σt), with the optical depth `tau` left from earlier segments (at their majorants). `Some`
+/// distance of a real collision, else `tau` is what is left past `t1`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn constant_segment(
+    sigma_t: f64,
+    majorant: f64,
+    mut t0: f64,
+    t1: f64,
+    tau: &mut f64,
+    rng: &mut PathRng,
+    nulls: &mut u64,
+) -> Option<f64> {
+    if majorant <= 0.0 {
+        return None;
+    }
+    loop {
+        let depth = majorant * (t1 - t0);
+        if *tau >= depth {
+            *tau -= depth;
+            return None;
+        }
+        let t = t0 + *tau / majorant;
+        // A majorant equal to σt accepts every tentative collision: no draw.
+        if majorant <= sigma_t || rng.uniform() * majorant < sigma_t {
+            return Some(t);
+        }
+        *nulls += 1;
+        t0 = t;
+        *tau = rng.exponential();
+    }
+}
+
+/// Delta tracking through a density field `f` scaling σt, over its majorant segments of
+/// `[a, b)`, majorants inflated by `scale`. Compiled per field type.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn delta_field<F: Field>(
+    f: &F,
+    sigma_t: f64,
+    scale: f64,
+    pos: DVec3,
+    dir: DVec3,
+    a: f64,
+    b: f64,
+    tau: &mut f64,
+    rng: &mut PathRng,
+    nulls: &mut u64,
+) -> Option<f64> {
+    for seg in f.segments(pos, dir, a, b) {
+        let majorant = seg.max * sigma_t * scale;
+        if majorant <= 0.0 {
+            continue;
+        }
+        // Where the segment's lower bound reaches its majorant every tentative collision is
+        // real: no lookup, no draw.
+        let certain = seg.min * sigma_t >= majorant;
+        let mut t0 = seg.t0;
+        loop {
+            let depth = majorant * (seg.t1 - t0);
+            if *tau >= depth {
+                *tau -= depth;
+                break;
+            }
+            let t = t0 + *tau / majorant;
+            if certain || rng.uniform() * majorant < sigma_t * f.density(pos + t * dir) {
+                return Some(t);
+            }
+            *nulls += 1;
+            t0 = t;
+            *tau = rng.exponential();
+        }
+    }
+    None
+}
+
+/// Transmittance of the straight segment `pos + s·dir`, `0 ≤ s ≤ t`, through `layer`: exact
+/// `exp(−σt·ℓ)` over homogeneous spans, residual ratio tracking (Novák et al. 2014) over density
+/// spans, with the segment bounds `[σc, σ̄]` of the majorant segments: `exp(−σc·ℓ)` analytically
+/// and a factor `1 − (σt(x) − σc)/(σ̄ − σc) ∈ [0, 1]` per tentative collision at rate `σ̄ − σc`.
+/// Unbiased; where a segment's bounds meet (constant cells) it is exact and draws nothing.
+pub fn ratio_transmittance(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t: f64, rng: &mut PathRng) -> f64 {
+    let (spans, n) = spans(scene, layer, pos, dir, t);
+    let mut tau = 0.0;
+    let mut tr = 1.0;
+    for &(a, b, medium) in &spans[..n] {
+        let m = &scene.media[medium];
+        let sigma_t = m.sigma_t();
+        match m.density() {
+            None => tau += sigma_t * (b - a),
+            Some(Density::Ramp(f)) => tr *= ratio_field(f, sigma_t, pos, dir, a, b, &mut tau, rng),
+            Some(Density::Grid(f)) => tr *= ratio_field(f, sigma_t, pos, dir, a, b, &mut tau, rng),
+        }
+        if tr <= 0.0 {
+            return 0.0;
+        }
+    }
+    tr * (-tau).exp()
+}
+
+/// The ratio-tracking factor of a density span (the control's optical depth is added to `tau`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn ratio_field<F: Field>(
+    f: &F,
+    sigma_t: f64,
+    pos: DVec3,
+    dir: DVec3,
+    a: f64,
+    b: f64,
+    tau: &mut f64,
+    rng: &mut PathRng,
+) -> f64 {
+    let mut tr = 1.0;
+    for seg in f.segments(pos, dir, a, b) {
+        let control = seg.min * sigma_t;
+        *tau += control * (seg.t1 - seg.t0);
+        let residual = (seg.max - seg.min) * sigma_t;
+        if residual <= 0.0 {
+            continue;
+        }
+        let inv = 1.0 / residual;
+        let mut s = seg.t0;
+        loop {
+            s += rng.exponential() * inv;
+            if s >= seg.t1 {
+                break;
+            }
+            tr *= 1.0 - (sigma_t * f.density(pos + s * dir) - control) * inv;
+            if tr <= 0.0 {
+                return 0.0;
+            }
+        }
+    }
+    tr
 }

@@ -237,11 +237,13 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     loop {
         let layer = &scene.layers[li];
         let fill = &scene.media[layer.medium];
-        let homogeneous = layer.regions.is_empty();
+        let homogeneous = layer.regions.is_empty() && !layer.heterogeneous;
+        // Only a layer with density media can hold an albedo grid.
+        let albedo_grid = layer.heterogeneous;
         let (z_top, z_bottom, n) = (layer.z_top, layer.z_bottom, layer.n);
         let fill_inv_sigma_t = fill.inv_sigma_t();
         loop {
-            let (t, medium) = if homogeneous {
+            let (t, medium, albedo) = if homogeneous {
                 // A collision iff its point is still in the layer, `z_top ≤ z < z_bottom`: two
                 // comparisons on the new depth, which the collision needs anyway, instead of
                 // selecting the plane ahead and comparing `t·|dir.z|` with its distance
@@ -253,7 +255,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                 if !(z_top <= z && z < z_bottom) {
                     break;
                 }
-                (t, fill)
+                (t, fill, fill.albedo())
             } else {
                 // Distance along z to the boundary plane ahead (either one for a horizontal ray).
                 let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
@@ -268,7 +270,10 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                     rng,
                     null_collisions,
                 ) {
-                    Flight::Collision { t, medium } => (t, &scene.media[medium]),
+                    Flight::Collision { t, medium } => {
+                        let m = &scene.media[medium];
+                        (t, m, if albedo_grid { m.albedo_at(s.pos + t * s.dir) } else { m.albedo() })
+                    }
                     Flight::Boundary { .. } => break,
                 }
             };
@@ -282,6 +287,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                     li,
                     s,
                     medium,
+                    albedo,
                     n,
                     settings,
                     rng,
@@ -292,7 +298,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                     return end;
                 }
             } else if let Some(end) =
-                collide::<DOPPLER, LENGTH>(s, t, medium, n, settings, rng, absorbed, &mut checkpoint)
+                collide::<DOPPLER, LENGTH>(s, t, medium, albedo, n, settings, rng, absorbed, &mut checkpoint)
             {
                 return end;
             }
@@ -346,6 +352,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     s: &mut PathState,
     t: f64,
     m: &Medium,
+    albedo: f64,
     n: f64,
     settings: &WalkSettings,
     rng: &mut PathRng,
@@ -356,7 +363,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     if LENGTH {
         s.l += n * t;
     }
-    if absorb(s, m, absorbed) {
+    if absorb(s, albedo, absorbed) {
         return Some(End::Absorbed);
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
@@ -382,6 +389,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     li: usize,
     s: &mut PathState,
     m: &Medium,
+    albedo: f64,
     n: f64,
     settings: &WalkSettings,
     rng: &mut PathRng,
@@ -389,7 +397,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     checkpoint: &mut u32,
     rec: &mut Recorder,
 ) -> Option<End> {
-    if absorb(s, m, absorbed) {
+    if absorb(s, albedo, absorbed) {
         return Some(End::Absorbed);
     }
     // One population serves the shadow rays and the continuation (so that the balance heuristic
@@ -416,8 +424,8 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         let target = rec.nee[i];
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let hit = match &target.aperture {
-            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, &pop.phase, &target, u1, u2),
-            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, &target, a, u1, u2),
+            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, &pop.phase, &target, u1, u2, rng),
+            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, &target, a, u1, u2, rng),
         };
         let Some(h) = hit else { continue };
         let mut e = Escape {
@@ -452,8 +460,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
 /// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if
 /// no weight is left.
 #[inline(always)]
-fn absorb(s: &mut PathState, m: &Medium, absorbed: &mut f64) -> bool {
-    let albedo = m.albedo();
+fn absorb(s: &mut PathState, albedo: f64, absorbed: &mut f64) -> bool {
     *absorbed += s.weight * (1.0 - albedo);
     s.weight *= albedo;
     s.weight <= 0.0
