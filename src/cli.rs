@@ -357,13 +357,13 @@ fn describe(exp: &Experiment, origin: &str) -> String {
         };
         let _ = writeln!(
             s,
-            "  {:<12} σa = {:.6e} /m, σs = {:.6e} /m, albedo = {:.5}, g = {:.6}, phase {phase}, velocity {:?}",
+            "  {:<12} σa = {:.6e} /m, σs = {:.6e} /m, albedo = {:.5}, g = {:.6}, phase {phase}, velocity {}",
             m.name,
             m.sigma_a(),
             m.sigma_s(),
             m.albedo(),
             m.info.g,
-            m.population().velocity
+            m.population().velocity.describe()
         );
         if m.populations().len() > 1 {
             for p in m.populations() {
@@ -374,11 +374,7 @@ fn describe(exp: &Experiment, origin: &str) -> String {
                     p.name,
                     p.sigma_s,
                     p.phase.mean_cosine(),
-                    match &p.velocity {
-                        ohd::flow::VelocityField::TerminalFall { fall, .. } =>
-                            format!("wind + fall (σs-weighted mean {:.3} m/s)", fall.mean()),
-                        v => format!("{v:?}"),
-                    }
+                    p.velocity.describe()
                 );
             }
         }

@@ -15,7 +15,7 @@ use crate::experiment::{Experiment, RunPlan};
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
 use crate::io::table::read_phase_table;
 use crate::medium::density::{
-    Density, DensityInfo, GridDensity, GridError, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
+    Density, DensityInfo, GridDensity, GridError, GridField, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
 };
 use crate::medium::grid::VoxelGrid;
 use crate::medium::{
@@ -221,7 +221,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let source = resolve_source(&f.source)?;
     let n_above = index_of_refraction("ambient.n_above", f.ambient.n_above.unwrap_or(1.0))?;
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
-    let ctx = Ctx { base, wavelength: source.wavelength };
+    let ctx = Ctx { base, wavelength: source.wavelength, files: GridFiles::default() };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
     let mut detectors = resolve_detectors(&f.detectors, &scene)?;
     for (i, d) in f.detectors.iter().enumerate() {
@@ -462,6 +462,9 @@ fn resolve_pointings(s: &SourceSection) -> R<Vec<Pointing>> {
 /// file's `[wind]` and the particle sizes of the population (terminal fall).
 #[derive(Clone, Copy)]
 struct FlowCtx<'a> {
+    /// Where relative file names start, and the grids read so far.
+    base: &'a Path,
+    files: &'a GridFiles,
     cylinder: Option<&'a Shape>,
     wind: Option<&'a WindProfile>,
     /// Radii (m) with their σs weights.
@@ -527,6 +530,18 @@ fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> R<VelocityF
                 return err(v.1, "expected a finite speed (negative reverses the flow along the axis)");
             }
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
+        }
+        VelocitySection::Vdb { file, grid, interpolation: i, scale, translate_um, translate_mm, translate_m } => {
+            let g = fc.files.vec3(path, fc.base, file, grid.as_deref())?;
+            let place = resolve_placement(path, *scale, *translate_um, *translate_mm, *translate_m)?;
+            if !g.background.iter().all(|c| c.is_finite()) {
+                return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));
+            }
+            if let Some(o) = g.data.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+                let ijk = g.index_of(o);
+                return err(join(path, "file"), format!("{file}: voxel {ijk:?} of the velocity grid is not finite"));
+            }
+            VelocityField::Grid(Arc::new(GridField::new(g, interpolation(*i), place)))
         }
     })
 }
@@ -776,6 +791,75 @@ fn resolve_motion(path: &str, m: &MotionSection) -> R<Motion> {
 struct Ctx<'a> {
     base: &'a Path,
     wavelength: f64,
+    files: GridFiles,
+}
+
+/// The OpenVDB grids read so far, by file and grid name: a file is read once however many layers,
+/// sublayers and regions use its grids.
+#[derive(Default)]
+struct GridFiles {
+    float: std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<f32>>>>,
+    vec3: std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<[f32; 3]>>>>,
+}
+
+impl GridFiles {
+    /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
+    fn float(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<f32>>> {
+        Self::get(&self.float, key, base, file, grid, crate::io::vdb::read_float)
+    }
+
+    /// The vec3 grid `grid` (or the first) of `file`.
+    fn vec3(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<[f32; 3]>>> {
+        Self::get(&self.vec3, key, base, file, grid, crate::io::vdb::read_vec3)
+    }
+
+    fn get<T>(
+        cache: &std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>,
+        key: &str,
+        base: &Path,
+        file: &str,
+        grid: Option<&str>,
+        read: impl Fn(std::path::PathBuf, Option<&str>) -> crate::error::Result<crate::io::vdb::VdbGrid<T>>,
+    ) -> R<Arc<VoxelGrid<T>>> {
+        let path = base.join(file);
+        let id = (path.clone(), grid.map(str::to_string));
+        if let Some(g) = cache.borrow().get(&id) {
+            return Ok(g.clone());
+        }
+        let g = Arc::new(read(path, grid).map_err(|e| ConfigError::new(join(key, "file"), e.to_string()))?.grid);
+        cache.borrow_mut().insert(id, g.clone());
+        Ok(g)
+    }
+}
+
+/// A grid's placement from its keys `scale` and `translate_*` under `path`.
+fn resolve_placement(
+    path: &str,
+    scale: Option<f64>,
+    um: Option<[f64; 3]>,
+    mm: Option<[f64; 3]>,
+    m: Option<[f64; 3]>,
+) -> R<Placement> {
+    let scale = match scale {
+        None => 1.0,
+        Some(s) if s.is_finite() && s > 0.0 => s,
+        Some(s) => {
+            return err(
+                join(path, "scale"),
+                format!("= {s}: expected the file's length unit in metres, > 0 (1e-3 for millimetres)"),
+            );
+        }
+    };
+    // Finite numbers are checked where the unit is picked.
+    let translation = length_arr(path, "translate", um, mm, m)?.map_or(DVec3::ZERO, |(t, _)| DVec3::from_array(t));
+    Ok(Placement { translation, scale })
+}
+
+fn interpolation(i: Option<InterpolationSection>) -> Interpolation {
+    match i {
+        None | Some(InterpolationSection::Trilinear) => Interpolation::Trilinear,
+        Some(InterpolationSection::Nearest) => Interpolation::Nearest,
+    }
 }
 
 /// The optics of a named medium (everything but its velocity), resolved once per name however many
@@ -1325,6 +1409,8 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
     let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
     // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
     let mut optics: BTreeMap<String, Optics> = BTreeMap::new();
+    // Densities likewise (a grid's majorant is built once).
+    let mut densities: BTreeMap<String, Arc<Heterogeneity>> = BTreeMap::new();
     // A medium at height `height` (for its height profile); `velocity` overrides the medium's
     // own (a region's), `cylinder` is the region's shape if it is one.
     let mut make = |path: &str,
@@ -1340,7 +1426,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
                 populations_of(&mut optics, ctx, wind.as_ref(), path, name, ms, velocity, cylinder, height)?;
             let mut m = Medium::mixture(name, sigma_a, populations);
             m.info = info;
-            attach_density(path, ms, &mut m)?;
+            attach_density(path, ms, &mut m, ctx, &mut densities)?;
             return Ok(m);
         };
         check_mixture(path, ms)?;
@@ -1383,7 +1469,7 @@ fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R
             sigma_s_scale: 1.0,
             ..MediumInfo::default()
         };
-        attach_density(path, ms, &mut m)?;
+        attach_density(path, ms, &mut m, ctx, &mut densities)?;
         Ok(m)
     };
     let mut media: Vec<Medium> = Vec::new();
@@ -1563,7 +1649,9 @@ fn populations_of(
     let field = |sizes: &[(f64, f64)]| -> R<VelocityField> {
         match &velocity {
             None => Ok(VelocityField::Static),
-            Some((p, v)) => resolve_velocity(p, v, FlowCtx { cylinder, wind, sizes }),
+            Some((p, v)) => {
+                resolve_velocity(p, v, FlowCtx { base: ctx.base, files: &ctx.files, cylinder, wind, sizes })
+            }
         }
     };
     if o.classes.is_empty() {
@@ -1997,10 +2085,25 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
     Ok(out)
 }
 
-/// Give `m` the density of its section, if it has one.
-fn attach_density(path: &str, ms: &MediumSection, m: &mut Medium) -> R<()> {
+/// Give `m` the density of its section, if it has one: built once per named medium (`built`),
+/// shared by every layer, sublayer and region that uses it.
+fn attach_density(
+    path: &str,
+    ms: &MediumSection,
+    m: &mut Medium,
+    ctx: &Ctx,
+    built: &mut BTreeMap<String, Arc<Heterogeneity>>,
+) -> R<()> {
     let Some(d) = &ms.density else { return Ok(()) };
-    m.set_heterogeneity(resolve_density(&join(path, "density"), d)?);
+    let h = match built.get(&m.name) {
+        Some(h) => h.clone(),
+        None => {
+            let h = Arc::new(resolve_density(&join(path, "density"), d, ctx)?);
+            built.insert(m.name.clone(), h.clone());
+            h
+        }
+    };
+    m.set_shared_heterogeneity(h);
     Ok(())
 }
 
@@ -2011,9 +2114,40 @@ fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
     }
 }
 
-/// `density = { type = "ramp", … }` (and, later, the file-backed grids).
-fn resolve_density(path: &str, d: &DensitySection) -> R<Heterogeneity> {
+/// `density = { type = "ramp" | "vdb", … }`.
+fn resolve_density(path: &str, d: &DensitySection, ctx: &Ctx) -> R<Heterogeneity> {
     match d {
+        DensitySection::Vdb {
+            file,
+            grid,
+            albedo_grid,
+            interpolation: i,
+            scale,
+            translate_um,
+            translate_mm,
+            translate_m,
+            majorant,
+            majorant_cell_voxels,
+        } => {
+            let density = ctx.files.float(path, ctx.base, file, grid.as_deref())?;
+            let albedo = match albedo_grid {
+                Some(name) => Some(ctx.files.float(path, ctx.base, file, Some(name))?),
+                None => None,
+            };
+            let place = resolve_placement(path, *scale, *translate_um, *translate_mm, *translate_m)?;
+            let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels)?;
+            let mut h = grid_heterogeneity(
+                path,
+                Arc::unwrap_or_clone(density),
+                albedo.map(Arc::unwrap_or_clone),
+                place,
+                interpolation(*i),
+                majorant,
+            )?;
+            h.info.kind = "vdb".into();
+            h.info.source = Some(format!("{file}:{}", grid.as_deref().unwrap_or("(first float grid)")));
+            Ok(h)
+        }
         DensitySection::Ramp {
             axis,
             from_um,
@@ -2134,6 +2268,7 @@ pub fn grid_heterogeneity(
         min: grid.min,
         max: grid.max,
         albedo_grid: albedo.is_some(),
+        source: None,
     };
     Ok(Heterogeneity { density: Density::Grid(grid), albedo, info })
 }

@@ -221,6 +221,37 @@ pub enum DensitySection {
         /// bound, the larger end value).
         majorant: Option<MajorantSection>,
     },
+    /// A FloatGrid from an OpenVDB file (our own reader, `io::vdb`).
+    Vdb {
+        /// The `.vdb` file, relative to the config file.
+        file: String,
+        /// The grid's name (default: the file's first float grid).
+        grid: Option<String>,
+        /// A second float grid of the same file: the single-scattering albedo per voxel (0 to 1),
+        /// overriding σs/σt at a collision.
+        albedo_grid: Option<String>,
+        /// "trilinear" (default) or "nearest".
+        interpolation: Option<InterpolationSection>,
+        /// The file's length unit in metres: multiplies its voxel size and translation (default
+        /// 1; 1e-3 for a file in millimetres).
+        scale: Option<f64>,
+        /// Moves the grid after scaling.
+        translate_um: Option<[f64; 3]>,
+        translate_mm: Option<[f64; 3]>,
+        translate_m: Option<[f64; 3]>,
+        /// "grid" (default: per-cell bounds) or "global" (one bound for the whole grid).
+        majorant: Option<MajorantSection>,
+        /// Edge of a majorant cell in voxels (default 8).
+        majorant_cell_voxels: Option<u64>,
+    },
+}
+
+/// How a grid is read between its voxel points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InterpolationSection {
+    Trilinear,
+    Nearest,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -408,6 +439,22 @@ pub enum VelocitySection {
     /// Falling drops: the `[wind]` (calm without one) plus each drop size's terminal fall speed
     /// (Atlas et al. 1973) downward; the drop sizes are the medium's particles.
     TerminalFall {},
+    /// A Vec3SGrid (m/s) from an OpenVDB file.
+    Vdb {
+        /// The `.vdb` file, relative to the config file.
+        file: String,
+        /// The grid's name (default: the file's first vec3 grid).
+        grid: Option<String>,
+        /// "trilinear" (default) or "nearest".
+        interpolation: Option<InterpolationSection>,
+        /// The file's length unit in metres: multiplies its voxel size and translation (default
+        /// 1; 1e-3 for a file in millimetres).
+        scale: Option<f64>,
+        /// Moves the grid after scaling.
+        translate_um: Option<[f64; 3]>,
+        translate_mm: Option<[f64; 3]>,
+        translate_m: Option<[f64; 3]>,
+    },
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

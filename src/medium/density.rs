@@ -378,12 +378,6 @@ pub struct GridDensity {
     pub max: f64,
 }
 
-/// The voxel index of a data offset of `g`.
-fn index_of(g: &VoxelGrid<f32>, o: usize) -> [i32; 3] {
-    let (nx, ny) = (g.dims[0], g.dims[1]);
-    [g.min[0] + (o % nx) as i32, g.min[1] + ((o / nx) % ny) as i32, g.min[2] + (o / (nx * ny)) as i32]
-}
-
 impl GridDensity {
     /// A density from `grid` (negative voxels clamped to 0; the count is returned beside it).
     pub fn new(
@@ -402,7 +396,7 @@ impl GridDensity {
             return Err(GridError::NotFinite(None));
         }
         if let Some(o) = grid.data.iter().position(|v| !v.is_finite()) {
-            return Err(GridError::NotFinite(Some(index_of(&grid, o))));
+            return Err(GridError::NotFinite(Some(grid.index_of(o))));
         }
         let mut clamped = 0;
         for v in grid.data.iter_mut() {
@@ -541,7 +535,7 @@ impl Heterogeneity {
             return Err(GridError::AlbedoRange(None, grid.background));
         }
         if let Some(o) = grid.data.iter().position(|&v| bad(v)) {
-            return Err(GridError::AlbedoRange(Some(index_of(&grid, o)), grid.data[o]));
+            return Err(GridError::AlbedoRange(Some(grid.index_of(o)), grid.data[o]));
         }
         Ok(GridField::new(Arc::new(grid), interpolation, placement))
     }
@@ -550,8 +544,11 @@ impl Heterogeneity {
 /// What the manifest records of a density.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct DensityInfo {
-    /// "ramp" or "grid" (and the source, e.g. "vdb", when the loader sets it).
+    /// "ramp", "grid" or "vdb".
     pub kind: String,
+    /// Where a grid came from: `file:grid` for a VDB file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
     pub interpolation: Option<Interpolation>,
     pub majorant: Option<MajorantKind>,
     pub majorant_cells: Option<[usize; 3]>,

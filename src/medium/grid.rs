@@ -66,6 +66,13 @@ impl<T: Copy> VoxelGrid<T> {
         Some((rel[2] * self.dims[1] + rel[1]) * self.dims[0] + rel[0])
     }
 
+    /// The index of `data[offset]`.
+    pub fn index_of(&self, offset: usize) -> [i32; 3] {
+        let [nx, ny, _] = self.dims;
+        let rel = [offset % nx, (offset / nx) % ny, offset / (nx * ny)];
+        std::array::from_fn(|a| self.min[a] + rel[a] as i32)
+    }
+
     /// The value at index `ijk` (the background outside the stored block).
     #[inline]
     pub fn get(&self, ijk: [i32; 3]) -> T {
@@ -107,6 +114,7 @@ mod tests {
         assert_eq!(g.get([-2, 0, 3]), 7.0);
         assert_eq!(g.get([-3, 0, 3]), 7.0);
         assert_eq!(g.offset([0, 1, 4]), Some((2 + 1) * 3 + 2));
+        assert_eq!(g.index_of((2 + 1) * 3 + 2), [0, 1, 4]);
         assert_eq!(g.index_bounds(), Some(([-2, 0, 3], [0, 1, 4])));
         assert_eq!(t.to_world(DVec3::new(2.0, 2.0, 2.0)), DVec3::new(2.0, 1.0, 0.0));
         assert_eq!(t.to_index(DVec3::new(2.0, 1.0, 0.0)), DVec3::new(2.0, 2.0, 2.0));

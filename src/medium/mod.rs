@@ -263,7 +263,13 @@ impl Medium {
     /// Give the medium a density (σa and σs become `d(x)·σa`, `d(x)·σs`) and possibly an albedo
     /// grid.
     pub fn set_heterogeneity(&mut self, h: Heterogeneity) {
-        self.heterogeneity = Some(Arc::new(h));
+        self.set_shared_heterogeneity(Arc::new(h));
+    }
+
+    /// [`Medium::set_heterogeneity`] with a density (and majorant grid) shared by several media:
+    /// the layers and regions that use one named medium.
+    pub fn set_shared_heterogeneity(&mut self, h: Arc<Heterogeneity>) {
+        self.heterogeneity = Some(h);
     }
 
     /// The medium's density and albedo grid (`None`: homogeneous).
