@@ -798,9 +798,12 @@ struct Ctx<'a> {
 /// sublayers and regions use its grids.
 #[derive(Default)]
 struct GridFiles {
-    float: std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<f32>>>>,
-    vec3: std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<[f32; 3]>>>>,
+    float: GridCache<f32>,
+    vec3: GridCache<[f32; 3]>,
 }
+
+/// Grids by (file, grid name).
+type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>;
 
 impl GridFiles {
     /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
@@ -814,7 +817,7 @@ impl GridFiles {
     }
 
     fn get<T>(
-        cache: &std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>,
+        cache: &GridCache<T>,
         key: &str,
         base: &Path,
         file: &str,

@@ -241,7 +241,7 @@ pub enum DensitySection {
         translate_m: Option<[f64; 3]>,
         /// "grid" (default: per-cell bounds) or "global" (one bound for the whole grid).
         majorant: Option<MajorantSection>,
-        /// Edge of a majorant cell in voxels (default 8).
+        /// Edge of a majorant cell in voxels (default 4).
         majorant_cell_voxels: Option<u64>,
     },
 }

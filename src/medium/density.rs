@@ -61,9 +61,12 @@ pub struct MajorantSpec {
     pub cell_voxels: usize,
 }
 
-/// Default edge of a majorant cell, in voxels. Measured on the sparse-vessel benchmark
-/// (`benches/grid.rs`, a 128³ grid): see the note there.
-pub const DEFAULT_CELL_VOXELS: usize = 8;
+/// Default edge of a majorant cell, in voxels. Measured on the sparse-vessel scenes
+/// (`benches/grid.rs`, a 128³ grid: 4 voxels 1.26 s, 8 voxels 1.33 s, 16 voxels 1.44 s;
+/// `validation/vdb/vessels_bench.toml`: 2 voxels 0.60 s, 4 voxels 0.58 s, 8 voxels 0.64 s,
+/// 16 voxels 0.84 s, global 1.54 s). A cell holds 8 bytes (min and max as f32): 4-voxel
+/// cells add 1/8 byte per voxel.
+pub const DEFAULT_CELL_VOXELS: usize = 4;
 
 impl Default for MajorantSpec {
     fn default() -> Self {
