@@ -206,15 +206,7 @@ pub struct ActiveMask {
 
 impl ActiveMask {
     fn offset(&self, ijk: [i32; 3]) -> Option<usize> {
-        let mut rel = [0usize; 3];
-        for a in 0..3 {
-            let r = i64::from(ijk[a]) - i64::from(self.min[a]);
-            if r < 0 || r >= self.dims[a] as i64 {
-                return None;
-            }
-            rel[a] = r as usize;
-        }
-        Some((rel[2] * self.dims[1] + rel[1]) * self.dims[0] + rel[0])
+        crate::medium::grid::block_offset(self.min, self.dims, ijk)
     }
 
     /// Whether voxel `ijk` is active.

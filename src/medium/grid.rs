@@ -46,6 +46,20 @@ pub struct VoxelGrid<T> {
     pub transform: IndexTransform,
 }
 
+/// Offset of index `ijk` in an x-fastest block of `dims` points from `min`, or `None` outside it.
+#[inline]
+pub fn block_offset(min: [i32; 3], dims: [usize; 3], ijk: [i32; 3]) -> Option<usize> {
+    let mut rel = [0usize; 3];
+    for a in 0..3 {
+        let r = i64::from(ijk[a]) - i64::from(min[a]);
+        if r < 0 || r >= dims[a] as i64 {
+            return None;
+        }
+        rel[a] = r as usize;
+    }
+    Some((rel[2] * dims[1] + rel[1]) * dims[0] + rel[0])
+}
+
 impl<T: Copy> VoxelGrid<T> {
     /// A block of `dims` points from `min`, all set to `background`.
     pub fn new(min: [i32; 3], dims: [usize; 3], background: T, transform: IndexTransform) -> Self {
@@ -55,15 +69,7 @@ impl<T: Copy> VoxelGrid<T> {
     /// Offset into `data` of index `ijk`, or `None` outside the stored block.
     #[inline]
     pub fn offset(&self, ijk: [i32; 3]) -> Option<usize> {
-        let mut rel = [0usize; 3];
-        for a in 0..3 {
-            let r = i64::from(ijk[a]) - i64::from(self.min[a]);
-            if r < 0 || r >= self.dims[a] as i64 {
-                return None;
-            }
-            rel[a] = r as usize;
-        }
-        Some((rel[2] * self.dims[1] + rel[1]) * self.dims[0] + rel[0])
+        block_offset(self.min, self.dims, ijk)
     }
 
     /// The index of `data[offset]`.

@@ -359,3 +359,31 @@ pub fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
     }
     sum * h / 3.0
 }
+
+/// z-scores of a lidar run's single-scattering lag sums D_0 (real) and D_1 (real and imaginary) of
+/// every gate against `expected(g, d)`; asserts each |z| < 4.5 and the χ² over all of them
+/// p > 1e-3.
+pub fn check_single_scattering_lags(r: &Run, expected: impl Fn(usize, usize) -> num_complex::Complex64) {
+    let (spec, _) = r.lidar();
+    let (mut stat, mut dof) = (0.0, 0);
+    for g in 0..spec.gates {
+        for d in 0..2 {
+            let want = expected(g, d);
+            let (v, (se_re, se_im)) = r.lag(1, g, d);
+            let mut parts = vec![("re", v.re, se_re, want.re)];
+            if d == 1 {
+                parts.push(("im", v.im, se_im, want.im));
+            }
+            for (what, v, se, want) in parts {
+                let z = (v - want) / se;
+                eprintln!("gate {g} D_{d} {what}: {v:.5e} ± {se:.1e} vs {want:.5e}, z = {z:+.2}");
+                assert!(z.abs() < 4.5, "gate {g}, D_{d} {what}: z = {z}");
+                stat += z * z;
+                dof += 1;
+            }
+        }
+    }
+    let p = chi2_sf(stat, dof);
+    eprintln!("χ² = {stat:.1} for {dof}, p = {p:.3}");
+    assert!(p > 1e-3, "χ² = {stat:.1} for {dof} values, p = {p:.2e}");
+}
