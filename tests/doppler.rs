@@ -120,44 +120,8 @@ fn uniformly_illuminated_poiseuille_tube_gives_a_flat_spectrum() {
     // axis-parallel line over the same length, so v = v_max(1 − r²/R²) is uniform on [0, v_max]:
     // the spectrum is flat on [0, f_max], f_max = n v_max ê·(dir_in − dir_out)/λ0 = √2 v_max/λ0
     // (validation-values §4.4, "whole cross-section uniformly illuminated and weighted").
-    let text = r#"
-schema_version = 1
-[run]
-samples = 3000000
-seed = 9
-batches = 16
-[source]
-wavelength_nm = 1000
-profile = "disk"
-radius_mm = 0.35
-position_mm = [0, 0, -0.1]
-[media.clear]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0
-[media.blood]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0.2
-phase = { type = "hg", g = -0.99 }
-velocity = { type = "poiseuille", v_max_mm_per_s = 1 }
-[[layers]]
-name = "clear"
-thickness_mm = 0.4
-n = 1.0
-medium = "clear"
-[[regions]]
-layer = "clear"
-medium = "blood"
-shape = { type = "cylinder", center_mm = [0, 0, 0.2], axis = [1, 0, 1], radius_mm = 0.05 }
-[[detectors]]
-name = "top"
-acceptance_half_angle_deg = 3
-[detectors.spectrum]
-f_min_hz = 0
-f_max_hz = 1555.634918610405   # 1.1 f_max
-bins = 22
-by_order = 2
-"#;
-    let r = run(text, &[]);
+    let text = common::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#);
+    let r = run(&text, &["run.seed=9"]);
     let ch = r.channel(0, 0, 2); // order 1
     let counts: Vec<f64> = ch.values.iter().map(|v| (v * r.paths()).round()).collect();
     // Bins 0–18 lie inside [0, 0.95 f_max]: flat. Bin 19 ends at f_max and bin 20 holds only the

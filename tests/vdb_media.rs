@@ -67,49 +67,6 @@ density = { type = "vdb", file = "tests/fixtures/vdb_media/constant.vdb", grid =
     }
 }
 
-/// The thin tube of `tests/doppler.rs`'s flat-spectrum test (HG g = −0.99 scatterers, 3°
-/// acceptance, a tube at 45° lit uniformly), its velocity given by `velocity`.
-fn tube(velocity: &str) -> String {
-    format!(
-        r#"
-schema_version = 1
-[run]
-samples = 3000000
-batches = 16
-[source]
-wavelength_nm = 1000
-profile = "disk"
-radius_mm = 0.35
-position_mm = [0, 0, -0.1]
-[media.clear]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0
-[media.blood]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0.2
-phase = {{ type = "hg", g = -0.99 }}
-[[layers]]
-name = "clear"
-thickness_mm = 0.4
-n = 1.0
-medium = "clear"
-[[regions]]
-layer = "clear"
-medium = "blood"
-shape = {{ type = "cylinder", center_mm = [0, 0, 0.2], axis = [1, 0, 1], radius_mm = 0.05 }}
-velocity = {velocity}
-[[detectors]]
-name = "top"
-acceptance_half_angle_deg = 3
-[detectors.spectrum]
-f_min_hz = 0
-f_max_hz = 1555.634918610405   # 1.1 f_max
-bins = 22
-by_order = 2
-"#
-    )
-}
-
 #[test]
 fn a_vdb_poiseuille_velocity_gives_the_analytic_tube_spectrum() {
     // tube.vdb samples v_max(1 − r²/R²) along the tube's axis on voxels of R/8, as half floats,
@@ -124,8 +81,8 @@ fn a_vdb_poiseuille_velocity_gives_the_analytic_tube_spectrum() {
     // (Measured at 4× the paths: bins 0–18 χ² = 20.9 for 19, p = 0.34; bins 19–20 hold 977
     // against 1117, −12.5 %, within the 16 %.)
     let vdb = r#"{ type = "vdb", file = "tests/fixtures/vdb_media/tube.vdb", grid = "velocity", scale = 1e-3 }"#;
-    let grid = run(&tube(vdb), &["run.seed=11"]);
-    let analytic = run(&tube(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#), &["run.seed=12"]);
+    let grid = run(&common::tube_scene(vdb), &["run.seed=11"]);
+    let analytic = run(&common::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#), &["run.seed=12"]);
     let counts = |r: &common::Run| -> Vec<f64> {
         let ch = r.channel(0, 0, 2); // order 1
         ch.values.iter().map(|v| (v * r.paths()).round()).collect()

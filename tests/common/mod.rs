@@ -387,3 +387,47 @@ pub fn check_single_scattering_lags(r: &Run, expected: impl Fn(usize, usize) -> 
     eprintln!("χ² = {stat:.1} for {dof}, p = {p:.3}");
     assert!(p > 1e-3, "χ² = {stat:.1} for {dof} values, p = {p:.2e}");
 }
+
+/// A thin tube at 45° in a transparent layer, lit uniformly and seen in near-backscatter (HG
+/// g = −0.99 scatterers, 3° acceptance; the flat-spectrum scene of validation-values §4.4), its
+/// velocity given by `velocity` (a TOML inline table), 3·10⁶ paths in 16 batches.
+pub fn tube_scene(velocity: &str) -> String {
+    format!(
+        r#"
+schema_version = 1
+[run]
+samples = 3000000
+batches = 16
+[source]
+wavelength_nm = 1000
+profile = "disk"
+radius_mm = 0.35
+position_mm = [0, 0, -0.1]
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[media.blood]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0.2
+phase = {{ type = "hg", g = -0.99 }}
+[[layers]]
+name = "clear"
+thickness_mm = 0.4
+n = 1.0
+medium = "clear"
+[[regions]]
+layer = "clear"
+medium = "blood"
+shape = {{ type = "cylinder", center_mm = [0, 0, 0.2], axis = [1, 0, 1], radius_mm = 0.05 }}
+velocity = {velocity}
+[[detectors]]
+name = "top"
+acceptance_half_angle_deg = 3
+[detectors.spectrum]
+f_min_hz = 0
+f_max_hz = 1555.634918610405   # 1.1 f_max
+bins = 22
+by_order = 2
+"#
+    )
+}
