@@ -10,7 +10,8 @@
 //!   the layer and its regions, optionally inflated for tests); tentative collisions are accepted
 //!   with probability σt(x)/σ̄ after a point lookup, the rest are null collisions (not vertices).
 //!
-//! Both sample the same distance distribution (`tests/sampling.rs`).
+//! Both sample the same distance distribution (`tests/sampling.rs`). The analytic segments and
+//! the heterogeneous tracker cut the ray into spans of one medium the same way ([`for_each_span`]).
 //!
 //! A layer whose medium or regions have a density field (`Layer::heterogeneous`) is tracked by
 //! [`heterogeneous`]: the ray is cut into spans of one medium; a homogeneous span is one segment
@@ -115,62 +116,17 @@ pub fn free_flight(
 
 #[inline(never)]
 fn analytic_segments(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_boundary: f64, mut tau: f64) -> Flight {
-    // Region intervals along the ray, clipped to [0, t_boundary], in priority order.
-    let mut spans = [(0.0f64, 0.0f64, 0usize); MAX_REGIONS_PER_LAYER];
-    let mut n_spans = 0;
-    for &r in &layer.regions {
-        let region = &scene.regions[r];
-        if let Some((a, b)) = region.shape.intersect(pos, dir) {
-            let (a, b) = (a.max(0.0), b.min(t_boundary));
-            if b > a {
-                spans[n_spans] = (a, b, region.medium);
-                n_spans += 1;
-            }
-        }
-    }
-    if n_spans == 0 {
-        let t = tau * scene.media[layer.medium].inv_sigma_t();
-        return if t < t_boundary {
-            Flight::Collision { t, medium: layer.medium }
-        } else {
-            Flight::Boundary { t: t_boundary }
-        };
-    }
-    // Breakpoints: 0, every span end, t_boundary; sorted (insertion sort: a handful of entries).
-    let mut cuts = [0.0f64; 2 * MAX_REGIONS_PER_LAYER + 2];
-    let mut n_cuts = 0;
-    for &(a, b, _) in &spans[..n_spans] {
-        cuts[n_cuts] = a;
-        cuts[n_cuts + 1] = b;
-        n_cuts += 2;
-    }
-    cuts[n_cuts] = 0.0;
-    cuts[n_cuts + 1] = t_boundary;
-    n_cuts += 2;
-    let cuts = &mut cuts[..n_cuts];
-    for i in 1..cuts.len() {
-        let mut j = i;
-        while j > 0 && cuts[j - 1] > cuts[j] {
-            cuts.swap(j - 1, j);
-            j -= 1;
-        }
-    }
-    for w in cuts.windows(2) {
-        let (t0, t1) = (w[0], w[1]);
-        if t1 <= t0 {
-            continue;
-        }
-        let mid = 0.5 * (t0 + t1);
-        let medium =
-            spans[..n_spans].iter().find(|&&(a, b, _)| a <= mid && mid < b).map_or(layer.medium, |&(_, _, m)| m);
+    // Invert the optical depth across the spans of constant σt.
+    let hit = for_each_span(scene, layer, pos, dir, t_boundary, |t0, t1, medium| {
         let m = &scene.media[medium];
         let depth = m.sigma_t() * (t1 - t0);
         if tau < depth {
-            return Flight::Collision { t: t0 + tau * m.inv_sigma_t(), medium };
+            return ControlFlow::Break(Flight::Collision { t: t0 + tau * m.inv_sigma_t(), medium });
         }
         tau -= depth;
-    }
-    Flight::Boundary { t: t_boundary }
+        ControlFlow::Continue(())
+    });
+    hit.unwrap_or(Flight::Boundary { t: t_boundary })
 }
 
 #[allow(clippy::too_many_arguments)]
