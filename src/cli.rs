@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use ohd::converge::{LadderOptions, Study, StudyLog, Target};
 use ohd::error::Error;
 use ohd::experiment::{Experiment, Progress};
 use ohd::io::manifest::{Invocation, write_run};
@@ -43,7 +44,49 @@ enum Command {
         /// e.g. --set layers.0.thickness_mm=0.2 --set source.profile=disk. Repeatable.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Run until the main output's estimated relative error is at most E (e.g. 0.01): whole
+        /// rounds of run.samples paths are added, the number of rounds extrapolated from 1/√paths.
+        #[arg(long, value_name = "E", allow_negative_numbers = true)]
+        target_error: Option<f64>,
+        /// With --target-error: stop at this many paths even if the target is not met
+        /// [default: 1000 × run.samples].
+        #[arg(long, requires = "target_error")]
+        max_samples: Option<u64>,
         /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Error against run time: run a ladder of sample counts (independent seeds), measure every
+    /// output's error against a reference, and write converge.csv, converge.json, converge.png.
+    Converge {
+        /// Experiment file (TOML). Omit for the built-in default.
+        config: Option<PathBuf>,
+        /// Output directory [default: out/<config name>_converge].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// A run directory of the same experiment (from `ohd run`) as the reference. Without it,
+        /// outputs without an analytic `[reference]` in the config get a reference run made on the
+        /// fly with 4× the paths of the largest rung.
+        #[arg(long, value_name = "RUN_DIR")]
+        reference: Option<PathBuf>,
+        /// Wall-time budget of the whole study, seconds (the ladder and an on-the-fly reference).
+        #[arg(long, default_value_t = 120.0, allow_negative_numbers = true)]
+        budget_seconds: f64,
+        /// Paths of the largest rung (instead of sizing the ladder from the budget).
+        #[arg(long)]
+        samples: Option<u64>,
+        /// Number of rungs, each twice the paths of the one before.
+        #[arg(long, default_value_t = 6)]
+        rungs: usize,
+        /// Base seed (rung k uses seed + 1 + k; the reference run uses seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads, 0 = all cores.
+        #[arg(long)]
+        threads: Option<u64>,
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// No progress bars.
         #[arg(long, short)]
         quiet: bool,
     },
@@ -191,12 +234,47 @@ fn load(config: Option<&Path>, sets: &[String]) -> Result<(toml::Table, Experime
     Ok((table, exp, origin, stem))
 }
 
-struct Bar(indicatif::ProgressBar);
+/// The progress bar: paths, the main output's running relative error (and the target), ETA.
+struct Bar {
+    bar: indicatif::ProgressBar,
+    target: Option<f64>,
+}
+
+impl Bar {
+    fn new(total: u64, target: Option<f64>) -> Bar {
+        let bar = indicatif::ProgressBar::new(total);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, {msg}, ETA {eta}",
+            )
+            .expect("valid template"),
+        );
+        bar.set_message("error: …");
+        Bar { bar, target }
+    }
+}
 
 impl Progress for Bar {
     fn advance(&self, paths: u64) {
-        self.0.inc(paths);
+        self.bar.inc(paths);
     }
+
+    fn set_total(&self, paths: u64) {
+        self.bar.set_length(paths);
+    }
+
+    fn error(&self, relative: f64) {
+        let e = if relative.is_finite() { format!("{:.3}%", 100.0 * relative) } else { "…".into() };
+        self.bar.set_message(match self.target {
+            Some(t) => format!("error {e} (target {:.3}%)", 100.0 * t),
+            None => format!("error {e}"),
+        });
+    }
+}
+
+/// A progress bar on stderr when it is a terminal and not `quiet`.
+fn progress_bar(quiet: bool, total: u64, target: Option<f64>) -> Option<Bar> {
+    (!quiet && std::io::stderr().is_terminal()).then(|| Bar::new(total, target))
 }
 
 fn fail(e: &Error) -> ExitCode {
@@ -211,6 +289,15 @@ pub fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => fail(&e),
         },
+        Command::Converge { config, out, reference, budget_seconds, samples, rungs, seed, threads, mut set, quiet } => {
+            set.extend(seed.map(|v| format!("run.seed={v}")));
+            set.extend(threads.map(|v| format!("run.threads={v}")));
+            let a = ConvergeArgs { out, reference, budget_seconds, samples, rungs, quiet };
+            match converge(config.as_deref(), &set, a) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => fail(&e),
+            }
+        }
         Command::Check { config, set } => match load(config.as_deref(), &set) {
             Ok((_, exp, origin, _)) => {
                 print!("{}", describe(&exp, &origin));
@@ -218,7 +305,7 @@ pub fn main() -> ExitCode {
             }
             Err(e) => fail(&e),
         },
-        Command::Run { config, out, samples, seed, threads, mut set, quiet } => {
+        Command::Run { config, out, samples, seed, threads, mut set, target_error, max_samples, quiet } => {
             set.extend(samples.map(|v| format!("run.samples={v}")));
             set.extend(seed.map(|v| format!("run.seed={v}")));
             set.extend(threads.map(|v| format!("run.threads={v}")));
@@ -226,12 +313,16 @@ pub fn main() -> ExitCode {
                 Ok(x) => x,
                 Err(e) => return fail(&e),
             };
+            let target = match target_error.map(|e| target(&exp, e, max_samples)).transpose() {
+                Ok(t) => t,
+                Err(e) => return fail(&e),
+            };
             let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
             let inv = Invocation { config_source: origin, overrides: set };
             let result = if exp.source.pointings.len() > 1 {
-                run_scan(&exp, &dir, &table, &inv, quiet)
+                run_scan(&exp, &dir, &table, &inv, target.as_ref(), quiet)
             } else {
-                run_one(&exp, &dir, &table, &inv, quiet).map(|_| ())
+                run_one(&exp, &dir, &table, &inv, target.as_ref(), quiet).map(|_| ())
             };
             match result {
                 Ok(()) => ExitCode::SUCCESS,
@@ -241,38 +332,153 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Run `exp`, write its outputs into `dir` and report on stderr.
+/// The stopping rule of `--target-error E` (with `--max-samples`), checked.
+fn target(exp: &Experiment, e: f64, max_samples: Option<u64>) -> Result<Target, Error> {
+    if !(e.is_finite() && e > 0.0 && e < 1.0) {
+        return Err(Error::Input(format!(
+            "--target-error {e}: expected a relative error between 0 and 1 (e.g. 0.01 for 1 %)"
+        )));
+    }
+    let max_samples = max_samples.unwrap_or(exp.plan.samples().saturating_mul(1000));
+    if max_samples < exp.plan.samples() {
+        return Err(Error::Input(format!(
+            "--max-samples {max_samples}: expected at least run.samples = {} (one round)",
+            exp.plan.samples()
+        )));
+    }
+    Ok(Target { output: exp.main_output(), relative_error: e, max_samples })
+}
+
+/// `ohd converge`'s log: one line per run on stderr (none when quiet).
+struct StderrLog {
+    quiet: bool,
+}
+
+impl StudyLog for StderrLog {
+    fn line(&mut self, text: &str) {
+        if !self.quiet {
+            eprintln!("ohd converge: {text}");
+        }
+    }
+
+    fn progress(&self) -> &dyn Progress {
+        &ohd::experiment::Silent
+    }
+}
+
+/// The arguments of `ohd converge` beyond the experiment.
+struct ConvergeArgs {
+    out: Option<PathBuf>,
+    reference: Option<PathBuf>,
+    budget_seconds: f64,
+    samples: Option<u64>,
+    rungs: usize,
+    quiet: bool,
+}
+
+fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(), Error> {
+    if !(a.budget_seconds.is_finite() && a.budget_seconds > 0.0) {
+        return Err(Error::Input(format!("--budget-seconds {}: expected a time > 0 s", a.budget_seconds)));
+    }
+    if !(2..=24).contains(&a.rungs) {
+        return Err(Error::Input(format!("--rungs {}: expected 2 to 24 rungs", a.rungs)));
+    }
+    let (_, mut exp, origin, stem) = load(config, sets)?;
+    if let Some(n) = a.samples
+        && n < exp.plan.batches << (a.rungs - 1)
+    {
+        return Err(Error::Input(format!(
+            "--samples {n}: expected at least run.batches × 2^(rungs − 1) = {} paths (one path per batch on the smallest rung)",
+            exp.plan.batches << (a.rungs - 1)
+        )));
+    }
+    if exp.source.pointings.len() > 1 {
+        let p = exp.source.pointings[0];
+        eprintln!("ohd converge: a scan: studying its first pointing ({}°, {}°)", p.azimuth_deg, p.elevation_deg);
+        exp = exp.pointed(&p);
+    }
+    let refs = match &a.reference {
+        Some(dir) => ohd::io::converge::read_reference(dir, &exp.outputs())?,
+        None => Vec::new(),
+    };
+    let dir = a.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_converge")));
+    let opts = LadderOptions {
+        top_samples: a.samples,
+        budget_seconds: a.budget_seconds,
+        rungs: a.rungs,
+        ..Default::default()
+    };
+    let study: Study = ohd::converge::study(&exp, refs, &opts, &mut StderrLog { quiet: a.quiet });
+    ohd::io::converge::write_study(&dir, &study, &origin)?;
+    eprintln!("ohd converge: → {}", dir.display());
+    eprintln!(
+        "  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}",
+        "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio"
+    );
+    let fmt = |v: Option<f64>| v.map_or("—".to_string(), |t| format!("{t:.3e}"));
+    for o in &study.outputs {
+        eprintln!(
+            "  {:<28} {:>9} {:>7.3} {:>12} {:>12} {:>8.3}{}",
+            o.output.name,
+            o.reference_kind,
+            o.fit.map_or(f64::NAN, |f| f.0),
+            fmt(o.seconds_to(0.01)),
+            fmt(o.seconds_to(0.001)),
+            o.sigma_ratio_rms(),
+            if o.output.name == study.main_output { "  (main)" } else { "" }
+        );
+    }
+    for (name, why) in &study.skipped {
+        eprintln!("  {name:<28} skipped: {why}");
+    }
+    Ok(())
+}
+
+/// Run `exp` (to `target` if given), write its outputs into `dir` and report on stderr.
 fn run_one(
     exp: &Experiment,
     dir: &Path,
     table: &toml::Table,
     inv: &Invocation,
+    target: Option<&Target>,
     quiet: bool,
 ) -> Result<ohd::experiment::RunOutput, Error> {
-    let output = if !quiet && std::io::stderr().is_terminal() {
-        let bar = indicatif::ProgressBar::new(exp.plan.samples());
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} {bar:40} {percent:>3}% {human_pos}/{human_len} paths, ETA {eta}",
-            )
-            .expect("valid template"),
-        );
-        let bar = Bar(bar);
-        let o = exp.run(&bar);
-        bar.0.finish_and_clear();
-        o
-    } else {
-        exp.run(&ohd::experiment::Silent)
+    let output = match progress_bar(quiet, exp.plan.samples(), target.map(|t| t.relative_error)) {
+        Some(bar) => {
+            let o = exp.run_until(&bar, target);
+            bar.bar.finish_and_clear();
+            o
+        }
+        None => exp.run_until(&ohd::experiment::Silent, target),
     };
     let manifest = write_run(dir, exp, &output, table, inv)?;
     let est = &manifest["estimates"];
     eprintln!(
         "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
-        exp.plan.samples(),
+        output.samples(),
         output.wall_seconds,
-        exp.plan.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
+        output.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
         dir.display()
     );
+    let (main, err) = &output.main_output;
+    eprintln!("  main output {main}: relative error {:.4}%", 100.0 * err);
+    if let Some(t) = &output.target {
+        if t.met {
+            eprintln!(
+                "  target error {:.4}% met after {} round(s) of {} paths",
+                100.0 * t.target,
+                t.rounds,
+                exp.plan.samples()
+            );
+        } else {
+            eprintln!(
+                "ohd: warning: target error {:.4}% not met: stopped at --max-samples {} ({} rounds)",
+                100.0 * t.target,
+                t.max_samples,
+                t.rounds
+            );
+        }
+    }
     for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"] {
         eprintln!(
             "  {k:<24} {:.6} ± {:.6}",
@@ -298,7 +504,14 @@ fn run_one(
 }
 
 /// A scan: one run per pointing into `dir/pointing_NN`, then the VAD wind per range gate.
-fn run_scan(exp: &Experiment, dir: &Path, table: &toml::Table, inv: &Invocation, quiet: bool) -> Result<(), Error> {
+fn run_scan(
+    exp: &Experiment,
+    dir: &Path,
+    table: &toml::Table,
+    inv: &Invocation,
+    target: Option<&Target>,
+    quiet: bool,
+) -> Result<(), Error> {
     let pointings = &exp.source.pointings;
     let (mut runs, mut velocities) = (Vec::new(), Vec::new());
     let mut ranges = Vec::new();
@@ -306,7 +519,7 @@ fn run_scan(exp: &Experiment, dir: &Path, table: &toml::Table, inv: &Invocation,
         let name = format!("pointing_{i:02}");
         eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
         let e = exp.pointed(p);
-        let output = run_one(&e, &dir.join(&name), table, inv, quiet)?;
+        let output = run_one(&e, &dir.join(&name), table, inv, target, quiet)?;
         if let Some(v) = ohd::scan::gate_peak_velocities(&e, &output) {
             velocities.push(v);
         }

@@ -7,6 +7,7 @@
 
 use rayon::prelude::*;
 
+use crate::converge::{Target, TargetOutcome, rounds_needed};
 use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
 use crate::medium::Scene;
@@ -54,11 +55,18 @@ pub struct Experiment {
     pub source: Source,
     pub detectors: Vec<Detector>,
     pub plan: RunPlan,
+    /// Analytic values of named outputs (`[reference]`), for `ohd converge`, in the tally's
+    /// convention.
+    pub references: Vec<(String, Vec<f64>)>,
 }
 
 /// Progress reports from a running experiment (a cold seam: called every few thousand paths).
 pub trait Progress: Sync {
     fn advance(&self, paths: u64);
+    /// The run's total number of paths changed (a run to a target error extends itself).
+    fn set_total(&self, _paths: u64) {}
+    /// The estimated relative error of the main output, after each group of batches is folded in.
+    fn error(&self, _relative: f64) {}
 }
 
 /// No progress reporting.
@@ -83,9 +91,21 @@ pub struct RunOutput {
     pub speckle: Vec<RoiSpeckle>,
     /// Seconds spent synthesising them (not part of `wall_seconds`).
     pub speckle_seconds: f64,
+    /// Batches run (more than the plan's with a target error) of `paths_per_batch` paths each.
+    pub batches: u64,
+    pub paths_per_batch: u64,
+    /// The main output's name and estimated relative error at the end.
+    pub main_output: (String, f64),
+    /// How a run to a target error ended.
+    pub target: Option<TargetOutcome>,
 }
 
 impl RunOutput {
+    /// Paths traced.
+    pub fn samples(&self) -> u64 {
+        self.batches * self.paths_per_batch
+    }
+
     /// The estimated spectrum (power per bin, without the out-of-range tallies) of detector `i`,
     /// chirp `chirp` (0 = up-chirp or single frequency, 1 = down-chirp) and channel `channel` (0 =
     /// total, then the splits; see [`SpectrumSpec::channels`](crate::detect::SpectrumSpec::channels)).
@@ -167,6 +187,14 @@ impl Experiment {
 
     /// Run every batch and reduce them in batch order.
     pub fn run(&self, progress: &dyn Progress) -> RunOutput {
+        self.run_until(progress, None)
+    }
+
+    /// Run every batch and reduce them in batch order; with a `target`, keep adding rounds of
+    /// the plan's batches (batch indices continue, so every path has its own stream) until the
+    /// target's output reaches its relative error. The number of rounds is decided only from
+    /// folded results, so the output still does not depend on the thread count.
+    pub fn run_until(&self, progress: &dyn Progress, target: Option<&Target>) -> RunOutput {
         let start = std::time::Instant::now();
         let threads = self.plan.effective_threads();
         let layout = self.tally_layout();
@@ -176,9 +204,24 @@ impl Experiment {
         let mut lines = Vec::new();
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
         let in_flight = self.batches_in_flight();
+        let main = target.map_or_else(|| self.main_output(), |t| t.output.clone());
+        let round = self.plan.batches;
+        let max_rounds = target.map_or(1, |t| (t.max_samples / self.plan.samples()).max(1));
+        let mut end = round;
         let mut first = 0;
-        while first < self.plan.batches {
-            let last = (first + in_flight).min(self.plan.batches);
+        let mut err = f64::INFINITY;
+        loop {
+            if first == end {
+                let rounds = end / round;
+                match target {
+                    Some(t) if err > t.relative_error && rounds < max_rounds => {
+                        end = round * rounds_needed(rounds, err, t.relative_error, max_rounds);
+                        progress.set_total(end * self.plan.paths_per_batch);
+                    }
+                    _ => break,
+                }
+            }
+            let last = (first + in_flight).min(end);
             let work = |b: u64| self.run_batch(b, &layout, beat, progress);
             let results: Vec<BatchResult> = match &pool {
                 Ok(pool) => pool.install(|| (first..last).into_par_iter().map(work).collect()),
@@ -191,15 +234,41 @@ impl Experiment {
                 lines.extend(l);
             }
             first = last;
+            err = main.relative_error(&estimates);
+            progress.error(err);
         }
         let wall_seconds = start.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
+        let batches = end;
+        let samples = batches * self.plan.paths_per_batch;
         let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
-            Some(spec) => synthesize_speckle(spec, &lines, self.plan.samples(), self.plan.seed),
+            Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
             None => Vec::new(),
         };
         let speckle_seconds = t.elapsed().as_secs_f64();
-        RunOutput { layout, beat, estimates, stats, threads, wall_seconds, lines, speckle, speckle_seconds }
+        let target = target.map(|t| TargetOutcome {
+            output: t.output.name.clone(),
+            target: t.relative_error,
+            reached: err,
+            met: err <= t.relative_error,
+            rounds: end / round,
+            max_samples: max_rounds * self.plan.samples(),
+        });
+        RunOutput {
+            layout,
+            beat,
+            estimates,
+            stats,
+            threads,
+            wall_seconds,
+            lines,
+            speckle,
+            speckle_seconds,
+            batches,
+            paths_per_batch: self.plan.paths_per_batch,
+            main_output: (main.name, err),
+            target,
+        }
     }
 
     fn run_batch(&self, batch: u64, layout: &TallyLayout, beat: BeatModel, progress: &dyn Progress) -> BatchResult {

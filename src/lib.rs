@@ -68,9 +68,11 @@
 //! | [`stats`] | batch statistics (mean and standard error) |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
+//! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
 pub mod config;
+pub mod converge;
 pub mod detect;
 pub mod error;
 pub mod experiment;

@@ -67,6 +67,18 @@ impl BatchAccumulator {
         &self.mean
     }
 
+    /// The relative error of the estimates in `range` as one vector: `√(Σ σ_k²)/‖mean‖₂`
+    /// (infinite where the mean is zero, and with fewer than two batches).
+    pub fn relative_error(&self, range: std::ops::Range<usize>) -> f64 {
+        if self.batches < 2 {
+            return f64::INFINITY;
+        }
+        let b = self.batches as f64;
+        let var: f64 = self.m2[range.clone()].iter().map(|&q| q.max(0.0) / (b - 1.0) / b).sum();
+        let x2: f64 = self.mean[range].iter().map(|v| v * v).sum();
+        if x2 > 0.0 { (var / x2).sqrt() } else { f64::INFINITY }
+    }
+
     /// Standard error of each estimate (0 with fewer than two batches).
     pub fn stderr(&self) -> Vec<f64> {
         let b = self.batches as f64;

@@ -306,3 +306,148 @@ fn mie_bad_input_exits_2_with_a_message() {
     }
     assert!(!repo().join("t.toml").exists());
 }
+
+#[test]
+fn converge_writes_csv_json_and_png() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("conv");
+    let o = ohd(
+        tmp.path(),
+        &["converge", path_str(&vdh_slab()), "--out", path_str(&out), "--samples", "256000", "--rungs", "3", "-q"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let csv = std::fs::read_to_string(out.join("converge.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("output,samples,seconds,error,stderr"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Rd, Tt, unscattered T and absorption against the config's analytic values, 3 rungs each.
+    assert_eq!(rows.len(), 12, "{csv}");
+    for r in &rows {
+        let n: u64 = r[1].parse().unwrap();
+        assert!([64_000, 128_000, 256_000].contains(&n), "{r:?}");
+        for v in &r[2..] {
+            let x: f64 = v.parse().unwrap();
+            assert!(x.is_finite() && x >= 0.0, "{r:?}");
+        }
+    }
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("converge.json")).unwrap()).unwrap();
+    assert_eq!(j["main_output"], "reflectance_diffuse");
+    assert!(j["reference_run"].is_null(), "analytic references need no reference run: {j}");
+    let rd = &j["outputs"]["reflectance_diffuse"];
+    assert_eq!(rd["reference"], "analytic");
+    assert_eq!(rd["metric"], "absolute");
+    for key in ["slope", "seconds_to_1_percent", "seconds_to_0_1_percent", "sigma_ratio_rms", "stderr_slope"] {
+        assert!(rd[key].as_f64().is_some_and(f64::is_finite), "{key}: {rd}");
+    }
+    // Tenfold accuracy costs more time (about a hundredfold; with rungs this short, start-up
+    // costs bend the time axis, so only the order is asserted here: tests/converge.rs checks the
+    // 1/√N law in paths).
+    let (t1, t01) = (rd["seconds_to_1_percent"].as_f64().unwrap(), rd["seconds_to_0_1_percent"].as_f64().unwrap());
+    assert!(t01 > t1, "{t1} s → {t01} s");
+    assert!(j["skipped"]["reflectance_specular"].is_string(), "{j}");
+    let png = std::fs::read(out.join("converge.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // -q leaves out the log of each run; the summary table stays.
+    let err = text(&o.stderr);
+    assert!(!err.contains("rung 0") && err.contains("reflectance_diffuse") && err.contains("(main)"), "{err}");
+}
+
+#[test]
+fn converge_reads_a_reference_run_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let reference = tmp.path().join("ref");
+    let o = ohd(tmp.path(), &["run", "--samples", "128000", "--seed", "40", "--out", path_str(&reference), "-q"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let out = tmp.path().join("conv");
+    let o = ohd(
+        tmp.path(),
+        &[
+            "converge",
+            "--reference",
+            path_str(&reference),
+            "--out",
+            path_str(&out),
+            "--samples",
+            "64000",
+            "--rungs",
+            "2",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("converge.json")).unwrap()).unwrap();
+    assert!(j["reference_run"].is_null(), "{j}");
+    assert_eq!(j["main_output"], "camera.spectrum");
+    for name in ["camera.spectrum", "camera.image", "camera.detected_power", "reflectance_diffuse"] {
+        assert_eq!(j["outputs"][name]["reference"], "directory", "{name}: {j}");
+        assert_eq!(j["outputs"][name]["sigma_ratio"].as_array().map(Vec::len), Some(2), "{name}");
+    }
+    let err = text(&o.stderr);
+    assert!(err.contains("camera.spectrum") && err.contains("(main)"), "{err}");
+}
+
+#[test]
+fn converge_bad_input_exits_2_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("conv");
+    let missing = tmp.path().join("no_such_run");
+    // A reference directory that does not exist; then one of another experiment.
+    let o = ohd(tmp.path(), &["converge", "--reference", path_str(&missing), "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("no_such_run/manifest.json"), "{}", describe(&o));
+    let vdh_run = tmp.path().join("vdh");
+    let o = ohd(tmp.path(), &["run", path_str(&vdh_slab()), "--samples", "16000", "--out", path_str(&vdh_run), "-q"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let o = ohd(tmp.path(), &["converge", "--reference", path_str(&vdh_run), "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("is it a run of this experiment?"), "{}", describe(&o));
+    for (args, named) in [
+        (&["converge", "--budget-seconds", "0"][..], "--budget-seconds"),
+        (&["converge", "--rungs", "1"], "--rungs"),
+        (&["converge", "--samples", "10"], "--samples"),
+        (&["converge", "--set", "reference.nonsense=1"], "reference.nonsense"),
+    ] {
+        let mut a = args.to_vec();
+        a.extend(["--out", path_str(&out)]);
+        let o = ohd(tmp.path(), &a);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        assert!(text(&o.stderr).contains(named), "{args:?}: {}", describe(&o));
+    }
+    assert!(!out.exists(), "nothing is written on bad input");
+}
+
+#[test]
+fn run_to_a_target_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("vdh");
+    let o = ohd(
+        tmp.path(),
+        &["run", path_str(&vdh_slab()), "--samples", "16000", "--target-error", "0.01", "--out", path_str(&out)],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let m = read_manifest(&out);
+    let t = &m["target_error"];
+    assert_eq!(t["output"], "reflectance_diffuse");
+    assert_eq!(t["met"], true, "{m}");
+    let reached = t["reached"].as_f64().unwrap();
+    assert!(reached <= 0.01 && reached > 0.005, "{reached}");
+    let samples = m["samples"].as_u64().unwrap();
+    assert_eq!(samples, 16000 * t["rounds"].as_u64().unwrap());
+    assert_eq!(m["main_output"]["relative_error"].as_f64(), Some(reached));
+    let rd = &m["estimates"]["reflectance_diffuse"];
+    let rel = rd["stderr"].as_f64().unwrap() / rd["value"].as_f64().unwrap();
+    assert!((rel - reached).abs() < 1e-12, "{rel} vs {reached}");
+    assert!(text(&o.stderr).contains("target error 1.0000% met"), "{}", describe(&o));
+    for bad in ["0", "1.5", "nan", "-0.1"] {
+        let o = ohd(tmp.path(), &["run", path_str(&vdh_slab()), "--target-error", bad, "--out", path_str(&out)]);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {}", describe(&o));
+        assert!(text(&o.stderr).contains("--target-error"), "{bad}: {}", describe(&o));
+    }
+    let o = ohd(
+        tmp.path(),
+        &["run", path_str(&vdh_slab()), "--samples", "16000", "--target-error", "0.01", "--max-samples", "100"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("--max-samples"), "{}", describe(&o));
+}

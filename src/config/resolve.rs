@@ -247,7 +247,45 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
             "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
         );
     }
-    Ok(Experiment { name: f.name.clone().unwrap_or_else(|| "experiment".to_string()), scene, source, detectors, plan })
+    let mut exp = Experiment {
+        name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
+        scene,
+        source,
+        detectors,
+        plan,
+        references: Vec::new(),
+    };
+    exp.references = resolve_references(&f.reference, &exp)?;
+    Ok(exp)
+}
+
+/// `[reference]`: each key a named output of the experiment, each value finite and of its size;
+/// stored in the tally's convention (an M0− written with `flip_sign` is negated back).
+fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment) -> R<Vec<(String, Vec<f64>)>> {
+    if refs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let outputs = exp.outputs();
+    let mut out = Vec::with_capacity(refs.len());
+    for (name, value) in refs {
+        let path = format!("reference.{name}");
+        let Some(o) = outputs.iter().find(|o| &o.name == name) else {
+            let names: Vec<&str> = outputs.iter().map(|o| o.name.as_str()).collect();
+            return err(path, format!("is not an output of this experiment; expected one of {}", names.join(", ")));
+        };
+        let values = match value {
+            ReferenceValue::Scalar(v) => vec![*v],
+            ReferenceValue::Array(v) => v.clone(),
+        };
+        if values.len() != o.range.len() {
+            return err(path, format!("has {} values: expected {} (the output's size)", values.len(), o.range.len()));
+        }
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return err(path, format!("contains {v}: expected finite values"));
+        }
+        out.push((name.clone(), values.iter().map(|v| v * o.sign).collect()));
+    }
+    Ok(out)
 }
 
 fn resolve_run(r: &RunSection) -> R<RunPlan> {

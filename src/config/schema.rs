@@ -32,6 +32,19 @@ pub struct ExperimentFile {
     /// The wind of an atmosphere (`z` = height above the ground), used by media with
     /// `velocity = { type = "wind" }` or `{ type = "terminal_fall" }`.
     pub wind: Option<WindSection>,
+    /// Analytic values of named outputs (`reflectance_diffuse = 0.0974`,
+    /// `"camera.spectrum" = [...]`) that `ohd converge` measures errors against.
+    #[serde(default)]
+    pub reference: BTreeMap<String, ReferenceValue>,
+}
+
+/// A `[reference]` value: a number for a scalar output, an array for a spectrum or image
+/// (in the order of its `.npy` file).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum ReferenceValue {
+    Scalar(f64),
+    Array(Vec<f64>),
 }
 
 /// `[wind]`: horizontal wind as a function of height, plus a vertical velocity. Directions are

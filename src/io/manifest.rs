@@ -19,6 +19,11 @@ pub(super) fn estimate(v: f64, s: f64) -> Value {
     json!({ "value": v, "stderr": s })
 }
 
+/// A number, or `null` when it is not finite (JSON has no infinity).
+fn finite_or_null(v: f64) -> Value {
+    if v.is_finite() { json!(v) } else { Value::Null }
+}
+
 /// What the manifest records about how the run was invoked.
 #[derive(Debug, Clone, Default)]
 pub struct Invocation {
@@ -192,9 +197,18 @@ pub fn write_run(
         "config": config,
         "config_toml": toml::to_string(config).unwrap_or_default(),
         "seed": exp.plan.seed,
-        "samples": exp.plan.samples(),
+        "samples": out.samples(),
         "samples_requested": exp.plan.requested_samples,
-        "batches": exp.plan.batches,
+        "batches": out.batches,
+        "main_output": { "name": out.main_output.0, "relative_error": finite_or_null(out.main_output.1) },
+        "target_error": out.target.as_ref().map_or(Value::Null, |t| json!({
+            "output": t.output,
+            "target": t.target,
+            "reached": finite_or_null(t.reached),
+            "met": t.met,
+            "rounds": t.rounds,
+            "max_samples": t.max_samples,
+        })),
         "threads": out.threads,
         "wall_seconds": out.wall_seconds,
         "run_statistics": {

@@ -1,0 +1,172 @@
+//! The files of `ohd converge`: `converge.csv` (one row per output and rung), `converge.json`
+//! (per output: the fitted log–log slope of error against seconds, the extrapolated seconds to
+//! 1 % and 0.1 % relative error and the agreement of the run's own σ with the measured error) and
+//! `converge.png` (relative error against seconds, log–log, with a `1/√t` guide). Also reading a
+//! previous run's outputs as the reference.
+
+use std::path::Path;
+
+use serde_json::{Value, json};
+
+use crate::converge::{NamedOutput, Reference, Study};
+use crate::error::{Error, Result};
+
+use super::plot::{PALETTE, Series, line_plot_png};
+use super::{npy, write_atomic};
+
+/// The agreement band of measured to self-reported error (issue 7).
+pub const SIGMA_RATIO_BAND: (f64, f64) = (0.5, 2.0);
+
+fn num(v: f64) -> Value {
+    if v.is_finite() { json!(v) } else { Value::Null }
+}
+
+/// Read the reference of every output from the run directory `dir` (written by `ohd run` of the
+/// same experiment): arrays from their `.npy` and `_stderr.npy` files, scalars from
+/// `manifest.json`. A missing file, a malformed file or an array of the wrong size is an error
+/// naming the file.
+pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<Reference>>> {
+    let read = |name: &str| -> Result<Vec<u8>> {
+        let path = dir.join(name);
+        std::fs::read(&path).map_err(|source| Error::Read { path, source })
+    };
+    let bad = |name: &str, why: String| Error::Read {
+        path: dir.join(name),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, why),
+    };
+    let manifest: Value =
+        serde_json::from_slice(&read("manifest.json")?).map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
+    let mut refs = Vec::with_capacity(outputs.len());
+    for o in outputs {
+        let (values, stderr) = if o.scalar {
+            let stderr_ptr = o.file.replace("/value", "/stderr");
+            match (
+                manifest.pointer(&o.file).and_then(Value::as_f64),
+                manifest.pointer(&stderr_ptr).and_then(Value::as_f64),
+            ) {
+                (Some(v), Some(s)) => (vec![v], vec![s]),
+                _ => return Err(bad("manifest.json", format!("has no {} (is it a run of this experiment?)", o.file))),
+            }
+        } else {
+            let se_name = o.file.replace(".npy", "_stderr.npy");
+            let load = |name: &str| -> Result<Vec<f64>> {
+                let (_, data) = npy::from_bytes(&read(name)?)
+                    .ok_or_else(|| bad(name, "not an ohd .npy file (little-endian f64)".into()))?;
+                if data.len() != o.range.len() {
+                    return Err(bad(
+                        name,
+                        format!(
+                            "holds {} values; {} has {} (is it a run of this experiment?)",
+                            data.len(),
+                            o.name,
+                            o.range.len()
+                        ),
+                    ));
+                }
+                Ok(data)
+            };
+            (load(&o.file)?, load(&se_name)?)
+        };
+        refs.push(Some(Reference { values: values.iter().map(|v| v * o.sign).collect(), stderr, kind: "directory" }));
+    }
+    Ok(refs)
+}
+
+/// `converge.csv`: `output,samples,seconds,error,stderr` (error and stderr in the output's
+/// metric: absolute for scalars, relative RMS for arrays).
+pub fn csv(study: &Study) -> String {
+    let mut s = String::from("output,samples,seconds,error,stderr\n");
+    for o in &study.outputs {
+        for (k, r) in study.rungs.iter().enumerate() {
+            if let (Some(e), Some(se)) = (o.error.get(k), o.stderr.get(k)) {
+                s.push_str(&format!("{},{},{:.6},{:.6e},{:.6e}\n", o.output.name, r.samples, r.seconds, e, se));
+            }
+        }
+    }
+    s
+}
+
+/// `converge.json`.
+pub fn json(study: &Study, config_source: &str) -> Value {
+    let mut outputs = serde_json::Map::new();
+    for o in &study.outputs {
+        let (slope, slope_se) = o.fit.map_or((f64::NAN, f64::NAN), |(b, se, _)| (b, se));
+        let ratio = o.sigma_ratio_rms();
+        outputs.insert(
+            o.output.name.clone(),
+            json!({
+                "metric": if o.output.scalar { "absolute" } else { "relative_rms" },
+                "reference": o.reference_kind,
+                "slope": num(slope),
+                "slope_stderr": num(slope_se),
+                "seconds_to_1_percent": num(o.seconds_to(0.01).unwrap_or(f64::NAN)),
+                "seconds_to_0_1_percent": num(o.seconds_to(0.001).unwrap_or(f64::NAN)),
+                "stderr_slope": num(o.stderr_fit.map_or(f64::NAN, |f| f.0)),
+                "error_scale": num(o.error_scale()),
+                "paths_per_second": num(o.paths_per_second),
+                "reference_error": num(o.reference_error),
+                "relative_error": o.relative.iter().map(|&v| num(v)).collect::<Vec<_>>(),
+                "sigma_ratio": o.sigma_ratio.iter().map(|&v| num(v)).collect::<Vec<_>>(),
+                "sigma_ratio_rms": num(ratio),
+                "sigma_agrees": ratio >= SIGMA_RATIO_BAND.0 && ratio <= SIGMA_RATIO_BAND.1,
+            }),
+        );
+    }
+    let skipped: serde_json::Map<String, Value> =
+        study.skipped.iter().map(|(n, why)| (n.clone(), json!(why))).collect();
+    json!({
+        "ohd_version": env!("CARGO_PKG_VERSION"),
+        "config_source": config_source,
+        "main_output": study.main_output,
+        "rungs": study.rungs.iter().map(|r| json!({ "samples": r.samples, "seconds": r.seconds, "seed": r.seed })).collect::<Vec<_>>(),
+        "reference_run": study.reference_run.as_ref().map_or(Value::Null, |r| json!({ "samples": r.samples, "seconds": r.seconds, "seed": r.seed })),
+        "sigma_ratio_band": [SIGMA_RATIO_BAND.0, SIGMA_RATIO_BAND.1],
+        "notes": "error: |x − r| for scalars, ‖x − r‖₂/‖r‖₂ for spectra and images; stderr: the run's own σ in the same metric; sigma_ratio: error/√(σ² + σ_ref²) per rung; slope: least squares of ln(relative error) against ln(seconds) (−1/2 for Monte Carlo), the rung's error taken as √(error² − reference_error²) with a reference run; stderr_slope: the fit of the run's own relative σ against paths (not seconds); error_scale: √(mean over rungs of (error² − reference_error²)/σ²); seconds_to_*: the paths where error_scale × the σ fit reaches 1 % or 0.1 %, over paths_per_second (a single rung's error is one noisy draw and its wall time is noisy)",
+        "outputs": Value::Object(outputs),
+        "skipped": Value::Object(skipped),
+    })
+}
+
+/// `converge.png`: log10 relative error against log10 seconds per output (the main output
+/// first; at most 7), and a `1/√t` guide through the main output's mean point.
+pub fn png(study: &Study) -> Vec<u8> {
+    let mut order: Vec<&_> = study.outputs.iter().collect();
+    order.sort_by_key(|o| o.output.name != study.main_output);
+    let data: Vec<(String, Vec<f64>, Vec<f64>)> = order
+        .iter()
+        .take(PALETTE.len() - 1)
+        .map(|o| {
+            let (x, y) = study
+                .rungs
+                .iter()
+                .zip(&o.relative)
+                .map(|(r, &e)| (r.seconds.log10(), if e > 0.0 { e.log10() } else { f64::NAN }))
+                .unzip();
+            (o.output.name.clone(), x, y)
+        })
+        .collect();
+    let mut guide = (Vec::new(), Vec::new());
+    if let Some((_, x, y)) = data.first() {
+        let pts: Vec<(f64, f64)> =
+            x.iter().zip(y).filter(|(a, b)| a.is_finite() && b.is_finite()).map(|(a, b)| (*a, *b)).collect();
+        if !pts.is_empty() {
+            let n = pts.len() as f64;
+            let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+            let (lo, hi) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p.0), h.max(p.0)));
+            guide = (vec![lo, hi], vec![my - 0.5 * (lo - mx), my - 0.5 * (hi - mx)]);
+        }
+    }
+    let mut series: Vec<Series> =
+        data.iter().enumerate().map(|(i, (name, x, y))| Series { label: name, x, y, color: PALETTE[i] }).collect();
+    series.push(Series { label: "1/sqrt(t)", x: &guide.0, y: &guide.1, color: PALETTE[PALETTE.len() - 1] });
+    line_plot_png(&series, "Error against run time", "log10 wall time (s)", "log10 relative error", None)
+}
+
+/// Write `converge.csv`, `converge.png` and (last) `converge.json` into `dir`, atomically.
+pub fn write_study(dir: &Path, study: &Study, config_source: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+    write_atomic(&dir.join("converge.csv"), csv(study).as_bytes())?;
+    write_atomic(&dir.join("converge.png"), &png(study))?;
+    let text = serde_json::to_string_pretty(&json(study, config_source)).expect("a JSON value serialises");
+    write_atomic(&dir.join("converge.json"), text.as_bytes())
+}
