@@ -710,6 +710,11 @@ fn describe(exp: &Experiment, origin: &str) -> String {
         if exp.needs_doppler() { "" } else { "out" },
         if exp.needs_length() { "" } else { "out" }
     );
-    let _ = writeln!(s, "memory estimate: {:.1} MiB of tallies", exp.memory_estimate() as f64 / (1 << 20) as f64);
+    let _ = writeln!(
+        s,
+        "memory estimate: {:.1} MiB of tallies (budget {:.1} GiB)",
+        exp.memory_estimate() as f64 / (1 << 20) as f64,
+        p.memory_budget as f64 / (1u64 << 30) as f64
+    );
     s
 }

@@ -27,6 +27,8 @@ pub struct RunPlan {
     /// Worker threads; 0 = all available cores.
     pub threads: usize,
     pub walk: WalkSettings,
+    /// Largest [`Experiment::memory_estimate`] accepted, bytes (`run.memory_budget_gib`).
+    pub memory_budget: u64,
 }
 
 impl RunPlan {
@@ -182,7 +184,7 @@ impl Experiment {
     /// Estimated peak memory of the tallies, bytes.
     pub fn memory_estimate(&self) -> u64 {
         let len = self.tally_layout().len as u64;
-        8 * len * (2 + self.batches_in_flight())
+        len.saturating_mul(8 * (2 + self.batches_in_flight()))
     }
 
     /// Run every batch and reduce them in batch order.

@@ -255,6 +255,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         plan,
         references: Vec::new(),
     };
+    check_memory(&exp)?;
     exp.references = resolve_references(&f.reference, &exp)?;
     Ok(exp)
 }
@@ -286,6 +287,65 @@ fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment)
         out.push((name.clone(), values.iter().map(|v| v * o.sign).collect()));
     }
     Ok(out)
+}
+
+/// Default of `run.memory_budget_gib`.
+pub const DEFAULT_MEMORY_BUDGET_GIB: f64 = 8.0;
+
+/// Refuse an experiment whose tallies ([`Experiment::memory_estimate`]: the tally vector times
+/// the batches in flight, the mean and the variance) exceed `run.memory_budget_gib`, before
+/// anything is allocated. The error names the key of the largest block of tallies.
+fn check_memory(exp: &Experiment) -> R<()> {
+    let need = exp.memory_estimate();
+    if need <= exp.plan.memory_budget {
+        return Ok(());
+    }
+    let layout = exp.tally_layout();
+    let chirps = exp.beat_model().chirps();
+    // (key, value, tallies) of every block that grows with a key.
+    let mut blocks: Vec<(String, String, usize)> = Vec::new();
+    for (i, (d, lay)) in exp.detectors.iter().zip(&layout.detectors).enumerate() {
+        let end = layout.detectors.get(i + 1).map_or(layout.len, |n| n.power);
+        let mut rest = end - lay.power - 1;
+        let path = format!("detectors[{i}]");
+        if let Some((_, stride)) = lay.spectra {
+            let n = chirps * lay.channels * stride;
+            blocks.push((join(&path, "spectrum.bins"), format!("= {}", stride - 2), n));
+            rest -= n;
+        }
+        if let Some(ll) = &lay.ldh {
+            if ll.pixel_spectra.is_some() {
+                let n = ll.pixels * ll.stride;
+                blocks.push((
+                    join(&path, "ldh.pixel_spectra"),
+                    format!("= true ({} bins per pixel)", ll.stride - 2),
+                    n,
+                ));
+                rest -= n;
+            }
+            rest -= ll.rois.len() * (2 + LdhSpec::ROI_CHANNELS * ll.stride);
+        }
+        if let Some(l) = &d.lidar {
+            blocks.push((join(&path, "lidar.gates"), format!("= {}", l.gates), rest));
+        } else if let Some(im) = d.image {
+            // The image and the LDH camera's per-pixel maps.
+            blocks.push((join(&path, "image.pixels"), format!("= [{}, {}]", im.nx, im.ny), rest));
+        }
+    }
+    let (key, value) = blocks
+        .into_iter()
+        .max_by_key(|b| b.2)
+        .map_or(("run.memory_budget_gib".to_string(), String::new()), |b| (b.0, b.1));
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    err(
+        key,
+        format!(
+            "{value}: the tallies need {:.1} GiB ({} tallies × 8 bytes × (2 + batches in flight)), above the memory budget of {:.1} GiB (run.memory_budget_gib)",
+            gib(need),
+            layout.len,
+            gib(exp.plan.memory_budget)
+        ),
+    )
 }
 
 fn resolve_run(r: &RunSection) -> R<RunPlan> {
@@ -328,6 +388,10 @@ fn resolve_run(r: &RunSection) -> R<RunPlan> {
     if max_events == 0 || max_events > u32::MAX as u64 {
         return err("run.max_scattering_events", format!("= {max_events}: expected 1 to {}", u32::MAX));
     }
+    let budget = r.memory_budget_gib.unwrap_or(DEFAULT_MEMORY_BUDGET_GIB);
+    if !(budget.is_finite() && budget > 0.0 && budget <= 1e6) {
+        return err("run.memory_budget_gib", format!("= {budget}: expected a budget in (0, 10^6] GiB"));
+    }
     let paths_per_batch = samples.div_ceil(batches);
     Ok(RunPlan {
         requested_samples: samples,
@@ -336,6 +400,7 @@ fn resolve_run(r: &RunSection) -> R<RunPlan> {
         seed: r.seed.unwrap_or(1),
         threads: threads as usize,
         walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
+        memory_budget: (budget * (1u64 << 30) as f64) as u64,
     })
 }
 
@@ -446,7 +511,10 @@ fn resolve_source(s: &SourceSection) -> R<Source> {
                 ],
                 "the chirp duration T",
             )?;
-            Some(Chirp { bandwidth: positive(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
+            // B = 0 is accepted: a chirp of zero bandwidth is a single-frequency laser, and its up-
+            // and down-chirp spectra are the CW Doppler spectrum and its mirror (f = ±(dl/dt)/λ0).
+            // Only the range retrieval needs B > 0, and says so (`retrieval::fmcw`).
+            Some(Chirp { bandwidth: non_negative(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
         }
     };
     let mut source = Source::new(wl.0, profile, position, direction, chirp);

@@ -107,6 +107,8 @@ pub struct RunSection {
     pub roulette_threshold: Option<f64>,
     pub roulette_survival: Option<f64>,
     pub max_scattering_events: Option<u64>,
+    /// Largest memory the tallies may take (GiB); configurations above it are refused.
+    pub memory_budget_gib: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]

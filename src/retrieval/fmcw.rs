@@ -106,7 +106,13 @@ pub fn fmcw_estimates(
     duration_s: f64,
 ) -> Result<FmcwEstimate, RetrievalError> {
     for (name, value, expected) in [
-        ("bandwidth_hz", bandwidth_hz, "a finite chirp bandwidth B > 0 Hz"),
+        // B = 0 (a chirp of zero bandwidth, accepted by the configuration) is the CW limit: the
+        // beats are ±(dl/dt)/λ0 and carry no range information, so there is no estimate.
+        (
+            "bandwidth_hz",
+            bandwidth_hz,
+            "a finite chirp bandwidth B > 0 Hz (with B = 0 the beat frequencies carry no range information)",
+        ),
         ("duration_s", duration_s, "a finite chirp duration T > 0 s"),
     ] {
         if !(value.is_finite() && value > 0.0) {
