@@ -47,6 +47,8 @@
 //!   the standard error of the mean over `batches` independent batches of equal size. The FMCW
 //!   range and velocity read off the spectra afterwards ([`retrieval::fmcw`]) are the exception:
 //!   they come with the range and velocity one bin spans instead (the reason is given there).
+//!   Per named output ([`converge`]) a scalar's error is absolute and a spectrum's or image's is the
+//!   relative RMS over its bins, `‖x − r‖₂/‖r‖₂`, estimated by a run as `√(Σσ²)/‖x‖₂`.
 //! * **Random numbers** are a pure function of `(seed, purpose, element, sample)`
 //!   ([`sampling::rng`]); work is split by the configuration, never by the thread count, and batches
 //!   are reduced in a fixed order, so output is bit-identical for any number of threads.
