@@ -243,6 +243,8 @@ pub struct Rung {
 pub struct OutputConvergence {
     pub output: NamedOutput,
     pub reference_kind: &'static str,
+    /// Per rung: its paths.
+    pub samples: Vec<u64>,
     /// Per rung: measured error and the run's own estimate (in the output's metric).
     pub error: Vec<f64>,
     pub stderr: Vec<f64>,
@@ -286,18 +288,17 @@ impl OutputConvergence {
         if terms.is_empty() { f64::NAN } else { (terms.iter().sum::<f64>() / terms.len() as f64).max(0.0).sqrt() }
     }
 
-    /// Seconds until the error reaches relative error `e`, extrapolated: the paths at which the
-    /// fit of the run's own σ against paths, scaled by [`error_scale`](Self::error_scale), reaches
-    /// `e`, at the ladder's throughput. The measured error of one rung is a single draw (for a
-    /// scalar, `|z|σ`), too noisy to extrapolate a curve through, and one rung's wall time is
-    /// noisy on a shared machine; σ falls smoothly with paths, the ladder measures how the error
-    /// compares with it, and the throughput is averaged over all rungs. `None` without a fit or
-    /// with a σ that does not fall.
+    /// Seconds until the error reaches relative error `e`, extrapolated along the `1/√N` law of
+    /// Monte Carlo from the largest rung (the run's own σ there, scaled by
+    /// [`error_scale`](Self::error_scale)), at the ladder's throughput. One rung's measured error
+    /// is a single draw (for a scalar, `|z|σ`), and one rung's wall time is noisy on a shared
+    /// machine, so neither is extrapolated through; the fitted slopes check the law instead.
+    /// `None` without a σ.
     pub fn seconds_to(&self, e: f64) -> Option<f64> {
-        let (b, _, a) = self.stderr_fit?;
+        let (&s, &n) = (self.relative_stderr.last()?, self.samples.last()?);
         let c = self.error_scale();
-        (b < 0.0 && c > 0.0 && c.is_finite() && self.paths_per_second > 0.0)
-            .then(|| (((e / c).ln() - a) / b).exp() / self.paths_per_second)
+        (s > 0.0 && c > 0.0 && c.is_finite() && self.paths_per_second > 0.0)
+            .then(|| n as f64 * (c * s / e).powi(2) / self.paths_per_second)
     }
 }
 
@@ -428,6 +429,7 @@ pub fn study(
         .map(|(o, r)| OutputConvergence {
             output: o.clone(),
             reference_kind: r.as_ref().map_or("none", |r| r.kind),
+            samples: Vec::new(),
             error: Vec::new(),
             stderr: Vec::new(),
             relative: Vec::new(),
@@ -449,6 +451,7 @@ pub fn study(
             let Some(r) = r else { continue };
             let Some((err, s)) = res.output.error_against(out.estimates.mean(), &se, &r.values) else { continue };
             let ref_se = res.reference_error;
+            res.samples.push(e.plan.samples());
             res.error.push(err);
             res.stderr.push(s);
             res.relative.push(res.output.to_relative(err, &r.values));

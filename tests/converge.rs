@@ -88,15 +88,11 @@ fn self_reported_sigma_agrees_with_the_measured_error() {
     println!("{} scalar ratios, pooled rms {pooled:.3}", ratios.len());
     assert!(ratios.len() >= 10, "{} scalar ratios", ratios.len());
     assert!((0.5..=2.0).contains(&pooled), "pooled scalar σ ratio {pooled}");
-    // The extrapolation is consistent with the last rung: the time to its own relative error is
-    // its paths at the ladder's throughput (to the few % of the σ fit).
-    let last = spec.relative_stderr[4];
-    let t = spec.seconds_to(last * spec.error_scale()).expect("an extrapolation");
-    let t_last = s.rungs[4].samples as f64 / spec.paths_per_second;
-    assert!((t / t_last - 1.0).abs() < 0.1, "extrapolated {t} s vs {t_last} s");
-    // And a tenfold smaller error costs a hundredfold in time.
-    let ratio = spec.seconds_to(0.001).unwrap() / spec.seconds_to(0.01).unwrap();
-    assert!((ratio.log10() - 2.0).abs() < 0.2, "t(0.1 %)/t(1 %) = {ratio}");
+    // The extrapolation: from the largest rung along 1/√N at the ladder's throughput.
+    let t = spec.seconds_to(0.01).expect("an extrapolation");
+    let n_top = s.rungs[4].samples as f64;
+    let expected = n_top * (spec.error_scale() * spec.relative_stderr[4] / 0.01).powi(2) / spec.paths_per_second;
+    assert!((t / expected - 1.0).abs() < 1e-12, "{t} vs {expected}");
 }
 
 /// Analytic references from `[reference]`: no reference run is made, the errors are measured
