@@ -177,8 +177,8 @@ fn for_each_span<B>(
     mut f: impl FnMut(f64, f64, usize) -> ControlFlow<B>,
 ) -> Option<B> {
     // A layer without regions (a density medium filling a layer) is one span: no intersections
-    // and no buffer (`spans` filled and copied its 33 entries on every free flight, 32 % of the
-    // instructions of a constant-density van de Hulst slab).
+    // and no buffer (`spans` filled and copied its 33 entries on every free flight: `memset` and
+    // `memcpy` alone were 19 % of the instructions of a constant-density van de Hulst slab).
     if layer.regions.is_empty() {
         return match f(0.0, t_end, layer.medium) {
             ControlFlow::Break(x) => Some(x),
