@@ -248,8 +248,8 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         // A layer without regions whose medium has the same density everywhere samples its
         // flights right here: a homogeneous medium, and (with analytic tracking; delta tracking
         // keeps its inflated majorants) a constant density field, known to be constant at
-        // resolve time, at rate `c·σt`. Through the majorant segments a constant grid cost 2.2×
-        // the homogeneous slab (callgrind, `validation/features/`).
+        // resolve time, at rate `c·σt`. Through the majorant segments, even as one segment, a
+        // constant ramp cost 2.2× the homogeneous slab (callgrind, `validation/features/`).
         let uniform = if layer.regions.is_empty() { fill.uniform_density() } else { None };
         let (homogeneous, fill_inv_sigma_t) = match uniform {
             Some(_) if !layer.heterogeneous => (true, fill.inv_sigma_t()),
