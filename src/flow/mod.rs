@@ -208,7 +208,13 @@ impl VelocityField {
     }
 
     /// The velocity of the particle scattering at `p`. Random fields draw from `rng`.
-    #[inline]
+    ///
+    /// Inlined into the walk, with the lookups that need no random number (wind profiles, grids)
+    /// outlined in `VelocityField::lookup`: an outlined function receiving `&mut PathRng`
+    /// would make the walk keep the generator's state in memory (see `PathRng`). Measured on the
+    /// van de Hulst slab with a uniform velocity: 61.2M → 58.6M instructions per 5·10⁴ paths
+    /// (callgrind; the static slab: 48.6M).
+    #[inline(always)]
     pub fn velocity(&self, p: DVec3, rng: &mut PathRng) -> DVec3 {
         match *self {
             VelocityField::Static => DVec3::ZERO,
@@ -223,11 +229,23 @@ impl VelocityField {
                 let (u1, u2) = (rng.uniform(), rng.uniform());
                 warp::uniform_sphere(u1, u2) * speed
             }
-            VelocityField::Wind(ref w) => w.at(p.z),
-            VelocityField::TerminalFall { ref wind, ref fall } => {
-                wind.at(p.z) - DVec3::new(0.0, 0.0, fall.sample(rng.uniform()))
+            VelocityField::TerminalFall { ref fall, .. } => {
+                let u = rng.uniform();
+                self.lookup(p) - DVec3::new(0.0, 0.0, fall.sample(u))
             }
+            VelocityField::Wind(_) | VelocityField::Grid(_) => self.lookup(p),
+        }
+    }
+
+    /// The part of [`VelocityField::velocity`] that needs no random number and more than a few
+    /// instructions: the wind at `p` (also under falling drops) or the grid's value; zero for the
+    /// other fields.
+    #[inline(never)]
+    fn lookup(&self, p: DVec3) -> DVec3 {
+        match *self {
+            VelocityField::Wind(ref w) | VelocityField::TerminalFall { wind: ref w, .. } => w.at(p.z),
             VelocityField::Grid(ref g) => g.value(p),
+            _ => DVec3::ZERO,
         }
     }
 

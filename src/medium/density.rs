@@ -190,7 +190,8 @@ impl Field for Ramp {
         }
         let (p, d) = (pos[self.axis], dir[self.axis]);
         let (lo, hi) = self.range();
-        if self.kind == MajorantKind::Global || d == 0.0 {
+        // A constant ramp (equal ends) is one exact segment, as is a ray along the planes.
+        if self.kind == MajorantKind::Global || d == 0.0 || self.v_lo == self.v_hi {
             let (min, max) = if d == 0.0 { (self.at(p), self.at(p)) } else { (lo, hi) };
             out.segs[0] = Segment { t0, t1, min, max };
             out.n = 1;
@@ -490,8 +491,10 @@ impl Field for GridDensity {
     #[inline]
     fn segments(&self, pos: DVec3, dir: DVec3, t0: f64, t1: f64) -> GridSegments<'_> {
         match &self.majorant {
-            Some(m) => GridSegments::Dda(m.segments(pos, dir, t0, t1)),
-            None => GridSegments::Global((t1 > t0).then_some(Segment { t0, t1, min: self.min, max: self.max })),
+            // A constant field (every voxel and the background alike) is one exact segment: no
+            // DDA through cells that all hold the same bounds.
+            Some(m) if self.min != self.max => GridSegments::Dda(m.segments(pos, dir, t0, t1)),
+            _ => GridSegments::Global((t1 > t0).then_some(Segment { t0, t1, min: self.min, max: self.max })),
         }
     }
 }

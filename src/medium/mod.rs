@@ -284,6 +284,22 @@ impl Medium {
         self.heterogeneity.as_deref().map(|h| &h.density)
     }
 
+    /// The density everywhere, if it is the same everywhere and the medium has no albedo grid:
+    /// 1 for a homogeneous medium, `c` for a constant density field (a grid or ramp holding one
+    /// value, background included). Such a medium's free flights are plain exponentials of rate
+    /// `c·σt` (see `transport::walk`). `None` otherwise.
+    #[inline]
+    pub fn uniform_density(&self) -> Option<f64> {
+        match self.heterogeneity.as_deref() {
+            None => Some(1.0),
+            Some(Heterogeneity { density, albedo: None, .. }) => {
+                let (lo, hi) = density.range();
+                (lo == hi).then_some(lo)
+            }
+            Some(_) => None,
+        }
+    }
+
     /// σt at `p`, m⁻¹.
     pub fn sigma_t_at(&self, p: DVec3) -> f64 {
         self.density().map_or(self.sigma_t, |d| self.sigma_t * d.at(p))
