@@ -212,6 +212,7 @@ impl Experiment {
         let mut end = round;
         let mut first = 0;
         let mut err = f64::INFINITY;
+        let mut spare: Vec<Vec<f64>> = Vec::new();
         loop {
             if first == end {
                 let rounds = end / round;
@@ -224,16 +225,21 @@ impl Experiment {
                 }
             }
             let last = (first + in_flight).min(end);
-            let work = |b: u64| self.run_batch(b, &layout, beat, progress);
+            // Tally vectors are reused from batch to batch: a large camera's (O(pixels × bins))
+            // would otherwise be fresh pages, faulted in and zeroed by the kernel, every batch.
+            let jobs: Vec<(u64, Vec<f64>)> =
+                (first..last).map(|b| (b, spare.pop().unwrap_or_else(|| vec![0.0; layout.len]))).collect();
+            let work = |(b, sums): (u64, Vec<f64>)| self.run_batch(b, sums, &layout, beat, progress);
             let results: Vec<BatchResult> = match &pool {
-                Ok(pool) => pool.install(|| (first..last).into_par_iter().map(work).collect()),
+                Ok(pool) => pool.install(|| jobs.into_par_iter().map(work).collect()),
                 // A pool that cannot be built (no threads available) still gives the same numbers.
-                Err(_) => (first..last).map(work).collect(),
+                Err(_) => jobs.into_iter().map(work).collect(),
             };
             for (sums, s, l) in results {
                 estimates.push(&sums, self.plan.paths_per_batch);
                 stats.merge(&s);
                 lines.extend(l);
+                spare.push(sums);
             }
             first = last;
             err = main.relative_error(&estimates);
@@ -273,23 +279,32 @@ impl Experiment {
         }
     }
 
-    fn run_batch(&self, batch: u64, layout: &TallyLayout, beat: BeatModel, progress: &dyn Progress) -> BatchResult {
+    /// Run batch `batch` into `sums` (any contents: it is zeroed first).
+    fn run_batch(
+        &self,
+        batch: u64,
+        sums: Vec<f64>,
+        layout: &TallyLayout,
+        beat: BeatModel,
+        progress: &dyn Progress,
+    ) -> BatchResult {
         match (self.needs_doppler(), self.needs_length()) {
-            (false, false) => self.run_batch_kind::<false, false>(batch, layout, beat, progress),
-            (true, false) => self.run_batch_kind::<true, false>(batch, layout, beat, progress),
-            (false, true) => self.run_batch_kind::<false, true>(batch, layout, beat, progress),
-            (true, true) => self.run_batch_kind::<true, true>(batch, layout, beat, progress),
+            (false, false) => self.run_batch_kind::<false, false>(batch, sums, layout, beat, progress),
+            (true, false) => self.run_batch_kind::<true, false>(batch, sums, layout, beat, progress),
+            (false, true) => self.run_batch_kind::<false, true>(batch, sums, layout, beat, progress),
+            (true, true) => self.run_batch_kind::<true, true>(batch, sums, layout, beat, progress),
         }
     }
 
     fn run_batch_kind<const DOPPLER: bool, const LENGTH: bool>(
         &self,
         batch: u64,
+        mut sums: Vec<f64>,
         layout: &TallyLayout,
         beat: BeatModel,
         progress: &dyn Progress,
     ) -> BatchResult {
-        let mut sums = vec![0.0; layout.len];
+        sums.fill(0.0);
         let mut stats = RunStats::default();
         let mut lines = Vec::new();
         let record = self.records_lines();
