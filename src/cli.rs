@@ -34,16 +34,8 @@ enum Command {
         /// Number of paths (same as --set run.samples=N).
         #[arg(long)]
         samples: Option<u64>,
-        /// Random seed (same as --set run.seed=S).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads, 0 = all cores (same as --set run.threads=N). Results do not depend on it.
-        #[arg(long)]
-        threads: Option<u64>,
-        /// Override a configuration value before validation: dotted key path = TOML value,
-        /// e.g. --set layers.0.thickness_mm=0.2 --set source.profile=disk. Repeatable.
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
+        #[command(flatten)]
+        overrides: Overrides,
         /// Run until the main output's estimated relative error is at most E (e.g. 0.01): whole
         /// rounds of run.samples paths are added, the number of rounds extrapolated from 1/√paths.
         #[arg(long, value_name = "E", allow_negative_numbers = true)]
@@ -58,6 +50,7 @@ enum Command {
     },
     /// Error against run time: run a ladder of sample counts (independent seeds), measure every
     /// output's error against a reference, and write converge.csv, converge.json, converge.png.
+    /// Rung k runs with seed + 1 + k; a reference run made on the fly uses the seed itself.
     Converge {
         /// Experiment file (TOML). Omit for the built-in default.
         config: Option<PathBuf>,
@@ -78,15 +71,9 @@ enum Command {
         /// Number of rungs, each twice the paths of the one before.
         #[arg(long, default_value_t = 6)]
         rungs: usize,
-        /// Base seed (rung k uses seed + 1 + k; the reference run uses seed).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads, 0 = all cores.
-        #[arg(long)]
-        threads: Option<u64>,
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
-        /// No progress bars.
+        #[command(flatten)]
+        overrides: Overrides,
+        /// No log of each run.
         #[arg(long, short)]
         quiet: bool,
     },
@@ -102,6 +89,32 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+}
+
+/// The run plan and configuration overrides shared by `run` and `converge`.
+#[derive(clap::Args)]
+struct Overrides {
+    /// Random seed (same as --set run.seed=S).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads, 0 = all cores (same as --set run.threads=N). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<u64>,
+    /// Override a configuration value before validation: dotted key path = TOML value,
+    /// e.g. --set layers.0.thickness_mm=0.2 --set source.profile=disk. Repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+impl Overrides {
+    /// The `--set` list with `--seed` and `--threads` (and `samples`) appended.
+    fn sets(self, samples: Option<u64>) -> Vec<String> {
+        let mut set = self.set;
+        set.extend(samples.map(|v| format!("run.samples={v}")));
+        set.extend(self.seed.map(|v| format!("run.seed={v}")));
+        set.extend(self.threads.map(|v| format!("run.threads={v}")));
+        set
+    }
 }
 
 #[derive(clap::Args)]
@@ -289,9 +302,8 @@ pub fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => fail(&e),
         },
-        Command::Converge { config, out, reference, budget_seconds, samples, rungs, seed, threads, mut set, quiet } => {
-            set.extend(seed.map(|v| format!("run.seed={v}")));
-            set.extend(threads.map(|v| format!("run.threads={v}")));
+        Command::Converge { config, out, reference, budget_seconds, samples, rungs, overrides, quiet } => {
+            let set = overrides.sets(None);
             let a = ConvergeArgs { out, reference, budget_seconds, samples, rungs, quiet };
             match converge(config.as_deref(), &set, a) {
                 Ok(()) => ExitCode::SUCCESS,
@@ -305,10 +317,8 @@ pub fn main() -> ExitCode {
             }
             Err(e) => fail(&e),
         },
-        Command::Run { config, out, samples, seed, threads, mut set, target_error, max_samples, quiet } => {
-            set.extend(samples.map(|v| format!("run.samples={v}")));
-            set.extend(seed.map(|v| format!("run.seed={v}")));
-            set.extend(threads.map(|v| format!("run.threads={v}")));
+        Command::Run { config, out, samples, overrides, target_error, max_samples, quiet } => {
+            let set = overrides.sets(samples);
             let (table, exp, origin, stem) = match load(config.as_deref(), &set) {
                 Ok(x) => x,
                 Err(e) => return fail(&e),
