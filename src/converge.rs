@@ -355,6 +355,28 @@ pub fn ladder_samples(top: u64, rungs: usize, batches: u64) -> Vec<u64> {
         .collect()
 }
 
+/// Paths of the largest rung that fit the study into `opts.budget_seconds`: a pilot run measures
+/// the speed (growing until it takes a quarter second, so that start-up costs do not dominate its
+/// rate); the ladder (≈ 2× its top rung) and a reference run (`reference_factor` × the top rung)
+/// share the budget. At least 16 paths per batch on the smallest rung.
+fn top_rung_for_budget(exp: &Experiment, opts: &LadderOptions, need_run: bool, log: &mut dyn StudyLog) -> u64 {
+    let batches = exp.plan.batches;
+    let mut pilot = exp.clone();
+    let mut n = batches * 256;
+    let rate = loop {
+        pilot.plan.set_samples(n);
+        let t = pilot.run(log.progress()).wall_seconds.max(1e-6);
+        if t >= 0.25 || n >= batches << 16 {
+            break pilot.plan.samples() as f64 / t;
+        }
+        n *= 4;
+    };
+    let share = 2.0 + if need_run { opts.reference_factor as f64 } else { 0.0 };
+    let top = (rate * opts.budget_seconds / share) as u64;
+    log.line(&format!("pilot: {rate:.0} paths/s; top rung {top} paths"));
+    top.max((batches * 16) << (opts.rungs.max(2) - 1))
+}
+
 /// What [`study`] reports while it works (a line per run).
 pub trait StudyLog {
     fn line(&mut self, text: &str);
@@ -385,26 +407,7 @@ pub fn study(
     let rungs = opts.rungs.max(2);
     let top = match opts.top_samples {
         Some(n) => n,
-        None => {
-            // A pilot run measures the speed; the ladder (≈ 2× its top rung) and the reference
-            // (`reference_factor` × the top rung) then share the budget.
-            // The pilot grows until it takes a quarter second, so that start-up costs do not
-            // dominate its rate.
-            let mut pilot = exp.clone();
-            let mut n = batches * 256;
-            let rate = loop {
-                pilot.plan.set_samples(n);
-                let t = pilot.run(log.progress()).wall_seconds.max(1e-6);
-                if t >= 0.25 || n >= batches << 16 {
-                    break pilot.plan.samples() as f64 / t;
-                }
-                n *= 4;
-            };
-            let share = 2.0 + if need_run { opts.reference_factor as f64 } else { 0.0 };
-            let top = (rate * opts.budget_seconds / share) as u64;
-            log.line(&format!("pilot: {:.0} paths/s; top rung {top} paths", rate));
-            top.max((batches * 16) << (rungs - 1))
-        }
+        None => top_rung_for_budget(exp, opts, need_run, log),
     };
     let samples = ladder_samples(top, rungs, batches);
     let mut reference_run = None;
