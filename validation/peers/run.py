@@ -19,7 +19,7 @@ entering the top face at its centre, along +z:
            leaves toward z > 0, i.e. the same T. volpath's next-event estimation and MIS change its
            variance, not its expectation. See README.md for the depth cap and roulette.
 
-Usage: python3 validation/peers/run.py [--repeats R] [--mitsuba-paths N] [--ohd-paths N]
+Usage: python3 validation/peers/run.py [--repeats R] [--mitsuba-paths N] [--ohd-paths N] [--scenes LIST] [--seed S]
 Creates validation/peers/.venv (python3 -m venv; pip install mitsuba==3.9.1) on first use and
 re-runs itself there; the .vdb files are written by Debian's python3-openvdb (/usr/bin/python3).
 """
@@ -233,6 +233,7 @@ def main():
     ap.add_argument("--mitsuba-paths", type=int, default=400_000, help="paths per Mitsuba run (16 renders)")
     ap.add_argument("--ohd-paths", type=int, default=4_000_000, help="paths per ohd run")
     ap.add_argument("--scenes", default="slab,grid16,grid64")
+    ap.add_argument("--seed", type=int, default=1, help="repeat r uses seed + r (ohd) and (seed + r)·1000 + batch (Mitsuba)")
     args = ap.parse_args()
 
     mi.set_variant("scalar_rgb")
@@ -253,12 +254,12 @@ def main():
             run_mitsuba(mi, scene, 1600, 16, 999)  # warm-up outside the timing
             o_t, o_proc, m_t, o_est, m_means, unscat = [], [], [], [], [], []
             for r in range(args.repeats):  # interleaved: ohd, Mitsuba, ohd, Mitsuba, ...
-                t, wall, e = run_ohd(binary, config, args.ohd_paths, r + 1, os.path.join(tmp, f"{name}_{r}"))
+                t, wall, e = run_ohd(binary, config, args.ohd_paths, args.seed + r, os.path.join(tmp, f"{name}_{r}"))
                 o_t.append(t)
                 o_proc.append(wall)
                 o_est.append((e["transmittance_total"]["value"], e["transmittance_total"]["stderr"]))
                 unscat.append((e["transmittance_unscattered"]["value"], e["transmittance_unscattered"]["stderr"]))
-                t, means = run_mitsuba(mi, scene, args.mitsuba_paths, 16, r + 1)
+                t, means = run_mitsuba(mi, scene, args.mitsuba_paths, 16, args.seed + r)
                 m_t.append(t)
                 m_means.extend(means)
             o_val, o_se = pooled(o_est)
