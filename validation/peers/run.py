@@ -157,9 +157,9 @@ def mitsuba_scene(mi, grid):
                               "to_world": T().translate([-L / 2, -L / 2, 0]).scale(L)}}
         shape_to_world = T().translate([0, 0, L / 2]).scale(L / 2)
     # Radiance 1 from the lower hemisphere: a ray leaving toward z > 0 (transmitted) sees 1. The
-    # lat-long map's poles (its +y axis) are turned to +x, away from the beam: with the poles on the
-    # z axis, 1 sample in ~10^6 of the slab came back NaN. Then z > 0 is the middle half of the
-    # columns (longitudes 90°-270°).
+    # lat-long map's poles (its +y axis) are turned to +x, off the beam axis; then z > 0 is the
+    # middle half of the columns (longitudes 90°-270°). (Mitsuba still returns a NaN sample now
+    # and then with this envmap and an HG phase function: see README.md and main().)
     env = np.zeros((8, 8192, 3), dtype=np.float32)
     env[:, 2048:6144] = 1.0
     return mi.load_dict({
