@@ -103,6 +103,15 @@ medium = "m"
 """
 
 
+def ensure_pyopenvdb():
+    """Install Debian's python3-openvdb (for the system interpreter) if it is missing."""
+    probe = subprocess.run(["/usr/bin/python3", "-c", "import pyopenvdb"], capture_output=True)
+    if probe.returncode != 0:
+        env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+        subprocess.run(["apt-get", "update", "-qq"], check=True, env=env)
+        subprocess.run(["apt-get", "install", "-y", "-qq", "python3-openvdb"], check=True, env=env)
+
+
 def write_ohd_scene(tmp, name, grid):
     """Write the experiment file (and for a grid its .vdb); return the file's path."""
     import numpy as np
@@ -112,6 +121,7 @@ def write_ohd_scene(tmp, name, grid):
     else:
         h = L / grid.shape[0]
         np.save(os.path.join(tmp, f"{name}.npy"), grid)
+        ensure_pyopenvdb()
         subprocess.run(["/usr/bin/python3", os.path.join(HERE, "write_vdb.py"), os.path.join(tmp, f"{name}.npy"),
                         os.path.join(tmp, f"{name}.vdb"), repr(h)], check=True)
         # Index i of the file sits at i*h mm; Mitsuba puts voxel i's value at its centre, (i + 1/2) h
