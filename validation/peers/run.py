@@ -45,7 +45,12 @@ def ensure_venv():
     if os.path.realpath(sys.prefix) == os.path.realpath(VENV):
         return
     if not os.path.exists(py):
-        subprocess.run([sys.executable, "-m", "venv", VENV], check=True)
+        if subprocess.run([sys.executable, "-m", "venv", VENV]).returncode != 0:
+            # Debian ships venv separately.
+            env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+            subprocess.run(["apt-get", "update", "-qq"], check=True, env=env)
+            subprocess.run(["apt-get", "install", "-y", "-qq", "python3-venv"], check=True, env=env)
+            subprocess.run([sys.executable, "-m", "venv", "--clear", VENV], check=True)
         subprocess.run([py, "-m", "pip", "install", "--quiet", f"mitsuba=={MITSUBA_VERSION}", "numpy"], check=True)
     os.execv(py, [py, os.path.abspath(__file__)] + sys.argv[1:])
 
