@@ -44,6 +44,14 @@ enum Command {
         /// [default: 1000 × run.samples].
         #[arg(long, requires = "target_error")]
         max_samples: Option<u64>,
+        /// Save the run's state to OUT/checkpoint.ohd every S seconds (atomically), so that
+        /// `--resume` can finish it after the process dies. Removed when the run completes.
+        #[arg(long, value_name = "S", allow_negative_numbers = true)]
+        checkpoint_seconds: Option<f64>,
+        /// Continue the run from OUT/checkpoint.ohd (same config and --set; any --threads): the
+        /// result equals an uninterrupted run's.
+        #[arg(long)]
+        resume: bool,
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
@@ -317,7 +325,17 @@ pub fn main() -> ExitCode {
             }
             Err(e) => fail(&e),
         },
-        Command::Run { config, out, samples, overrides, target_error, max_samples, quiet } => {
+        Command::Run {
+            config,
+            out,
+            samples,
+            overrides,
+            target_error,
+            max_samples,
+            checkpoint_seconds,
+            resume,
+            quiet,
+        } => {
             let set = overrides.sets(samples);
             let (table, exp, origin, stem) = match load(config.as_deref(), &set) {
                 Ok(x) => x,
@@ -329,10 +347,23 @@ pub fn main() -> ExitCode {
             };
             let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
             let inv = Invocation { config_source: origin, overrides: set };
+            let saving = match checkpoint_seconds {
+                Some(s) if !(s.is_finite() && s >= 0.0) => {
+                    return fail(&Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
+                }
+                Some(_) | None if (checkpoint_seconds.is_some() || resume) && exp.source.pointings.len() > 1 => {
+                    return fail(&Error::Input(
+                        "--checkpoint-seconds and --resume: not yet for scans (run one pointing with --set source.pointings=…)"
+                            .into(),
+                    ));
+                }
+                s => s,
+            };
+            let opts = RunOptions { target: target.as_ref(), checkpoint_seconds: saving, resume, quiet };
             let result = if exp.source.pointings.len() > 1 {
-                run_scan(&exp, &dir, &table, &inv, target.as_ref(), quiet)
+                run_scan(&exp, &dir, &table, &inv, &opts)
             } else {
-                run_one(&exp, &dir, &table, &inv, target.as_ref(), quiet).map(|_| ())
+                run_one(&exp, &dir, &table, &inv, &opts).map(|_| ())
             };
             match result {
                 Ok(()) => ExitCode::SUCCESS,
@@ -444,24 +475,91 @@ fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(
     Ok(())
 }
 
-/// Run `exp` (to `target` if given), write its outputs into `dir` and report on stderr.
+/// How `ohd run` runs: to a target error, with checkpoints, resumed, quietly.
+struct RunOptions<'a> {
+    target: Option<&'a Target>,
+    checkpoint_seconds: Option<f64>,
+    resume: bool,
+    quiet: bool,
+}
+
+/// Checkpoints into a file every `every` seconds.
+struct FileCheckpoint {
+    path: PathBuf,
+    fingerprint: u64,
+    every: std::time::Duration,
+    last: std::sync::Mutex<std::time::Instant>,
+}
+
+impl ohd::experiment::Checkpoint for FileCheckpoint {
+    fn due(&self) -> bool {
+        self.last.lock().is_ok_and(|t| t.elapsed() >= self.every)
+    }
+
+    fn save(&self, state: &ohd::experiment::RunState) -> Result<(), Error> {
+        ohd::io::checkpoint::write(&self.path, self.fingerprint, state)?;
+        if let Ok(mut t) = self.last.lock() {
+            *t = std::time::Instant::now();
+        }
+        Ok(())
+    }
+}
+
+/// The fingerprint of the configuration as run, without `run.threads` (results do not depend
+/// on it, so a run may resume on another thread count).
+fn config_fingerprint(table: &toml::Table) -> u64 {
+    let mut t = table.clone();
+    if let Some(toml::Value::Table(run)) = t.get_mut("run") {
+        run.remove("threads");
+    }
+    ohd::io::checkpoint::fingerprint(&toml::to_string(&t).unwrap_or_default())
+}
+
+/// Run `exp` (to a target error, with checkpoints, resumed: `opts`), write its outputs into `dir`
+/// and report on stderr.
 fn run_one(
     exp: &Experiment,
     dir: &Path,
     table: &toml::Table,
     inv: &Invocation,
-    target: Option<&Target>,
-    quiet: bool,
+    opts: &RunOptions,
 ) -> Result<ohd::experiment::RunOutput, Error> {
-    let output = match progress_bar(quiet, exp.plan.samples(), target.map(|t| t.relative_error)) {
-        Some(bar) => {
-            let o = exp.run_until(&bar, target);
-            bar.bar.finish_and_clear();
-            o
+    let path = dir.join("checkpoint.ohd");
+    let fingerprint = config_fingerprint(table);
+    let resume = if opts.resume {
+        let state = ohd::io::checkpoint::read(&path, fingerprint, exp.tally_layout().len)?;
+        eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
+        Some(state)
+    } else {
+        None
+    };
+    let checkpoint = match opts.checkpoint_seconds {
+        Some(s) => {
+            std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+            Some(FileCheckpoint {
+                path: path.clone(),
+                fingerprint,
+                every: std::time::Duration::from_secs_f64(s),
+                last: std::sync::Mutex::new(std::time::Instant::now()),
+            })
         }
-        None => exp.run_until(&ohd::experiment::Silent, target),
+        None => None,
+    };
+    let checkpoint = checkpoint.as_ref().map(|c| c as &dyn ohd::experiment::Checkpoint);
+    let target = opts.target;
+    let output = match progress_bar(opts.quiet, exp.plan.samples(), target.map(|t| t.relative_error)) {
+        Some(bar) => {
+            let o = exp.run_resumable(&bar, target, resume, checkpoint);
+            bar.bar.finish_and_clear();
+            o?
+        }
+        None => exp.run_resumable(&ohd::experiment::Silent, target, resume, checkpoint)?,
     };
     let manifest = write_run(dir, exp, &output, table, inv)?;
+    if checkpoint.is_some() || opts.resume {
+        // The run is complete and written: its checkpoint has served.
+        let _ = std::fs::remove_file(&path);
+    }
     let est = &manifest["estimates"];
     eprintln!(
         "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
@@ -519,8 +617,7 @@ fn run_scan(
     dir: &Path,
     table: &toml::Table,
     inv: &Invocation,
-    target: Option<&Target>,
-    quiet: bool,
+    opts: &RunOptions,
 ) -> Result<(), Error> {
     let pointings = &exp.source.pointings;
     let (mut runs, mut velocities) = (Vec::new(), Vec::new());
@@ -529,7 +626,7 @@ fn run_scan(
         let name = format!("pointing_{i:02}");
         eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
         let e = exp.pointed(p);
-        let output = run_one(&e, &dir.join(&name), table, inv, target, quiet)?;
+        let output = run_one(&e, &dir.join(&name), table, inv, opts)?;
         if let Some(v) = ohd::scan::gate_peak_velocities(&e, &output) {
             velocities.push(v);
         }

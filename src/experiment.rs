@@ -126,6 +126,30 @@ impl RunOutput {
 
 const PROGRESS_EVERY: u64 = 4096;
 
+/// A run at a batch boundary: everything needed to continue it to the same result.
+#[derive(Debug, Clone)]
+pub struct RunState {
+    pub estimates: BatchAccumulator,
+    pub stats: RunStats,
+    pub lines: Vec<RecordedLine>,
+    /// The next batch to run, and the end of the batches planned so far (a run to a target
+    /// error plans more).
+    pub next: u64,
+    pub end: u64,
+    /// The main output's estimated relative error after batch `next − 1`.
+    pub err: f64,
+    /// Wall seconds spent on the run before this state was (re)loaded.
+    pub elapsed: f64,
+}
+
+/// Where a run saves its state from time to time (atomically), to be resumed after a crash.
+pub trait Checkpoint: Sync {
+    /// Whether a save is due now (called after every group of batches).
+    fn due(&self) -> bool;
+    /// Save `state`; an error stops the run.
+    fn save(&self, state: &RunState) -> crate::error::Result<()>;
+}
+
 /// One batch's tally sums, counters and recorded lines.
 type BatchResult = (Vec<f64>, RunStats, Vec<RecordedLine>);
 
@@ -197,21 +221,40 @@ impl Experiment {
     /// target's output reaches its relative error. The number of rounds is decided only from
     /// folded results, so the output still does not depend on the thread count.
     pub fn run_until(&self, progress: &dyn Progress, target: Option<&Target>) -> RunOutput {
+        self.run_resumable(progress, target, None, None).expect("a run without checkpoints cannot fail")
+    }
+
+    /// As [`run_until`](Self::run_until), continuing from `resume` (a state saved by an earlier
+    /// process of the same experiment) and saving states through `checkpoint`. Batches are folded
+    /// in batch order whatever the process, so a resumed run equals an uninterrupted one.
+    pub fn run_resumable(
+        &self,
+        progress: &dyn Progress,
+        target: Option<&Target>,
+        resume: Option<RunState>,
+        checkpoint: Option<&dyn Checkpoint>,
+    ) -> crate::error::Result<RunOutput> {
         let start = std::time::Instant::now();
         let threads = self.plan.effective_threads();
         let layout = self.tally_layout();
         let beat = self.beat_model();
-        let mut estimates = BatchAccumulator::new(layout.len);
-        let mut stats = RunStats::default();
-        let mut lines = Vec::new();
+        let round = self.plan.batches;
+        let state = resume.unwrap_or_else(|| RunState {
+            estimates: BatchAccumulator::new(layout.len),
+            stats: RunStats::default(),
+            lines: Vec::new(),
+            next: 0,
+            end: round,
+            err: f64::INFINITY,
+            elapsed: 0.0,
+        });
+        let RunState { mut estimates, mut stats, mut lines, next: mut first, mut end, mut err, elapsed } = state;
+        progress.set_total(end * self.plan.paths_per_batch);
+        progress.advance(first * self.plan.paths_per_batch);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
         let in_flight = self.batches_in_flight();
         let main = target.map_or_else(|| self.main_output(), |t| t.output.clone());
-        let round = self.plan.batches;
         let max_rounds = target.map_or(1, |t| (t.max_samples / self.plan.samples()).max(1));
-        let mut end = round;
-        let mut first = 0;
-        let mut err = f64::INFINITY;
         let mut spare: Vec<Vec<f64>> = Vec::new();
         loop {
             if first == end {
@@ -244,8 +287,15 @@ impl Experiment {
             first = last;
             err = main.relative_error(&estimates);
             progress.error(err);
+            if let Some(c) = checkpoint.filter(|c| c.due()) {
+                let elapsed = elapsed + start.elapsed().as_secs_f64();
+                // The state is moved into the checkpoint and back: no copy of the tallies.
+                let state = RunState { estimates, stats, lines, next: first, end, err, elapsed };
+                c.save(&state)?;
+                RunState { estimates, stats, lines, .. } = state;
+            }
         }
-        let wall_seconds = start.elapsed().as_secs_f64();
+        let wall_seconds = elapsed + start.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
         let batches = end;
         let samples = batches * self.plan.paths_per_batch;
@@ -262,7 +312,7 @@ impl Experiment {
             rounds: end / round,
             max_samples: max_rounds * self.plan.samples(),
         });
-        RunOutput {
+        Ok(RunOutput {
             layout,
             beat,
             estimates,
@@ -276,7 +326,7 @@ impl Experiment {
             paths_per_batch: self.plan.paths_per_batch,
             main_output: (main.name, err),
             target,
-        }
+        })
     }
 
     /// Run batch `batch` into `sums` (any contents: it is zeroed first).

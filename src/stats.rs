@@ -58,6 +58,16 @@ impl BatchAccumulator {
         }
     }
 
+    /// The state as `(batches, mean, m2)`, for a checkpoint.
+    pub fn parts(&self) -> (usize, &[f64], &[f64]) {
+        (self.batches, &self.mean, &self.m2)
+    }
+
+    /// Rebuild from [`parts`](Self::parts); `None` if `mean` and `m2` differ in length.
+    pub fn from_parts(batches: usize, mean: Vec<f64>, m2: Vec<f64>) -> Option<Self> {
+        (mean.len() == m2.len()).then_some(BatchAccumulator { batches, mean, m2 })
+    }
+
     pub fn batches(&self) -> usize {
         self.batches
     }

@@ -449,3 +449,55 @@ fn run_to_a_target_error() {
     assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
     assert!(text(&o.stderr).contains("--max-samples"), "{}", describe(&o));
 }
+
+/// A run killed with SIGKILL after a checkpoint finishes with `--resume` (on another thread
+/// count) exactly as an uninterrupted run: every `.npy` byte-identical, the same estimates.
+#[test]
+fn resume_after_sigkill_equals_an_uninterrupted_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (whole, killed) = (tmp.path().join("whole"), tmp.path().join("killed"));
+    let args = |dir: &Path| -> Vec<String> {
+        ["run", "--samples", "3000000", "--seed", "12", "-q", "--out", path_str(dir)].map(String::from).to_vec()
+    };
+    let o = ohd(tmp.path(), &args(&whole).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let mut a = args(&killed);
+    a.extend(["--checkpoint-seconds".into(), "0".into()]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ohd"))
+        .args(&a)
+        .current_dir(tmp.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("ohd starts");
+    let ckpt = killed.join("checkpoint.ohd");
+    let t0 = std::time::Instant::now();
+    while !ckpt.exists() && t0.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().expect("SIGKILL"); // Child::kill sends SIGKILL on Unix
+    let status = child.wait().unwrap();
+    assert!(ckpt.exists(), "no checkpoint was written");
+    assert!(!killed.join("manifest.json").exists(), "the run finished before it was killed ({status:?})");
+    let mut a = args(&killed);
+    a.extend(["--resume".into(), "--threads".into(), "1".into()]);
+    let o = ohd(tmp.path(), &a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("resuming at batch"), "{}", describe(&o));
+    assert!(!ckpt.exists(), "the checkpoint outlives the finished run");
+    let mut npy = 0;
+    for e in std::fs::read_dir(&whole).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "npy") {
+            let name = p.file_name().unwrap();
+            assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(killed.join(name)).unwrap(), "{name:?} differs");
+            npy += 1;
+        }
+    }
+    assert!(npy >= 6, "{npy} .npy files");
+    assert_eq!(read_manifest(&whole)["estimates"], read_manifest(&killed)["estimates"]);
+    // Resuming again, with no checkpoint left, is refused naming the file.
+    let o = ohd(tmp.path(), &a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(2), "no checkpoint left: {}", describe(&o));
+    assert!(text(&o.stderr).contains("checkpoint.ohd"), "{}", describe(&o));
+}

@@ -1,6 +1,7 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
 //! Input: OpenVDB grids ([`vdb`]).
 
+pub mod checkpoint;
 pub mod converge;
 pub mod fmcw;
 pub mod ldh;

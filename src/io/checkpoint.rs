@@ -1,0 +1,171 @@
+//! Checkpoints of a running experiment (`ohd run --checkpoint-seconds`, `--resume`): the
+//! [`RunState`] at a batch boundary in a small binary file (little-endian), written atomically
+//! (temporary file, then rename), with a fingerprint of the configuration so that a checkpoint is
+//! only ever resumed by the experiment that wrote it.
+//!
+//! Layout: `OHDCKPT` and a format byte; the fingerprint (u64); `next`, `end` (u64); `err`,
+//! `elapsed` (f64); the six run counters (u64); the accumulator's batch count and length (u64)
+//! and its `mean` and `m2` (f64 each); the number of recorded lines (u64) and each line's `roi`
+//! (u32), `class` (u8), `weight`, `frequency`, `gamma` (f64).
+
+use std::path::Path;
+
+use crate::detect::ldh::RecordedLine;
+use crate::error::{Error, Result};
+use crate::experiment::RunState;
+use crate::stats::{BatchAccumulator, RunStats};
+
+const MAGIC: &[u8; 8] = b"OHDCKPT\x01";
+
+/// FNV-1a (64 bit) of `text`: the fingerprint of a configuration.
+pub fn fingerprint(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// The bytes of a checkpoint of `s` for the configuration with fingerprint `fp`.
+pub fn to_bytes(fp: u64, s: &RunState) -> Vec<u8> {
+    let (batches, mean, m2) = s.estimates.parts();
+    let mut b = Vec::with_capacity(128 + 16 * mean.len() + 29 * s.lines.len());
+    b.extend_from_slice(MAGIC);
+    let st = &s.stats;
+    for v in [fp, s.next, s.end] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [s.err, s.elapsed] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [
+        st.paths,
+        st.scattering_events,
+        st.null_collisions,
+        st.roulette_terminations,
+        st.truncated_paths,
+        st.non_finite,
+        batches as u64,
+        mean.len() as u64,
+    ] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in mean.iter().chain(m2) {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.extend_from_slice(&(s.lines.len() as u64).to_le_bytes());
+    for l in &s.lines {
+        b.extend_from_slice(&l.roi.to_le_bytes());
+        b.push(l.class);
+        for v in [l.weight, l.frequency, l.gamma] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b
+}
+
+/// A reader over the bytes of a checkpoint that fails (never panics) past the end.
+struct Reader<'a>(&'a [u8]);
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let (head, rest) = self.0.split_at_checked(N)?;
+        self.0 = rest;
+        head.try_into().ok()
+    }
+    fn u64(&mut self) -> Option<u64> {
+        self.take::<8>().map(u64::from_le_bytes)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.take::<8>().map(f64::from_le_bytes)
+    }
+    fn f64s(&mut self, n: u64) -> Option<Vec<f64>> {
+        // A count larger than the bytes left is corrupt: checked before allocating.
+        if n.checked_mul(8)? > self.0.len() as u64 {
+            return None;
+        }
+        (0..n).map(|_| self.f64()).collect()
+    }
+}
+
+/// Parse a checkpoint: `(fingerprint, state)`, `None` if it is not a whole checkpoint.
+pub fn from_bytes(bytes: &[u8]) -> Option<(u64, RunState)> {
+    let mut r = Reader(bytes.strip_prefix(MAGIC.as_slice())?);
+    let (fp, next, end) = (r.u64()?, r.u64()?, r.u64()?);
+    let (err, elapsed) = (r.f64()?, r.f64()?);
+    let stats = RunStats {
+        paths: r.u64()?,
+        scattering_events: r.u64()?,
+        null_collisions: r.u64()?,
+        roulette_terminations: r.u64()?,
+        truncated_paths: r.u64()?,
+        non_finite: r.u64()?,
+    };
+    let (batches, len) = (r.u64()?, r.u64()?);
+    let mean = r.f64s(len)?;
+    let m2 = r.f64s(len)?;
+    let estimates = BatchAccumulator::from_parts(usize::try_from(batches).ok()?, mean, m2)?;
+    let n = r.u64()?;
+    if n.checked_mul(29)? > r.0.len() as u64 {
+        return None;
+    }
+    let mut lines = Vec::with_capacity(n as usize);
+    for _ in 0..n {
+        let roi = u32::from_le_bytes(r.take::<4>()?);
+        let class = r.take::<1>()?[0];
+        lines.push(RecordedLine { roi, class, weight: r.f64()?, frequency: r.f64()?, gamma: r.f64()? });
+    }
+    if !r.0.is_empty() || next > end {
+        return None;
+    }
+    Some((fp, RunState { estimates, stats, lines, next, end, err, elapsed }))
+}
+
+/// Write the checkpoint of `s` to `path`, atomically.
+pub fn write(path: &Path, fp: u64, s: &RunState) -> Result<()> {
+    super::write_atomic(path, &to_bytes(fp, s))
+}
+
+/// Read the checkpoint at `path` for the configuration with fingerprint `fp`, checking that it
+/// is whole, of this experiment (`tallies` long) and not past its end.
+pub fn read(path: &Path, fp: u64, tallies: usize) -> Result<RunState> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;
+    let bad = |why: &str| Error::Read {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, why.to_string()),
+    };
+    let (got, state) = from_bytes(&bytes).ok_or_else(|| bad("not a whole ohd checkpoint (truncated or corrupt)"))?;
+    if got != fp || state.estimates.mean().len() != tallies {
+        return Err(bad("written by a different experiment (configuration or --set differ); rerun without --resume"));
+    }
+    Ok(state)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let mut acc = BatchAccumulator::new(3);
+        acc.push(&[1.0, 2.0, 3.0], 10);
+        acc.push(&[2.0, 0.5, 3.0], 10);
+        let s = RunState {
+            estimates: acc,
+            stats: RunStats { paths: 20, scattering_events: 7, ..Default::default() },
+            lines: vec![RecordedLine { roi: 2, class: 1, weight: 0.5, frequency: -3.0, gamma: 1e-3 }],
+            next: 2,
+            end: 16,
+            err: 0.25,
+            elapsed: 1.5,
+        };
+        let b = to_bytes(42, &s);
+        let (fp, t) = from_bytes(&b).expect("parses");
+        assert_eq!(fp, 42);
+        assert_eq!(t.estimates.parts(), s.estimates.parts());
+        assert_eq!((t.stats, t.lines.clone(), t.next, t.end, t.err, t.elapsed), (s.stats, s.lines, 2, 16, 0.25, 1.5));
+        for cut in 0..b.len() {
+            assert!(from_bytes(&b[..cut]).is_none(), "a checkpoint cut at {cut} parsed");
+        }
+        let mut longer = b.clone();
+        longer.push(0);
+        assert!(from_bytes(&longer).is_none());
+        assert_ne!(fingerprint("a = 1"), fingerprint("a = 2"));
+    }
+}
