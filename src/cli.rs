@@ -347,19 +347,16 @@ pub fn main() -> ExitCode {
             };
             let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
             let inv = Invocation { config_source: origin, overrides: set };
-            let saving = match checkpoint_seconds {
-                Some(s) if !(s.is_finite() && s >= 0.0) => {
-                    return fail(&Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
-                }
-                Some(_) | None if (checkpoint_seconds.is_some() || resume) && exp.source.pointings.len() > 1 => {
-                    return fail(&Error::Input(
-                        "--checkpoint-seconds and --resume: not yet for scans (run one pointing with --set source.pointings=…)"
-                            .into(),
-                    ));
-                }
-                s => s,
-            };
-            let opts = RunOptions { target: target.as_ref(), checkpoint_seconds: saving, resume, quiet };
+            if let Some(s) = checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+                return fail(&Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
+            }
+            if (checkpoint_seconds.is_some() || resume) && exp.source.pointings.len() > 1 {
+                return fail(&Error::Input(
+                    "--checkpoint-seconds and --resume: not yet for scans (run one pointing with --set source.pointings=…)"
+                        .into(),
+                ));
+            }
+            let opts = RunOptions { target: target.as_ref(), checkpoint_seconds, resume, quiet };
             let result = if exp.source.pointings.len() > 1 {
                 run_scan(&exp, &dir, &table, &inv, &opts)
             } else {

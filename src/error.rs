@@ -14,6 +14,13 @@ pub struct ConfigError {
     pub message: String,
 }
 
+impl Error {
+    /// A file that was read but holds something invalid (exit status 2), with why.
+    pub fn invalid_file(path: impl Into<PathBuf>, why: impl Into<String>) -> Self {
+        Error::Read { path: path.into(), source: std::io::Error::new(std::io::ErrorKind::InvalidData, why.into()) }
+    }
+}
+
 impl ConfigError {
     pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
         Self { path: path.into(), message: message.into() }

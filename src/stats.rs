@@ -83,19 +83,24 @@ impl BatchAccumulator {
         if self.batches < 2 {
             return f64::INFINITY;
         }
-        let b = self.batches as f64;
-        let var: f64 = self.m2[range.clone()].iter().map(|&q| q.max(0.0) / (b - 1.0) / b).sum();
+        let var: f64 = self.m2[range.clone()].iter().map(|&q| self.variance_of_mean(q)).sum();
         let x2: f64 = self.mean[range].iter().map(|v| v * v).sum();
         if x2 > 0.0 { (var / x2).sqrt() } else { f64::INFINITY }
     }
 
+    /// Variance of the mean of one estimate from its sum of squared deviations `q` (two or more
+    /// batches): `q/((B − 1)B)`.
+    fn variance_of_mean(&self, q: f64) -> f64 {
+        let b = self.batches as f64;
+        q.max(0.0) / (b - 1.0) / b
+    }
+
     /// Standard error of each estimate (0 with fewer than two batches).
     pub fn stderr(&self) -> Vec<f64> {
-        let b = self.batches as f64;
         if self.batches < 2 {
             return vec![0.0; self.mean.len()];
         }
-        self.m2.iter().map(|&q| (q.max(0.0) / (b - 1.0) / b).sqrt()).collect()
+        self.m2.iter().map(|&q| self.variance_of_mean(q).sqrt()).collect()
     }
 }
 

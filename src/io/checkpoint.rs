@@ -126,10 +126,7 @@ pub fn write(path: &Path, fp: u64, s: &RunState) -> Result<()> {
 /// is whole, of this experiment (`tallies` long) and not past its end.
 pub fn read(path: &Path, fp: u64, tallies: usize) -> Result<RunState> {
     let bytes = std::fs::read(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;
-    let bad = |why: &str| Error::Read {
-        path: path.to_path_buf(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, why.to_string()),
-    };
+    let bad = |why: &str| Error::invalid_file(path, why);
     let (got, state) = from_bytes(&bytes).ok_or_else(|| bad("not a whole ohd checkpoint (truncated or corrupt)"))?;
     if got != fp || state.estimates.mean().len() != tallies {
         return Err(bad("written by a different experiment (configuration or --set differ); rerun without --resume"));

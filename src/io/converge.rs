@@ -30,10 +30,7 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
         let path = dir.join(name);
         std::fs::read(&path).map_err(|source| Error::Read { path, source })
     };
-    let bad = |name: &str, why: String| Error::Read {
-        path: dir.join(name),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, why),
-    };
+    let bad = |name: &str, why: String| Error::invalid_file(dir.join(name), why);
     let manifest: Value =
         serde_json::from_slice(&read("manifest.json")?).map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
     let mut refs = Vec::with_capacity(outputs.len());
