@@ -17,7 +17,7 @@ use std::time::Instant;
 use glam::DVec3;
 use ohd::config::resolve::grid_heterogeneity;
 use ohd::experiment::{Experiment, Silent};
-use ohd::medium::density::{Interpolation, MajorantKind, MajorantSpec, Placement};
+use ohd::medium::density::{CellSize, Interpolation, MajorantKind, MajorantSpec, Placement};
 use ohd::medium::grid::{IndexTransform, VoxelGrid};
 
 const SCENE: &str = r#"
@@ -113,11 +113,11 @@ fn main() {
     );
     let mut rows = Vec::new();
     let specs = [
-        ("global", MajorantSpec { kind: MajorantKind::Global, cell_voxels: 1 }),
-        ("grid, 4 vox", MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 4 }),
-        ("grid, 8 vox", MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 8 }),
-        ("grid, 16 vox", MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 16 }),
-        ("grid, 32 vox", MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 32 }),
+        ("global", MajorantSpec { kind: MajorantKind::Global, cell: CellSize::Voxels(1) }),
+        ("grid, 4 vox", MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(4) }),
+        ("grid, 8 vox", MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(8) }),
+        ("grid, 16 vox", MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(16) }),
+        ("grid, 32 vox", MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(32) }),
     ];
     // What the rest of the scene costs: the same run with an empty grid (no collisions in the
     // top layer, every majorant cell 0, the DDA and shadow rays still walking it).

@@ -9,7 +9,7 @@ use ohd::config::resolve::grid_heterogeneity;
 use ohd::detect::Scalar;
 use ohd::experiment::{Experiment, RunOutput, Silent};
 use ohd::flow::VelocityField;
-use ohd::medium::density::{Interpolation, MajorantKind, MajorantSpec, Placement, Ramp};
+use ohd::medium::density::{CellSize, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp};
 use ohd::medium::grid::{IndexTransform, VoxelGrid};
 use ohd::medium::{Density, Heterogeneity, Layer, Medium, Scene};
 use ohd::phase::PhaseFunction;
@@ -153,8 +153,8 @@ fn blobs(p: DVec3) -> f32 {
 fn global_grid_and_inflated_majorants_agree() {
     let text = slab(true);
     let grid = || lattice(0.6, 0.5, 0.05, blobs);
-    let cell = MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 2 };
-    let global = MajorantSpec { kind: MajorantKind::Global, cell_voxels: 2 };
+    let cell = MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(2) };
+    let global = MajorantSpec { kind: MajorantKind::Global, cell: CellSize::Voxels(2) };
     let runs = [
         ("grid", with_grid(common::experiment(&text, &[]), grid(), cell)),
         ("global", with_grid(common::experiment(&text, &[]), grid(), global)),
@@ -288,7 +288,7 @@ fn ratio_tracking_through_a_grid_gives_its_integral() {
     let sigma_t = 1000.0;
     let values = g.clone();
     let mut m = Medium::new("g", 0.0, sigma_t, PhaseFunction::Isotropic, VelocityField::Static);
-    let spec = MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 4 };
+    let spec = MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(4) };
     m.set_heterogeneity(
         grid_heterogeneity("d", g, None, Placement::default(), Interpolation::Trilinear, spec).unwrap(),
     );

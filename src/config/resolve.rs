@@ -15,7 +15,8 @@ use crate::experiment::{Experiment, RunPlan};
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
 use crate::io::table::read_phase_table;
 use crate::medium::density::{
-    Density, DensityInfo, GridDensity, GridError, GridField, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
+    CellSize, Density, DensityInfo, GridDensity, GridError, GridField, Interpolation, MajorantKind, MajorantSpec,
+    Placement, Ramp,
 };
 use crate::medium::grid::VoxelGrid;
 use crate::medium::{
@@ -2207,7 +2208,7 @@ fn attach_density(
     let h = match built.get(&m.name) {
         Some(h) => h.clone(),
         None => {
-            let h = Arc::new(resolve_density(&join(path, "density"), d, ctx)?);
+            let h = Arc::new(resolve_density(&join(path, "density"), d, m.sigma_t(), ctx)?);
             built.insert(m.name.clone(), h.clone());
             h
         }
@@ -2224,7 +2225,7 @@ fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
 }
 
 /// `density = { type = "ramp" | "vdb", … }`.
-fn resolve_density(path: &str, d: &DensitySection, ctx: &Ctx) -> R<Heterogeneity> {
+fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<Heterogeneity> {
     match d {
         DensitySection::Vdb {
             file,
@@ -2244,7 +2245,7 @@ fn resolve_density(path: &str, d: &DensitySection, ctx: &Ctx) -> R<Heterogeneity
                 None => None,
             };
             let place = resolve_placement(path, *scale, *translate_um, *translate_mm, *translate_m)?;
-            let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels)?;
+            let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t)?;
             let mut h = grid_heterogeneity(
                 path,
                 Arc::unwrap_or_clone(density),
@@ -2307,15 +2308,21 @@ fn resolve_density(path: &str, d: &DensitySection, ctx: &Ctx) -> R<Heterogeneity
 }
 
 /// The majorant settings of a grid density from its keys `majorant` and `majorant_cell_voxels`
-/// under `path` (for the file-backed densities).
-pub fn resolve_majorant(path: &str, kind: Option<MajorantSection>, cell_voxels: Option<u64>) -> R<MajorantSpec> {
+/// under `path` (for the file-backed densities), of a medium with extinction `sigma_t` (1/m) at
+/// density 1: without `majorant_cell_voxels` the cell size is chosen for it ([`CellSize::Auto`]).
+pub fn resolve_majorant(
+    path: &str,
+    kind: Option<MajorantSection>,
+    cell_voxels: Option<u64>,
+    sigma_t: f64,
+) -> R<MajorantSpec> {
     let kind = majorant_kind(kind);
-    let cell_voxels = match cell_voxels {
-        None => crate::medium::density::DEFAULT_CELL_VOXELS,
+    let cell = match cell_voxels {
+        None => CellSize::Auto { sigma_t },
         Some(_) if kind == MajorantKind::Global => {
             return err(join(path, "majorant_cell_voxels"), "only applies with majorant = \"grid\"");
         }
-        Some(n) if (1..=4096).contains(&n) => n as usize,
+        Some(n) if (1..=4096).contains(&n) => CellSize::Voxels(n as usize),
         Some(n) => {
             return err(
                 join(path, "majorant_cell_voxels"),
@@ -2323,7 +2330,7 @@ pub fn resolve_majorant(path: &str, kind: Option<MajorantSection>, cell_voxels: 
             );
         }
     };
-    Ok(MajorantSpec { kind, cell_voxels })
+    Ok(MajorantSpec { kind, cell })
 }
 
 /// The medium fields of a voxel-grid density: the hook the file loaders call (`path` is the key
@@ -2371,7 +2378,7 @@ pub fn grid_heterogeneity(
         interpolation: Some(interpolation),
         majorant: Some(majorant.kind),
         majorant_cells: grid.majorant.as_ref().map(|m| m.dims),
-        majorant_cell_voxels: grid.majorant.as_ref().map(|_| majorant.cell_voxels),
+        majorant_cell_voxels: grid.majorant_cell_voxels(),
         voxels: Some(voxels),
         negative_voxels_clamped: clamped,
         min: grid.min,

@@ -57,11 +57,38 @@ pub enum MajorantKind {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MajorantSpec {
     pub kind: MajorantKind,
-    /// Edge of a majorant cell in voxels (≥ 1).
-    pub cell_voxels: usize,
+    /// Edge of a majorant cell.
+    pub cell: CellSize,
 }
 
-/// Default edge of a majorant cell, in voxels. Measured on the sparse-vessel scenes
+/// The edge of a majorant cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CellSize {
+    /// A fixed number of voxels (≥ 1).
+    Voxels(usize),
+    /// The cheapest of [`DEFAULT_CELL_VOXELS`] and its power-of-two multiples, up to one cell over
+    /// the whole grid, for a medium of extinction `sigma_t` (1/m) at density 1: see
+    /// [`STEP_COST`].
+    Auto { sigma_t: f64 },
+}
+
+/// The cost of one DDA step (crossing into the next majorant cell, the segment handed to the
+/// tracker) in units of one tentative collision (a density lookup and two draws). Callgrind on
+/// the 64³ random-density grid of `validation/peers/` (1 MB, in cache) counts about 130 against
+/// 295 instructions, 0.45; but a lookup in a larger grid also misses the cache, and on the
+/// sparse vessels of `validation/vdb/vessels_bench.toml` (2.2 MB of voxels, beside its tissue
+/// layers) 4-voxel cells beat 8-voxel ones by 13 % in wall time (1.41–1.46 against
+/// 1.26–1.27 paths/µs, 3 runs each), which needs a ratio below 0.35. Hence 0.3.
+///
+/// The automatic cell size ([`CellSize::Auto`]) minimises the expected cost per unit length of
+/// a ray inside the grid, `STEP_COST · Σ_a ⟨|d_a|⟩/h_a + σt · ⟨max⟩`, with ⟨|d_a|⟩ = ½ for
+/// isotropic directions, `h_a` the cell edges and ⟨max⟩ the mean over cells of their upper
+/// density bound: small cells keep the majorant tight where the density varies (sparse
+/// vessels: 4 voxels), large ones save steps where it does not (a dense random grid, whose
+/// every cell reaches nearly the global maximum: one cell).
+pub const STEP_COST: f64 = 0.3;
+
+/// Default edge of a majorant cell, in voxels, and the finest that [`CellSize::Auto`] considers. Measured on the sparse-vessel scenes
 /// (`benches/grid.rs`, a 128³ grid: 4 voxels 1.26 s, 8 voxels 1.33 s, 16 voxels 1.44 s;
 /// `validation/vdb/vessels_bench.toml`, three runs each: 2 voxels 0.50–0.52 s, 4 voxels
 /// 0.48–0.50 s, 8 voxels 0.55–0.57 s, 16 voxels 0.79–0.80 s, global 1.65–1.68 s). A cell holds 8 bytes (min and max as f32): 4-voxel
@@ -70,7 +97,7 @@ pub const DEFAULT_CELL_VOXELS: usize = 4;
 
 impl Default for MajorantSpec {
     fn default() -> Self {
-        MajorantSpec { kind: MajorantKind::Grid, cell_voxels: DEFAULT_CELL_VOXELS }
+        MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(DEFAULT_CELL_VOXELS) }
     }
 }
 
@@ -402,8 +429,10 @@ impl GridDensity {
         if !(placement.scale.is_finite() && placement.scale > 0.0 && placement.translation.is_finite()) {
             return Err(GridError::Placement);
         }
-        if !(1..=4096).contains(&spec.cell_voxels) {
-            return Err(GridError::CellVoxels(spec.cell_voxels));
+        if let CellSize::Voxels(n) = spec.cell
+            && !(1..=4096).contains(&n)
+        {
+            return Err(GridError::CellVoxels(n));
         }
         if !grid.background.is_finite() {
             return Err(GridError::NotFinite(None));
@@ -431,7 +460,7 @@ impl GridDensity {
         let field = GridField::new(Arc::new(grid), interpolation, placement);
         let majorant = match spec.kind {
             MajorantKind::Global => None,
-            MajorantKind::Grid => Some(Self::majorant_grid(&field, spec.cell_voxels)),
+            MajorantKind::Grid => Some(Self::majorant_grid(&field, spec.cell)),
         };
         Ok((GridDensity { field, majorant, min: f64::from(min), max: f64::from(max) }, clamped))
     }
@@ -441,7 +470,7 @@ impl GridDensity {
     /// is a convex combination of its eight corners, so the bounds of the voxel points
     /// `lo + c·n ..= lo + (c + 1)·n` bound every lookup in the cell, and nearest lookup reads one
     /// of those points too.
-    fn majorant_grid(field: &GridField, n: usize) -> MajorantGrid {
+    fn majorant_grid(field: &GridField, size: CellSize) -> MajorantGrid {
         let g = &*field.grid;
         let bg = f64::from(g.background);
         let Some((lo, hi)) = g.index_bounds() else {
@@ -455,10 +484,50 @@ impl GridDensity {
         };
         let lo = [i64::from(lo[0]) - 1, i64::from(lo[1]) - 1, i64::from(lo[2]) - 1];
         let hi = [i64::from(hi[0]) + 1, i64::from(hi[1]) + 1, i64::from(hi[2]) + 1];
+        let n = match size {
+            CellSize::Voxels(n) => n,
+            CellSize::Auto { .. } => DEFAULT_CELL_VOXELS,
+        };
         let cells = std::array::from_fn(|a| ((hi[a] - lo[a]) as usize).div_ceil(n).max(1));
         let bounds = cell_bounds(lo, n, cells, |i, j, k| g.get([i as i32, j as i32, k as i32]));
         let origin = field.to_world(DVec3::new(lo[0] as f64, lo[1] as f64, lo[2] as f64));
-        MajorantGrid { origin, cell: field.scale * n as f64, dims: cells, bounds, outside: bg }
+        let mut best = MajorantGrid { origin, cell: field.scale * n as f64, dims: cells, bounds, outside: bg };
+        let CellSize::Auto { sigma_t } = size else { return best };
+        // Coarsen by halving until one cell is left; keep the cheapest. A parent's bounds are its
+        // (up to eight) children's: their voxel points are the parent's, shared planes included,
+        // and a child missing past the block's end would only have held the background, which
+        // the padded edge cells already hold.
+        // ⟨max⟩ is over the padded block: a coarse cell reaching past it counts for the part
+        // inside, where rays through the grid run.
+        let extent: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
+        let cost = |m: &MajorantGrid, n: usize| {
+            let steps: f64 = (0..3).map(|a| 0.5 / m.cell[a]).sum();
+            let inside = |a: usize, c: usize| ((c + 1) * n).min(extent[a]).saturating_sub(c * n) as f64;
+            let [nx, ny, _] = m.dims;
+            let mean_max = m
+                .bounds
+                .iter()
+                .enumerate()
+                .map(|(i, b)| f64::from(b.1) * inside(0, i % nx) * inside(1, (i / nx) % ny) * inside(2, i / (nx * ny)))
+                .sum::<f64>()
+                / (extent[0] * extent[1] * extent[2]) as f64;
+            STEP_COST * steps + sigma_t * mean_max
+        };
+        let (mut level, mut n) = (best.clone(), DEFAULT_CELL_VOXELS);
+        let mut best_cost = cost(&best, n);
+        while level.dims != [1, 1, 1] {
+            (level, n) = (level.coarsened(), 2 * n);
+            let c = cost(&level, n);
+            if c < best_cost {
+                (best, best_cost) = (level.clone(), c);
+            }
+        }
+        best
+    }
+
+    /// The edge of a majorant cell in voxels (`None` for a global majorant).
+    pub fn majorant_cell_voxels(&self) -> Option<usize> {
+        self.majorant.as_ref().map(|m| (m.cell.x / self.field.scale.x).round() as usize)
     }
 }
 
@@ -646,7 +715,12 @@ mod tests {
             let bg = if case % 3 == 0 { 0.5 } else { 0.0 };
             let g = random_grid(&mut r, dims, bg);
             let interp = if case % 2 == 0 { Interpolation::Trilinear } else { Interpolation::Nearest };
-            let spec = MajorantSpec { kind: MajorantKind::Grid, cell_voxels: 1 + case % 5 };
+            // Every fourth case an automatic cell (coarsened bounds), from fine to one cell.
+            let cell = match case % 4 {
+                3 => CellSize::Auto { sigma_t: [0.0, 0.3, 3.0, 30.0, 300.0, 3000.0][case / 4] },
+                _ => CellSize::Voxels(1 + case % 5),
+            };
+            let spec = MajorantSpec { kind: MajorantKind::Grid, cell };
             let place = Placement { translation: DVec3::new(0.05, -0.02, 0.3), scale: 1.5 };
             let (d, _) = GridDensity::new(g, interp, place, spec).unwrap();
             let m = d.majorant.as_ref().unwrap();
@@ -678,6 +752,30 @@ mod tests {
             }
         }
         assert!(checked > 100_000, "{checked}");
+    }
+
+    /// The automatic majorant cell: one cell over a dense random grid (every cell reaches nearly
+    /// the maximum, so steps are pure cost), 4 voxels over a sparse grid when collisions are
+    /// frequent (σt ≫ 1/voxel), coarser when they are rare.
+    #[test]
+    fn automatic_cell_size_follows_the_cost_model() {
+        let mut r = PathRng::new(13, Purpose::Test, 0, 0);
+        let t = IndexTransform { voxel_size: DVec3::splat(1e-5), translation: DVec3::ZERO };
+        let mut dense = VoxelGrid::new([0, 0, 0], [32, 32, 32], 0.0f32, t);
+        let mut sparse = dense.clone();
+        for (d, s) in dense.data.iter_mut().zip(sparse.data.iter_mut()) {
+            *d = (0.5 + 0.5 * r.uniform()) as f32;
+            *s = if r.uniform() < 0.002 { 10.0 } else { 0.0 };
+        }
+        let cells = |g: &VoxelGrid<f32>, sigma_t: f64| {
+            let spec = MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Auto { sigma_t } };
+            let (d, _) = GridDensity::new(g.clone(), Interpolation::Trilinear, Placement::default(), spec).unwrap();
+            (d.majorant_cell_voxels(), d.majorant.unwrap().dims)
+        };
+        // Per voxel: σt = 1e5 /m is one collision per voxel at density 1.
+        assert_eq!(cells(&dense, 1e5), (Some(64), [1, 1, 1]));
+        assert_eq!(cells(&sparse, 1e5), (Some(4), [9, 9, 9]));
+        assert_eq!(cells(&sparse, 1.0), (Some(64), [1, 1, 1]));
     }
 
     #[test]

@@ -55,6 +55,23 @@ impl MajorantGrid {
         (f64::from(lo), f64::from(hi))
     }
 
+    /// The grid of cells twice as large per axis (the last one per axis possibly covering past
+    /// the box: it holds the bounds of the children that exist).
+    pub fn coarsened(&self) -> MajorantGrid {
+        let dims = self.dims.map(|d| d.div_ceil(2));
+        let mut bounds = vec![(f32::INFINITY, f32::NEG_INFINITY); dims[0] * dims[1] * dims[2]];
+        for z in 0..self.dims[2] {
+            for y in 0..self.dims[1] {
+                for x in 0..self.dims[0] {
+                    let (lo, hi) = self.bounds[(z * self.dims[1] + y) * self.dims[0] + x];
+                    let p = &mut bounds[((z / 2) * dims[1] + y / 2) * dims[0] + x / 2];
+                    *p = (p.0.min(lo), p.1.max(hi));
+                }
+            }
+        }
+        MajorantGrid { origin: self.origin, cell: self.cell * 2.0, dims, bounds, outside: self.outside }
+    }
+
     /// The majorant segments of `pos + t·dir` (any non-zero `dir`) over `[t0, t1]`: consecutive,
     /// in order, each ending exactly where the next begins, the first starting at `t0` and the
     /// last ending at `t1` (empty when `t1 ≤ t0`).
