@@ -25,36 +25,16 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run an experiment and write its outputs (the built-in default experiment without CONFIG).
-    Run {
-        /// Experiment file (TOML). Omit to run the built-in default (configs/default.toml).
-        config: Option<PathBuf>,
-        /// Output directory [default: out/<config name>].
+    Run(RunArgs),
+    /// Merge the shards of one run (`ohd run --shard I/N --out DIR`, every I) into the outputs
+    /// of the whole run, identical to a single `ohd run` (the manifest's timings aside).
+    Merge {
+        /// The shards' output directories (each holding a shard.ohd), in any order.
+        #[arg(required = true, value_name = "DIR")]
+        dirs: Vec<PathBuf>,
+        /// Output directory of the merged run.
         #[arg(long)]
-        out: Option<PathBuf>,
-        /// Number of paths (same as --set run.samples=N).
-        #[arg(long)]
-        samples: Option<u64>,
-        #[command(flatten)]
-        overrides: Overrides,
-        /// Run until the main output's estimated relative error is at most E (e.g. 0.01): whole
-        /// rounds of run.samples paths are added, the number of rounds extrapolated from 1/√paths.
-        #[arg(long, value_name = "E", allow_negative_numbers = true)]
-        target_error: Option<f64>,
-        /// With --target-error: stop at this many paths even if the target is not met
-        /// [default: 1000 × run.samples].
-        #[arg(long, requires = "target_error")]
-        max_samples: Option<u64>,
-        /// Save the run's state to OUT/checkpoint.ohd every S seconds (atomically), so that
-        /// `--resume` can finish it after the process dies. Removed when the run completes.
-        #[arg(long, value_name = "S", allow_negative_numbers = true)]
-        checkpoint_seconds: Option<f64>,
-        /// Continue the run from OUT/checkpoint.ohd (same config and --set; any --threads): the
-        /// result equals an uninterrupted run's.
-        #[arg(long)]
-        resume: bool,
-        /// No progress bar.
-        #[arg(long, short)]
-        quiet: bool,
+        out: PathBuf,
     },
     /// Error against run time: run a ladder of sample counts (independent seeds), measure every
     /// output's error against a reference, and write converge.csv, converge.json, converge.png.
@@ -97,6 +77,55 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+}
+
+/// The arguments of `ohd run`.
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Experiment file (TOML). Omit to run the built-in default (configs/default.toml).
+    config: Option<PathBuf>,
+    /// Output directory [default: out/<config name>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Number of paths (same as --set run.samples=N).
+    #[arg(long)]
+    samples: Option<u64>,
+    #[command(flatten)]
+    overrides: Overrides,
+    /// Run until the main output's estimated relative error is at most E (e.g. 0.01): whole
+    /// rounds of run.samples paths are added, the number of rounds extrapolated from 1/√paths.
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
+    target_error: Option<f64>,
+    /// With --target-error: stop at this many paths even if the target is not met
+    /// [default: 1000 × run.samples].
+    #[arg(long, requires = "target_error")]
+    max_samples: Option<u64>,
+    /// Save the run's state to OUT/checkpoint.ohd every S seconds (atomically), so that
+    /// `--resume` can finish it after the process dies. Removed when the run completes.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    checkpoint_seconds: Option<f64>,
+    /// Continue the run from OUT/checkpoint.ohd (same config and --set; any --threads): the
+    /// result equals an uninterrupted run's.
+    #[arg(long)]
+    resume: bool,
+    /// Run only part I (from 0) of N of the run's batches and write them to OUT/shard.ohd, for
+    /// `ohd merge` (N at most run.batches; every part with the same config, --set, seed and
+    /// samples). See validation/slurm/ for a Slurm job array.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard, conflicts_with_all = ["target_error", "checkpoint_seconds", "resume"])]
+    shard: Option<(u64, u64)>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// `I/N` with 0 ≤ I < N.
+fn parse_shard(s: &str) -> Result<(u64, u64), String> {
+    let parsed =
+        s.split_once('/').and_then(|(i, n)| Some((i.trim().parse::<u64>().ok()?, n.trim().parse::<u64>().ok()?)));
+    match parsed {
+        Some((i, n)) if i < n => Ok((i, n)),
+        _ => Err(format!("expected I/N with 0 ≤ I < N (part I, from 0, of N), e.g. 3/8; got {s:?}")),
+    }
 }
 
 /// The run plan and configuration overrides shared by `run` and `converge`.
@@ -249,10 +278,26 @@ fn read_config(config: Option<&Path>) -> Result<(String, String, String), Error>
     }
 }
 
-fn load(config: Option<&Path>, sets: &[String]) -> Result<(toml::Table, Experiment, String, String), Error> {
+/// A configuration read and resolved.
+struct Loaded {
+    /// Its text, where it came from (for the manifest), and a name for default output paths.
+    text: String,
+    origin: String,
+    stem: String,
+    /// The file's absolute path (relative media paths resolve against it), else `origin`.
+    source_path: String,
+    table: toml::Table,
+    exp: Experiment,
+}
+
+fn load(config: Option<&Path>, sets: &[String]) -> Result<Loaded, Error> {
     let (text, origin, stem) = read_config(config)?;
     let (table, exp) = ohd::config::load(&text, &origin, sets)?;
-    Ok((table, exp, origin, stem))
+    let source_path = match config.map(std::fs::canonicalize) {
+        Some(Ok(p)) => p.display().to_string(),
+        _ => origin.clone(),
+    };
+    Ok(Loaded { text, origin, stem, source_path, table, exp })
 }
 
 /// The progress bar: paths, the main output's running relative error (and the target), ETA.
@@ -319,55 +364,133 @@ pub fn main() -> ExitCode {
             }
         }
         Command::Check { config, set } => match load(config.as_deref(), &set) {
-            Ok((_, exp, origin, _)) => {
-                print!("{}", describe(&exp, &origin));
+            Ok(l) => {
+                print!("{}", describe(&l.exp, &l.origin));
                 ExitCode::SUCCESS
             }
             Err(e) => fail(&e),
         },
-        Command::Run {
-            config,
-            out,
-            samples,
-            overrides,
-            target_error,
-            max_samples,
-            checkpoint_seconds,
-            resume,
-            quiet,
-        } => {
-            let set = overrides.sets(samples);
-            let (table, exp, origin, stem) = match load(config.as_deref(), &set) {
-                Ok(x) => x,
-                Err(e) => return fail(&e),
-            };
-            let target = match target_error.map(|e| target(&exp, e, max_samples)).transpose() {
-                Ok(t) => t,
-                Err(e) => return fail(&e),
-            };
-            let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
-            let inv = Invocation { config_source: origin, overrides: set };
-            if let Some(s) = checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
-                return fail(&Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
-            }
-            if (checkpoint_seconds.is_some() || resume) && exp.source.pointings.len() > 1 {
-                return fail(&Error::Input(
-                    "--checkpoint-seconds and --resume: not yet for scans (run one pointing with --set source.pointings=…)"
-                        .into(),
-                ));
-            }
-            let opts = RunOptions { target: target.as_ref(), checkpoint_seconds, resume, quiet };
-            let result = if exp.source.pointings.len() > 1 {
-                run_scan(&exp, &dir, &table, &inv, &opts)
-            } else {
-                run_one(&exp, &dir, &table, &inv, &opts).map(|_| ())
-            };
-            match result {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => fail(&e),
-            }
-        }
+        Command::Run(a) => match run(a) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => fail(&e),
+        },
+        Command::Merge { dirs, out } => match merge(&dirs, &out) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => fail(&e),
+        },
     }
+}
+
+/// `ohd run`: one experiment, a scan of pointings, or one shard of an experiment.
+fn run(a: RunArgs) -> Result<(), Error> {
+    let set = a.overrides.sets(a.samples);
+    let loaded = load(a.config.as_deref(), &set)?;
+    let exp = &loaded.exp;
+    let target = a.target_error.map(|e| target(exp, e, a.max_samples)).transpose()?;
+    let dir = a.out.unwrap_or_else(|| PathBuf::from("out").join(&loaded.stem));
+    let inv = Invocation { config_source: loaded.origin.clone(), overrides: set };
+    if let Some(s) = a.checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+        return Err(Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
+    }
+    let scan = exp.source.pointings.len() > 1;
+    if scan && (a.checkpoint_seconds.is_some() || a.resume || a.shard.is_some()) {
+        return Err(Error::Input(
+            "--checkpoint-seconds, --resume and --shard: not yet for scans (run one pointing with --set source.pointings=…)"
+                .into(),
+        ));
+    }
+    if let Some((index, count)) = a.shard {
+        return run_shard(&loaded, &dir, &inv, index, count, a.quiet);
+    }
+    let opts = RunOptions {
+        target: target.as_ref(),
+        checkpoint_seconds: a.checkpoint_seconds,
+        resume: a.resume,
+        quiet: a.quiet,
+    };
+    if scan {
+        run_scan(exp, &dir, &loaded.table, &inv, &opts)
+    } else {
+        run_one(exp, &dir, &loaded.table, &inv, &opts).map(|_| ())
+    }
+}
+
+/// `ohd run --shard I/N`: run part `index` of `count` of the batches into `dir/shard.ohd`.
+fn run_shard(loaded: &Loaded, dir: &Path, inv: &Invocation, index: u64, count: u64, quiet: bool) -> Result<(), Error> {
+    use ohd::io::shard::{FILE_NAME, ShardHeader, ShardTrailer, ShardWriter};
+    let exp = &loaded.exp;
+    if count > exp.plan.batches {
+        return Err(Error::Input(format!(
+            "--shard {index}/{count}: expected at most run.batches = {} parts (raise run.batches, 16 to 65536, for more)",
+            exp.plan.batches
+        )));
+    }
+    let range = exp.shard_batches(index, count);
+    let header = ShardHeader {
+        fingerprint: ohd::io::checkpoint::config_fingerprint(&loaded.table),
+        index,
+        count,
+        first: range.start,
+        last: range.end,
+        batches: exp.plan.batches,
+        paths_per_batch: exp.plan.paths_per_batch,
+        tallies: exp.tally_layout().len as u64,
+        config_text: loaded.text.clone(),
+        config_source: loaded.source_path.clone(),
+        // Results do not depend on the thread count: the merged run does not record one shard's.
+        overrides: inv.overrides.iter().filter(|s| !s.starts_with("run.threads=")).cloned().collect(),
+    };
+    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+    let path = dir.join(FILE_NAME);
+    let start = std::time::Instant::now();
+    let mut writer = ShardWriter::create(&path, &header)?;
+    let mut trailer = ShardTrailer { threads: exp.plan.effective_threads() as u64, ..Default::default() };
+    let mut sink = |sums: &[f64], stats: ohd::stats::RunStats, lines: Vec<ohd::detect::RecordedLine>| {
+        trailer.stats.merge(&stats);
+        trailer.lines.extend(lines);
+        writer.batch(sums)
+    };
+    let paths = (range.end - range.start) * exp.plan.paths_per_batch;
+    match progress_bar(quiet, paths, None) {
+        Some(bar) => {
+            let r = exp.run_batches(range.clone(), &bar, &mut sink);
+            bar.bar.finish_and_clear();
+            r?
+        }
+        None => exp.run_batches(range.clone(), &ohd::experiment::Silent, &mut sink)?,
+    }
+    trailer.seconds = start.elapsed().as_secs_f64();
+    let seconds = trailer.seconds;
+    writer.finish(&trailer)?;
+    eprintln!(
+        "ohd: shard {index}/{count}: batches {}..{} of {}, {paths} paths in {seconds:.2} s → {}",
+        range.start,
+        range.end,
+        exp.plan.batches,
+        path.display()
+    );
+    Ok(())
+}
+
+/// `ohd merge DIR... --out OUT`: the shards of one run folded into its outputs.
+fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), Error> {
+    use ohd::io::shard::{FILE_NAME, ShardReader, check_set};
+    let shards = dirs.iter().map(|d| ShardReader::open(&d.join(FILE_NAME))).collect::<Result<Vec<_>, _>>()?;
+    let shards = check_set(shards)?;
+    let h = shards[0].header.clone();
+    let (table, exp) = ohd::config::load(&h.config_text, &h.config_source, &h.overrides)?;
+    if ohd::io::checkpoint::config_fingerprint(&table) != h.fingerprint {
+        return Err(Error::invalid_file(
+            &shards[0].path,
+            "its configuration no longer resolves to the run it records (was ohd or a file it reads changed?)",
+        ));
+    }
+    let output = ohd::io::shard::merge(&exp, shards)?;
+    let inv = Invocation { config_source: h.config_source, overrides: h.overrides };
+    let manifest = write_run(out, &exp, &output, &table, &inv)?;
+    eprintln!("ohd: merged {} shards ({} batches) → {}", h.count, output.batches, out.display());
+    report(&exp, &output, &manifest);
+    Ok(())
 }
 
 /// The stopping rule of `--target-error E` (with `--max-samples`), checked.
@@ -421,7 +544,7 @@ fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(
     if !(2..=24).contains(&a.rungs) {
         return Err(Error::Input(format!("--rungs {}: expected 2 to 24 rungs", a.rungs)));
     }
-    let (_, mut exp, origin, stem) = load(config, sets)?;
+    let Loaded { mut exp, origin, stem, .. } = load(config, sets)?;
     if let Some(n) = a.samples
         && n < exp.plan.batches << (a.rungs - 1)
     {
@@ -502,16 +625,6 @@ impl ohd::experiment::Checkpoint for FileCheckpoint {
     }
 }
 
-/// The fingerprint of the configuration as run, without `run.threads` (results do not depend
-/// on it, so a run may resume on another thread count).
-fn config_fingerprint(table: &toml::Table) -> u64 {
-    let mut t = table.clone();
-    if let Some(toml::Value::Table(run)) = t.get_mut("run") {
-        run.remove("threads");
-    }
-    ohd::io::checkpoint::fingerprint(&toml::to_string(&t).unwrap_or_default())
-}
-
 /// Run `exp` (to a target error, with checkpoints, resumed: `opts`), write its outputs into `dir`
 /// and report on stderr.
 fn run_one(
@@ -522,7 +635,7 @@ fn run_one(
     opts: &RunOptions,
 ) -> Result<ohd::experiment::RunOutput, Error> {
     let path = dir.join("checkpoint.ohd");
-    let fingerprint = config_fingerprint(table);
+    let fingerprint = ohd::io::checkpoint::config_fingerprint(table);
     let resume = if opts.resume {
         let state = ohd::io::checkpoint::read(&path, fingerprint, exp.tally_layout().len)?;
         eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
@@ -557,7 +670,6 @@ fn run_one(
         // The run is complete and written: its checkpoint has served.
         let _ = std::fs::remove_file(&path);
     }
-    let est = &manifest["estimates"];
     eprintln!(
         "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
         output.samples(),
@@ -565,6 +677,14 @@ fn run_one(
         output.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
         dir.display()
     );
+    report(exp, &output, &manifest);
+    Ok(output)
+}
+
+/// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
+/// written run, on stderr.
+fn report(exp: &Experiment, output: &ohd::experiment::RunOutput, manifest: &serde_json::Value) {
+    let est = &manifest["estimates"];
     let (main, err) = &output.main_output;
     eprintln!("  main output {main}: relative error {:.4}%", 100.0 * err);
     if let Some(t) = &output.target {
@@ -605,7 +725,6 @@ fn run_one(
             eprintln!("  {}: FMCW {note}", d.name);
         }
     }
-    Ok(output)
 }
 
 /// A scan: one run per pointing into `dir/pointing_NN`, then the VAD wind per range gate.

@@ -150,8 +150,54 @@ pub trait Checkpoint: Sync {
     fn save(&self, state: &RunState) -> crate::error::Result<()>;
 }
 
+/// Takes each batch's tally sums, counters and recorded lines, in batch order
+/// ([`Experiment::run_batches`]).
+pub type BatchSink<'a> = dyn FnMut(&[f64], RunStats, Vec<RecordedLine>) -> crate::error::Result<()> + 'a;
+
 /// One batch's tally sums, counters and recorded lines.
 type BatchResult = (Vec<f64>, RunStats, Vec<RecordedLine>);
+
+/// Runs groups of batches on a thread pool, reusing their tally vectors: a large camera's
+/// (O(pixels × bins)) would otherwise be fresh pages, faulted in and zeroed by the kernel, every
+/// batch.
+struct BatchRunner<'a> {
+    exp: &'a Experiment,
+    /// `None` when a pool cannot be built (no threads available): the batches then run on this
+    /// thread, with the same numbers.
+    pool: Option<rayon::ThreadPool>,
+    layout: TallyLayout,
+    beat: BeatModel,
+    /// Batches run at a time: enough to keep every thread busy, few enough to bound memory.
+    in_flight: u64,
+    spare: Vec<Vec<f64>>,
+}
+
+impl<'a> BatchRunner<'a> {
+    fn new(exp: &'a Experiment) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(exp.plan.effective_threads()).build().ok();
+        let layout = exp.tally_layout();
+        let (beat, in_flight) = (exp.beat_model(), exp.batches_in_flight());
+        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new() }
+    }
+
+    /// Run the batches `range`, results in batch order.
+    fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress) -> Vec<BatchResult> {
+        let len = self.layout.len;
+        let jobs: Vec<(u64, Vec<f64>)> =
+            range.map(|b| (b, self.spare.pop().unwrap_or_else(|| vec![0.0; len]))).collect();
+        let (exp, layout, beat) = (self.exp, &self.layout, self.beat);
+        let work = |(b, sums): (u64, Vec<f64>)| exp.run_batch(b, sums, layout, beat, progress);
+        match &self.pool {
+            Some(pool) => pool.install(|| jobs.into_par_iter().map(work).collect()),
+            None => jobs.into_iter().map(work).collect(),
+        }
+    }
+
+    /// Give a batch's tally vector back for reuse.
+    fn recycle(&mut self, sums: Vec<f64>) {
+        self.spare.push(sums);
+    }
+}
 
 impl Experiment {
     pub fn beat_model(&self) -> BeatModel {
@@ -235,12 +281,10 @@ impl Experiment {
         checkpoint: Option<&dyn Checkpoint>,
     ) -> crate::error::Result<RunOutput> {
         let start = std::time::Instant::now();
-        let threads = self.plan.effective_threads();
-        let layout = self.tally_layout();
-        let beat = self.beat_model();
         let round = self.plan.batches;
+        let mut runner = BatchRunner::new(self);
         let state = resume.unwrap_or_else(|| RunState {
-            estimates: BatchAccumulator::new(layout.len),
+            estimates: BatchAccumulator::new(runner.layout.len),
             stats: RunStats::default(),
             lines: Vec::new(),
             next: 0,
@@ -251,11 +295,8 @@ impl Experiment {
         let RunState { mut estimates, mut stats, mut lines, next: mut first, mut end, mut err, elapsed } = state;
         progress.set_total(end * self.plan.paths_per_batch);
         progress.advance(first * self.plan.paths_per_batch);
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
-        let in_flight = self.batches_in_flight();
         let main = target.map_or_else(|| self.main_output(), |t| t.output.clone());
         let max_rounds = target.map_or(1, |t| (t.max_samples / self.plan.samples()).max(1));
-        let mut spare: Vec<Vec<f64>> = Vec::new();
         loop {
             if first == end {
                 let rounds = end / round;
@@ -267,22 +308,12 @@ impl Experiment {
                     _ => break,
                 }
             }
-            let last = (first + in_flight).min(end);
-            // Tally vectors are reused from batch to batch: a large camera's (O(pixels × bins))
-            // would otherwise be fresh pages, faulted in and zeroed by the kernel, every batch.
-            let jobs: Vec<(u64, Vec<f64>)> =
-                (first..last).map(|b| (b, spare.pop().unwrap_or_else(|| vec![0.0; layout.len]))).collect();
-            let work = |(b, sums): (u64, Vec<f64>)| self.run_batch(b, sums, &layout, beat, progress);
-            let results: Vec<BatchResult> = match &pool {
-                Ok(pool) => pool.install(|| jobs.into_par_iter().map(work).collect()),
-                // A pool that cannot be built (no threads available) still gives the same numbers.
-                Err(_) => jobs.into_iter().map(work).collect(),
-            };
-            for (sums, s, l) in results {
+            let last = (first + runner.in_flight).min(end);
+            for (sums, s, l) in runner.run(first..last, progress) {
                 estimates.push(&sums, self.plan.paths_per_batch);
                 stats.merge(&s);
                 lines.extend(l);
-                spare.push(sums);
+                runner.recycle(sums);
             }
             first = last;
             err = main.relative_error(&estimates);
@@ -296,15 +327,9 @@ impl Experiment {
             }
         }
         let wall_seconds = elapsed + start.elapsed().as_secs_f64();
-        let t = std::time::Instant::now();
-        let batches = end;
-        let samples = batches * self.plan.paths_per_batch;
-        let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
-            Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
-            None => Vec::new(),
-        };
-        let speckle_seconds = t.elapsed().as_secs_f64();
-        let target = target.map(|t| TargetOutcome {
+        let mut out = self.finish(estimates, stats, lines, wall_seconds);
+        out.main_output = (main.name, err);
+        out.target = target.map(|t| TargetOutcome {
             output: t.output.name.clone(),
             target: t.relative_error,
             reached: err,
@@ -312,12 +337,65 @@ impl Experiment {
             rounds: end / round,
             max_samples: max_rounds * self.plan.samples(),
         });
-        Ok(RunOutput {
-            layout,
-            beat,
+        Ok(out)
+    }
+
+    /// The batches of shard `index` of `count` (`index < count ≤ plan.batches`): the `index`-th
+    /// of `count` contiguous, nearly equal parts of `0..plan.batches`.
+    pub fn shard_batches(&self, index: u64, count: u64) -> std::ops::Range<u64> {
+        let part = |i: u64| (u128::from(i) * u128::from(self.plan.batches) / u128::from(count.max(1))) as u64;
+        part(index)..part(index + 1)
+    }
+
+    /// Run the batches `range` (once each, in parallel) and hand each one's tally sums, counters
+    /// and recorded lines to `sink` in batch order: the pieces of a run that other processes run
+    /// the rest of (`ohd run --shard`). Stops at the first error of `sink`.
+    pub fn run_batches(
+        &self,
+        range: std::ops::Range<u64>,
+        progress: &dyn Progress,
+        sink: &mut BatchSink,
+    ) -> crate::error::Result<()> {
+        let mut runner = BatchRunner::new(self);
+        progress.set_total((range.end - range.start) * self.plan.paths_per_batch);
+        let mut first = range.start;
+        while first < range.end {
+            let last = (first + runner.in_flight).min(range.end);
+            for (sums, s, l) in runner.run(first..last, progress) {
+                sink(&sums, s, l)?;
+                runner.recycle(sums);
+            }
+            first = last;
+        }
+        Ok(())
+    }
+
+    /// The output of a run whose batches (`estimates.batches()` of them) were folded into
+    /// `estimates` in batch order, with its counters and recorded lines: the speckle synthesised
+    /// and the main output's error read off. `threads` is the plan's.
+    pub fn finish(
+        &self,
+        estimates: BatchAccumulator,
+        stats: RunStats,
+        lines: Vec<RecordedLine>,
+        wall_seconds: f64,
+    ) -> RunOutput {
+        let batches = estimates.batches() as u64;
+        let samples = batches * self.plan.paths_per_batch;
+        let t = std::time::Instant::now();
+        let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
+            Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
+            None => Vec::new(),
+        };
+        let speckle_seconds = t.elapsed().as_secs_f64();
+        let main = self.main_output();
+        let err = main.relative_error(&estimates);
+        RunOutput {
+            layout: self.tally_layout(),
+            beat: self.beat_model(),
             estimates,
             stats,
-            threads,
+            threads: self.plan.effective_threads(),
             wall_seconds,
             lines,
             speckle,
@@ -325,8 +403,8 @@ impl Experiment {
             batches,
             paths_per_batch: self.plan.paths_per_batch,
             main_output: (main.name, err),
-            target,
-        })
+            target: None,
+        }
     }
 
     /// Run batch `batch` into `sums` (any contents: it is zeroed first).

@@ -501,3 +501,98 @@ fn resume_after_sigkill_equals_an_uninterrupted_run() {
     assert_eq!(o.status.code(), Some(2), "no checkpoint left: {}", describe(&o));
     assert!(text(&o.stderr).contains("checkpoint.ohd"), "{}", describe(&o));
 }
+
+/// Every data file of run directory `a` (all but the manifest) is byte-identical in `b`, and the
+/// manifests hold the same estimates and statistics of the run; returns the number of files.
+fn assert_same_run(a: &Path, b: &Path) -> usize {
+    let mut files = 0;
+    for e in std::fs::read_dir(a).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_name().unwrap().to_owned();
+        if name != "manifest.json" {
+            assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(b.join(&name)).unwrap(), "{name:?} differs");
+            files += 1;
+        }
+    }
+    let (ma, mb) = (read_manifest(a), read_manifest(b));
+    assert_eq!(ma["estimates"], mb["estimates"]);
+    for k in ["paths", "scattering_events", "null_collisions", "roulette_terminations", "truncated_paths"] {
+        assert_eq!(ma["statistics"][k], mb["statistics"][k], "statistics.{k}");
+    }
+    files
+}
+
+/// `ohd run --shard I/N` on every part (any thread counts) and `ohd merge` (shards in any
+/// order) give a single run's outputs byte for byte: the vessel camera's spectra and image, and
+/// the retina LDH camera's M0± images and ROI speckle, which needs every recorded line in batch
+/// order. Mismatched, missing, repeated and truncated shards are refused (exit 2, nothing written).
+#[test]
+fn shards_merge_into_a_single_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let retina = repo().join("configs/retina_ldh.toml");
+    for (case, config, samples, count) in [("vessel", None, "400000", 3u64), ("retina", Some(&retina), "200000", 5)] {
+        let base = |dir: &Path| -> Vec<String> {
+            let mut a: Vec<String> = vec!["run".into()];
+            a.extend(config.map(|c| path_str(c).to_string()));
+            a.extend(["--samples", samples, "--seed", "21", "-q", "--out", path_str(dir)].map(String::from));
+            a
+        };
+        let run = |args: &[String]| ohd(tmp.path(), &args.iter().map(String::as_str).collect::<Vec<_>>());
+        let whole = tmp.path().join(format!("{case}_whole"));
+        let o = run(&base(&whole));
+        assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+        let shard_dir = |i: u64| tmp.path().join(format!("{case}_shard{i}"));
+        for i in 0..count {
+            let mut a = base(&shard_dir(i));
+            a.extend(["--shard".into(), format!("{i}/{count}"), "--threads".into(), (1 + i % 2).to_string()]);
+            let o = run(&a);
+            assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+            let files: Vec<_> = std::fs::read_dir(shard_dir(i)).unwrap().map(|e| e.unwrap().file_name()).collect();
+            assert_eq!(files, ["shard.ohd"], "a shard writes its part only");
+        }
+        let merged = tmp.path().join(format!("{case}_merged"));
+        let mut a = vec!["merge".to_string()];
+        a.extend((0..count).rev().map(|i| path_str(&shard_dir(i)).to_string()));
+        a.extend(["--out".into(), path_str(&merged).into()]);
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+        let files = assert_same_run(&whole, &merged);
+        assert!(files >= if case == "retina" { 40 } else { 10 }, "{case}: {files} files compared");
+        assert_eq!(read_manifest(&merged)["samples"], read_manifest(&whole)["samples"]);
+    }
+    // Refusals, naming what is wrong; none writes the merged directory.
+    let (d0, d1, d2) =
+        (tmp.path().join("vessel_shard0"), tmp.path().join("vessel_shard1"), tmp.path().join("vessel_shard2"));
+    let other = tmp.path().join("other_seed");
+    let o = ohd(
+        tmp.path(),
+        &["run", "--samples", "400000", "--seed", "22", "-q", "--shard", "1/3", "--out", path_str(&other)],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let bad = tmp.path().join("bad");
+    let cut = tmp.path().join("cut");
+    std::fs::create_dir(&cut).unwrap();
+    let bytes = std::fs::read(d1.join("shard.ohd")).unwrap();
+    std::fs::write(cut.join("shard.ohd"), &bytes[..bytes.len() / 2]).unwrap();
+    for (dirs, expect) in [
+        (vec![&d0, &d1], "2 of 3 missing"),
+        (vec![&d0, &d1, &d1, &d2], "given twice"),
+        (vec![&d0, &other, &d2], "different run"),
+        (vec![&d0, &cut, &d2], "truncated"),
+        (vec![&d0, &bad, &d2], "bad/shard.ohd"),
+    ] {
+        let mut a = vec!["merge"];
+        a.extend(dirs.iter().map(|d| path_str(d)));
+        a.extend(["--out", path_str(&bad)]);
+        let o = ohd(tmp.path(), &a);
+        assert_eq!(o.status.code(), Some(2), "{expect}: {}", describe(&o));
+        assert!(text(&o.stderr).contains(expect), "expected {expect:?}: {}", describe(&o));
+        assert!(!bad.exists(), "{expect}: a refused merge wrote output");
+    }
+    for (shard, expect) in [("3/3", "0 ≤ I < N"), ("0/40", "run.batches = 32"), ("a/b", "I/N")] {
+        let o = ohd(tmp.path(), &["run", "-q", "--shard", shard, "--out", path_str(&bad)]);
+        assert_eq!(o.status.code(), Some(2), "--shard {shard}: {}", describe(&o));
+        assert!(text(&o.stderr).contains(expect), "--shard {shard}: {}", describe(&o));
+        assert!(!bad.exists());
+    }
+}

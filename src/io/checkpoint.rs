@@ -10,10 +10,10 @@
 
 use std::path::Path;
 
-use crate::detect::ldh::RecordedLine;
+use super::binary::{Reader, Writer};
 use crate::error::{Error, Result};
 use crate::experiment::RunState;
-use crate::stats::{BatchAccumulator, RunStats};
+use crate::stats::BatchAccumulator;
 
 const MAGIC: &[u8; 8] = b"OHDCKPT\x01";
 
@@ -22,66 +22,29 @@ pub fn fingerprint(text: &str) -> u64 {
     text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
+/// The fingerprint of the configuration as run, without `run.threads` (results do not depend
+/// on it, so a run may resume, or a shard run, on another thread count).
+pub fn config_fingerprint(table: &toml::Table) -> u64 {
+    let mut t = table.clone();
+    if let Some(toml::Value::Table(run)) = t.get_mut("run") {
+        run.remove("threads");
+    }
+    fingerprint(&toml::to_string(&t).unwrap_or_default())
+}
+
 /// The bytes of a checkpoint of `s` for the configuration with fingerprint `fp`.
 pub fn to_bytes(fp: u64, s: &RunState) -> Vec<u8> {
     let (batches, mean, m2) = s.estimates.parts();
-    let mut b = Vec::with_capacity(128 + 16 * mean.len() + 29 * s.lines.len());
-    b.extend_from_slice(MAGIC);
-    let st = &s.stats;
-    for v in [fp, s.next, s.end] {
-        b.extend_from_slice(&v.to_le_bytes());
-    }
-    for v in [s.err, s.elapsed] {
-        b.extend_from_slice(&v.to_le_bytes());
-    }
-    for v in [
-        st.paths,
-        st.scattering_events,
-        st.null_collisions,
-        st.roulette_terminations,
-        st.truncated_paths,
-        st.non_finite,
-        batches as u64,
-        mean.len() as u64,
-    ] {
-        b.extend_from_slice(&v.to_le_bytes());
-    }
-    for v in mean.iter().chain(m2) {
-        b.extend_from_slice(&v.to_le_bytes());
-    }
-    b.extend_from_slice(&(s.lines.len() as u64).to_le_bytes());
-    for l in &s.lines {
-        b.extend_from_slice(&l.roi.to_le_bytes());
-        b.push(l.class);
-        for v in [l.weight, l.frequency, l.gamma] {
-            b.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    b
-}
-
-/// A reader over the bytes of a checkpoint that fails (never panics) past the end.
-struct Reader<'a>(&'a [u8]);
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
-        let (head, rest) = self.0.split_at_checked(N)?;
-        self.0 = rest;
-        head.try_into().ok()
-    }
-    fn u64(&mut self) -> Option<u64> {
-        self.take::<8>().map(u64::from_le_bytes)
-    }
-    fn f64(&mut self) -> Option<f64> {
-        self.take::<8>().map(f64::from_le_bytes)
-    }
-    fn f64s(&mut self, n: u64) -> Option<Vec<f64>> {
-        // A count larger than the bytes left is corrupt: checked before allocating.
-        if n.checked_mul(8)? > self.0.len() as u64 {
-            return None;
-        }
-        (0..n).map(|_| self.f64()).collect()
-    }
+    let mut w = Writer(Vec::with_capacity(128 + 16 * mean.len() + 29 * s.lines.len()));
+    w.0.extend_from_slice(MAGIC);
+    w.u64s(&[fp, s.next, s.end]);
+    w.f64s(&[s.err, s.elapsed]);
+    w.stats(&s.stats);
+    w.u64s(&[batches as u64, mean.len() as u64]);
+    w.f64s(mean);
+    w.f64s(m2);
+    w.lines(&s.lines);
+    w.0
 }
 
 /// Parse a checkpoint: `(fingerprint, state)`, `None` if it is not a whole checkpoint.
@@ -89,29 +52,13 @@ pub fn from_bytes(bytes: &[u8]) -> Option<(u64, RunState)> {
     let mut r = Reader(bytes.strip_prefix(MAGIC.as_slice())?);
     let (fp, next, end) = (r.u64()?, r.u64()?, r.u64()?);
     let (err, elapsed) = (r.f64()?, r.f64()?);
-    let stats = RunStats {
-        paths: r.u64()?,
-        scattering_events: r.u64()?,
-        null_collisions: r.u64()?,
-        roulette_terminations: r.u64()?,
-        truncated_paths: r.u64()?,
-        non_finite: r.u64()?,
-    };
+    let stats = r.stats()?;
     let (batches, len) = (r.u64()?, r.u64()?);
     let mean = r.f64s(len)?;
     let m2 = r.f64s(len)?;
     let estimates = BatchAccumulator::from_parts(usize::try_from(batches).ok()?, mean, m2)?;
-    let n = r.u64()?;
-    if n.checked_mul(29)? > r.0.len() as u64 {
-        return None;
-    }
-    let mut lines = Vec::with_capacity(n as usize);
-    for _ in 0..n {
-        let roi = u32::from_le_bytes(r.take::<4>()?);
-        let class = r.take::<1>()?[0];
-        lines.push(RecordedLine { roi, class, weight: r.f64()?, frequency: r.f64()?, gamma: r.f64()? });
-    }
-    if !r.0.is_empty() || next > end {
+    let lines = r.lines()?;
+    if !r.is_empty() || next > end {
         return None;
     }
     Some((fp, RunState { estimates, stats, lines, next, end, err, elapsed }))
@@ -137,6 +84,8 @@ pub fn read(path: &Path, fp: u64, tallies: usize) -> Result<RunState> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::RecordedLine;
+    use crate::stats::RunStats;
 
     #[test]
     fn round_trip_and_corruption() {

@@ -1,6 +1,7 @@
 //! Output files: written atomically (a temporary file in the same directory, then a rename).
 //! Input: OpenVDB grids ([`vdb`]).
 
+mod binary;
 pub mod checkpoint;
 pub mod converge;
 pub mod fmcw;
@@ -11,6 +12,7 @@ pub mod npy;
 pub mod plot;
 pub mod png;
 pub mod scan;
+pub mod shard;
 pub mod table;
 pub mod vdb;
 
@@ -18,12 +20,18 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
+/// The temporary name `path` is written under before it is renamed into place: hidden, in the
+/// same directory (so the rename is atomic), and per process.
+pub(crate) fn temporary_path(path: &Path) -> PathBuf {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    dir.join(format!(".{name}.tmp-{}", std::process::id()))
+}
+
 /// Write `bytes` to `path` atomically: readers see the old file or the complete new one.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp: PathBuf = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = temporary_path(path);
     let werr = |source| Error::Write { path: path.to_path_buf(), source };
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;

@@ -1,0 +1,375 @@
+//! Shard files: `ohd run --shard I/N` runs the `I`-th of `N` contiguous parts of a run's batches
+//! ([`Experiment::shard_batches`]) and writes every batch's tally sums to `DIR/shard.ohd`;
+//! `ohd merge` folds the shards' batches in batch order, exactly as one process would have, so
+//! the merged outputs equal a single run's bit for bit. (Merging per-shard summaries instead
+//! would not: Welford's fold of batch means is sequential.)
+//!
+//! Layout (little-endian): `OHDSHRD` and a format byte; the header as a block (its length, u64,
+//! then: fingerprint, index, count, first and last batch, the run's batches, paths per batch,
+//! tallies (u64 each); the configuration's text, where it came from and the `--set` list (strings
+//! as length + UTF-8)); `(last − first) × tallies` f64 sums, batch by batch; the trailer as a
+//! block (the six run counters (u64), wall seconds (f64), threads (u64), the recorded LDH lines).
+//! The file is written to a temporary name and renamed when whole.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use super::binary::{Reader, Writer};
+use crate::detect::RecordedLine;
+use crate::error::{Error, Result};
+use crate::experiment::{Experiment, RunOutput};
+use crate::stats::{BatchAccumulator, RunStats};
+
+const MAGIC: &[u8; 8] = b"OHDSHRD\x01";
+
+/// The file a shard writes into its directory.
+pub const FILE_NAME: &str = "shard.ohd";
+
+/// Header blocks above this size are corrupt (it holds a configuration file's text).
+const MAX_HEADER: u64 = 1 << 30;
+
+/// Which part of which run a shard is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShardHeader {
+    /// Of the configuration as run, without `run.threads` ([`super::checkpoint::config_fingerprint`]).
+    pub fingerprint: u64,
+    /// This is part `index` of `count`, batches `first..last` of the run's `batches`.
+    pub index: u64,
+    pub count: u64,
+    pub first: u64,
+    pub last: u64,
+    pub batches: u64,
+    pub paths_per_batch: u64,
+    /// Tally sums per batch.
+    pub tallies: u64,
+    /// The configuration as given: its text, where it came from (a file's absolute path, which
+    /// relative media paths are resolved against) and the `--set` overrides.
+    pub config_text: String,
+    pub config_source: String,
+    pub overrides: Vec<String>,
+}
+
+/// What a shard ends with: its counters, recorded lines (in batch order), time and threads.
+#[derive(Debug, Clone, Default)]
+pub struct ShardTrailer {
+    pub stats: RunStats,
+    pub seconds: f64,
+    pub threads: u64,
+    pub lines: Vec<RecordedLine>,
+}
+
+/// A block: its length (u64), then its bytes.
+fn block(w: Writer) -> Vec<u8> {
+    let mut b = (w.0.len() as u64).to_le_bytes().to_vec();
+    b.extend(w.0);
+    b
+}
+
+fn header_bytes(h: &ShardHeader) -> Vec<u8> {
+    let mut w = Writer(Vec::new());
+    w.u64s(&[h.fingerprint, h.index, h.count, h.first, h.last, h.batches, h.paths_per_batch, h.tallies]);
+    w.str(&h.config_text);
+    w.str(&h.config_source);
+    w.u64s(&[h.overrides.len() as u64]);
+    h.overrides.iter().for_each(|s| w.str(s));
+    block(w)
+}
+
+fn parse_header(bytes: &[u8]) -> Option<ShardHeader> {
+    let mut r = Reader(bytes);
+    let mut n = [0u64; 8];
+    for v in &mut n {
+        *v = r.u64()?;
+    }
+    let [fingerprint, index, count, first, last, batches, paths_per_batch, tallies] = n;
+    let (config_text, config_source) = (r.str()?, r.str()?);
+    let k = r.u64()?;
+    let overrides = (0..k.min(bytes.len() as u64)).map(|_| r.str()).collect::<Option<Vec<_>>>()?;
+    let whole = r.is_empty() && overrides.len() as u64 == k && index < count && first < last && last <= batches;
+    whole.then_some(ShardHeader {
+        fingerprint,
+        index,
+        count,
+        first,
+        last,
+        batches,
+        paths_per_batch,
+        tallies,
+        config_text,
+        config_source,
+        overrides,
+    })
+}
+
+fn trailer_bytes(t: &ShardTrailer) -> Vec<u8> {
+    let mut w = Writer(Vec::new());
+    w.stats(&t.stats);
+    w.f64s(&[t.seconds]);
+    w.u64s(&[t.threads]);
+    w.lines(&t.lines);
+    block(w)
+}
+
+fn parse_trailer(bytes: &[u8]) -> Option<ShardTrailer> {
+    let mut r = Reader(bytes);
+    let t = ShardTrailer { stats: r.stats()?, seconds: r.f64()?, threads: r.u64()?, lines: r.lines()? };
+    r.is_empty().then_some(t)
+}
+
+/// Writes a shard file batch by batch (so a shard holds one batch's tallies in memory, not its
+/// part's), to a temporary name that [`finish`](Self::finish) renames; dropped unfinished, the
+/// temporary file is removed.
+pub struct ShardWriter {
+    file: BufWriter<File>,
+    tmp: PathBuf,
+    path: PathBuf,
+    finished: bool,
+}
+
+impl ShardWriter {
+    pub fn create(path: &Path, header: &ShardHeader) -> Result<Self> {
+        let tmp = super::temporary_path(path);
+        let werr = |source| Error::Write { path: path.to_path_buf(), source };
+        let file = File::create(&tmp).map_err(werr)?;
+        let mut w = ShardWriter { file: BufWriter::new(file), tmp, path: path.to_path_buf(), finished: false };
+        w.put(MAGIC)?;
+        w.put(&header_bytes(header))?;
+        Ok(w)
+    }
+
+    fn put(&mut self, bytes: &[u8]) -> Result<()> {
+        self.file.write_all(bytes).map_err(|source| Error::Write { path: self.path.clone(), source })
+    }
+
+    /// Append the next batch's tally sums.
+    pub fn batch(&mut self, sums: &[f64]) -> Result<()> {
+        let bytes: Vec<u8> = sums.iter().flat_map(|v| v.to_le_bytes()).collect();
+        self.put(&bytes)
+    }
+
+    /// Append the trailer and move the whole file into place.
+    pub fn finish(mut self, trailer: &ShardTrailer) -> Result<()> {
+        self.put(&trailer_bytes(trailer))?;
+        let werr = |source| Error::Write { path: self.path.clone(), source };
+        self.file.flush().map_err(werr)?;
+        self.file.get_ref().sync_all().map_err(werr)?;
+        std::fs::rename(&self.tmp, &self.path).map_err(werr)?;
+        self.finished = true;
+        Ok(())
+    }
+}
+
+impl Drop for ShardWriter {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Reads a shard file: the header on [`open`](Self::open), then its batches one by one, then
+/// the trailer. Every read is checked: a truncated, extended or corrupt file is an error naming it.
+pub struct ShardReader {
+    file: BufReader<File>,
+    pub path: PathBuf,
+    pub header: ShardHeader,
+    batches_read: u64,
+    /// Bytes left after the header.
+    left: u64,
+}
+
+impl ShardReader {
+    pub fn open(path: &Path) -> Result<Self> {
+        let rerr = |source| Error::Read { path: path.to_path_buf(), source };
+        let file = File::open(path).map_err(rerr)?;
+        let size = file.metadata().map_err(rerr)?.len();
+        let mut file = BufReader::new(file);
+        let bad = |why: &str| Error::invalid_file(path, why);
+        let mut head = [0u8; 16];
+        if size < 16 || file.read_exact(&mut head).is_err() || &head[..8] != MAGIC {
+            return Err(bad("not an ohd shard file (written by `ohd run --shard I/N`)"));
+        }
+        let len = u64::from_le_bytes(head[8..].try_into().unwrap_or_default());
+        if len > MAX_HEADER.min(size - 16) {
+            return Err(bad("truncated or corrupt shard file (header)"));
+        }
+        let mut bytes = vec![0; len as usize];
+        file.read_exact(&mut bytes).map_err(rerr)?;
+        let header = parse_header(&bytes).ok_or_else(|| bad("corrupt shard file (header)"))?;
+        let left = size - 16 - len;
+        let sums = (header.last - header.first).checked_mul(header.tallies).and_then(|n| n.checked_mul(8));
+        if sums.is_none_or(|n| n.saturating_add(8) > left) {
+            return Err(bad("truncated shard file: fewer batches than its header names (was the shard killed?)"));
+        }
+        Ok(ShardReader { file, path: path.to_path_buf(), header, batches_read: 0, left })
+    }
+
+    /// Read the next batch's sums into `sums` (`header.tallies` long).
+    pub fn batch(&mut self, sums: &mut [f64]) -> Result<()> {
+        let part = self.header.last - self.header.first;
+        if self.batches_read == part || sums.len() as u64 != self.header.tallies {
+            return Err(Error::invalid_file(&self.path, "read past the shard's batches"));
+        }
+        let mut bytes = vec![0u8; 8 * sums.len()];
+        self.file.read_exact(&mut bytes).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        for (v, b) in sums.iter_mut().zip(bytes.chunks_exact(8)) {
+            *v = f64::from_le_bytes(b.try_into().unwrap_or_default());
+        }
+        self.batches_read += 1;
+        self.left -= bytes.len() as u64;
+        Ok(())
+    }
+
+    /// The trailer, after every batch was read; the file must end there.
+    pub fn trailer(mut self) -> Result<ShardTrailer> {
+        let bad = |why: &str| Error::invalid_file(&self.path, why);
+        if self.batches_read != self.header.last - self.header.first {
+            return Err(bad("the trailer was read before the batches"));
+        }
+        let mut len = [0u8; 8];
+        self.file.read_exact(&mut len).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        let len = u64::from_le_bytes(len);
+        if len != self.left - 8 {
+            return Err(bad("truncated or corrupt shard file (trailer)"));
+        }
+        let mut bytes = vec![0; len as usize];
+        self.file.read_exact(&mut bytes).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        parse_trailer(&bytes).ok_or_else(|| bad("corrupt shard file (trailer)"))
+    }
+}
+
+/// Check that `shards` are all the parts of one run, each once: same fingerprint and count,
+/// every index from 0 to count − 1. Returns them in index order.
+pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
+    let Some(first) = shards.first() else {
+        return Err(Error::Input("no shard directories given".into()));
+    };
+    let (fp, count, path0) = (first.header.fingerprint, first.header.count, first.path.clone());
+    for s in &shards {
+        if s.header.fingerprint != fp || s.header.count != count {
+            return Err(Error::invalid_file(
+                &s.path,
+                format!(
+                    "a shard of a different run than {} (configuration, --set, seed, samples or shard count differ)",
+                    path0.display()
+                ),
+            ));
+        }
+    }
+    shards.sort_by_key(|s| s.header.index);
+    for w in shards.windows(2) {
+        if w[0].header.index == w[1].header.index {
+            return Err(Error::Input(format!(
+                "shard {}/{count} given twice: {} and {}",
+                w[0].header.index,
+                w[0].path.display(),
+                w[1].path.display()
+            )));
+        }
+    }
+    let have: Vec<u64> = shards.iter().map(|s| s.header.index).collect();
+    let missing: Vec<String> = (0..count).filter(|i| !have.contains(i)).map(|i| i.to_string()).collect();
+    if !missing.is_empty() {
+        return Err(Error::Input(format!(
+            "shard(s) {} of {count} missing (give the directory of every part of the run)",
+            missing.join(", ")
+        )));
+    }
+    Ok(shards)
+}
+
+/// Fold the batches of `shards` (from [`check_set`]: every part of one run of `exp`, in order)
+/// into the run's output, exactly as a single process folds them. The output's wall time is the
+/// shards' total and its thread count their largest.
+pub fn merge(exp: &Experiment, shards: Vec<ShardReader>) -> Result<RunOutput> {
+    let len = exp.tally_layout().len;
+    let mut estimates = BatchAccumulator::new(len);
+    let (mut stats, mut lines, mut seconds, mut threads) = (RunStats::default(), Vec::new(), 0.0, 0);
+    let mut sums = vec![0.0; len];
+    for mut s in shards {
+        let h = &s.header;
+        let expected = exp.shard_batches(h.index, h.count);
+        if h.batches != exp.plan.batches
+            || h.paths_per_batch != exp.plan.paths_per_batch
+            || h.tallies != len as u64
+            || (h.first..h.last) != expected
+        {
+            return Err(Error::invalid_file(&s.path, "does not match the experiment it names (batches or tallies)"));
+        }
+        for _ in expected {
+            s.batch(&mut sums)?;
+            estimates.push(&sums, exp.plan.paths_per_batch);
+        }
+        let t = s.trailer()?;
+        stats.merge(&t.stats);
+        lines.extend(t.lines);
+        seconds += t.seconds;
+        threads = threads.max(t.threads as usize);
+    }
+    let mut out = exp.finish(estimates, stats, lines, seconds);
+    out.threads = threads;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> ShardHeader {
+        ShardHeader {
+            fingerprint: 7,
+            index: 1,
+            count: 3,
+            first: 2,
+            last: 4,
+            batches: 6,
+            paths_per_batch: 10,
+            tallies: 3,
+            config_text: "schema_version = 1\n".into(),
+            config_source: "/x/y.toml".into(),
+            overrides: vec!["run.seed=3".into(), "run.samples=60".into()],
+        }
+    }
+
+    /// A shard file reads back as written; every truncation and an extra byte are errors.
+    #[test]
+    fn round_trip_and_corruption() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(FILE_NAME);
+        let mut w = ShardWriter::create(&path, &header()).unwrap();
+        w.batch(&[1.0, 2.0, 3.0]).unwrap();
+        w.batch(&[4.0, -0.5, 6.25]).unwrap();
+        let t = ShardTrailer {
+            stats: RunStats { paths: 20, scattering_events: 9, ..Default::default() },
+            seconds: 1.25,
+            threads: 2,
+            lines: vec![RecordedLine { roi: 1, class: 2, weight: 0.5, frequency: -3.0, gamma: 1e-3 }],
+        };
+        w.finish(&t).unwrap();
+        let read_all = |p: &Path| -> Result<(ShardHeader, Vec<Vec<f64>>, ShardTrailer)> {
+            let mut r = ShardReader::open(p)?;
+            let mut b = vec![vec![0.0; 3]; 2];
+            for s in &mut b {
+                r.batch(s)?;
+            }
+            let h = r.header.clone();
+            Ok((h, b, r.trailer()?))
+        };
+        let (h, b, back) = read_all(&path).unwrap();
+        assert_eq!(h, header());
+        assert_eq!(b, vec![vec![1.0, 2.0, 3.0], vec![4.0, -0.5, 6.25]]);
+        assert_eq!((back.stats, back.seconds, back.threads, back.lines), (t.stats, 1.25, 2, t.lines));
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = dir.path().join("cut.ohd");
+        for n in 0..bytes.len() {
+            std::fs::write(&cut, &bytes[..n]).unwrap();
+            assert!(read_all(&cut).is_err(), "a shard cut at {n} of {} bytes was read", bytes.len());
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        std::fs::write(&cut, &longer).unwrap();
+        assert!(read_all(&cut).is_err(), "a shard with a trailing byte was read");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file is left");
+    }
+}
