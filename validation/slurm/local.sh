@@ -136,8 +136,6 @@ SwitchType=switch/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 SchedulerType=sched/backfill
-# A task that fails cancels the merge job waiting on it instead of leaving it pending forever.
-SchedulerParameters=kill_invalid_depend
 ReturnToService=2
 # Keep finished jobs in scontrol for 10 minutes, where this script reads their exit codes.
 MinJobAge=600
@@ -306,15 +304,18 @@ echo "array job $array_id (tasks 0-$((shards - 1)), ${args[*]}), merge job $merg
 squeue
 wait_gone "$array_id" 600
 t_array=$(now)
+show_job_logs() { local f; for f in "$run"/jobs/*.out; do echo "---- $(basename "$f")"; cat "$f"; done; }
+echo "---- states"
+if ! job_ok "$array_id"; then
+    # The merge then stays pending on DependencyNeverSatisfied; the exit trap cancels it.
+    show_job_logs
+    fail "an array task failed (its log above)"
+fi
 wait_gone "$merge_id" 600
 t_merge=$(now)
+job_ok "$merge_id" || { show_job_logs; fail "the merge job failed (its log above)"; }
 cd "$repo"
-for f in "$run"/jobs/*.out; do echo "---- $(basename "$f")"; cat "$f"; done
-echo "---- states"
-array_ok=1; job_ok "$array_id" || array_ok=0
-merge_ok=1; job_ok "$merge_id" || merge_ok=0
-[ "$array_ok" = 1 ] || fail "an array task failed (logs above)"
-[ "$merge_ok" = 1 ] || fail "the merge job failed (logs above)"
+show_job_logs
 echo "array: $(secs "$t_submit" "$t_array") s from submission to the last task's end;" \
      "merge done $(secs "$t_array" "$t_merge") s later"
 
