@@ -136,6 +136,8 @@ SwitchType=switch/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 SchedulerType=sched/backfill
+# Start queued batch jobs at once (the default, 3 s, starts array tasks in steps of 3 s).
+SchedulerParameters=batch_sched_delay=0
 ReturnToService=2
 # Keep finished jobs in scontrol for 10 minutes, where this script reads their exit codes.
 MinJobAge=600
