@@ -6,7 +6,7 @@
 #     bash validation/slurm/local.sh --smoke   # Slurm and the sbatch scripts only, with a
 #                                              # stand-in for ohd that records its arguments
 #
-# What it does: installs slurm-wlm and munge with apt-get if they are missing; builds ohd
+# What it does: installs slurm-wlm, munge and jq with apt-get if they are missing; builds ohd
 # (cargo build --release) unless OHD names a binary; writes a private configuration under
 # validation/slurm/.run/ (git-ignored; wiped at each start): a munge key and socket, slurm.conf on
 # ports 16817/16818 of 127.0.0.1, state, spool and log directories. It never reads or changes
@@ -15,7 +15,7 @@
 # node to be idle, submits ohd_array.sbatch as an array of SHARDS tasks and ohd_merge.sbatch with
 # --dependency=afterok on it, waits for both, runs the same experiment once with plain `ohd run`,
 # and compares: the same files, every data file identical (cmp), the same estimates in
-# manifest.json. It stops everything it started when it exits, on success or failure, and exits
+# manifest.json and the rest of it equal but for timings, threads and invocation. It stops everything it started when it exits, on success or failure, and exits
 # non-zero on any failure, with the tails of the daemons' logs when Slurm does not come up.
 #
 # Environment: SHARDS (array size, ≤ run.batches) [4], SAMPLES [4000000], SEED [7],
@@ -87,8 +87,14 @@ for pidfile in "$run"/munge/munged.pid "$run"/slurmctld.pid "$run"/slurmd.pid; d
         exit 1
     fi
 done
+# RUN_DIR is wiped: only if it is empty or an earlier run of this script (marked by .local-sh-run).
+if [ -d "$run" ] && [ -n "$(ls -A "$run")" ] && [ ! -f "$run/.local-sh-run" ]; then
+    echo "RUN_DIR=$run is not empty and not an earlier local.sh run directory: refusing to wipe it" >&2
+    exit 1
+fi
 rm -rf "$run"
 mkdir -p "$run"/{state,spool,log,jobs,out}
+touch "$run/.local-sh-run"
 # munged insists that nobody but its owner can write to the directories of its key and socket
 # and that everyone can reach the socket: 755 directory, 600 key.
 mkdir -m 755 "$run/munge"
