@@ -5,11 +5,10 @@
 //! statistics in batch order, so the output does not depend on the number of threads.
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
-use rayon::prelude::*;
-
 use crate::converge::{Target, TargetOutcome, rounds_needed};
 use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
+use crate::error::Result;
 use crate::medium::Scene;
 use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
@@ -147,19 +146,44 @@ pub trait Checkpoint: Sync {
     /// Whether a save is due now (called after every group of batches).
     fn due(&self) -> bool;
     /// Save `state`; an error stops the run.
-    fn save(&self, state: &RunState) -> crate::error::Result<()>;
+    fn save(&self, state: &RunState) -> Result<()>;
 }
 
 /// Takes each batch's tally sums, counters and recorded lines, in batch order
 /// ([`Experiment::run_batches`]).
-pub type BatchSink<'a> = dyn FnMut(&[f64], RunStats, Vec<RecordedLine>) -> crate::error::Result<()> + 'a;
+pub type BatchSink<'a> = dyn FnMut(&[f64], RunStats, Vec<RecordedLine>) -> Result<()> + 'a;
 
 /// One batch's tally sums, counters and recorded lines.
-type BatchResult = (Vec<f64>, RunStats, Vec<RecordedLine>);
+type BatchResult = (Tallies, RunStats, Vec<RecordedLine>);
 
-/// Runs groups of batches on a thread pool, reusing their tally vectors: a large camera's
-/// (O(pixels × bins)) would otherwise be fresh pages, faulted in and zeroed by the kernel, every
-/// batch.
+/// A batch's tally sums with a cache line of padding on each side. Batches running on different
+/// threads add to their sums at every detection; two small vectors sharing a cache line would
+/// make the cores fight over it (false sharing). Measured on the vdH slab (five scalar tallies,
+/// 40 bytes a batch), 2 threads against 1: 1.71× unpadded, as the allocator happened to place
+/// them, against 1.93× padded (`validation/scaling/run.py`, medians of 5 interleaved runs).
+struct Tallies(Vec<f64>);
+
+/// `f64`s in a cache line (64 bytes).
+const LINE: usize = 8;
+
+impl Tallies {
+    fn new(len: usize) -> Self {
+        Tallies(vec![0.0; len + 2 * LINE])
+    }
+
+    fn sums(&self) -> &[f64] {
+        &self.0[LINE..self.0.len() - LINE]
+    }
+
+    fn sums_mut(&mut self) -> &mut [f64] {
+        let n = self.0.len();
+        &mut self.0[LINE..n - LINE]
+    }
+}
+
+/// Runs batches on a thread pool and hands their results over in batch order, reusing their
+/// tally vectors: a large camera's (O(pixels × bins)) would otherwise be fresh pages, faulted in
+/// and zeroed by the kernel, every batch.
 struct BatchRunner<'a> {
     exp: &'a Experiment,
     /// `None` when a pool cannot be built (no threads available): the batches then run on this
@@ -167,9 +191,10 @@ struct BatchRunner<'a> {
     pool: Option<rayon::ThreadPool>,
     layout: TallyLayout,
     beat: BeatModel,
-    /// Batches run at a time: enough to keep every thread busy, few enough to bound memory.
+    /// Batches run but not yet handed over, at most: enough to keep every thread busy while one
+    /// batch runs long, few enough to bound memory.
     in_flight: u64,
-    spare: Vec<Vec<f64>>,
+    spare: Vec<Tallies>,
 }
 
 impl<'a> BatchRunner<'a> {
@@ -180,22 +205,56 @@ impl<'a> BatchRunner<'a> {
         BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new() }
     }
 
-    /// Run the batches `range`, results in batch order.
-    fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress) -> Vec<BatchResult> {
-        let len = self.layout.len;
-        let jobs: Vec<(u64, Vec<f64>)> =
-            range.map(|b| (b, self.spare.pop().unwrap_or_else(|| vec![0.0; len]))).collect();
-        let (exp, layout, beat) = (self.exp, &self.layout, self.beat);
-        let work = |(b, sums): (u64, Vec<f64>)| exp.run_batch(b, sums, layout, beat, progress);
-        match &self.pool {
-            Some(pool) => pool.install(|| jobs.into_par_iter().map(work).collect()),
-            None => jobs.into_iter().map(work).collect(),
-        }
-    }
-
-    /// Give a batch's tally vector back for reuse.
-    fn recycle(&mut self, sums: Vec<f64>) {
-        self.spare.push(sums);
+    /// Run the batches `range` and give each result to `sink` in batch order, stopping at its
+    /// first error. A pipeline, not rounds: as each batch is handed over the next one starts, so
+    /// no thread waits for the slowest batch of a group (this thread only receives and folds).
+    fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress, sink: &mut BatchSink) -> Result<()> {
+        let BatchRunner { exp, pool, layout, beat, in_flight, spare } = self;
+        let (exp, layout, beat, in_flight) = (*exp, &*layout, *beat, *in_flight);
+        let len = layout.len;
+        let Some(pool) = pool else {
+            for b in range {
+                let sums = spare.pop().unwrap_or_else(|| Tallies::new(len));
+                let (sums, s, l) = exp.run_batch(b, sums, layout, beat, progress);
+                sink(sums.sums(), s, l)?;
+                spare.push(sums);
+            }
+            return Ok(());
+        };
+        let (tx, rx) = std::sync::mpsc::channel::<(u64, BatchResult)>();
+        pool.in_place_scope(|scope| {
+            let spawn = |b: u64, sums: Tallies| {
+                let tx = tx.clone();
+                scope.spawn(move |_| {
+                    // The receiver outlives the scope: a send fails only if this thread is gone.
+                    let _ = tx.send((b, exp.run_batch(b, sums, layout, beat, progress)));
+                });
+            };
+            let (mut started, mut handed) = (range.start, range.start);
+            while started < range.end && started - handed < in_flight {
+                spawn(started, spare.pop().unwrap_or_else(|| Tallies::new(len)));
+                started += 1;
+            }
+            // Finished batches waiting for an earlier one, by index.
+            let mut waiting = std::collections::BTreeMap::new();
+            while handed < range.end {
+                let Ok((b, result)) = rx.recv() else { break };
+                waiting.insert(b, result);
+                while let Some((sums, s, l)) = waiting.remove(&handed) {
+                    // On an error the batches already started finish (the scope waits for them)
+                    // and nothing more starts.
+                    sink(sums.sums(), s, l)?;
+                    handed += 1;
+                    if started < range.end {
+                        spawn(started, sums);
+                        started += 1;
+                    } else {
+                        spare.push(sums);
+                    }
+                }
+            }
+            Ok(())
+        })
     }
 }
 
@@ -279,11 +338,11 @@ impl Experiment {
         target: Option<&Target>,
         resume: Option<RunState>,
         checkpoint: Option<&dyn Checkpoint>,
-    ) -> crate::error::Result<RunOutput> {
+    ) -> Result<RunOutput> {
         let start = std::time::Instant::now();
         let round = self.plan.batches;
         let mut runner = BatchRunner::new(self);
-        let state = resume.unwrap_or_else(|| RunState {
+        let mut st = resume.unwrap_or_else(|| RunState {
             estimates: BatchAccumulator::new(runner.layout.len),
             stats: RunStats::default(),
             lines: Vec::new(),
@@ -292,42 +351,38 @@ impl Experiment {
             err: f64::INFINITY,
             elapsed: 0.0,
         });
-        let RunState { mut estimates, mut stats, mut lines, next: mut first, mut end, mut err, elapsed } = state;
-        progress.set_total(end * self.plan.paths_per_batch);
-        progress.advance(first * self.plan.paths_per_batch);
+        let elapsed = st.elapsed;
+        progress.set_total(st.end * self.plan.paths_per_batch);
+        progress.advance(st.next * self.plan.paths_per_batch);
         let main = target.map_or_else(|| self.main_output(), |t| t.output.clone());
         let max_rounds = target.map_or(1, |t| (t.max_samples / self.plan.samples()).max(1));
         loop {
-            if first == end {
-                let rounds = end / round;
+            if st.next == st.end {
+                let rounds = st.end / round;
                 match target {
-                    Some(t) if err > t.relative_error && rounds < max_rounds => {
-                        end = round * rounds_needed(rounds, err, t.relative_error, max_rounds);
-                        progress.set_total(end * self.plan.paths_per_batch);
+                    Some(t) if st.err > t.relative_error && rounds < max_rounds => {
+                        st.end = round * rounds_needed(rounds, st.err, t.relative_error, max_rounds);
+                        progress.set_total(st.end * self.plan.paths_per_batch);
                     }
                     _ => break,
                 }
             }
-            let last = (first + runner.in_flight).min(end);
-            for (sums, s, l) in runner.run(first..last, progress) {
-                estimates.push(&sums, self.plan.paths_per_batch);
-                stats.merge(&s);
-                lines.extend(l);
-                runner.recycle(sums);
-            }
-            first = last;
-            err = main.relative_error(&estimates);
-            progress.error(err);
-            if let Some(c) = checkpoint.filter(|c| c.due()) {
-                let elapsed = elapsed + start.elapsed().as_secs_f64();
-                // The state is moved into the checkpoint and back: no copy of the tallies.
-                let state = RunState { estimates, stats, lines, next: first, end, err, elapsed };
-                c.save(&state)?;
-                RunState { estimates, stats, lines, .. } = state;
-            }
+            runner.run(st.next..st.end, progress, &mut |sums, s, l| {
+                st.estimates.push(sums, self.plan.paths_per_batch);
+                st.stats.merge(&s);
+                st.lines.extend(l);
+                st.next += 1;
+                st.err = main.relative_error(&st.estimates);
+                progress.error(st.err);
+                if let Some(c) = checkpoint.filter(|c| c.due()) {
+                    st.elapsed = elapsed + start.elapsed().as_secs_f64();
+                    c.save(&st)?;
+                }
+                Ok(())
+            })?;
         }
-        let wall_seconds = elapsed + start.elapsed().as_secs_f64();
-        let mut out = self.finish(estimates, stats, lines, wall_seconds);
+        let RunState { estimates, stats, lines, end, err, .. } = st;
+        let mut out = self.finish(estimates, stats, lines, elapsed + start.elapsed().as_secs_f64());
         out.main_output = (main.name, err);
         out.target = target.map(|t| TargetOutcome {
             output: t.output.name.clone(),
@@ -355,19 +410,9 @@ impl Experiment {
         range: std::ops::Range<u64>,
         progress: &dyn Progress,
         sink: &mut BatchSink,
-    ) -> crate::error::Result<()> {
-        let mut runner = BatchRunner::new(self);
+    ) -> Result<()> {
         progress.set_total((range.end - range.start) * self.plan.paths_per_batch);
-        let mut first = range.start;
-        while first < range.end {
-            let last = (first + runner.in_flight).min(range.end);
-            for (sums, s, l) in runner.run(first..last, progress) {
-                sink(&sums, s, l)?;
-                runner.recycle(sums);
-            }
-            first = last;
-        }
-        Ok(())
+        BatchRunner::new(self).run(range, progress, sink)
     }
 
     /// The output of a run whose batches (`estimates.batches()` of them) were folded into
@@ -411,7 +456,7 @@ impl Experiment {
     fn run_batch(
         &self,
         batch: u64,
-        sums: Vec<f64>,
+        sums: Tallies,
         layout: &TallyLayout,
         beat: BeatModel,
         progress: &dyn Progress,
@@ -427,12 +472,12 @@ impl Experiment {
     fn run_batch_kind<const DOPPLER: bool, const LENGTH: bool>(
         &self,
         batch: u64,
-        mut sums: Vec<f64>,
+        mut sums: Tallies,
         layout: &TallyLayout,
         beat: BeatModel,
         progress: &dyn Progress,
     ) -> BatchResult {
-        sums.fill(0.0);
+        sums.sums_mut().fill(0.0);
         let mut stats = RunStats::default();
         let mut lines = Vec::new();
         let record = self.records_lines();
@@ -441,7 +486,7 @@ impl Experiment {
             detectors: &self.detectors,
             layout,
             beat,
-            acc: &mut sums,
+            acc: sums.sums_mut(),
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
             nee: &nee,
@@ -460,7 +505,7 @@ impl Experiment {
             }
         }
         progress.advance(self.plan.paths_per_batch % PROGRESS_EVERY);
-        layout.finish_batch(&self.detectors, &mut sums);
+        layout.finish_batch(&self.detectors, sums.sums_mut());
         (sums, stats, lines)
     }
 }
