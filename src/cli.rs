@@ -392,15 +392,15 @@ fn run(a: RunArgs) -> Result<(), Error> {
     if let Some(s) = a.checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         return Err(Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
     }
-    let scan = exp.source.pointings.len() > 1;
-    if scan && (a.checkpoint_seconds.is_some() || a.resume || a.shard.is_some()) {
-        return Err(Error::Input(
-            "--checkpoint-seconds, --resume and --shard: not yet for scans (run one pointing with --set source.pointings=…)"
-                .into(),
-        ));
-    }
+    let parts = parts(exp, &loaded.table, &dir);
     if let Some((index, count)) = a.shard {
-        return run_shard(&loaded, &dir, &inv, index, count, a.quiet);
+        for part in &parts {
+            run_shard(&loaded, part, &inv, index, count, a.quiet)?;
+        }
+        return Ok(());
+    }
+    if a.resume && parts.len() > 1 && !parts.iter().any(|p| p.checkpoint().exists()) {
+        return Err(Error::invalid_file(parts[0].checkpoint(), "no checkpoint of any pointing of this scan to resume"));
     }
     let opts = RunOptions {
         target: target.as_ref(),
@@ -408,17 +408,97 @@ fn run(a: RunArgs) -> Result<(), Error> {
         resume: a.resume,
         quiet: a.quiet,
     };
-    if scan {
-        run_scan(exp, &dir, &loaded.table, &inv, &opts)
-    } else {
-        run_one(exp, &dir, &loaded.table, &inv, &opts).map(|_| ())
+    let mut scan = Scan::default();
+    for part in &parts {
+        let output = run_one(part, &loaded.table, &inv, &opts, parts.len() > 1)?;
+        scan.add(part, &output);
+    }
+    scan.finish(exp, &dir)?;
+    if parts.len() > 1 && (opts.checkpoint_seconds.is_some() || opts.resume) {
+        // The whole scan is written: the pointings' checkpoints have served.
+        parts.iter().for_each(|p| drop(std::fs::remove_file(p.checkpoint())));
+    }
+    Ok(())
+}
+
+/// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
+struct Part {
+    exp: Experiment,
+    dir: PathBuf,
+    /// Of the configuration as run and the pointing: a checkpoint or shard of one pointing is
+    /// never taken for another's.
+    fingerprint: u64,
+    /// The pointing's index in a scan (`None` for a plain run).
+    pointing: Option<usize>,
+}
+
+impl Part {
+    fn checkpoint(&self) -> PathBuf {
+        self.dir.join("checkpoint.ohd")
     }
 }
 
-/// `ohd run --shard I/N`: run part `index` of `count` of the batches into `dir/shard.ohd`.
-fn run_shard(loaded: &Loaded, dir: &Path, inv: &Invocation, index: u64, count: u64, quiet: bool) -> Result<(), Error> {
+/// The directory of pointing `i` of a scan, inside the scan's.
+fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
+    dir.join(format!("pointing_{i:02}"))
+}
+
+/// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per pointing into `dir/pointing_NN`.
+fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
+    let fp = ohd::io::checkpoint::config_fingerprint(table);
+    if exp.source.pointings.len() <= 1 {
+        return vec![Part { exp: exp.clone(), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
+    }
+    exp.source
+        .pointings
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Part {
+            exp: exp.pointed(p),
+            dir: pointing_dir(dir, i),
+            fingerprint: ohd::io::checkpoint::fingerprint(&format!("{fp:016x} pointing {i}")),
+            pointing: Some(i),
+        })
+        .collect()
+}
+
+/// A scan's per-pointing results, gathered for the VAD wind per range gate.
+#[derive(Default)]
+struct Scan {
+    runs: Vec<String>,
+    velocities: Vec<Vec<Option<f64>>>,
+    ranges: Vec<f64>,
+}
+
+impl Scan {
+    fn add(&mut self, part: &Part, output: &ohd::experiment::RunOutput) {
+        let Some(i) = part.pointing else { return };
+        if let Some(v) = ohd::scan::gate_peak_velocities(&part.exp, output) {
+            self.velocities.push(v);
+        }
+        if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar.as_ref()) {
+            self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
+        }
+        self.runs.push(format!("pointing_{i:02}"));
+    }
+
+    /// Write the VAD wind of a scan whose every pointing has gate velocities (nothing otherwise).
+    fn finish(&self, exp: &Experiment, dir: &Path) -> Result<(), Error> {
+        let pointings = &exp.source.pointings;
+        if pointings.len() > 1 && self.velocities.len() == pointings.len() {
+            let gates = ohd::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
+            ohd::io::scan::write_scan(dir, pointings, &self.runs, &gates)?;
+            eprintln!("ohd: VAD wind per gate → {}", dir.join("vad.csv").display());
+        }
+        Ok(())
+    }
+}
+
+/// `ohd run --shard I/N`: run part `index` of `count` of the batches of `part` into
+/// `part.dir/shard.ohd`.
+fn run_shard(loaded: &Loaded, part: &Part, inv: &Invocation, index: u64, count: u64, quiet: bool) -> Result<(), Error> {
     use ohd::io::shard::{FILE_NAME, ShardHeader, ShardTrailer, ShardWriter};
-    let exp = &loaded.exp;
+    let (exp, dir) = (&part.exp, &part.dir);
     if count > exp.plan.batches {
         return Err(Error::Input(format!(
             "--shard {index}/{count}: expected at most run.batches = {} parts (raise run.batches, 16 to 65536, for more)",
@@ -427,7 +507,7 @@ fn run_shard(loaded: &Loaded, dir: &Path, inv: &Invocation, index: u64, count: u
     }
     let range = exp.shard_batches(index, count);
     let header = ShardHeader {
-        fingerprint: ohd::io::checkpoint::config_fingerprint(&loaded.table),
+        fingerprint: part.fingerprint,
         index,
         count,
         first: range.start,
@@ -472,25 +552,41 @@ fn run_shard(loaded: &Loaded, dir: &Path, inv: &Invocation, index: u64, count: u
     Ok(())
 }
 
-/// `ohd merge DIR... --out OUT`: the shards of one run folded into its outputs.
+/// `ohd merge DIR... --out OUT`: the shards of one run folded into its outputs (of a scan: per
+/// pointing, then the VAD wind).
 fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), Error> {
     use ohd::io::shard::{FILE_NAME, ShardReader, check_set};
-    let shards = dirs.iter().map(|d| ShardReader::open(&d.join(FILE_NAME))).collect::<Result<Vec<_>, _>>()?;
-    let shards = check_set(shards)?;
-    let h = shards[0].header.clone();
+    let Some(first) = dirs.first() else {
+        return Err(Error::Input("ohd merge: no shard directories given".into()));
+    };
+    // A scan's shards are per pointing: DIR/pointing_NN/shard.ohd.
+    let head = [first.join(FILE_NAME), pointing_dir(first, 0).join(FILE_NAME)]
+        .into_iter()
+        .find(|p| p.exists())
+        .unwrap_or_else(|| first.join(FILE_NAME));
+    let h = ShardReader::open(&head)?.header;
     let (table, exp) = ohd::config::load(&h.config_text, &h.config_source, &h.overrides)?;
-    if ohd::io::checkpoint::config_fingerprint(&table) != h.fingerprint {
-        return Err(Error::invalid_file(
-            &shards[0].path,
-            "its configuration no longer resolves to the run it records (was ohd or a file it reads changed?)",
-        ));
-    }
-    let output = ohd::io::shard::merge(&exp, shards)?;
     let inv = Invocation { config_source: h.config_source, overrides: h.overrides };
-    let manifest = write_run(out, &exp, &output, &table, &inv)?;
-    eprintln!("ohd: merged {} shards ({} batches) → {}", h.count, output.batches, out.display());
-    report(&exp, &output, &manifest);
-    Ok(())
+    let mut scan = Scan::default();
+    let parts = parts(&exp, &table, out);
+    for part in &parts {
+        let sub = |d: &PathBuf| part.pointing.map_or_else(|| d.clone(), |i| pointing_dir(d, i));
+        let shards = dirs.iter().map(|d| ShardReader::open(&sub(d).join(FILE_NAME))).collect::<Result<Vec<_>, _>>()?;
+        let shards = check_set(shards)?;
+        if shards[0].header.fingerprint != part.fingerprint {
+            return Err(Error::invalid_file(
+                &shards[0].path,
+                "its configuration no longer resolves to the run it records (was ohd or a file it reads changed?)",
+            ));
+        }
+        let count = shards.len();
+        let output = ohd::io::shard::merge(&part.exp, shards)?;
+        let manifest = write_run(&part.dir, &part.exp, &output, &table, &inv)?;
+        eprintln!("ohd: merged {count} shards ({} batches) → {}", output.batches, part.dir.display());
+        report(&part.exp, &output, &manifest);
+        scan.add(part, &output);
+    }
+    scan.finish(&exp, out)
 }
 
 /// The stopping rule of `--target-error E` (with `--max-samples`), checked.
@@ -625,30 +721,37 @@ impl ohd::experiment::Checkpoint for FileCheckpoint {
     }
 }
 
-/// Run `exp` (to a target error, with checkpoints, resumed: `opts`), write its outputs into `dir`
-/// and report on stderr.
+/// Run `part` (to a target error, with checkpoints, resumed: `opts`), write its outputs into its
+/// directory and report on stderr. A pointing of a scan (`keep`) keeps its checkpoint, saved as
+/// complete, until the whole scan is written, so that a resumed scan finds its finished pointings.
 fn run_one(
-    exp: &Experiment,
-    dir: &Path,
+    part: &Part,
     table: &toml::Table,
     inv: &Invocation,
     opts: &RunOptions,
+    keep: bool,
 ) -> Result<ohd::experiment::RunOutput, Error> {
-    let path = dir.join("checkpoint.ohd");
-    let fingerprint = ohd::io::checkpoint::config_fingerprint(table);
-    let resume = if opts.resume {
-        let state = ohd::io::checkpoint::read(&path, fingerprint, exp.tally_layout().len)?;
+    let (exp, dir) = (&part.exp, part.dir.as_path());
+    let path = part.checkpoint();
+    if let Some(i) = part.pointing {
+        let p = &exp.source.pointings[i];
+        eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
+    }
+    // A scan resumes the pointings it has a checkpoint of and starts the others.
+    let resume = if opts.resume && (!keep || path.exists()) {
+        let state = ohd::io::checkpoint::read(&path, part.fingerprint, exp.tally_layout().len)?;
         eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
         Some(state)
     } else {
         None
     };
+    let saving = opts.checkpoint_seconds.is_some() || opts.resume;
     let checkpoint = match opts.checkpoint_seconds {
         Some(s) => {
             std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
             Some(FileCheckpoint {
                 path: path.clone(),
-                fingerprint,
+                fingerprint: part.fingerprint,
                 every: std::time::Duration::from_secs_f64(s),
                 last: std::sync::Mutex::new(std::time::Instant::now()),
             })
@@ -666,7 +769,10 @@ fn run_one(
         None => exp.run_resumable(&ohd::experiment::Silent, target, resume, checkpoint)?,
     };
     let manifest = write_run(dir, exp, &output, table, inv)?;
-    if checkpoint.is_some() || opts.resume {
+    if saving && keep {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+        ohd::io::checkpoint::write(&path, part.fingerprint, &output.final_state())?;
+    } else if saving {
         // The run is complete and written: its checkpoint has served.
         let _ = std::fs::remove_file(&path);
     }
@@ -725,38 +831,6 @@ fn report(exp: &Experiment, output: &ohd::experiment::RunOutput, manifest: &serd
             eprintln!("  {}: FMCW {note}", d.name);
         }
     }
-}
-
-/// A scan: one run per pointing into `dir/pointing_NN`, then the VAD wind per range gate.
-fn run_scan(
-    exp: &Experiment,
-    dir: &Path,
-    table: &toml::Table,
-    inv: &Invocation,
-    opts: &RunOptions,
-) -> Result<(), Error> {
-    let pointings = &exp.source.pointings;
-    let (mut runs, mut velocities) = (Vec::new(), Vec::new());
-    let mut ranges = Vec::new();
-    for (i, p) in pointings.iter().enumerate() {
-        let name = format!("pointing_{i:02}");
-        eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
-        let e = exp.pointed(p);
-        let output = run_one(&e, &dir.join(&name), table, inv, opts)?;
-        if let Some(v) = ohd::scan::gate_peak_velocities(&e, &output) {
-            velocities.push(v);
-        }
-        if let Some(l) = e.detectors.iter().find_map(|d| d.lidar.as_ref()) {
-            ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
-        }
-        runs.push(name);
-    }
-    if velocities.len() == pointings.len() {
-        let gates = ohd::scan::vad_per_gate(pointings, exp.source.position.z, &ranges, &velocities);
-        ohd::io::scan::write_scan(dir, pointings, &runs, &gates)?;
-        eprintln!("ohd: VAD wind per gate → {}", dir.join("vad.csv").display());
-    }
-    Ok(())
 }
 
 /// A human-readable account of the resolved experiment.

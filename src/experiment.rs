@@ -102,6 +102,20 @@ pub struct RunOutput {
 }
 
 impl RunOutput {
+    /// The state of this finished run, as a checkpoint holds it: resumed, it finishes at once
+    /// with this output.
+    pub fn final_state(&self) -> RunState {
+        RunState {
+            estimates: self.estimates.clone(),
+            stats: self.stats,
+            lines: self.lines.clone(),
+            next: self.batches,
+            end: self.batches,
+            err: self.main_output.1,
+            elapsed: self.wall_seconds,
+        }
+    }
+
     /// Paths traced.
     pub fn samples(&self) -> u64 {
         self.batches * self.paths_per_batch

@@ -596,3 +596,84 @@ fn shards_merge_into_a_single_run() {
         assert!(!bad.exists());
     }
 }
+
+/// A scan (the four pointings of `configs/wind_sunny.toml`) in shards: each shard writes one
+/// `pointing_NN/shard.ohd` per pointing, and the merge writes every pointing's run and the VAD
+/// wind exactly as a single scan does. A scan killed with SIGKILL after a checkpoint resumes its
+/// finished pointings from their kept checkpoints and the rest from theirs or from the start, to
+/// the same files; the checkpoints go once the scan is written.
+#[test]
+fn scans_shard_merge_and_resume_like_a_single_scan() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = repo().join("configs/wind_sunny.toml");
+    let base = |dir: &Path, samples: &str| -> Vec<String> {
+        let mut a: Vec<String> = vec!["run".into(), path_str(&config).into()];
+        a.extend(["--samples", samples, "--seed", "4", "-q", "--out", path_str(dir)].map(String::from));
+        // Fewer gates and shorter spectra: the per-gate spectral fits would take most of the time.
+        a.extend(["--set", "detectors.0.lidar.gates=6", "--set", "detectors.0.lidar.fft_points=256"].map(String::from));
+        a
+    };
+    let run = |args: &[String]| ohd(tmp.path(), &args.iter().map(String::as_str).collect::<Vec<_>>());
+    let compare = |a: &Path, b: &Path| {
+        assert_eq!(std::fs::read(a.join("vad.csv")).unwrap(), std::fs::read(b.join("vad.csv")).unwrap(), "vad.csv");
+        (0..4)
+            .map(|i| assert_same_run(&a.join(format!("pointing_{i:02}")), &b.join(format!("pointing_{i:02}"))))
+            .sum::<usize>()
+    };
+    let whole = tmp.path().join("whole");
+    let o = run(&base(&whole, "40000"));
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let shard = |i: u32| tmp.path().join(format!("shard{i}"));
+    for i in 0..2 {
+        let mut a = base(&shard(i), "40000");
+        a.extend(["--shard".into(), format!("{i}/2")]);
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+        assert!(shard(i).join("pointing_03/shard.ohd").exists());
+    }
+    let merged = tmp.path().join("merged");
+    let o = ohd(tmp.path(), &["merge", path_str(&shard(1)), path_str(&shard(0)), "--out", path_str(&merged)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(compare(&whole, &merged) >= 4 * 5);
+    // Pointing 2's shards swapped with pointing 1's are refused: a shard knows its pointing.
+    std::fs::copy(shard(0).join("pointing_01/shard.ohd"), shard(0).join("pointing_02/shard.ohd")).unwrap();
+    let bad = tmp.path().join("bad");
+    let o = ohd(tmp.path(), &["merge", path_str(&shard(0)), path_str(&shard(1)), "--out", path_str(&bad)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+
+    // Checkpoints: kill the scan once a later pointing has saved one.
+    let whole = tmp.path().join("whole_long");
+    let o = run(&base(&whole, "200000"));
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let killed = tmp.path().join("killed");
+    let mut a = base(&killed, "200000");
+    a.extend(["--checkpoint-seconds".into(), "0".into()]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ohd"))
+        .args(&a)
+        .current_dir(tmp.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("ohd starts");
+    let later = killed.join("pointing_01/checkpoint.ohd");
+    let t0 = std::time::Instant::now();
+    while !later.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().expect("SIGKILL");
+    let status = child.wait().unwrap();
+    assert!(later.exists(), "no checkpoint of pointing 1 was written");
+    assert!(!killed.join("vad.csv").exists(), "the scan finished before it was killed ({status:?})");
+    let mut a = base(&killed, "200000");
+    a.extend(["--resume".into(), "--threads".into(), "1".into()]);
+    let o = run(&a);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("resuming at batch"), "{}", describe(&o));
+    compare(&whole, &killed);
+    for i in 0..4 {
+        assert!(
+            !killed.join(format!("pointing_{i:02}/checkpoint.ohd")).exists(),
+            "pointing {i}'s checkpoint outlives the scan"
+        );
+    }
+}
