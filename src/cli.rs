@@ -338,9 +338,16 @@ impl Progress for Bar {
     }
 }
 
-/// A progress bar on stderr when it is a terminal and not `quiet`.
-fn progress_bar(quiet: bool, total: u64, target: Option<f64>) -> Option<Bar> {
-    (!quiet && std::io::stderr().is_terminal()).then(|| Bar::new(total, target))
+/// `work` with a progress bar on stderr when it is a terminal and not `quiet` (cleared after),
+/// else silently: over `total` paths, with the target error if any.
+fn with_progress<T>(quiet: bool, total: u64, target: Option<f64>, work: impl FnOnce(&dyn Progress) -> T) -> T {
+    if quiet || !std::io::stderr().is_terminal() {
+        return work(&ohd::experiment::Silent);
+    }
+    let bar = Bar::new(total, target);
+    let out = work(&bar);
+    bar.bar.finish_and_clear();
+    out
 }
 
 fn fail(e: &Error) -> ExitCode {
@@ -531,14 +538,7 @@ fn run_shard(loaded: &Loaded, part: &Part, inv: &Invocation, index: u64, count: 
         writer.batch(sums)
     };
     let paths = (range.end - range.start) * exp.plan.paths_per_batch;
-    match progress_bar(quiet, paths, None) {
-        Some(bar) => {
-            let r = exp.run_batches(range.clone(), &bar, &mut sink);
-            bar.bar.finish_and_clear();
-            r?
-        }
-        None => exp.run_batches(range.clone(), &ohd::experiment::Silent, &mut sink)?,
-    }
+    with_progress(quiet, paths, None, |p| exp.run_batches(range.clone(), p, &mut sink))?;
     trailer.seconds = start.elapsed().as_secs_f64();
     let seconds = trailer.seconds;
     writer.finish(&trailer)?;
@@ -557,7 +557,7 @@ fn run_shard(loaded: &Loaded, part: &Part, inv: &Invocation, index: u64, count: 
 fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), Error> {
     use ohd::io::shard::{FILE_NAME, ShardReader, check_set};
     let Some(first) = dirs.first() else {
-        return Err(Error::Input("ohd merge: no shard directories given".into()));
+        return Err(Error::Input("no shard directories given".into()));
     };
     // A scan's shards are per pointing: DIR/pointing_NN/shard.ohd.
     let head = [first.join(FILE_NAME), pointing_dir(first, 0).join(FILE_NAME)]
@@ -760,14 +760,9 @@ fn run_one(
     };
     let checkpoint = checkpoint.as_ref().map(|c| c as &dyn ohd::experiment::Checkpoint);
     let target = opts.target;
-    let output = match progress_bar(opts.quiet, exp.plan.samples(), target.map(|t| t.relative_error)) {
-        Some(bar) => {
-            let o = exp.run_resumable(&bar, target, resume, checkpoint);
-            bar.bar.finish_and_clear();
-            o?
-        }
-        None => exp.run_resumable(&ohd::experiment::Silent, target, resume, checkpoint)?,
-    };
+    let output = with_progress(opts.quiet, exp.plan.samples(), target.map(|t| t.relative_error), |p| {
+        exp.run_resumable(p, target, resume, checkpoint)
+    })?;
     let manifest = write_run(dir, exp, &output, table, inv)?;
     if saving && keep {
         std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
