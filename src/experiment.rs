@@ -235,13 +235,17 @@ impl<'a> BatchRunner<'a> {
             }
             return Ok(());
         };
-        let (tx, rx) = std::sync::mpsc::channel::<(u64, BatchResult)>();
+        // Every batch started sends exactly one message, its result or its panic (re-raised
+        // here, as rayon would): this thread never waits for a batch that is gone.
+        type Sent = std::thread::Result<BatchResult>;
+        let (tx, rx) = std::sync::mpsc::channel::<(u64, Sent)>();
         pool.in_place_scope(|scope| {
             let spawn = |b: u64, sums: Tallies| {
                 let tx = tx.clone();
                 scope.spawn(move |_| {
-                    // The receiver outlives the scope: a send fails only if this thread is gone.
-                    let _ = tx.send((b, exp.run_batch(b, sums, layout, beat, progress)));
+                    let run = std::panic::AssertUnwindSafe(|| exp.run_batch(b, sums, layout, beat, progress));
+                    // The receiver outlives the scope, so the send cannot fail.
+                    let _ = tx.send((b, std::panic::catch_unwind(run)));
                 });
             };
             let (mut started, mut handed) = (range.start, range.start);
@@ -252,8 +256,10 @@ impl<'a> BatchRunner<'a> {
             // Finished batches waiting for an earlier one, by index.
             let mut waiting = std::collections::BTreeMap::new();
             while handed < range.end {
-                let Ok((b, result)) = rx.recv() else { break };
-                waiting.insert(b, result);
+                let Ok((b, sent)) = rx.recv() else {
+                    unreachable!("a sender is held here and every batch started sends once");
+                };
+                waiting.insert(b, sent.unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
                 while let Some((sums, s, l)) = waiting.remove(&handed) {
                     // On an error the batches already started finish (the scope waits for them)
                     // and nothing more starts.

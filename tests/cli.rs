@@ -450,6 +450,24 @@ fn run_to_a_target_error() {
     assert!(text(&o.stderr).contains("--max-samples"), "{}", describe(&o));
 }
 
+/// Start `ohd ARGS` in `cwd`, kill it with SIGKILL as soon as `file` exists (or after two
+/// minutes), and return how it ended.
+fn kill_once_written(cwd: &Path, args: &[String], file: &Path) -> std::process::ExitStatus {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ohd"))
+        .args(args)
+        .current_dir(cwd)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("ohd starts");
+    let t0 = std::time::Instant::now();
+    while !file.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().expect("SIGKILL"); // Child::kill sends SIGKILL on Unix
+    child.wait().unwrap()
+}
+
 /// A run killed with SIGKILL after a checkpoint finishes with `--resume` (on another thread
 /// count) exactly as an uninterrupted run: every `.npy` byte-identical, the same estimates.
 #[test]
@@ -463,20 +481,8 @@ fn resume_after_sigkill_equals_an_uninterrupted_run() {
     assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
     let mut a = args(&killed);
     a.extend(["--checkpoint-seconds".into(), "0".into()]);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ohd"))
-        .args(&a)
-        .current_dir(tmp.path())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("ohd starts");
     let ckpt = killed.join("checkpoint.ohd");
-    let t0 = std::time::Instant::now();
-    while !ckpt.exists() && t0.elapsed().as_secs() < 60 {
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.kill().expect("SIGKILL"); // Child::kill sends SIGKILL on Unix
-    let status = child.wait().unwrap();
+    let status = kill_once_written(tmp.path(), &a, &ckpt);
     assert!(ckpt.exists(), "no checkpoint was written");
     assert!(!killed.join("manifest.json").exists(), "the run finished before it was killed ({status:?})");
     let mut a = args(&killed);
@@ -648,20 +654,8 @@ fn scans_shard_merge_and_resume_like_a_single_scan() {
     let killed = tmp.path().join("killed");
     let mut a = base(&killed, "200000");
     a.extend(["--checkpoint-seconds".into(), "0".into()]);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ohd"))
-        .args(&a)
-        .current_dir(tmp.path())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("ohd starts");
     let later = killed.join("pointing_01/checkpoint.ohd");
-    let t0 = std::time::Instant::now();
-    while !later.exists() && t0.elapsed().as_secs() < 120 {
-        std::thread::sleep(std::time::Duration::from_millis(10));
-    }
-    child.kill().expect("SIGKILL");
-    let status = child.wait().unwrap();
+    let status = kill_once_written(tmp.path(), &a, &later);
     assert!(later.exists(), "no checkpoint of pointing 1 was written");
     assert!(!killed.join("vad.csv").exists(), "the scan finished before it was killed ({status:?})");
     let mut a = base(&killed, "200000");
