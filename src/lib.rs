@@ -51,7 +51,9 @@
 //!   relative RMS over its bins, `‖x − r‖₂/‖r‖₂`, estimated by a run as `√(Σσ²)/‖x‖₂`.
 //! * **Random numbers** are a pure function of `(seed, purpose, element, sample)`
 //!   ([`sampling::rng`]); work is split by the configuration, never by the thread count, and batches
-//!   are reduced in a fixed order, so output is bit-identical for any number of threads.
+//!   are reduced in a fixed order, so output is bit-identical for any number of threads — and for
+//!   any number of processes: a run resumed from a checkpoint, or cut into shards (`ohd run
+//!   --shard I/N`, contiguous batch ranges) and merged, folds the same batches in the same order.
 //!
 //! ## Module map
 //!
