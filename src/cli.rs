@@ -445,12 +445,18 @@ impl Part {
     }
 }
 
-/// The directory of pointing `i` of a scan, inside the scan's.
-fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
-    dir.join(format!("pointing_{i:02}"))
+/// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
+fn pointing_name(i: usize) -> String {
+    format!("pointing_{i:02}")
 }
 
-/// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per pointing into `dir/pointing_NN`.
+/// The directory of pointing `i` of a scan, inside the scan's.
+fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
+    dir.join(pointing_name(i))
+}
+
+/// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
+/// pointing into `dir/pointing_NN`.
 fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
     let fp = ohd::io::checkpoint::config_fingerprint(table);
     if exp.source.pointings.len() <= 1 {
@@ -486,7 +492,7 @@ impl Scan {
         if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar.as_ref()) {
             self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
         }
-        self.runs.push(format!("pointing_{i:02}"));
+        self.runs.push(pointing_name(i));
     }
 
     /// Write the VAD wind of a scan whose every pointing has gate velocities (nothing otherwise).

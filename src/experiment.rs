@@ -66,7 +66,7 @@ pub trait Progress: Sync {
     fn advance(&self, paths: u64);
     /// The run's total number of paths changed (a run to a target error extends itself).
     fn set_total(&self, _paths: u64) {}
-    /// The estimated relative error of the main output, after each group of batches is folded in.
+    /// The estimated relative error of the main output, after each batch is folded in.
     fn error(&self, _relative: f64) {}
 }
 
@@ -157,7 +157,7 @@ pub struct RunState {
 
 /// Where a run saves its state from time to time (atomically), to be resumed after a crash.
 pub trait Checkpoint: Sync {
-    /// Whether a save is due now (called after every group of batches).
+    /// Whether a save is due now (called after each batch is folded in).
     fn due(&self) -> bool;
     /// Save `state`; an error stops the run.
     fn save(&self, state: &RunState) -> Result<()>;

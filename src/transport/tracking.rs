@@ -164,8 +164,9 @@ const MAX_SPANS: usize = 2 * MAX_REGIONS_PER_LAYER + 1;
 
 /// Call `f(t0, t1, medium)` for the spans of [`spans`] in order, until it breaks. A layer without
 /// regions is one span; a layer with one region (the usual heterogeneous scene: a grid in a box)
-/// needs no span buffer either: at most three spans, computed from the one intersection. (The buffer of [`spans`], 33 entries, was 6 % of
-/// the profile of `validation/vdb/vessels_bench.toml` in copies and fills alone.)
+/// needs no span buffer either: at most three spans, computed from the one intersection. (The
+/// buffer of [`spans`], 33 entries, was 6 % of the profile of `validation/vdb/vessels_bench.toml`
+/// in copies and fills alone.)
 #[inline(always)]
 fn for_each_span<B>(
     scene: &Scene,
