@@ -1,0 +1,211 @@
+#!/usr/bin/env python3
+"""Byte identity of two ohd builds on every shipped config and validation case.
+
+A refactoring that must not change behaviour is checked by running each case with a baseline
+binary and a candidate binary and comparing every file they write, byte for byte. The only
+exceptions are the numbers that measure time (wall seconds, paths per second, ...): in JSON
+files they are masked by key name before comparing, and the figures and CSV files of
+`ohd converge` (drawn from timings) are left out.
+
+    python3 validation/identity/check.py --baseline OLD/ohd --candidate target/release/ohd
+
+Cases (see `cases()`): `ohd run` on every configs/*.toml, validation/*.toml,
+validation/features/*.toml, validation/vdb/vessels_bench.toml and tests/configs/good/*.toml
+(with --samples N, default 20000, unless the case sets fewer), the built-in default, a run in
+3 shards merged, a run with --target-error, a checkpointed run, `ohd converge` with a fixed
+ladder, and `ohd mie` with a table. Baseline outputs are cached in --work/baseline (delete it,
+or pass --fresh, after changing the baseline binary).
+
+Exit status 0 when every case matches, 1 otherwise (the differing files are listed).
+"""
+
+import argparse
+import glob
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+
+# JSON keys whose values measure time, not physics: masked before comparing.
+TIMING_KEY = re.compile(r"(seconds|per_second|wall|elapsed|^slope)")
+# Files that are drawn from timings (ohd converge's fits, table and figure), and the shard files
+# (intermediate, with their timings inside: the merged outputs are compared instead).
+TIMING_FILES = {"converge.csv", "converge.png", "shard.ohd"}
+
+
+def cases(samples):
+    """(name, [argument lists of ohd, run in order, each with {out} for the output directory])."""
+    out = []
+    configs = sorted(
+        glob.glob(os.path.join(ROOT, "configs", "*.toml"))
+        + glob.glob(os.path.join(ROOT, "validation", "*.toml"))
+        + glob.glob(os.path.join(ROOT, "validation", "features", "*.toml"))
+        + glob.glob(os.path.join(ROOT, "validation", "vdb", "*.toml"))
+        + glob.glob(os.path.join(ROOT, "tests", "configs", "good", "*.toml"))
+    )
+    for c in configs:
+        rel = os.path.relpath(c, ROOT)
+        name = rel.replace("/", "__")[:-5]
+        out.append((name, [["run", c, "--samples", str(samples), "--quiet", "--out", "{out}"]]))
+    out.append(("builtin_default", [["run", "--samples", str(samples), "--quiet", "--out", "{out}"]]))
+    retina = os.path.join(ROOT, "configs", "retina_ldh.toml")
+    out.append(
+        (
+            "shards_merged",
+            [["run", retina, "--samples", str(samples), "--quiet", "--shard", f"{i}/3", "--out", "{out}/s%d" % i]
+             for i in range(3)]
+            + [["merge", "{out}/s0", "{out}/s1", "{out}/s2", "--out", "{out}/merged"]],
+        )
+    )
+    wind = os.path.join(ROOT, "configs", "wind_sunny.toml")
+    out.append(
+        (
+            "scan_shards_merged",
+            [["run", wind, "--samples", str(samples), "--quiet", "--shard", f"{i}/2", "--out", "{out}/s%d" % i]
+             for i in range(2)]
+            + [["merge", "{out}/s0", "{out}/s1", "--out", "{out}/merged"]],
+        )
+    )
+    default = os.path.join(ROOT, "configs", "default.toml")
+    out.append(
+        (
+            "target_error",
+            [["run", default, "--samples", str(samples), "--quiet", "--target-error", "0.05",
+              "--max-samples", str(16 * samples), "--out", "{out}"]],
+        )
+    )
+    out.append(
+        (
+            "checkpointed",
+            [["run", default, "--samples", str(samples), "--quiet", "--checkpoint-seconds", "0.001",
+              "--out", "{out}"]],
+        )
+    )
+    slab = os.path.join(ROOT, "validation", "vdh_slab.toml")
+    out.append(
+        (
+            "converge",
+            [["converge", slab, "--samples", str(4 * samples), "--rungs", "3", "--quiet", "--out", "{out}"]],
+        )
+    )
+    out.append(
+        (
+            "mie_table",
+            [["mie", "--m-real", "1.06", "--m-imag", "0.001", "--x", "25", "--angles", "181",
+              "--table", "{out}/table.csv"]],
+        )
+    )
+    return out
+
+
+def run_case(binary, steps, dest):
+    """Run `steps` into `dest`; returns (exit codes, stdout of the steps)."""
+    if os.path.exists(dest):
+        shutil.rmtree(dest)
+    os.makedirs(dest)
+    codes, stdout = [], []
+    for args in steps:
+        args = [a.replace("{out}", dest) for a in args]
+        p = subprocess.run([binary] + args, capture_output=True, text=True, cwd=ROOT)
+        codes.append(p.returncode)
+        # Paths and timings in the printed text differ by construction; keep it only for `mie`,
+        # whose stdout is its output.
+        stdout.append(p.stdout if args[0] == "mie" else "")
+        if p.returncode != 0:
+            with open(os.path.join(dest, "_stderr.txt"), "a") as f:
+                f.write(p.stderr)
+    return codes, stdout
+
+
+def mask(v):
+    if isinstance(v, dict):
+        return {k: ("<time>" if TIMING_KEY.search(k) else mask(x)) for k, x in v.items()}
+    if isinstance(v, list):
+        return [mask(x) for x in v]
+    return v
+
+
+def read(path, names):
+    """A file's bytes with the run's own paths (`names`: binary, output directory) blanked."""
+    with open(path, "rb") as f:
+        data = f.read()
+    for n in names:
+        data = data.replace(n.encode(), b"<path>")
+    return data
+
+
+def differing(a, b, names_a, names_b):
+    """Relative paths of files that differ between trees `a` and `b` (or exist in one only);
+    `names_a`, `names_b`: strings (binary, directory) that may appear in the files and differ."""
+    bad = []
+    fa, fb = set(), set()
+    for base, acc in ((a, fa), (b, fb)):
+        for d, _, files in os.walk(base):
+            for f in files:
+                if f == "_stderr.txt":
+                    continue
+                acc.add(os.path.relpath(os.path.join(d, f), base))
+    for rel in sorted(fa ^ fb):
+        bad.append(rel + " (only in " + ("baseline" if rel in fa else "candidate") + ")")
+    for rel in sorted(fa & fb):
+        pa, pb = os.path.join(a, rel), os.path.join(b, rel)
+        if os.path.basename(rel) in TIMING_FILES:
+            continue
+        da, db = read(pa, names_a), read(pb, names_b)
+        if rel.endswith(".json"):
+            if mask(json.loads(da)) != mask(json.loads(db)):
+                bad.append(rel)
+        elif da != db:
+            bad.append(rel)
+    return bad
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--baseline", required=True, help="ohd binary of the reference commit")
+    ap.add_argument("--candidate", default=os.path.join(ROOT, "target", "release", "ohd"))
+    ap.add_argument("--samples", type=int, default=20000)
+    ap.add_argument("--work", default="/tmp/ohd_identity")
+    ap.add_argument("--only", help="regular expression on case names")
+    ap.add_argument("--fresh", action="store_true", help="re-run the baseline even if cached")
+    a = ap.parse_args()
+    failed = 0
+    all_cases = [c for c in cases(a.samples) if not a.only or re.search(a.only, c[0])]
+    t0 = time.time()
+    for name, steps in all_cases:
+        bdir = os.path.join(a.work, "baseline", name)
+        cdir = os.path.join(a.work, "candidate", name)
+        stamp = os.path.join(bdir, "_codes.json")
+        if a.fresh or not os.path.exists(stamp):
+            codes, stdout = run_case(a.baseline, steps, bdir)
+            with open(stamp, "w") as f:
+                json.dump({"codes": codes, "stdout": stdout}, f)
+        with open(stamp) as f:
+            base = json.load(f)
+        codes, stdout = run_case(a.candidate, steps, cdir)
+        with open(os.path.join(cdir, "_codes.json"), "w") as f:
+            json.dump({"codes": codes, "stdout": stdout}, f)
+        problems = []
+        if codes != base["codes"]:
+            problems.append(f"exit codes {codes} (baseline {base['codes']})")
+        if stdout != base["stdout"]:
+            problems.append("stdout differs")
+        problems += differing(bdir, cdir, [os.path.abspath(a.baseline), bdir], [os.path.abspath(a.candidate), cdir])
+        nfiles = sum(len(f) for _, _, f in os.walk(cdir))
+        if problems:
+            failed += 1
+            print(f"DIFF {name}: " + "; ".join(problems[:8]) + (" ..." if len(problems) > 8 else ""))
+        else:
+            print(f"same {name} ({nfiles} files, exit {codes})")
+        sys.stdout.flush()
+    print(f"{len(all_cases) - failed} identical, {failed} differing ({time.time() - t0:.0f} s)")
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
