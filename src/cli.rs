@@ -489,7 +489,7 @@ impl Scan {
         if let Some(v) = ohd::scan::gate_peak_velocities(&part.exp, output) {
             self.velocities.push(v);
         }
-        if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar.as_ref()) {
+        if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar()) {
             self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
         }
         self.runs.push(pointing_name(i));
@@ -589,7 +589,7 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), Error> {
         let output = ohd::io::shard::merge(&part.exp, shards)?;
         let manifest = write_run(&part.dir, &part.exp, &output, &table, &inv)?;
         eprintln!("ohd: merged {count} shards ({} batches) → {}", output.batches, part.dir.display());
-        report(&part.exp, &output, &manifest);
+        report(&part.exp, &output, &manifest.json());
         scan.add(part, &output);
     }
     scan.finish(&exp, out)
@@ -784,7 +784,7 @@ fn run_one(
         output.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
         dir.display()
     );
-    report(exp, &output, &manifest);
+    report(exp, &output, &manifest.json());
     Ok(output)
 }
 
@@ -958,22 +958,24 @@ fn describe(exp: &Experiment, origin: &str) -> String {
     }
     let _ = writeln!(s, "detectors:");
     for d in &exp.detectors {
-        let _ = writeln!(
-            s,
-            "  {:<12} {:?} side, area {:?}, acceptance cos ≥ {:.4} about {:?}, plane at {} mm{}{}",
-            d.name,
-            d.side,
-            d.area,
-            d.cos_acceptance,
-            d.axis.to_array(),
-            mm(d.distance),
-            d.spectrum.as_ref().map_or(String::new(), |sp| format!(
-                ", spectrum {} bins over [{}, {}) Hz, split by order {:?}, by Doppler events {:?}",
-                sp.axis.bins, sp.axis.f_min, sp.axis.f_max, sp.by_order, sp.by_doppler_events
-            )),
-            d.image.map_or(String::new(), |im| format!(", image {}×{} px", im.nx, im.ny))
-        );
-        if let Some(l) = &d.lidar {
+        if let Some(sf) = d.surface() {
+            let _ = writeln!(
+                s,
+                "  {:<12} {:?} side, area {:?}, acceptance cos ≥ {:.4} about {:?}, plane at {} mm{}{}",
+                d.name,
+                sf.side,
+                sf.area,
+                sf.cos_acceptance,
+                sf.axis.to_array(),
+                mm(sf.distance),
+                sf.spectrum.as_ref().map_or(String::new(), |sp| format!(
+                    ", spectrum {} bins over [{}, {}) Hz, split by order {:?}, by Doppler events {:?}",
+                    sp.axis.bins, sp.axis.f_min, sp.axis.f_max, sp.by_order, sp.by_doppler_events
+                )),
+                sf.image.map_or(String::new(), |im| format!(", image {}×{} px", im.nx, im.ny))
+            );
+        }
+        if let Some(l) = d.lidar() {
             let _ = writeln!(
                 s,
                 "  {:<12} lidar: {} gates of {} samples at {:.3} MHz from {:.1} m, {}-point DFT, pulse {:.1} ns, {:.3e} J, η = {} × {}: shot-noise floor {:.4e} per bin ({:.1} dB)",

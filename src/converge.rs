@@ -20,48 +20,33 @@
 //! With a noisy reference, the expected squared error is the sum of both runs' variances, so the
 //! agreement check compares the measured error with `√(σ² + σ_ref²)`.
 
-use std::ops::Range;
-
 use crate::detect::Scalar;
 use crate::experiment::{Experiment, Progress, RunOutput};
 use crate::stats::BatchAccumulator;
 
-/// One named output of a run: a slice of the tally vector.
-#[derive(Debug, Clone, PartialEq)]
-pub struct NamedOutput {
-    /// `reflectance_diffuse`, `camera.detected_power`, `camera.spectrum`, `camera.m0_plus`, …
-    pub name: String,
-    /// Slots in the tally vector (and in the accumulator's mean and standard error).
-    pub range: Range<usize>,
-    /// A scalar (absolute error) or a spectrum or image (relative RMS error).
-    pub scalar: bool,
-    /// Where a run writes it, relative to its output directory: `.npy` (with `_stderr.npy`
-    /// beside it) for arrays, or a JSON pointer into `manifest.json` for scalars.
-    pub file: String,
-    /// The sign the written file carries relative to the tally (an LDH camera's M0− with
-    /// `flip_sign`): the file holds `sign × tally`.
-    pub sign: f64,
-}
+/// One named output of a run (declared in the [`crate::output::Registry`]).
+pub use crate::output::Output as NamedOutput;
 
 fn norm(x: impl Iterator<Item = f64>) -> f64 {
     x.map(|v| v * v).sum::<f64>().sqrt()
 }
 
+/// The error metrics of an output.
 impl NamedOutput {
     /// The run's estimate of its own relative error: `σ/|x|` for a scalar, `√(Σσ²)/‖x‖₂`
     /// otherwise. Infinite when the output is zero.
     pub fn relative_error(&self, acc: &BatchAccumulator) -> f64 {
-        acc.relative_error(self.range.clone())
+        acc.relative_error(self.range())
     }
 
     /// The measured error of `mean` against `reference` (absolute for a scalar, relative RMS
     /// otherwise) and the run's own estimate of it from `stderr`, in the same metric.
     /// `None` when the reference is zero everywhere (no relative error is defined).
     pub fn error_against(&self, mean: &[f64], stderr: &[f64], reference: &[f64]) -> Option<(f64, f64)> {
-        let x = &mean[self.range.clone()];
-        let s = norm(stderr[self.range.clone()].iter().copied());
+        let x = &mean[self.range()];
+        let s = norm(stderr[self.range()].iter().copied());
         let d = norm(x.iter().zip(reference).map(|(a, b)| a - b));
-        if self.scalar {
+        if self.is_scalar() {
             return Some((d, s));
         }
         let r = norm(reference.iter().copied());
@@ -70,73 +55,21 @@ impl NamedOutput {
 
     /// The error in `error_against`'s metric turned relative (a scalar's divided by `|r|`).
     pub fn to_relative(&self, error: f64, reference: &[f64]) -> f64 {
-        if self.scalar { error / reference[0].abs() } else { error }
+        if self.is_scalar() { error / reference[0].abs() } else { error }
     }
 
     /// The output's values and standard errors, sliced from the accumulator of a run.
     pub fn slice<'a>(&self, mean: &'a [f64], stderr: &'a [f64]) -> (&'a [f64], &'a [f64]) {
-        (&mean[self.range.clone()], &stderr[self.range.clone()])
+        (&mean[self.range()], &stderr[self.range()])
     }
 }
 
 impl Experiment {
-    /// Every named output of this experiment: the five scalar tallies, then per detector its
-    /// power, its total spectrum (per chirp), image, LDH M0± images and lidar range–Doppler
-    /// spectra.
+    /// Every named output of this experiment ([`crate::output::Registry::named`]): the five
+    /// scalar tallies, then per detector its power, its total spectrum (per chirp), image, LDH
+    /// M0± images and lidar range–Doppler spectra.
     pub fn outputs(&self) -> Vec<NamedOutput> {
-        let layout = self.tally_layout();
-        let chirps = self.beat_model().chirps();
-        let mut v: Vec<NamedOutput> = Scalar::ALL
-            .iter()
-            .map(|&s| NamedOutput {
-                name: s.name().to_string(),
-                range: s as usize..s as usize + 1,
-                scalar: true,
-                file: format!("/estimates/{}/value", s.name()),
-                sign: 1.0,
-            })
-            .collect();
-        for (d, lay) in self.detectors.iter().zip(&layout.detectors) {
-            let array = |what: &str, range: Range<usize>, file: String| NamedOutput {
-                name: format!("{}.{what}", d.name),
-                range,
-                scalar: false,
-                file,
-                sign: 1.0,
-            };
-            v.push(NamedOutput {
-                name: format!("{}.detected_power", d.name),
-                range: lay.power..lay.power + 1,
-                scalar: true,
-                file: format!("/estimates/detectors/{}/detected_power/value", d.name),
-                sign: 1.0,
-            });
-            if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
-                for c in 0..chirps {
-                    let o = start + c * lay.channels * stride;
-                    let (what, file) = match (chirps, c) {
-                        (1, _) => ("spectrum".to_string(), format!("{}_spectrum.npy", d.name)),
-                        (_, 0) => ("spectrum_up".to_string(), format!("{}_up_spectrum.npy", d.name)),
-                        _ => ("spectrum_down".to_string(), format!("{}_down_spectrum.npy", d.name)),
-                    };
-                    v.push(array(&what, o..o + spec.axis.bins, file));
-                }
-            }
-            if let (Some(im), Some(start)) = (&d.image, lay.image) {
-                v.push(array("image", start..start + im.nx * im.ny, format!("{}_image.npy", d.name)));
-            }
-            if let (Some(spec), Some(ll)) = (&d.ldh, &lay.ldh) {
-                v.push(array("m0_plus", ll.m0_plus..ll.m0_plus + ll.pixels, "m0_plus.npy".into()));
-                let mut minus = array("m0_minus", ll.m0_minus..ll.m0_minus + ll.pixels, "m0_minus.npy".into());
-                minus.sign = if spec.flip_sign { -1.0 } else { 1.0 };
-                v.push(minus);
-            }
-            if let (Some(spec), Some(ll)) = (&d.lidar, &lay.lidar) {
-                let n = spec.gates * spec.fft_points;
-                v.push(array("range_doppler", ll.spectra..ll.spectra + n, "range_doppler.npy".into()));
-            }
-        }
-        v
+        self.tally_layout().registry.named().cloned().collect()
     }
 
     /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
@@ -203,7 +136,7 @@ impl Reference {
     /// The reference's own error in `output`'s metric: `σ_r` for a scalar, `‖σ_r‖/‖r‖` otherwise.
     pub fn error(&self, output: &NamedOutput) -> f64 {
         let s = norm(self.stderr.iter().copied());
-        if output.scalar {
+        if output.is_scalar() {
             return s;
         }
         let r = norm(self.values.iter().copied());

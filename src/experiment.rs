@@ -7,7 +7,7 @@
 
 use crate::converge::{Target, TargetOutcome, rounds_needed};
 use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
-use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
+use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
 use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
@@ -126,14 +126,23 @@ impl RunOutput {
     /// total, then the splits; see [`SpectrumSpec::channels`](crate::detect::SpectrumSpec::channels)).
     /// `None` if the detector has no spectrum or there is no such chirp or channel.
     pub fn spectrum(&self, exp: &Experiment, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
-        let spec = exp.detectors.get(i)?.spectrum.as_ref()?;
-        let lay = self.layout.detectors.get(i)?;
-        let (start, stride) = lay.spectra?;
-        if chirp >= self.beat.chirps() || channel >= lay.channels {
-            return None;
+        let what = match (self.beat.chirps(), chirp) {
+            (1, 0) => "spectrum",
+            (2, 0) => "spectrum_up",
+            (2, 1) => "spectrum_down",
+            _ => return None,
+        };
+        let total = format!("{}.{what}", exp.detectors.get(i)?.name);
+        let split = format!("{total}_by_");
+        // The total, then the splits, each output a block of channels.
+        let mut k = channel;
+        for o in self.layout.registry.of_detector(i).filter(|o| o.name == total || o.name.starts_with(&split)) {
+            if k < o.slots.rows {
+                return Some(&self.estimates.mean()[o.slots.row_range(k)]);
+            }
+            k -= o.slots.rows;
         }
-        let o = start + (chirp * lay.channels + channel) * stride;
-        Some(&self.estimates.mean()[o..o + spec.axis.bins])
+        None
     }
 }
 
@@ -294,7 +303,7 @@ impl Experiment {
 
     /// Whether the walk needs the optical path length (a chirp, or range gates).
     pub fn needs_length(&self) -> bool {
-        self.source.chirp.is_some() || self.detectors.iter().any(|d| d.lidar.is_some())
+        self.source.chirp.is_some() || self.detectors.iter().any(|d| d.lidar().is_some())
     }
 
     /// The detectors scored by next-event estimation.
@@ -302,10 +311,10 @@ impl Experiment {
         self.detectors
             .iter()
             .enumerate()
-            .filter(|(_, d)| d.next_event)
-            .map(|(i, d)| match &d.lidar {
-                Some(l) => NeeTarget::receiver(i, l.position, l.aperture_radius, l.axis, l.cos_fov),
-                None => NeeTarget::new(i, d.axis, d.cos_acceptance),
+            .filter(|(_, d)| d.next_event())
+            .map(|(i, d)| match &d.kind {
+                DetectorKind::Lidar(l) => NeeTarget::receiver(i, l.position, l.aperture_radius, l.axis, l.cos_fov),
+                DetectorKind::Surface(s) => NeeTarget::new(i, s.axis, s.cos_acceptance),
             })
             .collect()
     }
@@ -315,14 +324,14 @@ impl Experiment {
     /// an error when they cannot be read off (no signal).
     pub fn fmcw_estimates(&self, out: &RunOutput, i: usize) -> Option<Result<FmcwEstimate, RetrievalError>> {
         let chirp = self.source.chirp?;
-        let axis = self.detectors.get(i)?.spectrum.as_ref()?.axis;
+        let axis = self.detectors.get(i)?.surface()?.spectrum.as_ref()?.axis;
         let (up, down) = (out.spectrum(self, i, 0, 0)?, out.spectrum(self, i, 1, 0)?);
         Some(fmcw_estimates(&axis, up, down, self.source.wavelength, chirp.bandwidth, chirp.duration))
     }
 
     /// Whether detected paths are kept for speckle synthesis.
     pub fn records_lines(&self) -> bool {
-        self.detectors.iter().any(|d| d.ldh.as_ref().is_some_and(|l| l.speckle.is_some()))
+        self.detectors.iter().any(|d| d.ldh().is_some_and(|l| l.speckle.is_some()))
     }
 
     /// Batches folded at a time: enough to keep every thread busy, few enough to bound memory.
@@ -448,7 +457,7 @@ impl Experiment {
         let batches = estimates.batches() as u64;
         let samples = batches * self.plan.paths_per_batch;
         let t = std::time::Instant::now();
-        let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
+        let speckle = match self.detectors.iter().find_map(|d| d.ldh()) {
             Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
             None => Vec::new(),
         };

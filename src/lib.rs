@@ -68,6 +68,7 @@
 //! | [`medium`] | media of one or several particle populations, density fields (ramp, voxel grid) with their majorant grids, region shapes, the layer stack (the scene) |
 //! | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta tracking over majorant segments, ratio tracking), the random walk |
 //! | [`detect`] | detectors and what a finished path is recorded into |
+//! | [`output`] | the registry of a run's named outputs: kind, shape, units, tally slots, file, sign |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
@@ -84,6 +85,7 @@ pub mod flow;
 pub mod io;
 pub mod medium;
 pub mod mie;
+pub mod output;
 pub mod phase;
 pub mod retrieval;
 pub mod sampling;

@@ -9,6 +9,7 @@
 //! at the same range lie at the same height only when all pointings share one elevation (a
 //! conical scan, the usual VAD); the height reported is the mean over the pointings.
 
+use crate::detect::DetectorKind;
 use crate::experiment::{Experiment, RunOutput};
 use crate::retrieval::{RetrievalError, VadFit, gate_estimates, vad_fit};
 use crate::source::Pointing;
@@ -19,7 +20,7 @@ impl Experiment {
         let mut e = self.clone();
         e.source = self.source.pointed(p.direction);
         for d in &mut e.detectors {
-            if let Some(l) = &mut d.lidar {
+            if let DetectorKind::Lidar(l) = &mut d.kind {
                 l.axis = e.source.direction;
             }
         }
@@ -32,15 +33,15 @@ impl Experiment {
 /// `gates.csv`: the shot-noise floor, a constant, does not move the peak); `None` for a gate
 /// without signal. `None` altogether without a lidar receiver.
 pub fn gate_peak_velocities(exp: &Experiment, out: &RunOutput) -> Option<Vec<Option<f64>>> {
-    let (i, spec) = exp.detectors.iter().enumerate().find_map(|(i, d)| d.lidar.as_ref().map(|l| (i, l)))?;
-    let lay = out.layout.detectors[i].lidar.as_ref()?;
+    let (d, spec) = exp.detectors.iter().find_map(|d| d.lidar().map(|l| (d, l)))?;
+    let start = out.layout.registry.get(&format!("{}.range_doppler", d.name))?.slots.start;
     let k = spec.fft_points;
     let axis = spec.frequency_axis()?;
     let mean = out.estimates.mean();
     Some(
         (0..spec.gates)
             .map(|g| {
-                let o = lay.spectra + g * k;
+                let o = start + g * k;
                 gate_estimates(&axis, &mean[o..o + k], 0.0, exp.source.wavelength).ok().map(|e| e.peak_velocity_m_per_s)
             })
             .collect(),

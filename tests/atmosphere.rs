@@ -275,10 +275,10 @@ fn a_vad_scan_recovers_the_log_law_wind_in_every_gate() {
         let e = exp.pointed(p);
         let out = e.run(&ohd::experiment::Silent);
         velocities.push(ohd::scan::gate_peak_velocities(&e, &out).unwrap());
-        let l = e.detectors[0].lidar.as_ref().unwrap();
+        let l = e.detectors[0].lidar().unwrap();
         ranges = (0..l.gates).map(|g| l.gate_range(g)).collect::<Vec<_>>();
     }
-    let l = exp.detectors[0].lidar.as_ref().unwrap();
+    let l = exp.detectors[0].lidar().unwrap();
     let bin = 0.5 * LAMBDA * l.sample_rate / l.fft_points as f64;
     let u_star = 5.0 * 0.4 / (10.0f64 / 0.03).ln();
     for w in ohd::scan::vad_per_gate(&pointings, 0.0, &ranges, &velocities) {

@@ -83,7 +83,7 @@ fn self_reported_sigma_agrees_with_the_measured_error() {
     assert!((bs - slope_in_paths(&s, &spec.relative_stderr)).abs() < 1e-12);
     // Scalars with variance, pooled: mean of (e/σ_tot)² over rungs and scalars ~ χ²_n/n.
     let ratios: Vec<f64> =
-        s.outputs.iter().filter(|o| o.output.scalar).flat_map(|o| o.sigma_ratio.iter().copied()).collect();
+        s.outputs.iter().filter(|o| o.output.is_scalar()).flat_map(|o| o.sigma_ratio.iter().copied()).collect();
     let pooled = (ratios.iter().map(|q| q * q).sum::<f64>() / ratios.len() as f64).sqrt();
     println!("{} scalar ratios, pooled rms {pooled:.3}", ratios.len());
     assert!(ratios.len() >= 10, "{} scalar ratios", ratios.len());

@@ -19,7 +19,7 @@ fn one_and_two_threads_write_identical_outputs() {
             let (table, exp) = ohd::config::load(text, name, &sets).unwrap();
             let out = exp.run(&ohd::experiment::Silent);
             assert_eq!(out.threads, *threads);
-            manifests.push(write_run(dir.path(), &exp, &out, &table, &Invocation::default()).unwrap());
+            manifests.push(write_run(dir.path(), &exp, &out, &table, &Invocation::default()).unwrap().json());
         }
         assert_eq!(manifests[0]["estimates"], manifests[1]["estimates"], "{name}: estimates differ");
         assert_eq!(

@@ -46,7 +46,7 @@ fn closed_form_beat_frequencies() {
 /// centres and each peak errs by at most Δf/2.
 fn check_hard_target(r: &Run, v: f64) -> FmcwEstimate {
     let e = estimates(r);
-    let axis = r.exp.detectors[0].spectrum.as_ref().unwrap().axis;
+    let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
     let df = axis.bin_width();
     for chirp in 0..2 {
         let s = r.out.spectrum(&r.exp, 0, chirp, 0).unwrap();
@@ -81,7 +81,7 @@ fn hard_target_range_and_velocity_within_one_bin() {
     // The manifest and the CSV carry the same numbers.
     let tmp = tempfile::tempdir().unwrap();
     let table: toml::Table = toml::from_str(TARGET).unwrap();
-    let m = write_run(tmp.path(), &r.exp, &r.out, &table, &Invocation::default()).unwrap();
+    let m = write_run(tmp.path(), &r.exp, &r.out, &table, &Invocation::default()).unwrap().json();
     let est = &m["estimates"]["detectors"]["receiver"];
     assert_eq!(est["range_m"].as_f64(), Some(e.range_m));
     assert_eq!(est["radial_velocity_m_per_s"].as_f64(), Some(e.radial_velocity_m_per_s));
@@ -158,9 +158,9 @@ fn cloud_slab_range_inside_and_velocity_within_one_bin() {
     assert!(!e.touches_axis_end);
     let (lo, hi) = (range_frequency(near, B, T), range_frequency(far, B, T));
     let f_d = doppler(1.0);
-    let df = r.exp.detectors[0].spectrum.as_ref().unwrap().axis.bin_width();
+    let df = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis.bin_width();
     for (g, shift) in [(&e.up, f_d), (&e.down, -f_d)] {
-        let axis = r.exp.detectors[0].spectrum.as_ref().unwrap().axis;
+        let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
         let (a, b) = (axis.center(g.window.start) - 0.5 * df, axis.center(g.window.end - 1) + 0.5 * df);
         assert!(
             a <= lo + shift + df && b >= hi + shift - df,
@@ -179,7 +179,7 @@ fn no_signal_gives_a_note_and_no_estimates() {
     assert!(matches!(r.exp.fmcw_estimates(&r.out, 0), Some(Err(ohd::retrieval::RetrievalError::NoSignal))));
     let tmp = tempfile::tempdir().unwrap();
     let table: toml::Table = toml::from_str(TARGET).unwrap();
-    let m = write_run(tmp.path(), &r.exp, &r.out, &table, &Invocation::default()).unwrap();
+    let m = write_run(tmp.path(), &r.exp, &r.out, &table, &Invocation::default()).unwrap().json();
     let note = m["detectors"]["receiver"]["fmcw"]["note"].as_str().unwrap_or_default();
     assert!(note.starts_with("no estimates: no signal"), "{note}");
     assert!(m["estimates"]["detectors"]["receiver"].get("range_m").is_none());

@@ -204,7 +204,7 @@ fn single_window_m0_noise_falls_by_about_sqrt8_from_64_to_512_samples() {
             "detectors.0.ldh.speckle={ windows = 500 }",
         ];
         let r = run(THIN_VESSEL, &sets);
-        let spec = r.exp.detectors[0].ldh.as_ref().unwrap();
+        let spec = r.exp.detectors[0].ldh().unwrap();
         let s = &r.out.speckle[0];
         let band: Vec<f64> = (1..n)
             .filter(|&k| {

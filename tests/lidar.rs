@@ -194,7 +194,7 @@ fn run_and_write(text: &str, sets: &[&str]) -> (Run, tempfile::TempDir, serde_js
     let out = exp.run(&ohd::experiment::Silent);
     let dir = tempfile::tempdir().expect("temporary directory");
     let inv = ohd::io::manifest::Invocation { config_source: "test".into(), overrides: sets };
-    let manifest = ohd::io::manifest::write_run(dir.path(), &exp, &out, &table, &inv).expect("outputs written");
+    let manifest = ohd::io::manifest::write_run(dir.path(), &exp, &out, &table, &inv).expect("outputs written").json();
     let entry = manifest["detectors"]["lidar"]["lidar"].clone();
     assert!(entry.is_object(), "no lidar entry in the manifest");
     (Run { exp, out }, dir, entry)

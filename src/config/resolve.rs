@@ -9,7 +9,9 @@ use glam::DVec3;
 
 use super::schema::*;
 use super::units::unit_of;
-use crate::detect::{Area, Detector, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
+use crate::detect::{
+    Area, Detector, DetectorKind, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec, Surface,
+};
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
@@ -228,20 +230,35 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     for (i, d) in f.detectors.iter().enumerate() {
         if let Some(l) = &d.lidar {
             let path = format!("detectors[{i}].lidar");
-            if detectors.iter().any(|o| o.lidar.is_some()) {
+            if detectors.iter().any(|o| o.lidar().is_some()) {
                 return err(path, "only one detector may be a lidar receiver");
             }
             if source.chirp.is_some() {
                 return err(path, "a pulsed lidar receiver needs a single-frequency laser: remove source.chirp");
             }
             let spec = resolve_lidar(&path, l, &source, &scene)?;
-            let det = &mut detectors[i];
-            det.lidar = Some(spec);
-            det.next_event = true;
+            let given = [
+                ("side", d.side.is_some()),
+                ("area", d.area.is_some()),
+                ("acceptance_half_angle_deg", d.acceptance_half_angle_deg.is_some()),
+                ("axis", d.axis.is_some()),
+                ("include_specular", d.include_specular.is_some()),
+                ("next_event", d.next_event.is_some()),
+                ("spectrum", d.spectrum.is_some()),
+                ("image", d.image.is_some()),
+                ("ldh", d.ldh.is_some()),
+            ];
+            if let Some((key, _)) = given.iter().find(|g| g.1) {
+                return err(
+                    format!("detectors[{i}].{key}"),
+                    "is not used by a lidar receiver (it sits at the source, looks along the beam and writes range-gate spectra): remove it",
+                );
+            }
+            detectors[i].kind = DetectorKind::Lidar(spec);
         }
     }
     if source.chirp.is_some()
-        && let Some(i) = detectors.iter().position(|d| d.ldh.is_some())
+        && let Some(i) = detectors.iter().position(|d| d.ldh().is_some())
     {
         return err(
             format!("detectors[{i}].ldh"),
@@ -279,8 +296,8 @@ fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment)
             ReferenceValue::Scalar(v) => vec![*v],
             ReferenceValue::Array(v) => v.clone(),
         };
-        if values.len() != o.range.len() {
-            return err(path, format!("has {} values: expected {} (the output's size)", values.len(), o.range.len()));
+        if values.len() != o.range().len() {
+            return err(path, format!("has {} values: expected {} (the output's size)", values.len(), o.range().len()));
         }
         if let Some(v) = values.iter().find(|v| !v.is_finite()) {
             return err(path, format!("contains {v}: expected finite values"));
@@ -302,37 +319,7 @@ fn check_memory(exp: &Experiment) -> R<()> {
         return Ok(());
     }
     let layout = exp.tally_layout();
-    let chirps = exp.beat_model().chirps();
-    // (key, value, tallies) of every block that grows with a key.
-    let mut blocks: Vec<(String, String, usize)> = Vec::new();
-    for (i, (d, lay)) in exp.detectors.iter().zip(&layout.detectors).enumerate() {
-        let end = layout.detectors.get(i + 1).map_or(layout.len, |n| n.power);
-        let mut rest = end - lay.power - 1;
-        let path = format!("detectors[{i}]");
-        if let Some((_, stride)) = lay.spectra {
-            let n = chirps * lay.channels * stride;
-            blocks.push((join(&path, "spectrum.bins"), format!("= {}", stride - 2), n));
-            rest -= n;
-        }
-        if let Some(ll) = &lay.ldh {
-            if ll.pixel_spectra.is_some() {
-                let n = ll.pixels * ll.stride;
-                blocks.push((
-                    join(&path, "ldh.pixel_spectra"),
-                    format!("= true ({} bins per pixel)", ll.stride - 2),
-                    n,
-                ));
-                rest -= n;
-            }
-            rest -= ll.rois.len() * (2 + LdhSpec::ROI_CHANNELS * ll.stride);
-        }
-        if let Some(l) = &d.lidar {
-            blocks.push((join(&path, "lidar.gates"), format!("= {}", l.gates), rest));
-        } else if let Some(im) = d.image {
-            // The image and the LDH camera's per-pixel maps.
-            blocks.push((join(&path, "image.pixels"), format!("= [{}, {}]", im.nx, im.ny), rest));
-        }
-    }
+    let blocks = layout.registry.budget_blocks();
     let (key, value) = blocks
         .into_iter()
         .max_by_key(|b| b.2)
@@ -2166,30 +2153,32 @@ fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> 
         }
         out.push(Detector {
             name: d.name.clone(),
-            side,
-            distance,
-            area,
-            axis,
-            cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
-            include_specular: d.include_specular.unwrap_or(true),
-            spectrum,
-            image,
-            ldh: None,
-            lidar: None,
-            next_event,
+            kind: DetectorKind::Surface(Surface {
+                side,
+                distance,
+                area,
+                axis,
+                cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
+                include_specular: d.include_specular.unwrap_or(true),
+                spectrum,
+                image,
+                ldh: None,
+                next_event,
+            }),
         });
         if let Some(l) = &d.ldh {
             let p = join(&path, "ldh");
             let Some(im) = image else {
                 return err(p, "an LDH camera needs the detector's image (add [detectors.image] pixels = [nx, ny])");
             };
-            if out.iter().any(|o| o.ldh.is_some()) {
+            if out.iter().any(|o| o.ldh().is_some()) {
                 return err(p, "only one detector may be an LDH camera");
             }
             let ldh = resolve_ldh(&p, l, &im)?;
-            let det = out.last_mut().expect("just pushed");
-            det.ldh = Some(ldh);
-            det.next_event = true;
+            if let Some(DetectorKind::Surface(s)) = out.last_mut().map(|d| &mut d.kind) {
+                s.ldh = Some(Box::new(ldh));
+                s.next_event = true;
+            }
         }
     }
     Ok(out)

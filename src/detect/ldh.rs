@@ -20,6 +20,8 @@
 //! Paths are split into classes by their number of Doppler events (scattering on moving or
 //! diffusing particles): static tissue only (0), one, several.
 
+use super::{ImageSpec, detector_output};
+use crate::output::{Kind, Output, Registry, Slots};
 use crate::spectrum::{BandKernel, BandPowers, FrequencyAxis, Stft};
 
 /// Path classes, by Doppler events: 0, 1, ≥ 2.
@@ -131,24 +133,100 @@ impl LdhSpec {
     /// Channels of an ROI spectrum: the total, then one per path class.
     pub const ROI_CHANNELS: usize = 1 + CLASS_NAMES.len();
 
-    /// Lay out this camera's tallies from `start` for an image of `pixels` pixels.
-    pub fn layout(&self, pixels: usize, start: &mut usize) -> LdhLayout {
-        let mut take = |n: usize| {
-            let s = *start;
-            *start += n;
-            s
+    /// Lay out this camera's tallies (detector `i`, called `name`, over the image `im`) from the
+    /// end of `reg`, and declare its outputs: M0± (and M1, per-class) images, each ROI's M0±
+    /// and spectra, the per-pixel spectra. M0− carries the set-up's sign, the spectra its
+    /// mirrored axis.
+    pub fn declare(&self, i: usize, name: &str, im: &ImageSpec, reg: &mut Registry) -> LdhLayout {
+        let pixels = im.nx * im.ny;
+        let bins = self.spectrum_axis.bins;
+        let stride = bins + 2;
+        let sign = if self.flip_sign { -1.0 } else { 1.0 };
+        let budget = Some(im.budget_key(i));
+        let image = |reg: &mut Registry, start: usize, stem: String, sign: f64, primary: bool| {
+            reg.declare(Output {
+                file: format!("{stem}.npy"),
+                sign,
+                primary,
+                budget_key: budget.clone(),
+                ..detector_output(i, format!("{name}.{stem}"), im.kind(), Slots::contiguous(start, pixels), im.shape())
+            });
         };
-        let stride = self.spectrum_axis.bins + 2;
-        let m0_plus = take(pixels);
-        let m0_minus = take(pixels);
-        let m1 = self.m1.then(|| take(pixels));
-        let classes = self.by_class.then(|| take(2 * CLASS_NAMES.len() * pixels));
+        let m0_plus = reg.take(pixels);
+        image(reg, m0_plus, "m0_plus".into(), 1.0, true);
+        let m0_minus = reg.take(pixels);
+        image(reg, m0_minus, "m0_minus".into(), sign, true);
+        let m1 = self.m1.then(|| {
+            let o = reg.take(pixels);
+            image(reg, o, "m1".into(), 1.0, false);
+            reg.outputs.last_mut().expect("just declared").units = "Hz × fraction of emitted power";
+            o
+        });
+        let classes = self.by_class.then(|| {
+            let o = reg.take(2 * CLASS_NAMES.len() * pixels);
+            for (c, cname) in CLASS_NAMES.iter().enumerate() {
+                image(reg, o + 2 * c * pixels, format!("m0_plus_{cname}"), 1.0, false);
+                image(reg, o + (2 * c + 1) * pixels, format!("m0_minus_{cname}"), sign, false);
+            }
+            o
+        });
+        let channels: Vec<String> =
+            std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
+        let spectrum =
+            |channels: Vec<String>| Kind::Spectrum { axis: self.spectrum_axis, channels, mirrored: self.flip_sign };
         let rois = self
             .rois
             .iter()
-            .map(|_| RoiLayout { m0_plus: take(1), m0_minus: take(1), spectrum: take(Self::ROI_CHANNELS * stride) })
+            .map(|roi| {
+                let mut scalar = |what: &str, sign: f64| {
+                    let o = reg.take(1);
+                    reg.declare(Output {
+                        file: format!("/estimates/{what}_roi_{}/value", roi.name),
+                        sign,
+                        ..detector_output(
+                            i,
+                            format!("{name}.roi_{}.{what}", roi.name),
+                            Kind::Scalar,
+                            Slots::contiguous(o, 1),
+                            vec![],
+                        )
+                    });
+                    o
+                };
+                let (m0_plus, m0_minus) = (scalar("m0_plus", 1.0), scalar("m0_minus", sign));
+                let s = reg.take(Self::ROI_CHANNELS * stride);
+                reg.declare(Output {
+                    file: format!("roi_{}_spectrum.npy", roi.name),
+                    ..detector_output(
+                        i,
+                        format!("{name}.roi_{}.spectrum", roi.name),
+                        spectrum(channels.clone()),
+                        Slots { start: s, rows: Self::ROI_CHANNELS, stride, len: bins },
+                        vec![Self::ROI_CHANNELS, bins],
+                    )
+                });
+                RoiLayout { m0_plus, m0_minus, spectrum: s }
+            })
             .collect();
-        let pixel_spectra = self.pixel_spectra.then(|| take(pixels * stride));
+        let pixel_spectra = self.pixel_spectra.then(|| {
+            let o = reg.take(pixels * stride);
+            reg.declare(Output {
+                file: "pixel_spectra.npy".into(),
+                stderr: false,
+                budget_key: Some((
+                    format!("detectors[{i}].ldh.pixel_spectra"),
+                    format!("= true ({bins} bins per pixel)"),
+                )),
+                ..detector_output(
+                    i,
+                    format!("{name}.pixel_spectra"),
+                    Kind::PixelSpectra { nx: im.nx, ny: im.ny, axis: self.spectrum_axis, mirrored: self.flip_sign },
+                    Slots { start: o, rows: pixels, stride, len: bins },
+                    vec![im.ny, im.nx, bins],
+                )
+            });
+            o
+        });
         LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra }
     }
 

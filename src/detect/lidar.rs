@@ -111,7 +111,9 @@ use std::f64::consts::PI;
 use glam::DVec3;
 use num_complex::Complex;
 
+use super::detector_output;
 use crate::SPEED_OF_LIGHT;
+use crate::output::{Kind, Output, Registry, Slots};
 use crate::retrieval::{
     FitOptions, Floor, GateEstimate, GateKernel, ModelChoice, RetrievalError, fit_one_or_two,
     fit_one_or_two_with_kernel, gate_estimates,
@@ -340,14 +342,43 @@ impl LidarSpec {
         PI * self.aperture_radius * self.aperture_radius
     }
 
-    /// Lay out the tallies from `start`.
-    pub fn layout(&self, start: &mut usize) -> LidarLayout {
+    /// Lay out the receiver's tallies (detector `i`, called `name`) from the end of `reg` and
+    /// declare its outputs: the range–Doppler spectra of each channel, from the lag sums.
+    pub fn declare(&self, i: usize, name: &str, reg: &mut Registry) -> LidarLayout {
         let channels = LIDAR_CHANNELS.len();
-        let lags = *start;
-        *start += channels * self.gates * self.gate_points * 2;
-        let spectra = *start;
-        *start += channels * self.gates * self.fft_points;
+        let budget = Some((format!("detectors[{i}].lidar.gates"), format!("= {}", self.gates)));
+        let n = channels * self.gates * self.gate_points * 2;
+        let lags = reg.take(n);
+        reg.declare(Output {
+            budget_key: budget.clone(),
+            ..detector_output(i, format!("{name}.lag_sums"), Kind::Internal, Slots::contiguous(lags, n), vec![n])
+        });
+        let (gates, bins) = (self.gates, self.fft_points);
+        let spectra = reg.take(channels * gates * bins);
+        for (c, channel) in LIDAR_CHANNELS.iter().enumerate() {
+            let stem = if c == 0 { "range_doppler".to_string() } else { format!("range_doppler_{channel}") };
+            reg.declare(Output {
+                units: "fraction of the pulse energy per bin",
+                file: format!("{stem}.npy"),
+                primary: c == 0,
+                budget_key: budget.clone(),
+                ..detector_output(
+                    i,
+                    format!("{name}.{stem}"),
+                    Kind::RangeDoppler { gates, bins },
+                    Slots::contiguous(spectra + c * gates * bins, gates * bins),
+                    vec![gates, bins],
+                )
+            });
+        }
         LidarLayout { lags, spectra }
+    }
+
+    /// Offset of the lag sum `D_d` of channel `c` in gate `g` (real part; the imaginary part
+    /// follows) from the start of the lag sums: `[channel][gate][lag d][re, im]`.
+    #[inline(always)]
+    pub fn lag_slot(&self, c: usize, g: usize, d: usize) -> usize {
+        ((c * self.gates + g) * self.gate_points + d) * 2
     }
 
     /// Record a detected path of weight `w`, optical path length `l` (emission to aperture, m) and
@@ -387,7 +418,7 @@ impl LidarSpec {
                 let r: f64 = xs[d..].iter().zip(xs).map(|(p, q)| p * q).sum();
                 let v = z * r;
                 for c in [0, class] {
-                    let o = lay.lags + ((c * self.gates + g) * m_len + d) * 2;
+                    let o = lay.lags + self.lag_slot(c, g, d);
                     acc[o] += v.re;
                     acc[o + 1] += v.im;
                 }
@@ -559,9 +590,9 @@ mod tests {
     }
 
     fn run(s: &LidarSpec, lines: &[(f64, f64, f64, u32)]) -> (LidarLayout, Vec<f64>) {
-        let mut len = 0;
-        let lay = s.layout(&mut len);
-        let mut acc = vec![0.0; len];
+        let mut reg = crate::output::Registry::default();
+        let lay = s.declare(0, "lidar", &mut reg);
+        let mut acc = vec![0.0; reg.len];
         let mut x = Vec::new();
         for &(w, l, f, o) in lines {
             s.record(&lay, &mut acc, &mut x, w, l, f, o);
@@ -680,8 +711,9 @@ mod tests {
         let (m, k_len) = (s.gate_points, s.fft_points);
         let sigma2 = s.noise_variance_per_sample();
         let floor = s.noise_floor_per_bin();
-        let mut len = 0;
-        let lay = s.layout(&mut len);
+        let mut reg = crate::output::Registry::default();
+        let lay = s.declare(0, "lidar", &mut reg);
+        let len = reg.len;
         let reps = 6400;
         let mut mean = vec![0.0; k_len];
         let mut rng = crate::sampling::PathRng::new(11, crate::sampling::Purpose::Test, 0, 0);

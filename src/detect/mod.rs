@@ -4,7 +4,9 @@
 //! the configuration, so batch statistics treat every estimate — scalars, spectrum bins, pixels —
 //! the same way. Scalars come first ([`Scalar`]), then each detector's block: detected power,
 //! spectra (`chirps × channels × (bins + 2)`, the last two slots of a channel being the
-//! below/above out-of-range tallies), then the image (`ny × nx`, row-major).
+//! below/above out-of-range tallies), then the image (`ny × nx`, row-major), then an LDH camera's
+//! or a lidar receiver's tallies. Each detector declares its named outputs in the
+//! [`Registry`](crate::output::Registry) as it lays them out ([`TallyLayout::new`]).
 
 pub mod ldh;
 pub mod lidar;
@@ -15,6 +17,7 @@ pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
 pub use lidar::{LidarLayout, LidarSpec, LineShape};
 
 use crate::SPEED_OF_LIGHT;
+use crate::output::{Kind, Output, Registry, Slots};
 use crate::spectrum::FrequencyAxis;
 use crate::stats::RunStats;
 use crate::transport::NeeTarget;
@@ -94,10 +97,26 @@ pub struct ImageSpec {
     pub max: [f64; 2],
 }
 
-/// A detector: a planar area parallel to the surface, with an angular acceptance.
+/// A detector: what the run records into its named outputs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Detector {
     pub name: String,
+    pub kind: DetectorKind,
+}
+
+/// The kinds of detector.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectorKind {
+    /// A planar area parallel to the surface, with an angular acceptance: power, spectra, an
+    /// image and, on a camera, LDH maps.
+    Surface(Surface),
+    /// A pulsed lidar receiver at the transceiver, scored only by its local estimate.
+    Lidar(LidarSpec),
+}
+
+/// A planar detector parallel to the surface, with an angular acceptance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Surface {
     pub side: Side,
     /// Distance of the detector plane from its surface, m (outward, ≥ 0).
     pub distance: f64,
@@ -110,20 +129,53 @@ pub struct Detector {
     pub include_specular: bool,
     pub spectrum: Option<SpectrumSpec>,
     pub image: Option<ImageSpec>,
-    /// An LDH camera over the image's pixels.
-    pub ldh: Option<LdhSpec>,
-    /// A pulsed lidar receiver (scored only by its local estimate; the plane, area and cone
-    /// above are unused).
-    pub lidar: Option<LidarSpec>,
+    /// An LDH camera over the image's pixels (boxed: large, and read only by a camera).
+    pub ldh: Option<Box<LdhSpec>>,
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
 }
 
-impl Detector {
+impl Surface {
     /// Solid angle of the acceptance cone, sr.
     pub fn solid_angle(&self) -> f64 {
         cone_solid_angle(self.cos_acceptance)
+    }
+}
+
+impl Detector {
+    /// The planar detector, if this is one.
+    pub fn surface(&self) -> Option<&Surface> {
+        match &self.kind {
+            DetectorKind::Surface(s) => Some(s),
+            DetectorKind::Lidar(_) => None,
+        }
+    }
+
+    /// The lidar receiver, if this is one.
+    pub fn lidar(&self) -> Option<&LidarSpec> {
+        match &self.kind {
+            DetectorKind::Lidar(l) => Some(l),
+            DetectorKind::Surface(_) => None,
+        }
+    }
+
+    /// The LDH camera, if this is one.
+    pub fn ldh(&self) -> Option<&LdhSpec> {
+        self.surface()?.ldh.as_deref()
+    }
+
+    /// Scored by next-event estimation (a lidar receiver always is).
+    pub fn next_event(&self) -> bool {
+        match &self.kind {
+            DetectorKind::Surface(s) => s.next_event,
+            DetectorKind::Lidar(_) => true,
+        }
+    }
+
+    /// The surface it watches (a lidar receiver sits above the top surface).
+    pub fn side(&self) -> Side {
+        self.surface().map_or(Side::Top, |s| s.side)
     }
 }
 
@@ -209,10 +261,13 @@ impl BeatModel {
     }
 }
 
-/// Offsets of each estimate in the flat tally vector.
+/// The tally vector of an experiment: its [`Registry`] of named outputs, and the offsets each
+/// detector records into (the same slots, in the form the recording code reads fastest).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TallyLayout {
+    /// Length of the tally vector.
     pub len: usize,
+    pub registry: Registry,
     pub detectors: Vec<DetectorLayout>,
 }
 
@@ -228,43 +283,173 @@ pub struct DetectorLayout {
     pub lidar: Option<LidarLayout>,
 }
 
+/// Units of the tallies that are fractions of the emitted power.
+pub const POWER_UNITS: &str = "fraction of emitted power";
+
 impl TallyLayout {
+    /// Lay out the scalar tallies, then each detector's block, declaring every output.
     pub fn new(detectors: &[Detector], beat: &BeatModel) -> Self {
-        let mut len = Scalar::ALL.len();
-        let mut layouts = Vec::with_capacity(detectors.len());
-        for d in detectors {
-            let power = len;
-            len += 1;
-            let (spectra, channels) = match &d.spectrum {
-                Some(s) => {
-                    let stride = s.axis.bins + 2;
-                    let start = len;
-                    len += beat.chirps() * s.channels() * stride;
-                    (Some((start, stride)), s.channels())
-                }
-                None => (None, 0),
-            };
-            let image = d.image.map(|im| {
-                let start = len;
-                len += im.nx * im.ny;
-                start
+        let mut reg = Registry::default();
+        for s in Scalar::ALL {
+            let slot = reg.take(1);
+            debug_assert_eq!(slot, s as usize);
+            reg.declare(Output {
+                name: s.name().to_string(),
+                detector: None,
+                kind: Kind::Scalar,
+                slots: Slots::contiguous(slot, 1),
+                shape: Vec::new(),
+                units: POWER_UNITS,
+                file: format!("/estimates/{}/value", s.name()),
+                stderr: true,
+                sign: 1.0,
+                primary: true,
+                budget_key: None,
             });
-            let pixels = d.image.map_or(0, |im| im.nx * im.ny);
-            let ldh = d.ldh.as_ref().map(|l| l.layout(pixels, &mut len));
-            let lidar = d.lidar.as_ref().map(|l| l.layout(&mut len));
-            layouts.push(DetectorLayout { power, spectra, channels, image, ldh, lidar });
         }
-        TallyLayout { len, detectors: layouts }
+        let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
+        TallyLayout { len: reg.len, registry: reg, detectors: layouts }
     }
 
     /// Derive a finished batch's non-linear-in-layout outputs from its sums (the lidar gate
     /// spectra from their lag sums), so that they get batch statistics like everything else.
     pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64]) {
         for (d, lay) in detectors.iter().zip(&self.detectors) {
-            if let (Some(spec), Some(ll)) = (&d.lidar, &lay.lidar) {
+            if let (Some(spec), Some(ll)) = (d.lidar(), &lay.lidar) {
                 spec.finish_batch(ll, sums);
             }
         }
+    }
+}
+
+/// The fields every output of a detector shares, for [`Output`]'s struct update syntax.
+pub(crate) fn detector_output(i: usize, name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Output {
+    Output {
+        name,
+        detector: Some(i),
+        kind,
+        slots,
+        shape,
+        units: POWER_UNITS,
+        file: String::new(),
+        stderr: true,
+        sign: 1.0,
+        primary: false,
+        budget_key: None,
+    }
+}
+
+impl Detector {
+    /// Lay out detector `i`'s tallies from `reg`'s end and declare its outputs.
+    fn declare(&self, i: usize, beat: &BeatModel, reg: &mut Registry) -> DetectorLayout {
+        let power = reg.take(1);
+        reg.declare(Output {
+            file: format!("/estimates/detectors/{}/detected_power/value", self.name),
+            primary: true,
+            ..detector_output(
+                i,
+                format!("{}.detected_power", self.name),
+                Kind::Scalar,
+                Slots::contiguous(power, 1),
+                vec![],
+            )
+        });
+        let mut lay = DetectorLayout { power, spectra: None, channels: 0, image: None, ldh: None, lidar: None };
+        match &self.kind {
+            DetectorKind::Surface(s) => s.declare(i, &self.name, beat, reg, &mut lay),
+            DetectorKind::Lidar(l) => lay.lidar = Some(l.declare(i, &self.name, reg)),
+        }
+        lay
+    }
+}
+
+impl Surface {
+    fn declare(&self, i: usize, name: &str, beat: &BeatModel, reg: &mut Registry, lay: &mut DetectorLayout) {
+        let path = format!("detectors[{i}]");
+        if let Some(s) = &self.spectrum {
+            let (bins, stride, channels) = (s.axis.bins, s.axis.bins + 2, s.channels());
+            let start = reg.take(beat.chirps() * channels * stride);
+            lay.spectra = Some((start, stride));
+            lay.channels = channels;
+            let budget = Some((format!("{path}.spectrum.bins"), format!("= {bins}")));
+            let mut groups: Vec<(&str, usize, Vec<String>)> = Vec::new();
+            if let Some(k) = s.by_order {
+                let names = (0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") });
+                groups.push(("_by_order", 1, names.collect()));
+            }
+            if let Some(e) = s.by_doppler_events {
+                let first = 1 + s.by_order.map_or(0, |k| k as usize + 1);
+                let names = (0..=e)
+                    .map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") });
+                groups.push(("_by_doppler_events", first, names.collect()));
+            }
+            for c in 0..beat.chirps() {
+                let base = start + c * channels * stride;
+                let (what, chirp) = match (beat.chirps(), c) {
+                    (1, _) => ("spectrum", ""),
+                    (_, 0) => ("spectrum_up", "_up"),
+                    _ => ("spectrum_down", "_down"),
+                };
+                let kind = |channels: Vec<String>| Kind::Spectrum { axis: s.axis, channels, mirrored: false };
+                reg.declare(Output {
+                    file: format!("{name}{chirp}_spectrum.npy"),
+                    primary: true,
+                    budget_key: budget.clone(),
+                    ..detector_output(
+                        i,
+                        format!("{name}.{what}"),
+                        kind(vec!["total".into()]),
+                        Slots::row(base, bins, stride),
+                        vec![bins],
+                    )
+                });
+                for (suffix, first, names) in &groups {
+                    let rows = names.len();
+                    reg.declare(Output {
+                        file: format!("{name}{chirp}_spectrum{suffix}.npy"),
+                        budget_key: budget.clone(),
+                        ..detector_output(
+                            i,
+                            format!("{name}.{what}{suffix}"),
+                            kind(names.clone()),
+                            Slots { start: base + first * stride, rows, stride, len: bins },
+                            vec![rows, bins],
+                        )
+                    });
+                }
+            }
+        }
+        if let Some(im) = &self.image {
+            let n = im.nx * im.ny;
+            let start = reg.take(n);
+            lay.image = Some(start);
+            reg.declare(Output {
+                file: format!("{name}_image.npy"),
+                primary: true,
+                budget_key: Some(im.budget_key(i)),
+                ..detector_output(i, format!("{name}.image"), im.kind(), Slots::contiguous(start, n), im.shape())
+            });
+        }
+        if let (Some(ldh), Some(im)) = (&self.ldh, &self.image) {
+            lay.ldh = Some(ldh.declare(i, name, im, reg));
+        }
+    }
+}
+
+impl ImageSpec {
+    /// The kind of an image over this detector's pixels.
+    pub fn kind(&self) -> Kind {
+        Kind::Image { nx: self.nx, ny: self.ny, min: self.min, max: self.max }
+    }
+
+    /// `[ny, nx]`: rows are `y`.
+    pub fn shape(&self) -> Vec<usize> {
+        vec![self.ny, self.nx]
+    }
+
+    /// The key of detector `i` that its images' memory grows with.
+    pub fn budget_key(&self, i: usize) -> (String, String) {
+        (format!("detectors[{i}].image.pixels"), format!("= [{}, {}]", self.nx, self.ny))
     }
 }
 
@@ -349,7 +534,7 @@ impl Recorder<'_> {
             self.stats.non_finite += 1;
             return;
         }
-        if let (Some(spec), Some(ll)) = (&self.detectors[i].lidar, &self.layout.detectors[i].lidar) {
+        if let (DetectorKind::Lidar(spec), Some(ll)) = (&self.detectors[i].kind, &self.layout.detectors[i].lidar) {
             self.acc[self.layout.detectors[i].power] += e.weight;
             let f = self.beat.frequency(0, e.l, e.dldt);
             spec.record(ll, self.acc, &mut self.scratch, e.weight, e.l, f, e.order);
@@ -362,11 +547,8 @@ impl Recorder<'_> {
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         for (i, d) in self.detectors.iter().enumerate() {
-            if d.lidar.is_some()
-                || d.side != side
-                || (e.specular && !d.include_specular)
-                || e.dir.dot(d.axis) < d.cos_acceptance
-            {
+            let DetectorKind::Surface(d) = &d.kind else { continue };
+            if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
                 continue;
             }
             if d.next_event && e.order > 0 {
@@ -389,7 +571,7 @@ impl Recorder<'_> {
 
     /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area.
     fn detect_one(&mut self, i: usize, e: &Escape, n_ambient: f64) {
-        let (d, lay) = (&self.detectors[i], &self.layout.detectors[i]);
+        let (DetectorKind::Surface(d), lay) = (&self.detectors[i].kind, &self.layout.detectors[i]) else { return };
         // Travel on to the detector plane.
         let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
         let p = e.pos + dist * e.dir;

@@ -35,7 +35,7 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
         serde_json::from_slice(&read("manifest.json")?).map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
     let mut refs = Vec::with_capacity(outputs.len());
     for o in outputs {
-        let (values, stderr) = if o.scalar {
+        let (values, stderr) = if o.is_scalar() {
             let stderr_ptr = o.file.replace("/value", "/stderr");
             match (
                 manifest.pointer(&o.file).and_then(Value::as_f64),
@@ -49,14 +49,14 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
             let load = |name: &str| -> Result<Vec<f64>> {
                 let (_, data) = npy::from_bytes(&read(name)?)
                     .ok_or_else(|| bad(name, "not an ohd .npy file (little-endian f64)".into()))?;
-                if data.len() != o.range.len() {
+                if data.len() != o.range().len() {
                     return Err(bad(
                         name,
                         format!(
                             "holds {} values; {} has {} (is it a run of this experiment?)",
                             data.len(),
                             o.name,
-                            o.range.len()
+                            o.range().len()
                         ),
                     ));
                 }
@@ -92,7 +92,7 @@ pub fn json(study: &Study, config_source: &str) -> Value {
         outputs.insert(
             o.output.name.clone(),
             json!({
-                "metric": if o.output.scalar { "absolute" } else { "relative_rms" },
+                "metric": if o.output.is_scalar() { "absolute" } else { "relative_rms" },
                 "reference": o.reference_kind,
                 "slope": num(slope),
                 "slope_stderr": num(slope_se),

@@ -4,7 +4,11 @@
 //! there) with the method in `detectors.NAME.fmcw`, and one row per detector in
 //! `fmcw_estimates.csv`.
 
-use serde_json::{Map, Value, json};
+use std::collections::BTreeMap;
+
+use serde_json::{Value, json};
+
+use super::manifest::Entry as Estimates;
 
 use crate::experiment::{Experiment, RunOutput};
 use crate::retrieval::{FmcwEstimate, RetrievalError};
@@ -55,7 +59,7 @@ pub fn detector_entry(
     exp: &Experiment,
     out: &RunOutput,
     i: usize,
-    estimates: &mut Map<String, Value>,
+    estimates: &mut BTreeMap<String, Estimates>,
 ) -> Option<Entry> {
     let result = exp.fmcw_estimates(out, i)?;
     let mut info = json!({
@@ -73,7 +77,7 @@ pub fn detector_entry(
         Ok(e) => {
             let v = values(&e);
             for (k, x) in KEYS.iter().zip(v) {
-                estimates.insert((*k).into(), json!(x));
+                estimates.insert((*k).into(), Estimates::Number(x));
             }
             if e.touches_axis_end {
                 info["note"] = json!(

@@ -3,18 +3,18 @@
 //! and the ROIs' single-window speckle spectra. The sign flag of the set-up is applied here, and
 //! only here (M0− and M1 keep their meaning, spectra are mirrored).
 
+use std::collections::BTreeMap;
+
 use serde_json::{Map, Value, json};
 
-use super::manifest::estimate;
+use super::manifest::{Entry, IMAGE_LAYOUT, Put, Writer, estimate};
+use super::npy;
 use super::plot::{PALETTE, Series, line_plot_png};
 use super::png::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
-use super::{exr_bytes, npy};
-use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec, RoiSpeckle, band_sums};
-use crate::detect::{Detector, ImageSpec};
-use crate::error::{Error, Result};
-
-/// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
-pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
+use crate::detect::ImageSpec;
+use crate::detect::ldh::{CLASS_NAMES, LdhSpec, RoiSpeckle, band_sums};
+use crate::error::Result;
+use crate::output::Kind;
 
 /// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
 /// mirrored axis `[−f_max, −f_min)` is bin `bins − 1 − k` of the original, and the tails swap.
@@ -37,49 +37,32 @@ fn db(v: f64) -> f64 {
     if v > 0.0 { 10.0 * v.log10() } else { f64::NEG_INFINITY }
 }
 
-/// An image (and its standard error) as `.npy` and `.exr`.
-fn put_image(put: &mut Put, name: &str, im: &ImageSpec, v: &[f64], e: &[f64]) -> Result<()> {
-    put(format!("{name}.npy"), npy::to_bytes(&[im.ny, im.nx], v))?;
-    put(format!("{name}_stderr.npy"), npy::to_bytes(&[im.ny, im.nx], e))?;
-    let exr = exr_bytes(im.nx, im.ny, &[("value", v), ("stderr", e)])
-        .map_err(|m| Error::Write { path: format!("{name}.exr").into(), source: std::io::Error::other(m) })?;
-    put(format!("{name}.exr"), exr)
-}
-
-/// Write the camera's outputs; returns `(estimates, info)` for the manifest: the ROI estimates
-/// go to the top level (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
-#[allow(clippy::too_many_arguments)]
+/// Write the outputs of the LDH camera `name` (over the image `im`) as the registry declares
+/// them; returns its manifest entry. The ROI estimates go to the top level of `estimates`
+/// (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
 pub fn write_ldh(
-    put: &mut Put,
-    d: &Detector,
+    w: &mut Writer,
+    name: &str,
+    im: &ImageSpec,
     spec: &LdhSpec,
-    lay: &LdhLayout,
-    mean: &[f64],
-    se: &[f64],
     speckle: &[RoiSpeckle],
-    estimates: &mut Map<String, Value>,
+    estimates: &mut BTreeMap<String, Entry>,
 ) -> Result<Value> {
-    let im = d.image.expect("an LDH camera has an image");
     let n = im.nx * im.ny;
-    let sign = if spec.flip_sign { -1.0 } else { 1.0 };
-    let signed = |o: usize| -> (Vec<f64>, Vec<f64>) {
-        (mean[o..o + n].iter().map(|v| sign * v).collect(), se[o..o + n].to_vec())
-    };
-    let (m0p, m0p_se) = (mean[lay.m0_plus..lay.m0_plus + n].to_vec(), se[lay.m0_plus..lay.m0_plus + n].to_vec());
-    let (m0m, m0m_se) = signed(lay.m0_minus);
-    put_image(put, "m0_plus", &im, &m0p, &m0p_se)?;
-    put_image(put, "m0_minus", &im, &m0m, &m0m_se)?;
-    if let Some(o) = lay.m1 {
-        put_image(put, "m1", &im, &mean[o..o + n], &se[o..o + n])?;
+    let (reg, mean, se) = (w.registry, w.mean, w.stderr);
+    let out = |what: &str| reg.get(&format!("{name}.{what}")).unwrap_or_else(|| panic!("{name}.{what} is declared"));
+    let (m0p, _) = w.image(out("m0_plus"), "value")?;
+    let (m0m, _) = w.image(out("m0_minus"), "value")?;
+    if spec.m1 {
+        w.image(out("m1"), "value")?;
     }
-    if let Some(o) = lay.classes {
-        for (c, cname) in CLASS_NAMES.iter().enumerate() {
-            let base = o + 2 * c * n;
-            put_image(put, &format!("m0_plus_{cname}"), &im, &mean[base..base + n], &se[base..base + n])?;
-            let (v, e) = signed(base + n);
-            put_image(put, &format!("m0_minus_{cname}"), &im, &v, &e)?;
+    if spec.by_class {
+        for cname in CLASS_NAMES {
+            w.image(out(&format!("m0_plus_{cname}")), "value")?;
+            w.image(out(&format!("m0_minus_{cname}")), "value")?;
         }
     }
+    let put = &mut *w.put;
 
     // Previews (y up).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
@@ -117,36 +100,44 @@ pub fn write_ldh(
     let (f_lo, f_hi) = if spec.flip_sign { (-axis.f_max, -axis.f_min) } else { (axis.f_min, axis.f_max) };
     let width = axis.bin_width();
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
-    if !spec.rois.is_empty() || lay.pixel_spectra.is_some() {
+    if !spec.rois.is_empty() || spec.pixel_spectra {
         put("ldh_frequency_hz.npy".into(), npy::to_bytes(&[bins], &centres))?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
     let mut rois = Map::new();
-    for (r, (roi, rl)) in spec.rois.iter().zip(&lay.rois).enumerate() {
-        estimates.insert(format!("m0_plus_roi_{}", roi.name), estimate(mean[rl.m0_plus], se[rl.m0_plus]));
-        estimates.insert(format!("m0_minus_roi_{}", roi.name), estimate(sign * mean[rl.m0_minus], se[rl.m0_minus]));
-        let mut v = Vec::with_capacity(LdhSpec::ROI_CHANNELS * bins);
-        let mut e = Vec::with_capacity(LdhSpec::ROI_CHANNELS * bins);
+    for (r, roi) in spec.rois.iter().enumerate() {
+        let roi_out = |what: &str| out(&format!("roi_{}.{what}", roi.name));
+        for what in ["m0_plus", "m0_minus"] {
+            let o = roi_out(what);
+            let s = o.slots.start;
+            estimates.insert(format!("{what}_roi_{}", roi.name), Entry::Estimate(estimate(o.sign * mean[s], se[s])));
+        }
+        let o = roi_out("spectrum");
+        // Each channel's bins and tails, on the written (possibly mirrored) axis.
+        let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..o.slots.rows)
+            .map(|ch| {
+                let r = o.slots.row_range(ch);
+                let slots = r.start..r.end + 2;
+                let (mv, me) = (&mean[slots.clone()], &se[slots]);
+                if spec.flip_sign {
+                    (mirror_slots(mv, bins), mirror_slots(me, bins))
+                } else {
+                    (mv.to_vec(), me.to_vec())
+                }
+            })
+            .collect();
+        let v: Vec<f64> = rows.iter().flat_map(|(m, _)| m[..bins].iter().copied()).collect();
+        let e: Vec<f64> = rows.iter().flat_map(|(_, s)| s[..bins].iter().copied()).collect();
         let mut out_of_range = Map::new();
-        for (ch, chname) in channel_names.iter().enumerate() {
-            let o = rl.spectrum + ch * lay.stride;
-            let (mv, me) = (&mean[o..o + lay.stride], &se[o..o + lay.stride]);
-            let (mv, me) = if spec.flip_sign {
-                (mirror_slots(mv, bins), mirror_slots(me, bins))
-            } else {
-                (mv.to_vec(), me.to_vec())
-            };
-            v.extend_from_slice(&mv[..bins]);
-            e.extend_from_slice(&me[..bins]);
+        for (chname, (mv, me)) in channel_names.iter().zip(&rows) {
             out_of_range.insert(
                 chname.clone(),
                 json!({ "below": estimate(mv[bins], me[bins]), "above": estimate(mv[bins + 1], me[bins + 1]) }),
             );
         }
-        let shape = [LdhSpec::ROI_CHANNELS, bins];
-        put(format!("roi_{}_spectrum.npy", roi.name), npy::to_bytes(&shape, &v))?;
-        put(format!("roi_{}_spectrum_stderr.npy", roi.name), npy::to_bytes(&shape, &e))?;
+        put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
+        put(super::manifest::stderr_file(&o.file), npy::to_bytes(&o.shape, &e))?;
         let khz: Vec<f64> = centres.iter().map(|f| f / 1e3).collect();
         let dbs: Vec<Vec<f64>> = v.chunks_exact(bins).map(|c| c.iter().map(|&x| db(x)).collect()).collect();
         let series: Vec<Series> = channel_names
@@ -168,29 +159,32 @@ pub fn write_ldh(
         let mut info = Map::new();
         info.insert("x_range_m".into(), json!([roi.min[0], roi.max[0]]));
         info.insert("y_range_m".into(), json!([roi.min[1], roi.max[1]]));
-        info.insert("spectrum_file".into(), json!(format!("roi_{}_spectrum.npy", roi.name)));
+        info.insert("spectrum_file".into(), json!(o.file));
         info.insert("out_of_range".into(), Value::Object(out_of_range));
         if let Some(s) = speckle.get(r) {
             info.insert("speckle".into(), write_speckle(put, spec, &roi.name, s)?);
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
-    if let Some(o) = lay.pixel_spectra {
+    if spec.pixel_spectra {
+        let o = out("pixel_spectra");
+        let Kind::PixelSpectra { mirrored, .. } = o.kind else { unreachable!("declared as pixel spectra") };
         let mut v = Vec::with_capacity(n * bins);
-        for p in 0..n {
-            let s = &mean[o + p * lay.stride..o + (p + 1) * lay.stride];
-            if spec.flip_sign {
+        for p in 0..o.slots.rows {
+            let r = o.slots.row_range(p);
+            let s = &mean[r.start..r.end + 2];
+            if mirrored {
                 v.extend_from_slice(&mirror_slots(s, bins)[..bins]);
             } else {
                 v.extend_from_slice(&s[..bins]);
             }
         }
-        put("pixel_spectra.npy".into(), npy::to_bytes(&[im.ny, im.nx, bins], &v))?;
+        put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
     }
 
     let total = |v: &[f64]| v.iter().sum::<f64>();
-    estimates.insert("m0_plus_image_total".into(), json!(total(&m0p)));
-    estimates.insert("m0_minus_image_total".into(), json!(total(&m0m)));
+    estimates.insert("m0_plus_image_total".into(), Entry::Number(total(&m0p)));
+    estimates.insert("m0_minus_image_total".into(), Entry::Number(total(&m0m)));
     Ok(json!({
         "frame_rate_hz": spec.stft.sample_rate(),
         "window_samples": spec.stft.samples(),
@@ -207,7 +201,7 @@ pub fn write_ldh(
             "pixels": [im.nx, im.ny],
             "x_range_m": [im.min[0], im.max[0]],
             "y_range_m": [im.min[1], im.max[1]],
-            "layout": "rows = y (ascending), columns = x (ascending)",
+            "layout": IMAGE_LAYOUT,
             "m0_units": "fraction of emitted power per pixel (band sum of the expected periodogram)",
             "m1_units": "Hz × fraction of emitted power per pixel",
             "classes": CLASS_NAMES,

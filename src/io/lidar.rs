@@ -6,13 +6,12 @@
 
 use serde_json::{Value, json};
 
-use super::ldh::Put;
-use super::manifest::estimate;
+use super::manifest::{Writer, estimate};
 use super::npy;
 use super::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
 use super::png::Colormap;
+use crate::detect::LidarSpec;
 use crate::detect::lidar::{FIT_SELECTION_LEVEL, GateRetrieval, LIDAR_CHANNELS};
-use crate::detect::{LidarLayout, LidarSpec};
 use crate::error::Result;
 use crate::retrieval::{RetrievalError, radial_velocity};
 
@@ -23,32 +22,38 @@ const MAP_RANGE_DB: f64 = 60.0;
 
 /// Write the receiver's outputs; returns the manifest entry (axes, files, noise model, per-gate
 /// energies and estimates).
-pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f64], se: &[f64]) -> Result<Value> {
+pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value> {
+    let (reg, mean, se) = (w.registry, w.mean, w.stderr);
+    let output = |name: &str| reg.get(name).unwrap_or_else(|| panic!("{name} is declared"));
     let (gates, bins, m) = (spec.gates, spec.fft_points, spec.gate_points);
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
     let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
-    put("range_m.npy".into(), npy::to_bytes(&[gates], &range))?;
-    put("frequency_hz.npy".into(), npy::to_bytes(&[bins], &freq))?;
+    w.put("range_m.npy".into(), npy::to_bytes(&[gates], &range))?;
+    w.put("frequency_hz.npy".into(), npy::to_bytes(&[bins], &freq))?;
     let mut files = serde_json::Map::new();
-    for (c, name) in LIDAR_CHANNELS.iter().enumerate() {
-        let stem = if c == 0 { "range_doppler".to_string() } else { format!("range_doppler_{name}") };
-        let o = lay.spectra + c * gates * bins;
-        put(format!("{stem}.npy"), npy::to_bytes(&[gates, bins], &mean[o..o + gates * bins]))?;
-        put(format!("{stem}_stderr.npy"), npy::to_bytes(&[gates, bins], &se[o..o + gates * bins]))?;
-        files.insert((*name).into(), json!(format!("{stem}.npy")));
+    // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
+    let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());
+    for (c, channel) in LIDAR_CHANNELS.iter().enumerate() {
+        let stem = if c == 0 { "range_doppler".to_string() } else { format!("range_doppler_{channel}") };
+        let o = output(&format!("{name}.{stem}"));
+        w.array(o)?;
+        files.insert((*channel).into(), json!(o.file));
+        maps.push(o.slots.start);
     }
     let spectrum = |c: usize, g: usize| {
-        let o = lay.spectra + (c * gates + g) * bins;
+        let o = maps[c] + g * bins;
         (&mean[o..o + bins], &se[o..o + bins])
     };
-    put("range_doppler.png".into(), range_doppler_png(spec, &range, mean, lay))?;
-    put("gate_spectra.png".into(), gate_spectra_png(spec, &range, &velocity, mean, lay))?;
+    let total = &mean[output(&format!("{name}.range_doppler")).range()];
+    w.put("range_doppler.png".into(), range_doppler_png(spec, &range, total))?;
+    w.put("gate_spectra.png".into(), gate_spectra_png(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
     // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
+    let lags = output(&format!("{name}.lag_sums")).slots.start;
     let energy = |c: usize, g: usize| {
-        let o = lay.lags + ((c * gates + g) * m) * 2;
+        let o = lags + spec.lag_slot(c, g, 0);
         (mean[o], se[o])
     };
     let noise_energy = m as f64 * spec.noise_variance_per_sample();
@@ -76,13 +81,13 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         for (c, name) in LIDAR_CHANNELS.iter().enumerate() {
             let (v, e) = energy(c, g);
             csv.push_str(&format!(",{v:e},{e:e}"));
-            row.insert(format!("energy_{name}"), estimate(v, e));
+            row.insert(format!("energy_{name}"), json!(estimate(v, e)));
         }
         let (d0, d0_se) = energy(0, g);
         let (snr, snr_se) = (d0 / noise_energy, d0_se / noise_energy);
         let snr_db = 10.0 * snr.log10();
         csv.push_str(&format!(",{snr:e},{snr_se:e},{snr_db:.3}"));
-        row.insert("snr".into(), estimate(snr, snr_se));
+        row.insert("snr".into(), json!(estimate(snr, snr_se)));
         row.insert("snr_db".into(), json!(snr_db));
         let (values, errors) = spectrum(0, g);
         let gate = spec.retrieve_gate(values, errors, &spec.gate_kernel_in(g, &total_energies));
@@ -90,7 +95,7 @@ pub fn write_lidar(put: &mut Put, spec: &LidarSpec, lay: &LidarLayout, mean: &[f
         csv.push('\n');
         table.push(Value::Object(row));
     }
-    put("gates.csv".into(), csv.into_bytes())?;
+    w.put("gates.csv".into(), csv.into_bytes())?;
     Ok(json!({
         "range_m": range,
         "frequency_hz": freq,
@@ -218,9 +223,8 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
 }
 
 /// The total range–Doppler map in dB re its peak: x = radial velocity, y = range.
-fn range_doppler_png(spec: &LidarSpec, range: &[f64], mean: &[f64], lay: &LidarLayout) -> Vec<u8> {
+fn range_doppler_png(spec: &LidarSpec, range: &[f64], total: &[f64]) -> Vec<u8> {
     let (gates, bins) = (spec.gates, spec.fft_points);
-    let total = &mean[lay.spectra..lay.spectra + gates * bins];
     let peak = total.iter().cloned().fold(0.0, f64::max);
     let db: Vec<f64> =
         total.iter().map(|&v| if v > 0.0 && peak > 0.0 { 10.0 * (v / peak).log10() } else { f64::NAN }).collect();
@@ -254,12 +258,14 @@ fn tint(c: [u8; 3]) -> [u8; 3] {
 
 /// A few evenly spaced gates' total and multiple-scattering spectra (dB re the pulse energy per
 /// bin) against radial velocity, with the shot-noise floor.
-fn gate_spectra_png(spec: &LidarSpec, range: &[f64], velocity: &[f64], mean: &[f64], lay: &LidarLayout) -> Vec<u8> {
-    let (gates, bins) = (spec.gates, spec.fft_points);
-    let spectrum = |c: usize, g: usize| {
-        let o = lay.spectra + (c * gates + g) * bins;
-        &mean[o..o + bins]
-    };
+/// `spectrum(c, g)`: channel `c`'s spectrum in gate `g`.
+fn gate_spectra_png<'a>(
+    spec: &LidarSpec,
+    range: &[f64],
+    velocity: &[f64],
+    spectrum: impl Fn(usize, usize) -> &'a [f64],
+) -> Vec<u8> {
+    let gates = spec.gates;
     let n = PLOTTED_GATES.min(gates);
     let mut chosen: Vec<usize> =
         (0..n).map(|i| if n == 1 { 0 } else { (i * (gates - 1) + (n - 1) / 2) / (n - 1) }).collect();

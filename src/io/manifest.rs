@@ -1,27 +1,44 @@
 //! Writing a finished run: `manifest.json` (version, config as run, seed, samples, threads, wall
 //! time, run statistics, every scalar estimate with its standard error) plus, per detector, its
-//! spectra (`.npy`, with per-bin standard errors and the frequency axis), FMCW range and velocity
-//! estimates with a chirp (`fmcw_estimates.csv`, see [`super::fmcw`]) and image (`.exr`, `.npy`).
-//! Data files are written first and the manifest last, each atomically.
+//! outputs as its [`Registry`](crate::output::Registry) declares them: spectra (`.npy`, with
+//! per-bin standard errors and the frequency axis), FMCW range and velocity estimates with a chirp
+//! (`fmcw_estimates.csv`, see [`super::fmcw`]), images (`.exr`, `.npy`), an LDH camera's maps and
+//! a lidar receiver's range–Doppler spectra. Data files are written first and the manifest last,
+//! each atomically.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
-use crate::detect::{Scalar, Side};
+use crate::detect::{DetectorKind, Scalar, Side};
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, RunOutput};
+use crate::output::{Kind, Output, Registry};
 
 use super::{exr_bytes, npy, write_atomic};
 
-/// `{"value": v, "stderr": s}`.
-pub(super) fn estimate(v: f64, s: f64) -> Value {
-    json!({ "value": v, "stderr": s })
+/// A value and its standard error (`null` in JSON when not finite).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Estimate {
+    pub value: f64,
+    pub stderr: f64,
 }
 
-/// A number, or `null` when it is not finite (JSON has no infinity).
-fn finite_or_null(v: f64) -> Value {
-    if v.is_finite() { json!(v) } else { Value::Null }
+/// `{"value": v, "stderr": s}`.
+pub fn estimate(value: f64, stderr: f64) -> Estimate {
+    Estimate { value, stderr }
+}
+
+/// An entry of the manifest's `estimates`: an estimate, a number without an error (a derived
+/// total, an FMCW read-off) or a group of entries (a detector's, the out-of-range tallies).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Entry {
+    Estimate(Estimate),
+    Number(f64),
+    Group(BTreeMap<String, Entry>),
 }
 
 /// What the manifest records about how the run was invoked.
@@ -33,6 +50,188 @@ pub struct Invocation {
     pub overrides: Vec<String>,
 }
 
+/// `manifest.json`. Written with its keys sorted (as a JSON object, at every level).
+#[derive(Debug, Clone, Serialize)]
+pub struct Manifest {
+    pub ohd_version: &'static str,
+    pub name: String,
+    pub config_source: String,
+    pub overrides: Vec<String>,
+    /// The configuration as run (after `--set`), as a table and as TOML text.
+    pub config: toml::Table,
+    pub config_toml: String,
+    pub seed: u64,
+    pub samples: u64,
+    pub samples_requested: u64,
+    pub batches: u64,
+    pub main_output: MainOutput,
+    pub target_error: Option<TargetEntry>,
+    pub threads: usize,
+    pub wall_seconds: f64,
+    pub run_statistics: RunStatistics,
+    /// Each named medium once.
+    pub media: BTreeMap<String, MediumEntry>,
+    /// The scalar tallies, ROI values and derived numbers, and per detector (`detectors`) its
+    /// power, out-of-range tallies and read-offs.
+    pub estimates: BTreeMap<String, Entry>,
+    /// Per detector: what its files hold (axes, units, layout).
+    pub detectors: BTreeMap<String, DetectorEntry>,
+    /// Every file written, in order.
+    pub files: Vec<String>,
+}
+
+impl Manifest {
+    /// As a JSON value (keys sorted).
+    pub fn json(&self) -> Value {
+        serde_json::to_value(self).expect("a manifest serialises")
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MainOutput {
+    pub name: String,
+    pub relative_error: Option<f64>,
+}
+
+/// How a run to a target error ended.
+#[derive(Debug, Clone, Serialize)]
+pub struct TargetEntry {
+    pub output: String,
+    pub target: f64,
+    pub reached: Option<f64>,
+    pub met: bool,
+    pub rounds: u64,
+    pub max_samples: u64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RunStatistics {
+    pub paths: u64,
+    pub scattering_events: u64,
+    pub events_per_second: f64,
+    pub paths_per_second: f64,
+    pub null_collisions: u64,
+    pub roulette_terminations: u64,
+    pub truncated_paths: u64,
+    pub non_finite: u64,
+    pub speckle_seconds: f64,
+    /// Weight of paths outside the spectra's frequency axes (total channel, every chirp).
+    pub out_of_range_weight: f64,
+    /// Whether the walk tracked the Doppler term and the optical path length.
+    pub doppler: bool,
+    pub path_length: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MediumEntry {
+    pub sigma_a_per_m: f64,
+    pub sigma_s_per_m: f64,
+    pub albedo: f64,
+    pub optics: Value,
+    /// A heterogeneous medium's density (σa and σs above are at density 1), else `null`.
+    pub density: Value,
+}
+
+/// What one detector's files hold.
+#[derive(Debug, Clone, Serialize)]
+pub struct DetectorEntry {
+    pub side: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spectrum: Option<SpectrumEntry>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fmcw: Option<Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image: Option<ImageEntry>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ldh: Option<Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lidar: Option<Value>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SpectrumEntry {
+    pub f_min_hz: f64,
+    pub f_max_hz: f64,
+    pub bins: usize,
+    pub bin_width_hz: f64,
+    pub frequency_file: String,
+    pub channels: Vec<String>,
+    /// Chirp (`single`, or `up` and `down`) → its file-name infix.
+    pub chirps: BTreeMap<String, String>,
+    pub units: &'static str,
+}
+
+/// An image's pixel grid.
+#[derive(Debug, Clone, Serialize)]
+pub struct ImageEntry {
+    pub pixels: [usize; 2],
+    pub x_range_m: [f64; 2],
+    pub y_range_m: [f64; 2],
+    pub layout: &'static str,
+    pub units: &'static str,
+}
+
+/// The layout of every image file.
+pub const IMAGE_LAYOUT: &str = "rows = y (ascending), columns = x (ascending)";
+
+/// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
+pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
+
+/// `file.npy` → `file_stderr.npy`.
+pub fn stderr_file(file: &str) -> String {
+    format!("{}_stderr.npy", file.trim_end_matches(".npy"))
+}
+
+/// A finished run's outputs being written: where files go, the registry that declares the
+/// outputs, and the run's means and standard errors laid out as the tallies.
+pub struct Writer<'a, 'p> {
+    pub put: &'a mut Put<'p>,
+    pub registry: &'a Registry,
+    pub mean: &'a [f64],
+    pub stderr: &'a [f64],
+}
+
+impl<'a> Writer<'a, '_> {
+    /// Write a file.
+    pub fn put(&mut self, name: String, bytes: Vec<u8>) -> Result<()> {
+        (self.put)(name, bytes)
+    }
+
+    /// The output `name` (declared by the detector being written).
+    pub fn output(&self, name: &str) -> &'a Output {
+        self.registry.get(name).unwrap_or_else(|| panic!("the output {name} is declared"))
+    }
+
+    /// A scalar output as an estimate (`sign ×` its tally, and its standard error).
+    pub fn estimate(&self, o: &Output) -> Estimate {
+        let s = o.slots.start;
+        estimate(o.sign * self.mean[s], self.stderr[s])
+    }
+
+    /// An array output's values (`sign ×` the tallies) and standard errors as `.npy` files (the
+    /// latter unless the output has none); returns them.
+    pub fn array(&mut self, o: &Output) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (v, e) = o.values(self.mean, self.stderr);
+        self.put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
+        if o.stderr {
+            self.put(stderr_file(&o.file), npy::to_bytes(&o.shape, &e))?;
+        }
+        Ok((v, e))
+    }
+
+    /// An image output as `.npy` files and an `.exr` whose channels are `channel` and
+    /// `stderr`; returns its values and standard errors.
+    pub fn image(&mut self, o: &Output, channel: &str) -> Result<(Vec<f64>, Vec<f64>)> {
+        let Kind::Image { nx, ny, .. } = o.kind else { unreachable!("{} is declared an image", o.name) };
+        let (v, e) = self.array(o)?;
+        let name = format!("{}.exr", o.file.trim_end_matches(".npy"));
+        let exr = exr_bytes(nx, ny, &[(channel, &v), ("stderr", &e)])
+            .map_err(|m| Error::Write { path: name.clone().into(), source: std::io::Error::other(m) })?;
+        self.put(name, exr)?;
+        Ok((v, e))
+    }
+}
+
 /// Write all outputs of `out` into `dir` (created if needed). Returns the manifest as written.
 pub fn write_run(
     dir: &Path,
@@ -40,197 +239,193 @@ pub fn write_run(
     out: &RunOutput,
     config: &toml::Table,
     inv: &Invocation,
-) -> Result<Value> {
+) -> Result<Manifest> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-    let mean = out.estimates.mean();
-    let se = out.estimates.stderr();
+    let stderr = out.estimates.stderr();
     let mut files: Vec<String> = Vec::new();
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> {
         write_atomic(&dir.join(&name), &bytes)?;
         files.push(name);
         Ok(())
     };
-
-    let mut estimates = serde_json::Map::new();
-    for s in Scalar::ALL {
-        estimates.insert(s.name().to_string(), estimate(mean[s as usize], se[s as usize]));
-    }
-    let mut det_estimates = serde_json::Map::new();
-    let mut det_info = serde_json::Map::new();
+    let mut w = Writer { put: &mut put, registry: &out.layout.registry, mean: out.estimates.mean(), stderr: &stderr };
+    let mut estimates: BTreeMap<String, Entry> =
+        Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
+    let mut det_estimates = BTreeMap::new();
+    let mut det_info = BTreeMap::new();
     let mut out_of_range_total = 0.0;
-    let chirp_names: &[&str] = if out.beat.chirps() == 2 { &["_up", "_down"] } else { &[""] };
-
     let mut fmcw_rows: Vec<String> = Vec::new();
     let mut fmcw_any = false;
-    for (i, (d, lay)) in exp.detectors.iter().zip(&out.layout.detectors).enumerate() {
-        let mut de = serde_json::Map::new();
-        de.insert("detected_power".into(), estimate(mean[lay.power], se[lay.power]));
-        let mut info = serde_json::Map::new();
-        info.insert("side".into(), json!(if d.side == Side::Top { "top" } else { "bottom" }));
-        if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
-            let bins = spec.axis.bins;
-            let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
-            put(format!("{}_frequency_hz.npy", d.name), npy::to_bytes(&[bins], &centres))?;
-            let mut channel_names = vec!["total".to_string()];
-            let mut groups: Vec<(&str, usize, usize)> = vec![("", 0, 1)];
-            if let Some(k) = spec.by_order {
-                groups.push(("_by_order", 1, k as usize + 1));
-                channel_names
-                    .extend((0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") }));
-            }
-            if let Some(e) = spec.by_doppler_events {
-                let first = 1 + spec.by_order.map_or(0, |k| k as usize + 1);
-                groups.push(("_by_doppler_events", first, e as usize + 1));
-                channel_names.extend(
-                    (0..=e)
-                        .map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") }),
-                );
-            }
-            let mut chirps = serde_json::Map::new();
-            for (c, cname) in chirp_names.iter().enumerate() {
-                let base = start + c * lay.channels * stride;
-                for &(suffix, first, count) in &groups {
-                    let mut v = Vec::with_capacity(count * bins);
-                    let mut e = Vec::with_capacity(count * bins);
-                    for ch in first..first + count {
-                        let o = base + ch * stride;
-                        v.extend_from_slice(&mean[o..o + bins]);
-                        e.extend_from_slice(&se[o..o + bins]);
-                    }
-                    let shape = if count == 1 && suffix.is_empty() { vec![bins] } else { vec![count, bins] };
-                    put(format!("{}{cname}_spectrum{suffix}.npy", d.name), npy::to_bytes(&shape, &v))?;
-                    put(format!("{}{cname}_spectrum{suffix}_stderr.npy", d.name), npy::to_bytes(&shape, &e))?;
+    for (i, d) in exp.detectors.iter().enumerate() {
+        let mut de = BTreeMap::new();
+        let power = w.estimate(w.output(&format!("{}.detected_power", d.name)));
+        de.insert("detected_power".to_string(), Entry::Estimate(power));
+        let mut info = DetectorEntry {
+            side: if d.side() == Side::Top { "top" } else { "bottom" },
+            spectrum: None,
+            fmcw: None,
+            image: None,
+            ldh: None,
+            lidar: None,
+        };
+        match &d.kind {
+            DetectorKind::Surface(s) => {
+                if let Some(spec) = &s.spectrum {
+                    let (entry, oor) = write_spectra(&mut w, i, &d.name, spec, &mut de)?;
+                    info.spectrum = Some(entry);
+                    out_of_range_total += oor;
                 }
-                let mut oor = serde_json::Map::new();
-                for (ch, chname) in channel_names.iter().enumerate() {
-                    let o = base + ch * stride + bins;
-                    oor.insert(
-                        chname.clone(),
-                        json!({ "below": estimate(mean[o], se[o]), "above": estimate(mean[o + 1], se[o + 1]) }),
-                    );
+                if let Some(entry) = super::fmcw::detector_entry(exp, out, i, &mut de) {
+                    fmcw_any = true;
+                    info.fmcw = Some(entry.info);
+                    fmcw_rows.extend(entry.row);
                 }
-                out_of_range_total += mean[base + bins] + mean[base + bins + 1];
-                let key =
-                    if cname.is_empty() { "single".to_string() } else { cname.trim_start_matches('_').to_string() };
-                de.insert(format!("out_of_range_{key}"), Value::Object(oor));
-                chirps.insert(key, json!(cname));
+                if let Some(im) = &s.image {
+                    w.image(w.output(&format!("{}.image", d.name)), "intensity")?;
+                    info.image = Some(ImageEntry {
+                        pixels: [im.nx, im.ny],
+                        x_range_m: [im.min[0], im.max[0]],
+                        y_range_m: [im.min[1], im.max[1]],
+                        layout: IMAGE_LAYOUT,
+                        units: "fraction of emitted power per pixel",
+                    });
+                }
+                if let (Some(spec), Some(im)) = (&s.ldh, &s.image) {
+                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, &out.speckle, &mut estimates)?);
+                }
             }
-            info.insert(
-                "spectrum".into(),
-                json!({
-                    "f_min_hz": spec.axis.f_min,
-                    "f_max_hz": spec.axis.f_max,
-                    "bins": bins,
-                    "bin_width_hz": spec.axis.bin_width(),
-                    "frequency_file": format!("{}_frequency_hz.npy", d.name),
-                    "channels": channel_names,
-                    "chirps": Value::Object(chirps),
-                    "units": "fraction of emitted power per bin",
-                }),
-            );
+            DetectorKind::Lidar(spec) => {
+                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec)?);
+            }
         }
-        if let Some(entry) = super::fmcw::detector_entry(exp, out, i, &mut de) {
-            fmcw_any = true;
-            info.insert("fmcw".into(), entry.info);
-            fmcw_rows.extend(entry.row);
-        }
-        if let (Some(im), Some(start)) = (&d.image, lay.image) {
-            let n = im.nx * im.ny;
-            let (v, e) = (&mean[start..start + n], &se[start..start + n]);
-            put(format!("{}_image.npy", d.name), npy::to_bytes(&[im.ny, im.nx], v))?;
-            put(format!("{}_image_stderr.npy", d.name), npy::to_bytes(&[im.ny, im.nx], e))?;
-            let exr = exr_bytes(im.nx, im.ny, &[("intensity", v), ("stderr", e)]).map_err(|m| Error::Write {
-                path: dir.join(format!("{}_image.exr", d.name)),
-                source: std::io::Error::other(m),
-            })?;
-            put(format!("{}_image.exr", d.name), exr)?;
-            info.insert(
-                "image".into(),
-                json!({
-                    "pixels": [im.nx, im.ny],
-                    "x_range_m": [im.min[0], im.max[0]],
-                    "y_range_m": [im.min[1], im.max[1]],
-                    "layout": "rows = y (ascending), columns = x (ascending)",
-                    "units": "fraction of emitted power per pixel",
-                }),
-            );
-        }
-        if let (Some(spec), Some(ll)) = (&d.ldh, &lay.ldh) {
-            let v = super::ldh::write_ldh(&mut put, d, spec, ll, mean, &se, &out.speckle, &mut estimates)?;
-            info.insert("ldh".into(), v);
-        }
-        if let (Some(spec), Some(ll)) = (&d.lidar, &lay.lidar) {
-            info.insert("lidar".into(), super::lidar::write_lidar(&mut put, spec, ll, mean, &se)?);
-        }
-        det_estimates.insert(d.name.clone(), Value::Object(de));
-        det_info.insert(d.name.clone(), Value::Object(info));
+        det_estimates.insert(d.name.clone(), Entry::Group(de));
+        det_info.insert(d.name.clone(), info);
     }
     if fmcw_any {
-        put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
+        w.put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
     }
     if !det_estimates.is_empty() {
-        estimates.insert("detectors".into(), Value::Object(det_estimates));
+        estimates.insert("detectors".into(), Entry::Group(det_estimates));
     }
 
     // Each named medium once (a medium used by several layers appears once per use in the scene).
-    let mut media = serde_json::Map::new();
+    let mut media = BTreeMap::new();
     for m in &exp.scene.media {
-        media.entry(m.name.clone()).or_insert_with(|| {
-            json!({
-                "sigma_a_per_m": m.sigma_a(),
-                "sigma_s_per_m": m.sigma_s(),
-                "albedo": m.albedo(),
-                "optics": serde_json::to_value(&m.info).unwrap_or(Value::Null),
-                // A heterogeneous medium: σa and σs above are at density 1.
-                "density": m.heterogeneity().map_or(Value::Null, |h| serde_json::to_value(&h.info).unwrap_or(Value::Null)),
-            })
+        media.entry(m.name.clone()).or_insert_with(|| MediumEntry {
+            sigma_a_per_m: m.sigma_a(),
+            sigma_s_per_m: m.sigma_s(),
+            albedo: m.albedo(),
+            optics: serde_json::to_value(&m.info).unwrap_or(Value::Null),
+            density: m.heterogeneity().map_or(Value::Null, |h| serde_json::to_value(&h.info).unwrap_or(Value::Null)),
         });
     }
 
     let st = &out.stats;
     let wall = out.wall_seconds.max(1e-9);
-    let manifest = json!({
-        "ohd_version": env!("CARGO_PKG_VERSION"),
-        "name": exp.name,
-        "config_source": inv.config_source,
-        "overrides": inv.overrides,
-        "config": config,
-        "config_toml": toml::to_string(config).unwrap_or_default(),
-        "seed": exp.plan.seed,
-        "samples": out.samples(),
-        "samples_requested": exp.plan.requested_samples,
-        "batches": out.batches,
-        "main_output": { "name": out.main_output.0, "relative_error": finite_or_null(out.main_output.1) },
-        "target_error": out.target.as_ref().map_or(Value::Null, |t| json!({
-            "output": t.output,
-            "target": t.target,
-            "reached": finite_or_null(t.reached),
-            "met": t.met,
-            "rounds": t.rounds,
-            "max_samples": t.max_samples,
-        })),
-        "threads": out.threads,
-        "wall_seconds": out.wall_seconds,
-        "run_statistics": {
-            "paths": st.paths,
-            "scattering_events": st.scattering_events,
-            "events_per_second": st.scattering_events as f64 / wall,
-            "paths_per_second": st.paths as f64 / wall,
-            "null_collisions": st.null_collisions,
-            "roulette_terminations": st.roulette_terminations,
-            "truncated_paths": st.truncated_paths,
-            "non_finite": st.non_finite,
-            "speckle_seconds": out.speckle_seconds,
-            "out_of_range_weight": out_of_range_total,
-            "doppler": exp.needs_doppler(),
-            "path_length": exp.needs_length(),
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let manifest = Manifest {
+        ohd_version: env!("CARGO_PKG_VERSION"),
+        name: exp.name.clone(),
+        config_source: inv.config_source.clone(),
+        overrides: inv.overrides.clone(),
+        config: config.clone(),
+        config_toml: toml::to_string(config).unwrap_or_default(),
+        seed: exp.plan.seed,
+        samples: out.samples(),
+        samples_requested: exp.plan.requested_samples,
+        batches: out.batches,
+        main_output: MainOutput { name: out.main_output.0.clone(), relative_error: finite(out.main_output.1) },
+        target_error: out.target.as_ref().map(|t| TargetEntry {
+            output: t.output.clone(),
+            target: t.target,
+            reached: finite(t.reached),
+            met: t.met,
+            rounds: t.rounds,
+            max_samples: t.max_samples,
+        }),
+        threads: out.threads,
+        wall_seconds: out.wall_seconds,
+        run_statistics: RunStatistics {
+            paths: st.paths,
+            scattering_events: st.scattering_events,
+            events_per_second: st.scattering_events as f64 / wall,
+            paths_per_second: st.paths as f64 / wall,
+            null_collisions: st.null_collisions,
+            roulette_terminations: st.roulette_terminations,
+            truncated_paths: st.truncated_paths,
+            non_finite: st.non_finite,
+            speckle_seconds: out.speckle_seconds,
+            out_of_range_weight: out_of_range_total,
+            doppler: exp.needs_doppler(),
+            path_length: exp.needs_length(),
         },
-        "media": Value::Object(media),
-        "estimates": Value::Object(estimates),
-        "detectors": Value::Object(det_info),
-        "files": files,
-    });
-    let text = serde_json::to_string_pretty(&manifest).expect("a JSON value serialises");
+        media,
+        estimates,
+        detectors: det_info,
+        files,
+    };
+    let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
     write_atomic(&dir.join("manifest.json"), text.as_bytes())?;
     Ok(manifest)
+}
+
+/// A surface detector's spectra (every chirp, the total and its splits) with their frequency
+/// axis, and its out-of-range tallies into `de`; returns the manifest entry and the total
+/// channels' out-of-range weight.
+fn write_spectra(
+    w: &mut Writer,
+    i: usize,
+    name: &str,
+    spec: &crate::detect::SpectrumSpec,
+    de: &mut BTreeMap<String, Entry>,
+) -> Result<(SpectrumEntry, f64)> {
+    let (reg, mean, se) = (w.registry, w.mean, w.stderr);
+    let bins = spec.axis.bins;
+    let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
+    let frequency_file = format!("{name}_frequency_hz.npy");
+    w.put(frequency_file.clone(), npy::to_bytes(&[bins], &centres))?;
+    let prefix = format!("{name}.spectrum");
+    let spectra: Vec<&Output> = reg.of_detector(i).filter(|o| o.name.starts_with(&prefix)).collect();
+    let mut channel_names: Vec<String> = Vec::new();
+    let mut chirps = BTreeMap::new();
+    let mut out_of_range_total = 0.0;
+    // Each chirp's outputs: its total, then its splits.
+    let totals = spectra.iter().enumerate().filter(|(_, o)| o.primary).map(|(k, _)| k);
+    let starts: Vec<usize> = totals.chain(std::iter::once(spectra.len())).collect();
+    for bounds in starts.windows(2) {
+        let group = &spectra[bounds[0]..bounds[1]];
+        let chirp = group[0].name[prefix.len()..].trim_start_matches('_');
+        let (key, infix) = if chirp.is_empty() { ("single", String::new()) } else { (chirp, format!("_{chirp}")) };
+        let mut oor = BTreeMap::new();
+        let mut names = Vec::new();
+        for o in group {
+            w.array(o)?;
+            let Kind::Spectrum { channels, .. } = &o.kind else { unreachable!("{} is declared a spectrum", o.name) };
+            for (r, ch) in channels.iter().enumerate() {
+                let t = o.slots.row_range(r).end;
+                let tails = [("below", t), ("above", t + 1)];
+                let g = tails.iter().map(|&(k, s)| (k.to_string(), Entry::Estimate(estimate(mean[s], se[s]))));
+                oor.insert(ch.clone(), Entry::Group(g.collect()));
+                names.push(ch.clone());
+            }
+        }
+        let t = group[0].slots.range().end;
+        out_of_range_total += mean[t] + mean[t + 1];
+        de.insert(format!("out_of_range_{key}"), Entry::Group(oor));
+        chirps.insert(key.to_string(), infix);
+        channel_names = names;
+    }
+    Ok((
+        SpectrumEntry {
+            f_min_hz: spec.axis.f_min,
+            f_max_hz: spec.axis.f_max,
+            bins,
+            bin_width_hz: spec.axis.bin_width(),
+            frequency_file,
+            channels: channel_names,
+            chirps,
+            units: "fraction of emitted power per bin",
+        },
+        out_of_range_total,
+    ))
 }

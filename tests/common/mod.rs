@@ -197,7 +197,7 @@ impl Run {
 
     /// The lidar receiver (the first detector) and its tally layout.
     pub fn lidar(&self) -> (&ohd::detect::LidarSpec, &ohd::detect::LidarLayout) {
-        (self.exp.detectors[0].lidar.as_ref().unwrap(), self.out.layout.detectors[0].lidar.as_ref().unwrap())
+        (self.exp.detectors[0].lidar().unwrap(), self.out.layout.detectors[0].lidar.as_ref().unwrap())
     }
 
     /// Lag sum `D_d` of the lidar's channel `c` (0 total, 1 single, 2 multiple) in gate `g`, with

@@ -111,7 +111,7 @@ def run_case(binary, steps, dest):
     codes, stdout = [], []
     for args in steps:
         args = [a.replace("{out}", dest) for a in args]
-        p = subprocess.run([binary] + args, capture_output=True, text=True, cwd=ROOT)
+        p = subprocess.run([os.path.abspath(binary)] + args, capture_output=True, text=True, cwd=ROOT)
         codes.append(p.returncode)
         # Paths and timings in the printed text differ by construction; keep it only for `mie`,
         # whose stdout is its output.

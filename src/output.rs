@@ -1,0 +1,196 @@
+//! The outputs of a run, declared once.
+//!
+//! Every per-batch number of a run lives in one flat tally vector (so that batch statistics treat
+//! scalars, spectrum bins and pixels alike). The [`Registry`] says what those numbers are: each
+//! named output is declared once, with its kind, shape and axes, its units, where its values lie
+//! in the tally vector ([`Slots`]), the file a run writes it to, the sign that file carries, and
+//! the configuration key its memory grows with. Detectors declare their outputs as they lay out
+//! their tallies ([`crate::detect::TallyLayout::new`]); everything that reads a run — the
+//! writers, `ohd converge` and the target-error loop, the `[reference]` check, the memory
+//! budget, the terminal report, shard and checkpoint files — reads the registry, never offsets
+//! of its own.
+//!
+//! Adding an output: declare it where its detector lays out its tallies, record into its slots,
+//! and write it where its detector's outputs are written (`io::manifest`).
+
+use std::ops::Range;
+
+use crate::spectrum::FrequencyAxis;
+
+/// Where an output's values lie in the tally vector: `rows` rows of `len` values, row `r`
+/// starting at `start + r·stride`. A spectrum's rows are followed by their below/above
+/// out-of-range tallies (`stride = len + 2`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Slots {
+    pub start: usize,
+    pub rows: usize,
+    pub stride: usize,
+    pub len: usize,
+}
+
+impl Slots {
+    /// `len` consecutive values.
+    pub fn contiguous(start: usize, len: usize) -> Self {
+        Slots { start, rows: 1, stride: len, len }
+    }
+
+    /// One row of `len` values in a block of stride `stride` (a spectrum channel: `len` bins, then
+    /// its two out-of-range tallies).
+    pub fn row(start: usize, len: usize, stride: usize) -> Self {
+        Slots { start, rows: 1, stride, len }
+    }
+
+    /// The slots of row `r`.
+    pub fn row_range(&self, r: usize) -> Range<usize> {
+        let s = self.start + r * self.stride;
+        s..s + self.len
+    }
+
+    /// The first row's values (all of them for a one-row output).
+    pub fn range(&self) -> Range<usize> {
+        self.row_range(0)
+    }
+
+    /// The values of every row, in order, from a vector laid out as the tallies.
+    pub fn gather(&self, v: &[f64]) -> Vec<f64> {
+        (0..self.rows).flat_map(|r| v[self.row_range(r)].iter().copied()).collect()
+    }
+
+    /// Tally slots the output occupies, with the gaps between its rows.
+    pub fn footprint(&self) -> usize {
+        self.rows * self.stride
+    }
+}
+
+/// What an output is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Kind {
+    /// One number (written into the manifest's `estimates`).
+    Scalar,
+    /// Power per frequency bin; one row per channel (`channels` names them), each followed in
+    /// the tally by its below/above out-of-range tallies. `mirrored`: written on the negated
+    /// axis (an LDH camera with `flip_sign`), bins reversed and tails swapped.
+    Spectrum { axis: FrequencyAxis, channels: Vec<String>, mirrored: bool },
+    /// An image over the rectangle `[min, max]` of the detector plane (m), `ny` rows of `nx`
+    /// pixels, row 0 at the lowest `y`.
+    Image { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
+    /// A full spectrum in every pixel of an image: `[y][x][bin]`.
+    PixelSpectra { nx: usize, ny: usize, axis: FrequencyAxis, mirrored: bool },
+    /// Range-gate spectra `[gate][bin]` of a lidar receiver, bins in fftshift order.
+    RangeDoppler { gates: usize, bins: usize },
+    /// Working tallies a detector derives its outputs from (a lidar's lag sums): no file.
+    Internal,
+}
+
+/// One declared output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// `reflectance_diffuse`, `camera.detected_power`, `camera.spectrum`, `camera.m0_plus`, …
+    pub name: String,
+    /// The detector it belongs to (`None`: the global scalar tallies).
+    pub detector: Option<usize>,
+    pub kind: Kind,
+    pub slots: Slots,
+    /// Shape of the written array (`[]` for a scalar).
+    pub shape: Vec<usize>,
+    pub units: &'static str,
+    /// Where a run writes it, relative to its output directory: a `.npy` file (with
+    /// `_stderr.npy` beside it unless `stderr` is false) for arrays, a JSON pointer into
+    /// `manifest.json` for scalars, nothing for internal tallies.
+    pub file: String,
+    /// Whether the standard errors are written beside the values.
+    pub stderr: bool,
+    /// The sign the written file carries relative to the tally (an LDH camera's M0− with
+    /// `flip_sign`): the file holds `sign × tally`.
+    pub sign: f64,
+    /// A main output of the run: listed by [`Registry::named`] (`ohd converge`, `[reference]`,
+    /// `--target-error`). Splits by channel or class, ROI values and per-pixel spectra are not.
+    pub primary: bool,
+    /// The configuration key its memory grows with and the value given, for the memory budget
+    /// (`("detectors[0].spectrum.bins", "= 256")`).
+    pub budget_key: Option<(String, String)>,
+}
+
+impl Output {
+    /// A scalar (absolute error) rather than an array (relative RMS error).
+    pub fn is_scalar(&self) -> bool {
+        self.kind == Kind::Scalar
+    }
+
+    /// The tally slots of a one-row output (every output [`Registry::named`] lists).
+    pub fn range(&self) -> Range<usize> {
+        self.slots.range()
+    }
+
+    /// The written values (`sign ×` the tallies, every row) and standard errors, read off a
+    /// run's mean and standard error vectors.
+    pub fn values(&self, mean: &[f64], stderr: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let v = self.slots.gather(mean);
+        let v = if self.sign == 1.0 { v } else { v.into_iter().map(|x| self.sign * x).collect() };
+        (v, self.slots.gather(stderr))
+    }
+}
+
+/// Every output of an experiment, in declaration order, and the length of the tally vector.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Registry {
+    pub len: usize,
+    pub outputs: Vec<Output>,
+}
+
+impl Registry {
+    /// Reserve `n` tally slots; returns the first.
+    pub fn take(&mut self, n: usize) -> usize {
+        let s = self.len;
+        self.len += n;
+        s
+    }
+
+    pub fn declare(&mut self, o: Output) {
+        debug_assert!(o.slots.start + o.slots.footprint() <= self.len || o.slots.rows == 0);
+        debug_assert!(!o.primary || o.slots.rows == 1, "a main output is one row");
+        debug_assert!(self.get(&o.name).is_none(), "output {} declared twice", o.name);
+        self.outputs.push(o);
+    }
+
+    /// The output called `name`.
+    pub fn get(&self, name: &str) -> Option<&Output> {
+        self.outputs.iter().find(|o| o.name == name)
+    }
+
+    /// The outputs of detector `i`, in declaration order.
+    pub fn of_detector(&self, i: usize) -> impl Iterator<Item = &Output> {
+        self.outputs.iter().filter(move |o| o.detector == Some(i))
+    }
+
+    /// The main outputs (see [`Output::primary`]): the scalar tallies, then per detector its
+    /// power, total spectrum (per chirp), image, LDH M0± images and lidar range–Doppler spectra.
+    pub fn named(&self) -> impl Iterator<Item = &Output> {
+        self.outputs.iter().filter(|o| o.primary)
+    }
+
+    /// The blocks of tallies that grow with a configuration key, `(key, value, slots)`, per
+    /// detector in the order spectra, per-pixel spectra, the rest.
+    pub fn budget_blocks(&self) -> Vec<(String, String, usize)> {
+        let mut blocks: Vec<(usize, String, String, usize)> = Vec::new();
+        for o in &self.outputs {
+            let Some((key, value)) = &o.budget_key else { continue };
+            let n = o.slots.footprint();
+            match blocks.iter_mut().find(|b| &b.1 == key) {
+                Some(b) => b.3 += n,
+                None => blocks.push((o.detector.unwrap_or(usize::MAX), key.clone(), value.clone(), n)),
+            }
+        }
+        let rank = |key: &str| {
+            if key.ends_with(".spectrum.bins") {
+                0
+            } else if key.ends_with(".pixel_spectra") {
+                1
+            } else {
+                2
+            }
+        };
+        blocks.sort_by_key(|b| (b.0, rank(&b.1)));
+        blocks.into_iter().map(|b| (b.1, b.2, b.3)).collect()
+    }
+}
