@@ -20,8 +20,8 @@
 //! With a noisy reference, the expected squared error is the sum of both runs' variances, so the
 //! agreement check compares the measured error with `√(σ² + σ_ref²)`.
 
-use crate::detect::Scalar;
 use crate::experiment::{Experiment, Progress, RunOutput};
+pub use crate::experiment::{Target, TargetOutcome};
 use crate::stats::BatchAccumulator;
 
 /// One named output of a run (declared in the [`crate::output::Registry`]).
@@ -62,64 +62,6 @@ impl NamedOutput {
     pub fn slice<'a>(&self, mean: &'a [f64], stderr: &'a [f64]) -> (&'a [f64], &'a [f64]) {
         (&mean[self.range()], &stderr[self.range()])
     }
-}
-
-impl Experiment {
-    /// Every named output of this experiment ([`crate::output::Registry::named`]): the five
-    /// scalar tallies, then per detector its power, its total spectrum (per chirp), image, LDH
-    /// M0± images and lidar range–Doppler spectra.
-    pub fn outputs(&self) -> Vec<NamedOutput> {
-        self.tally_layout().registry.named().cloned().collect()
-    }
-
-    /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
-    /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
-    /// (up-chirp) spectrum, else its image, else its power; without detectors the diffuse
-    /// reflectance.
-    pub fn main_output(&self) -> NamedOutput {
-        let outputs = self.outputs();
-        let pick = |name: &str| outputs.iter().find(|o| o.name == name).cloned();
-        if let Some(d) = self.detectors.first() {
-            for what in ["m0_plus", "range_doppler", "spectrum", "spectrum_up", "image", "detected_power"] {
-                if let Some(o) = pick(&format!("{}.{what}", d.name)) {
-                    return o;
-                }
-            }
-        }
-        pick(Scalar::ReflectanceDiffuse.name()).expect("the scalar tallies are always outputs")
-    }
-}
-
-/// A stopping rule for [`Experiment::run_until`]: run whole rounds of the configured batches
-/// until the main output's estimated relative error is at most `relative_error`, or the run
-/// would exceed `max_samples` paths.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Target {
-    pub output: NamedOutput,
-    pub relative_error: f64,
-    pub max_samples: u64,
-}
-
-/// How a run with a [`Target`] ended.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TargetOutcome {
-    pub output: String,
-    pub target: f64,
-    /// The estimated relative error reached.
-    pub reached: f64,
-    pub met: bool,
-    /// Rounds of the configured batches run.
-    pub rounds: u64,
-    /// The cap on paths (whole rounds).
-    pub max_samples: u64,
-}
-
-/// How many rounds a run with `rounds` done at relative error `err` needs to reach `target`
-/// (errors fall as `1/√paths`), at least one more, at most `max_rounds`.
-/// Without an error estimate yet (a zero output) the run doubles.
-pub fn rounds_needed(rounds: u64, err: f64, target: f64, max_rounds: u64) -> u64 {
-    let want = if err.is_finite() { (rounds as f64 * (err / target).powi(2)).ceil() } else { 2.0 * rounds as f64 };
-    (want.min(max_rounds as f64) as u64).clamp(rounds + 1, max_rounds.max(rounds + 1))
 }
 
 /// An output's reference for the convergence study: values in the tally's convention and their

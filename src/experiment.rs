@@ -5,11 +5,11 @@
 //! statistics in batch order, so the output does not depend on the number of threads.
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
-use crate::converge::{Target, TargetOutcome, rounds_needed};
 use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
+use crate::output::Output;
 use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::Source;
@@ -59,6 +59,38 @@ pub struct Experiment {
     /// Analytic values of named outputs (`[reference]`), for `ohd converge`, in the tally's
     /// convention.
     pub references: Vec<(String, Vec<f64>)>,
+}
+
+/// A stopping rule for [`Experiment::run_until`]: run whole rounds of the configured batches
+/// until the main output's estimated relative error is at most `relative_error`, or the run
+/// would exceed `max_samples` paths.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    pub output: Output,
+    pub relative_error: f64,
+    pub max_samples: u64,
+}
+
+/// How a run with a [`Target`] ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TargetOutcome {
+    pub output: String,
+    pub target: f64,
+    /// The estimated relative error reached.
+    pub reached: f64,
+    pub met: bool,
+    /// Rounds of the configured batches run.
+    pub rounds: u64,
+    /// The cap on paths (whole rounds).
+    pub max_samples: u64,
+}
+
+/// How many rounds a run with `rounds` done at relative error `err` needs to reach `target`
+/// (errors fall as `1/√paths`), at least one more, at most `max_rounds`.
+/// Without an error estimate yet (a zero output) the run doubles.
+pub fn rounds_needed(rounds: u64, err: f64, target: f64, max_rounds: u64) -> u64 {
+    let want = if err.is_finite() { (rounds as f64 * (err / target).powi(2)).ceil() } else { 2.0 * rounds as f64 };
+    (want.min(max_rounds as f64) as u64).clamp(rounds + 1, max_rounds.max(rounds + 1))
 }
 
 /// Progress reports from a running experiment (a cold seam: called every few thousand paths).
@@ -288,6 +320,19 @@ impl<'a> BatchRunner<'a> {
 }
 
 impl Experiment {
+    /// Every named output of this experiment ([`crate::output::Registry::named`]): the five
+    /// scalar tallies, then per detector its power, its total spectrum (per chirp), image, LDH
+    /// M0± images and lidar range–Doppler spectra.
+    pub fn outputs(&self) -> Vec<Output> {
+        self.tally_layout().registry.named().cloned().collect()
+    }
+
+    /// The run's main output ([`crate::output::Registry::main`]), whose error `ohd run
+    /// --target-error` controls and the progress bar shows.
+    pub fn main_output(&self) -> Output {
+        self.tally_layout().registry.main().clone()
+    }
+
     pub fn beat_model(&self) -> BeatModel {
         BeatModel::new(self.source.wavelength, self.source.chirp.map(|c| c.slope()))
     }

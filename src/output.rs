@@ -169,6 +169,20 @@ impl Registry {
         self.outputs.iter().filter(|o| o.primary)
     }
 
+    /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
+    /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
+    /// (up-chirp) spectrum, else its image, else its power; without detectors the diffuse
+    /// reflectance.
+    pub fn main(&self) -> &Output {
+        let first: Vec<&Output> = self.named().filter(|o| o.detector == Some(0)).collect();
+        let pick = |what: &str| first.iter().copied().find(|o| o.name.rsplit_once('.').is_some_and(|(_, w)| w == what));
+        ["m0_plus", "range_doppler", "spectrum", "spectrum_up", "image", "detected_power"]
+            .into_iter()
+            .find_map(pick)
+            .or_else(|| self.get("reflectance_diffuse"))
+            .expect("the scalar tallies are always outputs")
+    }
+
     /// The blocks of tallies that grow with a configuration key, `(key, value, slots)`, per
     /// detector in the order spectra, per-pixel spectra, the rest.
     pub fn budget_blocks(&self) -> Vec<(String, String, usize)> {
