@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand};
 use ohd::converge::{LadderOptions, Study, StudyLog, Target};
 use ohd::error::Error;
 use ohd::experiment::{Experiment, Progress};
-use ohd::io::manifest::{Invocation, write_run};
+use ohd::io::write::manifest::{Invocation, write_run};
 
 #[derive(Parser)]
 #[command(
@@ -191,7 +191,7 @@ struct MieArgs {
 fn mie(a: &MieArgs) -> Result<(), Error> {
     use std::collections::BTreeMap;
 
-    use ohd::io::table::{Normalisation, TableOptics, phase_table_text};
+    use ohd::io::formats::table::{Normalisation, TableOptics, phase_table_text};
     use ohd::mie::{MieSolution, angle_grid};
 
     let input = |m: String| Error::Input(m);
@@ -661,7 +661,7 @@ fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(
         exp = exp.pointed(&p);
     }
     let refs = match &a.reference {
-        Some(dir) => ohd::io::converge::read_reference(dir, &exp.outputs())?,
+        Some(dir) => ohd::io::write::converge::read_reference(dir, &exp.outputs())?,
         None => Vec::new(),
     };
     let dir = a.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_converge")));
@@ -672,7 +672,7 @@ fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(
         ..Default::default()
     };
     let study: Study = ohd::converge::study(&exp, refs, &opts, &mut StderrLog { quiet: a.quiet });
-    ohd::io::converge::write_study(&dir, &study, &origin)?;
+    ohd::io::write::converge::write_study(&dir, &study, &origin)?;
     eprintln!("ohd converge: → {}", dir.display());
     eprintln!(
         "  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}",

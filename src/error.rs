@@ -41,7 +41,7 @@ pub enum Error {
     Write { path: PathBuf, source: std::io::Error },
     /// An OpenVDB file that cannot be read (exit status 2: it is input).
     #[error(transparent)]
-    Vdb(#[from] crate::io::vdb::VdbError),
+    Vdb(#[from] crate::io::formats::vdb::VdbError),
     /// Any other bad input (a command-line value out of range), with its message (exit status 2).
     #[error("{0}")]
     Input(String),

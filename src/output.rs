@@ -11,7 +11,7 @@
 //! of its own.
 //!
 //! Adding an output: declare it where its detector lays out its tallies, record into its slots,
-//! and write it where its detector's outputs are written (`io::manifest`).
+//! and write it where its detector's outputs are written (`io::write::manifest`).
 
 use std::ops::Range;
 

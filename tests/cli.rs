@@ -276,7 +276,7 @@ fn mie_writes_a_phase_table_that_loads() {
         "--table",
         path_str(&table),
     ]);
-    let loaded = ohd::io::table::read_phase_table(&table).expect("the written table loads");
+    let loaded = ohd::io::formats::table::read_phase_table(&table).expect("the written table loads");
     assert_eq!(loaded.phase.len(), 500);
     assert_eq!(loaded.file.optics.wavelength_nm, Some(785.0));
     assert_eq!(loaded.file.optics.g, v["g"].as_f64());

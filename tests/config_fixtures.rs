@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ohd::config::{apply_set, load};
 use ohd::detect::Scalar;
 use ohd::experiment::{Experiment, RunOutput, Silent};
-use ohd::io::manifest::{Invocation, write_run};
+use ohd::io::write::manifest::{Invocation, write_run};
 use ohd::source::Profile;
 
 fn repo() -> PathBuf {

@@ -2,7 +2,7 @@
 
 mod common;
 
-use ohd::io::manifest::{Invocation, write_run};
+use ohd::io::write::manifest::{Invocation, write_run};
 
 #[test]
 fn one_and_two_threads_write_identical_outputs() {

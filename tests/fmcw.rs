@@ -9,7 +9,7 @@ mod common;
 
 use common::{Run, assert_within_sigma, run};
 use ohd::SPEED_OF_LIGHT;
-use ohd::io::manifest::{Invocation, write_run};
+use ohd::io::write::manifest::{Invocation, write_run};
 use ohd::retrieval::FmcwEstimate;
 use ohd::retrieval::fmcw::range_frequency;
 

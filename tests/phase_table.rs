@@ -7,7 +7,7 @@ mod common;
 use std::f64::consts::PI;
 
 use ohd::detect::Scalar;
-use ohd::io::table::{Normalisation, TableOptics, phase_table_text};
+use ohd::io::formats::table::{Normalisation, TableOptics, phase_table_text};
 use ohd::medium::relative_sphere;
 use ohd::mie::{MieSolution, angle_grid};
 use ohd::phase::{HenyeyGreenstein, PhaseFunction, TabulatedPhase};

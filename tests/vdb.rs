@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use ohd::error::Error;
-use ohd::io::vdb::{self, ReadOptions, ValueType, VdbGrid, VdbTree, VdbValue};
+use ohd::io::formats::vdb::{self, ReadOptions, ValueType, VdbGrid, VdbTree, VdbValue};
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/vdb").join(name)

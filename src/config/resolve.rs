@@ -15,7 +15,7 @@ use crate::detect::{
 use crate::error::ConfigError;
 use crate::experiment::{Experiment, RunPlan};
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
-use crate::io::table::read_phase_table;
+use crate::io::formats::table::read_phase_table;
 use crate::medium::density::{
     CellSize, Density, DensityInfo, GridDensity, GridError, GridField, Interpolation, MajorantKind, MajorantSpec,
     Placement, Ramp,
@@ -902,12 +902,12 @@ type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<Stri
 impl GridFiles {
     /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
     fn float(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<f32>>> {
-        Self::get(&self.float, key, base, file, grid, crate::io::vdb::read_float)
+        Self::get(&self.float, key, base, file, grid, crate::io::formats::vdb::read_float)
     }
 
     /// The vec3 grid `grid` (or the first) of `file`.
     fn vec3(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<[f32; 3]>>> {
-        Self::get(&self.vec3, key, base, file, grid, crate::io::vdb::read_vec3)
+        Self::get(&self.vec3, key, base, file, grid, crate::io::formats::vdb::read_vec3)
     }
 
     fn get<T>(
@@ -916,7 +916,7 @@ impl GridFiles {
         base: &Path,
         file: &str,
         grid: Option<&str>,
-        read: impl Fn(std::path::PathBuf, Option<&str>) -> crate::error::Result<crate::io::vdb::VdbGrid<T>>,
+        read: impl Fn(std::path::PathBuf, Option<&str>) -> crate::error::Result<crate::io::formats::vdb::VdbGrid<T>>,
     ) -> R<Arc<VoxelGrid<T>>> {
         let path = base.join(file);
         let id = (path.clone(), grid.map(str::to_string));

@@ -236,7 +236,7 @@ pub enum DensitySection {
         /// bound, the larger end value).
         majorant: Option<MajorantSection>,
     },
-    /// A FloatGrid from an OpenVDB file (our own reader, `io::vdb`).
+    /// A FloatGrid from an OpenVDB file (our own reader, `io::formats::vdb`).
     Vdb {
         /// The `.vdb` file, relative to the config file.
         file: String,

@@ -1,20 +1,19 @@
-//! Output files: written atomically (a temporary file in the same directory, then a rename).
-//! Input: OpenVDB grids ([`vdb`]).
+//! Files, by role:
+//!
+//! * [`formats`]: what bytes look like — `.npy`, OpenEXR, PNG encoding, phase-function tables and
+//!   the OpenVDB reader;
+//! * [`write`]: a finished run's outputs, as its output registry declares them, and the manifest;
+//! * [`figures`]: PNG previews and plots;
+//! * persistence of runs in progress: [`shard`] and [`checkpoint`] files (one binary codec);
+//! * [`write_atomic`]: every output file is written to a temporary name and renamed into place.
 
 mod binary;
 pub mod checkpoint;
-pub mod converge;
-pub mod fmcw;
-pub mod ldh;
-pub mod lidar;
-pub mod manifest;
-pub mod npy;
-pub mod plot;
-pub mod png;
+pub mod figures;
+pub mod formats;
 pub mod scan;
 pub mod shard;
-pub mod table;
-pub mod vdb;
+pub mod write;
 
 use std::path::{Path, PathBuf};
 
@@ -43,22 +42,4 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
     }
     result.map_err(werr)
-}
-
-/// An EXR image of named `f32` channels (`ny` rows of `nx`), as bytes.
-pub fn exr_bytes(nx: usize, ny: usize, channels: &[(&str, &[f64])]) -> std::result::Result<Vec<u8>, String> {
-    use exr::prelude::*;
-    let list: Vec<AnyChannel<FlatSamples>> = channels
-        .iter()
-        .map(|(name, data)| AnyChannel::new(*name, FlatSamples::F32(data.iter().map(|&v| v as f32).collect())))
-        .collect();
-    let layer = Layer::new(
-        (nx, ny),
-        LayerAttributes::named("ohd"),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(SmallVec::from_vec(list)),
-    );
-    let mut cursor = std::io::Cursor::new(Vec::new());
-    Image::from_layer(layer).write().to_buffered(&mut cursor).map_err(|e| e.to_string())?;
-    Ok(cursor.into_inner())
 }

@@ -3,7 +3,7 @@
 //! `ijk·voxel_size + translation`, the voxel's centre).
 //!
 //! A [`VoxelGrid`] stores a dense block of the lattice (the bounding box of a file's active voxels,
-//! say); every point outside it takes the background value. The OpenVDB reader (`io::vdb`) and
+//! say); every point outside it takes the background value. The OpenVDB reader (`io::formats::vdb`) and
 //! the synthetic media both produce this one type, and the media sample it.
 
 use glam::DVec3;

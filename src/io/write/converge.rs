@@ -11,8 +11,9 @@ use serde_json::{Value, json};
 use crate::converge::{NamedOutput, Reference, Study};
 use crate::error::{Error, Result};
 
-use super::plot::{PALETTE, Series, line_plot_png};
-use super::{npy, write_atomic};
+use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
+use crate::io::formats::npy;
+use crate::io::write_atomic;
 
 /// The agreement band of measured to self-reported error (issue 7).
 pub const SIGMA_RATIO_BAND: (f64, f64) = (0.5, 2.0);

@@ -6,13 +6,13 @@
 
 use serde_json::{Value, json};
 
-use super::manifest::{Writer, estimate};
-use super::npy;
-use super::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
-use super::png::Colormap;
+use super::{Writer, estimate};
 use crate::detect::LidarSpec;
 use crate::detect::lidar::{FIT_SELECTION_LEVEL, GateRetrieval, LIDAR_CHANNELS};
 use crate::error::Result;
+use crate::io::figures::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
+use crate::io::figures::raster::Colormap;
+use crate::io::formats::npy;
 use crate::retrieval::{RetrievalError, radial_velocity};
 
 /// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).

@@ -7,13 +7,13 @@ use std::collections::BTreeMap;
 
 use serde_json::{Map, Value, json};
 
-use super::manifest::{Entry, IMAGE_LAYOUT, Put, Writer, estimate};
-use super::npy;
-use super::plot::{PALETTE, Series, line_plot_png};
-use super::png::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
+use super::{Entry, IMAGE_LAYOUT, Put, Writer, estimate};
 use crate::detect::ImageSpec;
 use crate::detect::ldh::{CLASS_NAMES, LdhSpec, RoiSpeckle, band_sums};
 use crate::error::Result;
+use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
+use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
+use crate::io::formats::npy;
 use crate::output::Kind;
 
 /// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
@@ -137,7 +137,7 @@ pub fn write_ldh(
             );
         }
         put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
-        put(super::manifest::stderr_file(&o.file), npy::to_bytes(&o.shape, &e))?;
+        put(super::stderr_file(&o.file), npy::to_bytes(&o.shape, &e))?;
         let khz: Vec<f64> = centres.iter().map(|f| f / 1e3).collect();
         let dbs: Vec<Vec<f64>> = v.chunks_exact(bins).map(|c| c.iter().map(|&x| db(x)).collect()).collect();
         let series: Vec<Series> = channel_names

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use serde_json::{Value, json};
 
-use super::manifest::Entry as Estimates;
+use super::Entry as Estimates;
 
 use crate::experiment::{Experiment, RunOutput};
 use crate::retrieval::{FmcwEstimate, RetrievalError};

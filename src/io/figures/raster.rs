@@ -21,7 +21,7 @@
 //! plane seen from `+z`. [`PreviewGeometry`] gives the exact placement (tests use it to find the
 //! picture pixel of a data pixel).
 
-use super::plot::{nice_ticks, tick_label};
+use super::ticks::{nice_ticks, tick_label};
 
 /// The colour of NaN and other "no data" pixels: a grey-magenta that no colour map produces.
 pub const NO_DATA: [u8; 3] = [150, 110, 150];
@@ -240,20 +240,8 @@ impl Canvas {
             && Some(self.rgb.len()) == self.width.checked_mul(self.height).and_then(|n| n.checked_mul(3));
         let (w, h, data): (usize, usize, &[u8]) =
             if valid { (self.width, self.height, &self.rgb) } else { (1, 1, &WHITE) };
-        encode_rgb8(w as u32, h as u32, data).unwrap_or_default()
+        crate::io::formats::png::encode_rgb8(w as u32, h as u32, data).unwrap_or_default()
     }
-}
-
-fn encode_rgb8(width: u32, height: u32, data: &[u8]) -> Result<Vec<u8>, png::EncodingError> {
-    let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, width, height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.set_compression(png::Compression::Balanced);
-    let mut writer = encoder.write_header()?;
-    writer.write_image_data(data)?;
-    writer.finish()?;
-    Ok(out)
 }
 
 /// Colour maps on `t ∈ [0, 1]` (clamped; NaN → [`NO_DATA`]).
