@@ -1,15 +1,17 @@
 //! Argument parsing and the `run` / `check` commands.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use ohd::converge::{LadderOptions, Study, StudyLog, Target};
+use ohd::converge::StudyLog;
 use ohd::error::Error;
-use ohd::experiment::{Experiment, Progress};
-use ohd::io::write::manifest::{Invocation, write_run};
+use ohd::experiment::{Experiment, Progress, RunOutput};
+use ohd::retrieval::{FmcwEstimate, RetrievalError};
+use ohd::run::converge::{ConvergeRequest, StudyWritten};
+use ohd::run::{Event, Loaded, Observer, RunRequest};
 
 #[derive(Parser)]
 #[command(
@@ -264,42 +266,6 @@ fn mie(a: &MieArgs) -> Result<(), Error> {
     Ok(())
 }
 
-/// Read the configuration text and a name for it.
-fn read_config(config: Option<&Path>) -> Result<(String, String, String), Error> {
-    match config {
-        None => {
-            Ok((ohd::DEFAULT_CONFIG.to_string(), "built-in default (configs/default.toml)".into(), "default".into()))
-        }
-        Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|source| Error::Read { path: p.to_path_buf(), source })?;
-            let stem = p.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
-            Ok((text, p.display().to_string(), stem))
-        }
-    }
-}
-
-/// A configuration read and resolved.
-struct Loaded {
-    /// Its text, where it came from (for the manifest), and a name for default output paths.
-    text: String,
-    origin: String,
-    stem: String,
-    /// The file's absolute path (relative media paths resolve against it), else `origin`.
-    source_path: String,
-    table: toml::Table,
-    exp: Experiment,
-}
-
-fn load(config: Option<&Path>, sets: &[String]) -> Result<Loaded, Error> {
-    let (text, origin, stem) = read_config(config)?;
-    let (table, exp) = ohd::config::load(&text, &origin, sets)?;
-    let source_path = match config.map(std::fs::canonicalize) {
-        Some(Ok(p)) => p.display().to_string(),
-        _ => origin.clone(),
-    };
-    Ok(Loaded { text, origin, stem, source_path, table, exp })
-}
-
 /// The progress bar: paths, the main output's running relative error (and the target), ETA.
 struct Bar {
     bar: indicatif::ProgressBar,
@@ -317,6 +283,12 @@ impl Bar {
         );
         bar.set_message("error: …");
         Bar { bar, target }
+    }
+}
+
+impl Drop for Bar {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
     }
 }
 
@@ -338,18 +310,6 @@ impl Progress for Bar {
     }
 }
 
-/// `work` with a progress bar on stderr when it is a terminal and not `quiet` (cleared after),
-/// else silently: over `total` paths, with the target error if any.
-fn with_progress<T>(quiet: bool, total: u64, target: Option<f64>, work: impl FnOnce(&dyn Progress) -> T) -> T {
-    if quiet || !std::io::stderr().is_terminal() {
-        return work(&ohd::experiment::Silent);
-    }
-    let bar = Bar::new(total, target);
-    let out = work(&bar);
-    bar.bar.finish_and_clear();
-    out
-}
-
 fn fail(e: &Error) -> ExitCode {
     eprintln!("ohd: {e}");
     ExitCode::from(if e.is_input_error() { 2 } else { 1 })
@@ -357,322 +317,171 @@ fn fail(e: &Error) -> ExitCode {
 
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
-        Command::Mie(a) => match mie(&a) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => fail(&e),
-        },
+    let result = match cli.command {
+        Command::Mie(a) => mie(&a),
         Command::Converge { config, out, reference, budget_seconds, samples, rungs, overrides, quiet } => {
-            let set = overrides.sets(None);
-            let a = ConvergeArgs { out, reference, budget_seconds, samples, rungs, quiet };
-            match converge(config.as_deref(), &set, a) {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => fail(&e),
-            }
+            let req = ConvergeRequest {
+                config,
+                overrides: overrides.sets(None),
+                out,
+                reference,
+                budget_seconds,
+                samples,
+                rungs,
+            };
+            converge(&req, quiet)
         }
-        Command::Check { config, set } => match load(config.as_deref(), &set) {
-            Ok(l) => {
-                print!("{}", describe(&l.exp, &l.origin));
-                ExitCode::SUCCESS
-            }
-            Err(e) => fail(&e),
-        },
-        Command::Run(a) => match run(a) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => fail(&e),
-        },
-        Command::Merge { dirs, out } => match merge(&dirs, &out) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => fail(&e),
-        },
+        Command::Check { config, set } => Loaded::read(config.as_deref(), &set).map(|l| {
+            print!("{}", describe(&l.exp, &l.origin));
+        }),
+        Command::Run(a) => run(a),
+        Command::Merge { dirs, out } => ohd::run::merge(&dirs, &out, &Terminal { quiet: false }).map(drop),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => fail(&e),
     }
 }
 
 /// `ohd run`: one experiment, a scan of pointings, or one shard of an experiment.
 fn run(a: RunArgs) -> Result<(), Error> {
     let set = a.overrides.sets(a.samples);
-    let loaded = load(a.config.as_deref(), &set)?;
-    let exp = &loaded.exp;
-    let target = a.target_error.map(|e| target(exp, e, a.max_samples)).transpose()?;
-    let dir = a.out.unwrap_or_else(|| PathBuf::from("out").join(&loaded.stem));
-    let inv = Invocation { config_source: loaded.origin.clone(), overrides: set };
-    if let Some(s) = a.checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
-        return Err(Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
-    }
-    let parts = parts(exp, &loaded.table, &dir);
-    if let Some((index, count)) = a.shard {
-        for part in &parts {
-            run_shard(&loaded, part, &inv, index, count, a.quiet)?;
-        }
-        return Ok(());
-    }
-    if a.resume && parts.len() > 1 && !parts.iter().any(|p| p.checkpoint().exists()) {
-        return Err(Error::invalid_file(parts[0].checkpoint(), "no checkpoint of any pointing of this scan to resume"));
-    }
-    let opts = RunOptions {
-        target: target.as_ref(),
+    let loaded = Loaded::read(a.config.as_deref(), &set)?;
+    let req = RunRequest {
+        dir: a.out.unwrap_or_else(|| loaded.default_dir("")),
+        target_error: a.target_error,
+        max_samples: a.max_samples,
         checkpoint_seconds: a.checkpoint_seconds,
         resume: a.resume,
-        quiet: a.quiet,
+        shard: a.shard,
     };
-    let mut scan = Scan::default();
-    for part in &parts {
-        let output = run_one(part, &loaded.table, &inv, &opts, parts.len() > 1)?;
-        scan.add(part, &output);
+    ohd::run::run(&loaded, &req, &Terminal { quiet: a.quiet }).map(drop)
+}
+
+/// Tells the user on stderr: a progress bar per run (when stderr is a terminal and not `quiet`;
+/// cleared after), and a line or a report per event.
+struct Terminal {
+    quiet: bool,
+}
+
+impl Observer for Terminal {
+    fn progress(&self, paths: u64, target: Option<f64>) -> Box<dyn Progress + '_> {
+        if self.quiet || !std::io::stderr().is_terminal() {
+            return Box::new(ohd::experiment::Silent);
+        }
+        Box::new(Bar::new(paths, target))
     }
-    scan.finish(exp, &dir)?;
-    if parts.len() > 1 && (opts.checkpoint_seconds.is_some() || opts.resume) {
-        // The whole scan is written: the pointings' checkpoints have served.
-        parts.iter().for_each(|p| drop(std::fs::remove_file(p.checkpoint())));
+
+    fn event(&self, event: Event<'_>) {
+        match event {
+            Event::Pointing { index, pointing: p } => {
+                eprintln!("ohd: pointing {index}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
+            }
+            Event::Resuming { state, path } => {
+                eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
+            }
+            Event::Written { exp, output, dir } => {
+                eprintln!(
+                    "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
+                    output.samples(),
+                    output.wall_seconds,
+                    output.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
+                    dir.display()
+                );
+                report(exp, output);
+            }
+            Event::Merged { exp, output, dir, shards } => {
+                eprintln!("ohd: merged {shards} shards ({} batches) → {}", output.batches, dir.display());
+                report(exp, output);
+            }
+            Event::ShardWritten(s) => eprintln!(
+                "ohd: shard {}/{}: batches {}..{} of {}, {} paths in {:.2} s → {}",
+                s.index,
+                s.count,
+                s.range.start,
+                s.range.end,
+                s.batches,
+                s.paths,
+                s.seconds,
+                s.path.display()
+            ),
+            Event::VadWritten { path } => eprintln!("ohd: VAD wind per gate → {}", path.display()),
+            Event::StudyingFirstPointing(p) => {
+                eprintln!(
+                    "ohd converge: a scan: studying its first pointing ({}°, {}°)",
+                    p.azimuth_deg, p.elevation_deg
+                );
+            }
+        }
     }
-    Ok(())
 }
 
-/// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
-struct Part {
-    exp: Experiment,
-    dir: PathBuf,
-    /// Of the configuration as run and the pointing: a checkpoint or shard of one pointing is
-    /// never taken for another's.
-    fingerprint: u64,
-    /// The pointing's index in a scan (`None` for a plain run).
-    pointing: Option<usize>,
+/// What the run report shows, read off the typed results of a run: the scalar estimates (name,
+/// value, standard error) and per chirped spectrum detector its FMCW retrieval.
+struct Figures {
+    scalars: Vec<(String, f64, f64)>,
+    fmcw: Vec<(String, Result<FmcwEstimate, RetrievalError>)>,
 }
 
-impl Part {
-    fn checkpoint(&self) -> PathBuf {
-        self.dir.join("checkpoint.ohd")
-    }
-}
-
-/// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
-fn pointing_name(i: usize) -> String {
-    format!("pointing_{i:02}")
-}
-
-/// The directory of pointing `i` of a scan, inside the scan's.
-fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
-    dir.join(pointing_name(i))
-}
-
-/// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
-/// pointing into `dir/pointing_NN`.
-fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
-    let fp = ohd::io::checkpoint::config_fingerprint(table);
-    if exp.source.pointings.len() <= 1 {
-        return vec![Part { exp: exp.clone(), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
-    }
-    exp.source
-        .pointings
+/// The one place the report reads its numbers.
+fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
+    let (mean, se) = (output.estimates.mean(), output.estimates.stderr());
+    let outputs = exp.outputs();
+    let scalars = ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"]
         .iter()
-        .enumerate()
-        .map(|(i, p)| Part {
-            exp: exp.pointed(p),
-            dir: pointing_dir(dir, i),
-            fingerprint: ohd::io::checkpoint::fingerprint(&format!("{fp:016x} pointing {i}")),
-            pointing: Some(i),
+        .map(|k| match outputs.iter().find(|o| o.name == *k) {
+            Some(o) => (k.to_string(), mean[o.slots.start], se[o.slots.start]),
+            None => (k.to_string(), f64::NAN, f64::NAN),
         })
-        .collect()
+        .collect();
+    let fmcw = (0..exp.detectors.len())
+        .filter_map(|i| Some((exp.detectors[i].name.clone(), exp.fmcw_estimates(output, i)?)))
+        .collect();
+    Figures { scalars, fmcw }
 }
 
-/// A scan's per-pointing results, gathered for the VAD wind per range gate.
-#[derive(Default)]
-struct Scan {
-    runs: Vec<String>,
-    velocities: Vec<Vec<Option<f64>>>,
-    ranges: Vec<f64>,
-}
-
-impl Scan {
-    fn add(&mut self, part: &Part, output: &ohd::experiment::RunOutput) {
-        let Some(i) = part.pointing else { return };
-        if let Some(v) = ohd::scan::gate_peak_velocities(&part.exp, output) {
-            self.velocities.push(v);
-        }
-        if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar()) {
-            self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
-        }
-        self.runs.push(pointing_name(i));
-    }
-
-    /// Write the VAD wind of a scan whose every pointing has gate velocities (nothing otherwise).
-    fn finish(&self, exp: &Experiment, dir: &Path) -> Result<(), Error> {
-        let pointings = &exp.source.pointings;
-        if pointings.len() > 1 && self.velocities.len() == pointings.len() {
-            let gates = ohd::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
-            ohd::io::scan::write_scan(dir, pointings, &self.runs, &gates)?;
-            eprintln!("ohd: VAD wind per gate → {}", dir.join("vad.csv").display());
-        }
-        Ok(())
-    }
-}
-
-/// `ohd run --shard I/N`: run part `index` of `count` of the batches of `part` into
-/// `part.dir/shard.ohd`.
-fn run_shard(loaded: &Loaded, part: &Part, inv: &Invocation, index: u64, count: u64, quiet: bool) -> Result<(), Error> {
-    use ohd::io::shard::{FILE_NAME, ShardHeader, ShardTrailer, ShardWriter};
-    let (exp, dir) = (&part.exp, &part.dir);
-    if count > exp.plan.batches {
-        return Err(Error::Input(format!(
-            "--shard {index}/{count}: expected at most run.batches = {} parts (raise run.batches, 16 to 65536, for more)",
-            exp.plan.batches
-        )));
-    }
-    let range = exp.shard_batches(index, count);
-    let header = ShardHeader {
-        fingerprint: part.fingerprint,
-        index,
-        count,
-        first: range.start,
-        last: range.end,
-        batches: exp.plan.batches,
-        paths_per_batch: exp.plan.paths_per_batch,
-        tallies: exp.tally_layout().len as u64,
-        config_text: loaded.text.clone(),
-        config_source: loaded.source_path.clone(),
-        // Results do not depend on the thread count: the merged run does not record one shard's.
-        overrides: inv.overrides.iter().filter(|s| !s.starts_with("run.threads=")).cloned().collect(),
-    };
-    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-    let path = dir.join(FILE_NAME);
-    let start = std::time::Instant::now();
-    let mut writer = ShardWriter::create(&path, &header)?;
-    let mut trailer = ShardTrailer { threads: exp.plan.effective_threads() as u64, ..Default::default() };
-    let mut sink = |sums: &[f64], stats: ohd::stats::RunStats, lines: Vec<ohd::detect::RecordedLine>| {
-        trailer.stats.merge(&stats);
-        trailer.lines.extend(lines);
-        writer.batch(sums)
-    };
-    let paths = (range.end - range.start) * exp.plan.paths_per_batch;
-    with_progress(quiet, paths, None, |p| exp.run_batches(range.clone(), p, &mut sink))?;
-    trailer.seconds = start.elapsed().as_secs_f64();
-    let seconds = trailer.seconds;
-    writer.finish(&trailer)?;
-    eprintln!(
-        "ohd: shard {index}/{count}: batches {}..{} of {}, {paths} paths in {seconds:.2} s → {}",
-        range.start,
-        range.end,
-        exp.plan.batches,
-        path.display()
-    );
-    Ok(())
-}
-
-/// `ohd merge DIR... --out OUT`: the shards of one run folded into its outputs (of a scan: per
-/// pointing, then the VAD wind).
-fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), Error> {
-    use ohd::io::shard::{FILE_NAME, ShardReader, check_set};
-    let Some(first) = dirs.first() else {
-        return Err(Error::Input("no shard directories given".into()));
-    };
-    // A scan's shards are per pointing: DIR/pointing_NN/shard.ohd.
-    let head = [first.join(FILE_NAME), pointing_dir(first, 0).join(FILE_NAME)]
-        .into_iter()
-        .find(|p| p.exists())
-        .unwrap_or_else(|| first.join(FILE_NAME));
-    let h = ShardReader::open(&head)?.header;
-    let (table, exp) = ohd::config::load(&h.config_text, &h.config_source, &h.overrides)?;
-    let inv = Invocation { config_source: h.config_source, overrides: h.overrides };
-    let mut scan = Scan::default();
-    let parts = parts(&exp, &table, out);
-    for part in &parts {
-        let sub = |d: &PathBuf| part.pointing.map_or_else(|| d.clone(), |i| pointing_dir(d, i));
-        let shards = dirs.iter().map(|d| ShardReader::open(&sub(d).join(FILE_NAME))).collect::<Result<Vec<_>, _>>()?;
-        let shards = check_set(shards)?;
-        if shards[0].header.fingerprint != part.fingerprint {
-            return Err(Error::invalid_file(
-                &shards[0].path,
-                "its configuration no longer resolves to the run it records (was ohd or a file it reads changed?)",
-            ));
-        }
-        let count = shards.len();
-        let output = ohd::io::shard::merge(&part.exp, shards)?;
-        let manifest = write_run(&part.dir, &part.exp, &output, &table, &inv)?;
-        eprintln!("ohd: merged {count} shards ({} batches) → {}", output.batches, part.dir.display());
-        report(&part.exp, &output, &manifest.json());
-        scan.add(part, &output);
-    }
-    scan.finish(&exp, out)
-}
-
-/// The stopping rule of `--target-error E` (with `--max-samples`), checked.
-fn target(exp: &Experiment, e: f64, max_samples: Option<u64>) -> Result<Target, Error> {
-    if !(e.is_finite() && e > 0.0 && e < 1.0) {
-        return Err(Error::Input(format!(
-            "--target-error {e}: expected a relative error between 0 and 1 (e.g. 0.01 for 1 %)"
-        )));
-    }
-    let max_samples = max_samples.unwrap_or(exp.plan.samples().saturating_mul(1000));
-    if max_samples < exp.plan.samples() {
-        return Err(Error::Input(format!(
-            "--max-samples {max_samples}: expected at least run.samples = {} (one round)",
-            exp.plan.samples()
-        )));
-    }
-    Ok(Target { output: exp.main_output(), relative_error: e, max_samples })
-}
-
-/// `ohd converge`'s log: one line per run on stderr (none when quiet).
-struct StderrLog {
-    quiet: bool,
-}
-
-impl StudyLog for StderrLog {
-    fn line(&mut self, text: &str) {
-        if !self.quiet {
-            eprintln!("ohd converge: {text}");
+/// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
+/// written run, on stderr.
+fn report(exp: &Experiment, output: &RunOutput) {
+    let (main, err) = &output.main_output;
+    eprintln!("  main output {main}: relative error {:.4}%", 100.0 * err);
+    if let Some(t) = &output.target {
+        if t.met {
+            eprintln!(
+                "  target error {:.4}% met after {} round(s) of {} paths",
+                100.0 * t.target,
+                t.rounds,
+                exp.plan.samples()
+            );
+        } else {
+            eprintln!(
+                "ohd: warning: target error {:.4}% not met: stopped at --max-samples {} ({} rounds)",
+                100.0 * t.target,
+                t.max_samples,
+                t.rounds
+            );
         }
     }
-
-    fn progress(&self) -> &dyn Progress {
-        &ohd::experiment::Silent
+    let f = figures(exp, output);
+    for (k, v, s) in &f.scalars {
+        eprintln!("  {k:<24} {v:.6} ± {s:.6}");
+    }
+    for (name, result) in &f.fmcw {
+        if let Ok(e) = result {
+            eprintln!(
+                "  {name}: FMCW range {:.4} m, radial velocity {:+.4} m/s (bins {:.4} m, {:.4} m/s)",
+                e.range_m, e.radial_velocity_m_per_s, e.range_bin_m, e.velocity_bin_m_per_s
+            );
+        }
+        if let Some(note) = ohd::io::write::fmcw::note(result) {
+            eprintln!("  {name}: FMCW {note}");
+        }
     }
 }
 
-/// The arguments of `ohd converge` beyond the experiment.
-struct ConvergeArgs {
-    out: Option<PathBuf>,
-    reference: Option<PathBuf>,
-    budget_seconds: f64,
-    samples: Option<u64>,
-    rungs: usize,
-    quiet: bool,
-}
-
-fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(), Error> {
-    if !(a.budget_seconds.is_finite() && a.budget_seconds > 0.0) {
-        return Err(Error::Input(format!("--budget-seconds {}: expected a time > 0 s", a.budget_seconds)));
-    }
-    if !(2..=24).contains(&a.rungs) {
-        return Err(Error::Input(format!("--rungs {}: expected 2 to 24 rungs", a.rungs)));
-    }
-    let Loaded { mut exp, origin, stem, .. } = load(config, sets)?;
-    if let Some(n) = a.samples
-        && n < exp.plan.batches << (a.rungs - 1)
-    {
-        return Err(Error::Input(format!(
-            "--samples {n}: expected at least run.batches × 2^(rungs − 1) = {} paths (one path per batch on the smallest rung)",
-            exp.plan.batches << (a.rungs - 1)
-        )));
-    }
-    if exp.source.pointings.len() > 1 {
-        let p = exp.source.pointings[0];
-        eprintln!("ohd converge: a scan: studying its first pointing ({}°, {}°)", p.azimuth_deg, p.elevation_deg);
-        exp = exp.pointed(&p);
-    }
-    let refs = match &a.reference {
-        Some(dir) => ohd::io::write::converge::read_reference(dir, &exp.outputs())?,
-        None => Vec::new(),
-    };
-    let dir = a.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_converge")));
-    let opts = LadderOptions {
-        top_samples: a.samples,
-        budget_seconds: a.budget_seconds,
-        rungs: a.rungs,
-        ..Default::default()
-    };
-    let study: Study = ohd::converge::study(&exp, refs, &opts, &mut StderrLog { quiet: a.quiet });
-    ohd::io::write::converge::write_study(&dir, &study, &origin)?;
+/// `ohd converge`: the study, then a table of its outputs on stderr.
+fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
+    let StudyWritten { study, dir } = ohd::run::converge::converge(req, &Terminal { quiet }, &mut StderrLog { quiet })?;
     eprintln!("ohd converge: → {}", dir.display());
     eprintln!(
         "  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}",
@@ -697,140 +506,20 @@ fn converge(config: Option<&Path>, sets: &[String], a: ConvergeArgs) -> Result<(
     Ok(())
 }
 
-/// How `ohd run` runs: to a target error, with checkpoints, resumed, quietly.
-struct RunOptions<'a> {
-    target: Option<&'a Target>,
-    checkpoint_seconds: Option<f64>,
-    resume: bool,
+/// `ohd converge`'s log: one line per run on stderr (none when quiet).
+struct StderrLog {
     quiet: bool,
 }
 
-/// Checkpoints into a file every `every` seconds.
-struct FileCheckpoint {
-    path: PathBuf,
-    fingerprint: u64,
-    every: std::time::Duration,
-    last: std::sync::Mutex<std::time::Instant>,
-}
-
-impl ohd::experiment::Checkpoint for FileCheckpoint {
-    fn due(&self) -> bool {
-        self.last.lock().is_ok_and(|t| t.elapsed() >= self.every)
+impl StudyLog for StderrLog {
+    fn line(&mut self, text: &str) {
+        if !self.quiet {
+            eprintln!("ohd converge: {text}");
+        }
     }
 
-    fn save(&self, state: &ohd::experiment::RunState) -> Result<(), Error> {
-        ohd::io::checkpoint::write(&self.path, self.fingerprint, state)?;
-        if let Ok(mut t) = self.last.lock() {
-            *t = std::time::Instant::now();
-        }
-        Ok(())
-    }
-}
-
-/// Run `part` (to a target error, with checkpoints, resumed: `opts`), write its outputs into its
-/// directory and report on stderr. A pointing of a scan (`keep`) keeps its checkpoint, saved as
-/// complete, until the whole scan is written, so that a resumed scan finds its finished pointings.
-fn run_one(
-    part: &Part,
-    table: &toml::Table,
-    inv: &Invocation,
-    opts: &RunOptions,
-    keep: bool,
-) -> Result<ohd::experiment::RunOutput, Error> {
-    let (exp, dir) = (&part.exp, part.dir.as_path());
-    let path = part.checkpoint();
-    if let Some(i) = part.pointing {
-        let p = &exp.source.pointings[i];
-        eprintln!("ohd: pointing {i}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
-    }
-    // A scan resumes the pointings it has a checkpoint of and starts the others.
-    let resume = if opts.resume && (!keep || path.exists()) {
-        let state = ohd::io::checkpoint::read(&path, part.fingerprint, exp.tally_layout().len)?;
-        eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
-        Some(state)
-    } else {
-        None
-    };
-    let saving = opts.checkpoint_seconds.is_some() || opts.resume;
-    let checkpoint = match opts.checkpoint_seconds {
-        Some(s) => {
-            std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-            Some(FileCheckpoint {
-                path: path.clone(),
-                fingerprint: part.fingerprint,
-                every: std::time::Duration::from_secs_f64(s),
-                last: std::sync::Mutex::new(std::time::Instant::now()),
-            })
-        }
-        None => None,
-    };
-    let checkpoint = checkpoint.as_ref().map(|c| c as &dyn ohd::experiment::Checkpoint);
-    let target = opts.target;
-    let output = with_progress(opts.quiet, exp.plan.samples(), target.map(|t| t.relative_error), |p| {
-        exp.run_resumable(p, target, resume, checkpoint)
-    })?;
-    let manifest = write_run(dir, exp, &output, table, inv)?;
-    if saving && keep {
-        std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-        ohd::io::checkpoint::write(&path, part.fingerprint, &output.final_state())?;
-    } else if saving {
-        // The run is complete and written: its checkpoint has served.
-        let _ = std::fs::remove_file(&path);
-    }
-    eprintln!(
-        "ohd: {} paths in {:.2} s ({:.0} paths/ms) → {}",
-        output.samples(),
-        output.wall_seconds,
-        output.samples() as f64 / output.wall_seconds.max(1e-9) / 1e3,
-        dir.display()
-    );
-    report(exp, &output, &manifest.json());
-    Ok(output)
-}
-
-/// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
-/// written run, on stderr.
-fn report(exp: &Experiment, output: &ohd::experiment::RunOutput, manifest: &serde_json::Value) {
-    let est = &manifest["estimates"];
-    let (main, err) = &output.main_output;
-    eprintln!("  main output {main}: relative error {:.4}%", 100.0 * err);
-    if let Some(t) = &output.target {
-        if t.met {
-            eprintln!(
-                "  target error {:.4}% met after {} round(s) of {} paths",
-                100.0 * t.target,
-                t.rounds,
-                exp.plan.samples()
-            );
-        } else {
-            eprintln!(
-                "ohd: warning: target error {:.4}% not met: stopped at --max-samples {} ({} rounds)",
-                100.0 * t.target,
-                t.max_samples,
-                t.rounds
-            );
-        }
-    }
-    for k in ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"] {
-        eprintln!(
-            "  {k:<24} {:.6} ± {:.6}",
-            est[k]["value"].as_f64().unwrap_or(f64::NAN),
-            est[k]["stderr"].as_f64().unwrap_or(f64::NAN)
-        );
-    }
-    for d in &exp.detectors {
-        let (e, fmcw) = (&est["detectors"][&d.name], &manifest["detectors"][&d.name]["fmcw"]);
-        if let (Some(r), Some(v)) = (e["range_m"].as_f64(), e["radial_velocity_m_per_s"].as_f64()) {
-            eprintln!(
-                "  {}: FMCW range {r:.4} m, radial velocity {v:+.4} m/s (bins {:.4} m, {:.4} m/s)",
-                d.name,
-                e["range_bin_m"].as_f64().unwrap_or(f64::NAN),
-                e["velocity_bin_m_per_s"].as_f64().unwrap_or(f64::NAN)
-            );
-        }
-        if let Some(note) = fmcw["note"].as_str() {
-            eprintln!("  {}: FMCW {note}", d.name);
-        }
+    fn progress(&self) -> &dyn Progress {
+        &ohd::experiment::Silent
     }
 }
 

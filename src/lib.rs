@@ -74,6 +74,7 @@
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
+//! | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
 pub mod config;
@@ -88,6 +89,7 @@ pub mod mie;
 pub mod output;
 pub mod phase;
 pub mod retrieval;
+pub mod run;
 pub mod sampling;
 pub mod scan;
 pub mod source;

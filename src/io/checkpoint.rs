@@ -1,7 +1,7 @@
-//! Checkpoints of a running experiment (`ohd run --checkpoint-seconds`, `--resume`): the
-//! [`RunState`] at a batch boundary in a small binary file (little-endian), written atomically
-//! (temporary file, then rename), with a fingerprint of the configuration so that a checkpoint is
-//! only ever resumed by the experiment that wrote it.
+//! Checkpoint files of a running experiment (`ohd run --checkpoint-seconds`, `--resume`;
+//! [`crate::run::checkpoint`]): the [`RunState`] at a batch boundary in a small binary file
+//! (little-endian), written atomically (temporary file, then rename), with the fingerprint of the
+//! configuration so that a checkpoint is only ever resumed by the experiment that wrote it.
 //!
 //! Layout: `OHDCKPT` and a format byte; the fingerprint (u64); `next`, `end` (u64); `err`,
 //! `elapsed` (f64); the six run counters (u64); the accumulator's batch count and length (u64)
@@ -16,21 +16,6 @@ use crate::experiment::RunState;
 use crate::stats::BatchAccumulator;
 
 const MAGIC: &[u8; 8] = b"OHDCKPT\x01";
-
-/// FNV-1a (64 bit) of `text`: the fingerprint of a configuration.
-pub fn fingerprint(text: &str) -> u64 {
-    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
-}
-
-/// The fingerprint of the configuration as run, without `run.threads` (results do not depend
-/// on it, so a run may resume, or a shard run, on another thread count).
-pub fn config_fingerprint(table: &toml::Table) -> u64 {
-    let mut t = table.clone();
-    if let Some(toml::Value::Table(run)) = t.get_mut("run") {
-        run.remove("threads");
-    }
-    fingerprint(&toml::to_string(&t).unwrap_or_default())
-}
 
 /// The bytes of a checkpoint of `s` for the configuration with fingerprint `fp`.
 pub fn to_bytes(fp: u64, s: &RunState) -> Vec<u8> {
@@ -112,6 +97,5 @@ mod tests {
         let mut longer = b.clone();
         longer.push(0);
         assert!(from_bytes(&longer).is_none());
-        assert_ne!(fingerprint("a = 1"), fingerprint("a = 2"));
     }
 }

@@ -1,8 +1,5 @@
-//! Shard files: `ohd run --shard I/N` runs the `I`-th of `N` contiguous parts of a run's batches
-//! ([`Experiment::shard_batches`]) and writes every batch's tally sums to `DIR/shard.ohd`;
-//! `ohd merge` folds the shards' batches in batch order, exactly as one process would have, so
-//! the merged outputs equal a single run's bit for bit. (Merging per-shard summaries instead
-//! would not: Welford's fold of batch means is sequential.)
+//! Shard files: `ohd run --shard I/N` writes every batch's tally sums of its part of a run to
+//! `DIR/shard.ohd`, and `ohd merge` reads them back ([`crate::run::shard`]).
 //!
 //! Layout (little-endian): `OHDSHRD` and a format byte; the header as a block (its length, u64,
 //! then: fingerprint, index, count, first and last batch, the run's batches, paths per batch,
@@ -18,8 +15,7 @@ use std::path::{Path, PathBuf};
 use super::binary::{Reader, Writer};
 use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
-use crate::experiment::{Experiment, RunOutput};
-use crate::stats::{BatchAccumulator, RunStats};
+use crate::stats::RunStats;
 
 const MAGIC: &[u8; 8] = b"OHDSHRD\x01";
 
@@ -32,7 +28,7 @@ const MAX_HEADER: u64 = 1 << 30;
 /// Which part of which run a shard is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShardHeader {
-    /// Of the configuration as run, without `run.threads` ([`super::checkpoint::config_fingerprint`]).
+    /// Of the configuration as run, without `run.threads` ([`crate::run::checkpoint::config_fingerprint`]).
     pub fingerprint: u64,
     /// This is part `index` of `count`, batches `first..last` of the run's `batches`.
     pub index: u64,
@@ -237,79 +233,6 @@ impl ShardReader {
         self.file.read_exact(&mut bytes).map_err(|source| Error::Read { path: self.path.clone(), source })?;
         parse_trailer(&bytes).ok_or_else(|| bad("corrupt shard file (trailer)"))
     }
-}
-
-/// Check that `shards` are all the parts of one run, each once: same fingerprint and count,
-/// every index from 0 to count − 1. Returns them in index order.
-pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
-    let Some(first) = shards.first() else {
-        return Err(Error::Input("no shard directories given".into()));
-    };
-    let (fp, count, path0) = (first.header.fingerprint, first.header.count, first.path.clone());
-    for s in &shards {
-        if s.header.fingerprint != fp || s.header.count != count {
-            return Err(Error::invalid_file(
-                &s.path,
-                format!(
-                    "a shard of a different run than {} (configuration, --set, seed, samples or shard count differ)",
-                    path0.display()
-                ),
-            ));
-        }
-    }
-    shards.sort_by_key(|s| s.header.index);
-    for w in shards.windows(2) {
-        if w[0].header.index == w[1].header.index {
-            return Err(Error::Input(format!(
-                "shard {}/{count} given twice: {} and {}",
-                w[0].header.index,
-                w[0].path.display(),
-                w[1].path.display()
-            )));
-        }
-    }
-    let have: Vec<u64> = shards.iter().map(|s| s.header.index).collect();
-    let missing: Vec<String> = (0..count).filter(|i| !have.contains(i)).map(|i| i.to_string()).collect();
-    if !missing.is_empty() {
-        return Err(Error::Input(format!(
-            "shard(s) {} of {count} missing (give the directory of every part of the run)",
-            missing.join(", ")
-        )));
-    }
-    Ok(shards)
-}
-
-/// Fold the batches of `shards` (from [`check_set`]: every part of one run of `exp`, in order)
-/// into the run's output, exactly as a single process folds them. The output's wall time is the
-/// shards' total and its thread count their largest.
-pub fn merge(exp: &Experiment, shards: Vec<ShardReader>) -> Result<RunOutput> {
-    let len = exp.tally_layout().len;
-    let mut estimates = BatchAccumulator::new(len);
-    let (mut stats, mut lines, mut seconds, mut threads) = (RunStats::default(), Vec::new(), 0.0, 0);
-    let mut sums = vec![0.0; len];
-    for mut s in shards {
-        let h = &s.header;
-        let expected = exp.shard_batches(h.index, h.count);
-        if h.batches != exp.plan.batches
-            || h.paths_per_batch != exp.plan.paths_per_batch
-            || h.tallies != len as u64
-            || (h.first..h.last) != expected
-        {
-            return Err(Error::invalid_file(&s.path, "does not match the experiment it names (batches or tallies)"));
-        }
-        for _ in expected {
-            s.batch(&mut sums)?;
-            estimates.push(&sums, exp.plan.paths_per_batch);
-        }
-        let t = s.trailer()?;
-        stats.merge(&t.stats);
-        lines.extend(t.lines);
-        seconds += t.seconds;
-        threads = threads.max(t.threads as usize);
-    }
-    let mut out = exp.finish(estimates, stats, lines, seconds);
-    out.threads = threads;
-    Ok(out)
 }
 
 #[cfg(test)]

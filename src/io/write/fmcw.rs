@@ -73,33 +73,38 @@ pub fn detector_entry(
         "standard_errors": "none: the up- and down-chirp spectra are the same paths and their cross-covariance over batches is not kept",
         "file": CSV_FILE,
     });
-    let row = match result {
+    let row = match &result {
         Ok(e) => {
-            let v = values(&e);
+            let v = values(e);
             for (k, x) in KEYS.iter().zip(v) {
                 estimates.insert((*k).into(), Estimates::Number(x));
-            }
-            if e.touches_axis_end {
-                info["note"] = json!(
-                    "the return reaches an end of the frequency axis: it may extend beyond it and the estimates may be cut off (widen detectors.spectrum)"
-                );
             }
             let name = &exp.detectors[i].name;
             Some(std::iter::once(name.clone()).chain(v.iter().map(|x| x.to_string())).collect::<Vec<_>>().join(","))
         }
-        Err(err) => {
-            let why = match err {
-                RetrievalError::NoSignal => {
-                    "no signal: the up- or down-chirp spectrum has no power inside the frequency axis (see out_of_range_up/down)"
-                        .to_string()
-                }
-                other => other.to_string(),
-            };
-            info["note"] = json!(format!("no estimates: {why}"));
-            None
-        }
+        Err(_) => None,
     };
+    if let Some(n) = note(&result) {
+        info["note"] = json!(n);
+    }
     Some(Entry { info, row })
+}
+
+/// What to note about an FMCW retrieval: why there are no estimates, or that the return reaches
+/// an end of the frequency axis; `None` when the estimates stand.
+pub fn note(result: &Result<FmcwEstimate, RetrievalError>) -> Option<String> {
+    match result {
+        Ok(e) if e.touches_axis_end => Some(
+            "the return reaches an end of the frequency axis: it may extend beyond it and the estimates may be cut off (widen detectors.spectrum)"
+                .into(),
+        ),
+        Ok(_) => None,
+        Err(RetrievalError::NoSignal) => Some(
+            "no estimates: no signal: the up- or down-chirp spectrum has no power inside the frequency axis (see out_of_range_up/down)"
+                .into(),
+        ),
+        Err(other) => Some(format!("no estimates: {other}")),
+    }
 }
 
 /// The CSV text: a header and one row per detector with estimates.

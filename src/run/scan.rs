@@ -1,0 +1,95 @@
+//! The parts of a run: the run itself, or for a scan one run per pointing in its own directory
+//! `pointing_NN/`; and a scan's per-pointing results gathered into the VAD wind per range gate
+//! ([`crate::scan`]), written as `vad.csv` and `scan.json` ([`crate::io::scan`]).
+
+use std::path::{Path, PathBuf};
+
+use super::checkpoint::{config_fingerprint, fingerprint};
+use super::{Event, Observer};
+use crate::error::Result;
+use crate::experiment::{Experiment, RunOutput};
+use crate::scan::GateWind;
+
+/// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
+#[derive(Debug, Clone)]
+pub struct Part {
+    pub exp: Experiment,
+    pub dir: PathBuf,
+    /// Of the configuration as run and the pointing: a checkpoint or shard of one pointing is
+    /// never taken for another's.
+    pub fingerprint: u64,
+    /// The pointing's index in a scan (`None` for a plain run).
+    pub pointing: Option<usize>,
+}
+
+impl Part {
+    /// Where the part's checkpoint is saved.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.dir.join("checkpoint.ohd")
+    }
+}
+
+/// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
+pub fn pointing_name(i: usize) -> String {
+    format!("pointing_{i:02}")
+}
+
+/// The directory of pointing `i` of a scan, inside the scan's.
+pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
+    dir.join(pointing_name(i))
+}
+
+/// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
+/// pointing into `dir/pointing_NN`.
+pub fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
+    let fp = config_fingerprint(table);
+    if exp.source.pointings.len() <= 1 {
+        return vec![Part { exp: exp.clone(), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
+    }
+    exp.source
+        .pointings
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Part {
+            exp: exp.pointed(p),
+            dir: pointing_dir(dir, i),
+            fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
+            pointing: Some(i),
+        })
+        .collect()
+}
+
+/// A scan's per-pointing results, gathered for the VAD wind per range gate.
+#[derive(Debug, Default)]
+pub(super) struct Scan {
+    runs: Vec<String>,
+    velocities: Vec<Vec<Option<f64>>>,
+    ranges: Vec<f64>,
+}
+
+impl Scan {
+    /// Gather what the VAD needs of `part`'s output (nothing of a plain run).
+    pub(super) fn add(&mut self, part: &Part, output: &RunOutput) {
+        let Some(i) = part.pointing else { return };
+        if let Some(v) = crate::scan::gate_peak_velocities(&part.exp, output) {
+            self.velocities.push(v);
+        }
+        if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar()) {
+            self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
+        }
+        self.runs.push(pointing_name(i));
+    }
+
+    /// Write the VAD wind of a scan of `exp` into `dir` when every pointing has gate velocities
+    /// (nothing otherwise), and return it.
+    pub(super) fn finish(&self, exp: &Experiment, dir: &Path, obs: &dyn Observer) -> Result<Option<Vec<GateWind>>> {
+        let pointings = &exp.source.pointings;
+        if pointings.len() > 1 && self.velocities.len() == pointings.len() {
+            let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
+            crate::io::scan::write_scan(dir, pointings, &self.runs, &gates)?;
+            obs.event(Event::VadWritten { path: &dir.join("vad.csv") });
+            return Ok(Some(gates));
+        }
+        Ok(None)
+    }
+}
