@@ -4,15 +4,12 @@
 //!   the OpenVDB reader;
 //! * [`write`]: a finished run's outputs, as its output registry declares them, and the manifest;
 //! * [`figures`]: PNG previews and plots;
-//! * persistence of runs in progress: [`shard`] and [`checkpoint`] files (one binary codec);
+//! * [`persist`]: runs in progress, as shard and checkpoint files (one binary codec);
 //! * [`write_atomic`]: every output file is written to a temporary name and renamed into place.
 
-mod binary;
-pub mod checkpoint;
 pub mod figures;
 pub mod formats;
-pub mod scan;
-pub mod shard;
+pub mod persist;
 pub mod write;
 
 use std::path::{Path, PathBuf};

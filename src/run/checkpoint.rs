@@ -1,5 +1,5 @@
 //! Checkpoints of a running part (`ohd run --checkpoint-seconds`, `--resume`): saved into
-//! `DIR/checkpoint.ohd` every so many seconds (the file format: [`crate::io::checkpoint`]),
+//! `DIR/checkpoint.ohd` every so many seconds (the file format: [`crate::io::persist::checkpoint`]),
 //! fingerprinted with the configuration as run, so that a checkpoint or shard is only ever taken
 //! up by the experiment (and pointing) that wrote it.
 
@@ -53,7 +53,7 @@ impl Checkpoint for FileCheckpoint {
     }
 
     fn save(&self, state: &RunState) -> Result<()> {
-        crate::io::checkpoint::write(&self.path, self.fingerprint, state)?;
+        crate::io::persist::checkpoint::write(&self.path, self.fingerprint, state)?;
         if let Ok(mut t) = self.last.lock() {
             *t = Instant::now();
         }
@@ -68,7 +68,7 @@ fn create_dir(part: &Part) -> Result<()> {
 /// Save the finished `output` of `part` as its checkpoint: resumed, it finishes at once.
 pub fn save_final(part: &Part, output: &RunOutput) -> Result<()> {
     create_dir(part)?;
-    crate::io::checkpoint::write(&part.checkpoint(), part.fingerprint, &output.final_state())
+    crate::io::persist::checkpoint::write(&part.checkpoint(), part.fingerprint, &output.final_state())
 }
 
 #[cfg(test)]

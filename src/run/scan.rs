@@ -1,6 +1,6 @@
 //! The parts of a run: the run itself, or for a scan one run per pointing in its own directory
 //! `pointing_NN/`; and a scan's per-pointing results gathered into the VAD wind per range gate
-//! ([`crate::scan`]), written as `vad.csv` and `scan.json` ([`crate::io::scan`]).
+//! ([`crate::scan`]), written as `vad.csv` and `scan.json` ([`crate::io::write::scan`]).
 
 use std::path::{Path, PathBuf};
 
@@ -86,7 +86,7 @@ impl Scan {
         let pointings = &exp.source.pointings;
         if pointings.len() > 1 && self.velocities.len() == pointings.len() {
             let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
-            crate::io::scan::write_scan(dir, pointings, &self.runs, &gates)?;
+            crate::io::write::scan::write_scan(dir, pointings, &self.runs, &gates)?;
             obs.event(Event::VadWritten { path: &dir.join("vad.csv") });
             return Ok(Some(gates));
         }

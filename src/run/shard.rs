@@ -1,6 +1,6 @@
 //! Shards: `ohd run --shard I/N` runs the `I`-th of `N` contiguous parts of a run's batches
 //! ([`Experiment::shard_batches`]) and writes every batch's tally sums to `DIR/shard.ohd` (the
-//! file format: [`crate::io::shard`]); `ohd merge` folds the shards' batches in batch order,
+//! file format: [`crate::io::persist::shard`]); `ohd merge` folds the shards' batches in batch order,
 //! exactly as one process would have, so the merged outputs equal a single run's bit for bit.
 //! (Merging per-shard summaries instead would not: Welford's fold of batch means is sequential.)
 //! A scan shards and merges per pointing (`DIR/pointing_NN/shard.ohd`), then writes the VAD wind.
@@ -13,7 +13,7 @@ use super::{Event, Finished, Loaded, Observer, Part, parts, pointing_dir};
 use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, RunOutput};
-use crate::io::shard::{FILE_NAME, ShardHeader, ShardReader, ShardTrailer, ShardWriter};
+use crate::io::persist::shard::{FILE_NAME, ShardHeader, ShardReader, ShardTrailer, ShardWriter};
 use crate::io::write::manifest::{Invocation, write_run};
 use crate::stats::{BatchAccumulator, RunStats};
 

@@ -8,6 +8,7 @@ pub mod fmcw;
 pub mod ldh;
 pub mod lidar;
 pub mod manifest;
+pub mod scan;
 
 use std::collections::BTreeMap;
 

@@ -51,7 +51,7 @@ pub fn from_bytes(bytes: &[u8]) -> Option<(u64, RunState)> {
 
 /// Write the checkpoint of `s` to `path`, atomically.
 pub fn write(path: &Path, fp: u64, s: &RunState) -> Result<()> {
-    super::write_atomic(path, &to_bytes(fp, s))
+    crate::io::write_atomic(path, &to_bytes(fp, s))
 }
 
 /// Read the checkpoint at `path` for the configuration with fingerprint `fp`, checking that it

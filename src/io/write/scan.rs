@@ -6,8 +6,8 @@ use std::path::Path;
 
 use serde_json::{Value, json};
 
-use super::write_atomic;
 use crate::error::Result;
+use crate::io::write_atomic;
 use crate::scan::GateWind;
 use crate::source::Pointing;
 

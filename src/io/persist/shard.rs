@@ -125,7 +125,7 @@ pub struct ShardWriter {
 
 impl ShardWriter {
     pub fn create(path: &Path, header: &ShardHeader) -> Result<Self> {
-        let tmp = super::temporary_path(path);
+        let tmp = crate::io::temporary_path(path);
         let werr = |source| Error::Write { path: path.to_path_buf(), source };
         let file = File::create(&tmp).map_err(werr)?;
         let mut w = ShardWriter { file: BufWriter::new(file), tmp, path: path.to_path_buf(), finished: false };
