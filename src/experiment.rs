@@ -12,7 +12,7 @@ use crate::medium::Scene;
 use crate::output::Output;
 use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
-use crate::source::Source;
+use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
 use crate::transport::{NeeTarget, WalkSettings, trace_path};
 
@@ -331,6 +331,18 @@ impl Experiment {
     /// --target-error` controls and the progress bar shows.
     pub fn main_output(&self) -> Output {
         self.tally_layout().registry.main().clone()
+    }
+
+    /// The same experiment with the beam (and the lidar receiver's axis) along `p`.
+    pub fn pointed(&self, p: &Pointing) -> Experiment {
+        let mut e = self.clone();
+        e.source = self.source.pointed(p.direction);
+        for d in &mut e.detectors {
+            if let DetectorKind::Lidar(l) = &mut d.kind {
+                l.axis = e.source.direction;
+            }
+        }
+        e
     }
 
     pub fn beat_model(&self) -> BeatModel {

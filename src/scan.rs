@@ -9,24 +9,9 @@
 //! at the same range lie at the same height only when all pointings share one elevation (a
 //! conical scan, the usual VAD); the height reported is the mean over the pointings.
 
-use crate::detect::DetectorKind;
 use crate::experiment::{Experiment, RunOutput};
 use crate::retrieval::{RetrievalError, VadFit, gate_estimates, vad_fit};
 use crate::source::Pointing;
-
-impl Experiment {
-    /// The same experiment with the beam (and the lidar receiver's axis) along `p`.
-    pub fn pointed(&self, p: &Pointing) -> Experiment {
-        let mut e = self.clone();
-        e.source = self.source.pointed(p.direction);
-        for d in &mut e.detectors {
-            if let DetectorKind::Lidar(l) = &mut d.kind {
-                l.axis = e.source.direction;
-            }
-        }
-        e
-    }
-}
 
 /// The peak radial velocity (m/s, positive receding) of every gate of the run's lidar receiver,
 /// from the expected spectrum of all scattering orders (the `peak_velocity_m_per_s` of
