@@ -70,6 +70,7 @@
 //! | [`detect`] | detectors and what a finished path is recorded into |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
+//! | [`numeric`] | `ln Γ` and Simpson quadrature, shared with the tests |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
@@ -84,6 +85,7 @@ pub mod flow;
 pub mod io;
 pub mod medium;
 pub mod mie;
+pub mod numeric;
 pub mod phase;
 pub mod retrieval;
 pub mod sampling;
