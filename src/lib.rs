@@ -71,6 +71,7 @@
 //! | [`output`] | the registry of a run's named outputs: kind, shape, units, tally slots, file, sign |
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
+//! | [`numeric`] | `ln Γ` and Simpson quadrature, shared with the tests |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
@@ -86,6 +87,7 @@ pub mod flow;
 pub mod io;
 pub mod medium;
 pub mod mie;
+pub mod numeric;
 pub mod output;
 pub mod phase;
 pub mod retrieval;

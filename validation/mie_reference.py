@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate tests/data/mie_reference.json: Mie reference values from miepython for tests/mie.rs.
+"""Generate tests/data/mie_reference.json: Mie reference values from miepython for tests/it/mie.rs.
 
 Usage: python3 validation/mie_reference.py [OUTPUT]   (default: tests/data/mie_reference.json)
 
@@ -22,7 +22,7 @@ Conventions, and how miepython's are converted to ohd's (each one is checked at 
 * Small spheres. For |m| x < 0.1 miepython uses Wiscombe's small-sphere expansion instead of the
   series; each case records this as "small_sphere_expansion".
 
-Accuracy note (measured while writing the tests, see tests/mie.rs): at x = 1e4, m = 1.33 - 1e-5i,
+Accuracy note (measured while writing the tests, see tests/it/mie.rs): at x = 1e4, m = 1.33 - 1e-5i,
 miepython's a_1 differs from a 40-digit mpmath evaluation by 3e-11 (ohd's by 7e-13), and its a_n differ
 from ohd's by ~7e-11 for all n. Quantities formed by strong cancellation (Qback, S near 180 deg)
 therefore carry miepython errors up to ~1e-5 relative at x >= 3e3.

@@ -91,7 +91,7 @@
 //!
 //! The curvature does not cancel, and it matters: a convex density (`1/R²`) weighs the gate's
 //! ends, where only short lags have sample pairs, so the long lags fall below the triangle (in
-//! the haze of `tests/lidar.rs`, `L_9` is 4.5 % low at 100 m and 0.8 % at 670 m: measured from
+//! the haze of `tests/it/lidar.rs`, `L_9` is 4.5 % low at 100 m and 0.8 % at 670 m: measured from
 //! the receiver's own lag sums, and reproduced to the Monte Carlo noise by integrating the lidar
 //! equation's density), and a one-velocity gate then looks like a spread of 0.1–0.2 m/s that the
 //! Monte Carlo errors resolve. [`LidarSpec::gate_kernel_in`] therefore integrates the lag window

@@ -226,6 +226,7 @@ fn fwhm_bins(y: &[f64], k: usize, offset: f64, height: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::numeric::simpson;
     use std::f64::consts::PI;
 
     const LAMBDA: f64 = 1.55e-6;
@@ -240,13 +241,6 @@ mod tests {
                 p * dw / (sigma * (2.0 * PI).sqrt()) * (-0.5 * z * z).exp()
             })
             .collect()
-    }
-
-    /// `∫_a^b g` by composite Simpson with `n` (even) intervals.
-    fn simpson(g: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
-        let h = (b - a) / n as f64;
-        let inner: f64 = (1..n).map(|i| g(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 }).sum();
-        (g(a) + inner + g(b)) * h / 3.0
     }
 
     /// The same line integrated over each bin (a histogram), by Simpson with 256 intervals per bin

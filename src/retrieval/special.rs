@@ -1,22 +1,8 @@
-//! The special functions behind the F-test of [`super::fit::fit_one_or_two`]: `ln Γ`, the
-//! regularised incomplete beta function and the upper tail of Fisher's F distribution.
+//! The special functions behind the F-test of [`super::fit::fit_one_or_two`]: the regularised
+//! incomplete beta function and the upper tail of Fisher's F distribution (`ln Γ` is
+//! [`crate::numeric::ln_gamma`]).
 
-use std::f64::consts::PI;
-
-/// `ln Γ(x)` for `x > 0`: Stirling's series to the `y⁻⁹` term at `y = x + k ≥ 15`, brought back by
-/// the recurrence `Γ(x + 1) = x·Γ(x)`. The first omitted term is `691/(360360·y¹¹) < 3·10⁻¹⁶`.
-pub(crate) fn ln_gamma(x: f64) -> f64 {
-    let (mut y, mut shift) = (x, 0.0);
-    while y < 15.0 {
-        shift += y.ln();
-        y += 1.0;
-    }
-    let r = 1.0 / y;
-    let r2 = r * r;
-    // Bernoulli terms B_2k / (2k(2k − 1) y^(2k−1)).
-    let series = r * (1.0 / 12.0 - r2 * (1.0 / 360.0 - r2 * (1.0 / 1260.0 - r2 * (1.0 / 1680.0 - r2 / 1188.0))));
-    (y - 0.5) * y.ln() - y + 0.5 * (2.0 * PI).ln() + series - shift
-}
+use crate::numeric::ln_gamma;
 
 /// The regularised incomplete beta function `I_x(a, b)`, `a, b > 0`, `0 ≤ x ≤ 1`, from its
 /// continued fraction (Abramowitz & Stegun 26.5.8)
@@ -83,19 +69,7 @@ pub(crate) fn f_distribution_sf(f: f64, d1: f64, d2: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ln_gamma_at_known_points() {
-        let mut fact = 1.0f64;
-        for n in 1..30 {
-            // Γ(n) = (n − 1)!
-            let got = ln_gamma(n as f64);
-            assert!((got - fact.ln()).abs() < 1e-13 * fact.ln().max(1.0), "n={n}: {got} vs {}", fact.ln());
-            fact *= n as f64;
-        }
-        assert!((ln_gamma(0.5) - PI.sqrt().ln()).abs() < 1e-14);
-        assert!((ln_gamma(1.5) - (0.5 * PI.sqrt()).ln()).abs() < 1e-14);
-    }
+    use std::f64::consts::PI;
 
     #[test]
     fn incomplete_beta_closed_forms() {

@@ -10,7 +10,7 @@
 //!   the layer and its regions, optionally inflated for tests); tentative collisions are accepted
 //!   with probability σt(x)/σ̄ after a point lookup, the rest are null collisions (not vertices).
 //!
-//! Both sample the same distance distribution (`tests/sampling.rs`). The analytic segments and
+//! Both sample the same distance distribution (`tests/it/sampling.rs`). The analytic segments and
 //! the heterogeneous tracker cut the ray into spans of one medium the same way ([`for_each_span`]).
 //!
 //! A layer whose medium or regions have a density field (`Layer::heterogeneous`) is tracked by

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Write the OpenVDB fixtures of tests/vdb.rs with OpenVDB itself (Debian bookworm: OpenVDB 10.0.1,
+# Write the OpenVDB fixtures of tests/it/vdb.rs with OpenVDB itself (Debian bookworm: OpenVDB 10.0.1,
 # file format 224) and their truth: what OpenVDB returns when it reads each file back.
 # Re-runnable; CI does not run it (it reads the committed files). Run from anywhere:
 #     bash validation/vdb/make_fixtures.sh            # fixtures into tests/fixtures/vdb/

@@ -18,7 +18,7 @@ micrometre voxels cannot be stored in metres); the test configs place them with 
   interpolation inside the tube only sees the quadratic: its error is at most
   (h^2/8) sum_i |d2v/dx_i^2| = (h^2/8) (2 v_max/R^2) sum_i (1 - a_i^2) = 0.5 v_max (h/R)^2
   = 0.008 v_max, a sixth of a spectrum bin of the test that uses it (the same scene as
-  tests/doppler.rs's analytic tube).
+  tests/it/doppler.rs's analytic tube).
 """
 
 import math

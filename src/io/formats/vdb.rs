@@ -7,7 +7,7 @@
 //! maps and drops root tiles (`shared/reference/crates.md` §2). Only the subset below is needed,
 //! so it is implemented here from the published format (OpenVDB's `io/Archive`, `io/Compression.h`,
 //! `tree/RootNode.h`, `tree/InternalNode.h`, `tree/LeafNode.h`, `math/Maps.h`), and checked
-//! bit-exactly against files written by OpenVDB 10 itself (`tests/vdb.rs`,
+//! bit-exactly against files written by OpenVDB 10 itself (`tests/it/vdb.rs`,
 //! `validation/vdb/make_fixtures.sh`).
 //!
 //! # Decompression

@@ -2,7 +2,7 @@
 //! differences of optical frequencies, so 1 Hz on a 200 THz carrier is exact; and optical path
 //! lengths summed over kilometres keep sub-millimetre accuracy.
 
-mod common;
+use crate::support::run::run;
 
 use ohd::SPEED_OF_LIGHT;
 use ohd::detect::BeatModel;
@@ -74,7 +74,7 @@ by_order = 3
         wl_nm = LAMBDA_200_THZ * 1e9,
         v_mm = 0.5 * LAMBDA_200_THZ * 1e3
     );
-    let r = common::run(&text, &[]);
+    let r = run(&text, &[]);
     let (power, _) = r.power(0);
     assert!(power > 0.0);
     let total = r.channel(0, 0, 0);
@@ -149,7 +149,7 @@ by_order = 2
         f_min = k * l_min,
         f_max = k * (l_min + bins as f64 * bin),
     );
-    let r = common::run(&text, &[]);
+    let r = run(&text, &[]);
     let (power, _) = r.power(0);
     let single = r.channel(0, 0, 2);
     let single_total: f64 = single.values.iter().sum::<f64>() + single.below + single.above;

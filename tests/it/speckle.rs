@@ -4,11 +4,10 @@
 //! 1's Exp(1) draw has the same per-bin statistics. Fixed seeds; tolerances are tail
 //! probabilities (p ≥ 1e-3) or standard errors, never re-rolled.
 
-mod common;
+use crate::support::stats::{MeanChi2, contrast, ks_test, mean_vector_chi2};
 
 use std::f64::consts::PI;
 
-use common::{MeanChi2, contrast, ks_test, mean_vector_chi2};
 use num_complex::Complex;
 use ohd::sampling::rng::{PathRng, Purpose};
 use ohd::spectrum::{Line, Stft, Synthesizer, Window, speckle_draw};

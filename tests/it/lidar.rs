@@ -3,9 +3,11 @@
 //! spectral width 0.4413/τ_p; the per-gate estimates written at the end of a run (shot-noise SNR,
 //! moments, Gaussian fits) and the output files.
 
-mod common;
+use crate::support::lidar::{gate_lag_weight, hg_backscatter};
+use crate::support::run::{Run, run};
+use crate::support::stats::chi2_sf;
+use ohd::numeric::simpson;
 
-use common::{Run, chi2_sf, gate_lag_weight, hg_backscatter, run, simpson};
 use ohd::SPEED_OF_LIGHT;
 
 /// Homogeneous haze (HG g = 0.7, σs = 5e-3 /m, σa = 5e-4 /m) from 0 to 1200 m, a pencil beam

@@ -1,16 +1,14 @@
 //! Determinism: the same seed gives identical numbers and identical files for any thread count.
 
-mod common;
-
 use ohd::io::write::manifest::{Invocation, write_run};
 
 #[test]
 fn one_and_two_threads_write_identical_outputs() {
     for (name, text) in [
         ("default", ohd::DEFAULT_CONFIG),
-        ("vdh", include_str!("../validation/vdh_slab.toml")),
+        ("vdh", include_str!("../../validation/vdh_slab.toml")),
         // Delta tracking over majorant segments and ratio-tracked shadow rays.
-        ("density_ramp", include_str!("configs/good/density_ramp.toml")),
+        ("density_ramp", include_str!("../configs/good/density_ramp.toml")),
     ] {
         let dirs: Vec<tempfile::TempDir> = (0..2).map(|_| tempfile::tempdir().unwrap()).collect();
         let mut manifests = Vec::new();

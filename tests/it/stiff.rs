@@ -4,11 +4,12 @@
 //! tolerances are in standard errors of the estimate (4σ), or exact where the limit is
 //! deterministic path by path.
 
-mod common;
+use crate::support::run::{Channel, Run, roi_channel, roi_m0, run};
+use crate::support::stats::assert_within_sigma;
+use ohd::numeric::simpson;
 
 use std::time::Instant;
 
-use common::{Run, assert_within_sigma, roi_channel, roi_m0, run};
 use ohd::detect::Scalar;
 use ohd::phase::HenyeyGreenstein;
 use ohd::sampling::{PathRng, Purpose};
@@ -86,8 +87,8 @@ fn hg_sampling_g_pm_0_999999() {
 
         // Simpson's rule in t = ln u on [−80, 0] (the rest of [0, 1] weighs < e^{−80}).
         let sample = |t: f64| p.sample(t.exp().min(1.0 - f64::EPSILON));
-        let cos_int = common::simpson(|t| sample(t).cos * t.exp(), -80.0, 0.0, 400_000);
-        let m_int = common::simpson(|t| sample(t).one_minus_cos * t.exp(), -80.0, 0.0, 400_000);
+        let cos_int = simpson(|t| sample(t).cos * t.exp(), -80.0, 0.0, 400_000);
+        let m_int = simpson(|t| sample(t).one_minus_cos * t.exp(), -80.0, 0.0, 400_000);
         eprintln!("HG g = {g}: ∫cos = {cos_int:.12}, ∫(1 − cos) = {m_int:.6e}");
         assert!((cos_int - g).abs() < 1e-12, "∫ cos θ du = {cos_int} vs g = {g}");
         if g > 0.0 {
@@ -537,7 +538,7 @@ medium = "m"
 }
 
 /// The detector's total spectrum: bins + below + above = detected power (to rounding).
-fn assert_conserved(r: &Run, det: usize) -> common::Channel {
+fn assert_conserved(r: &Run, det: usize) -> Channel {
     let ch = r.channel(det, 0, 0);
     let (p, _) = r.power(det);
     let sum: f64 = ch.values.iter().sum::<f64>() + ch.below + ch.above;

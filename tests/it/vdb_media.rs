@@ -3,9 +3,11 @@
 //! and a Poiseuille velocity grid gives the analytic tube's spectrum. Tolerances are in standard
 //! errors; seeds are fixed.
 
-mod common;
+use crate::support::lidar::{check_single_scattering_lags, gate_lag_weight, hg_backscatter};
+use crate::support::run::{Run, run, tube_scene};
+use crate::support::stats::{chi_square, chi2_sf};
+use ohd::numeric::simpson;
 
-use common::{chi_square, run};
 use ohd::detect::Scalar;
 
 /// Largest |z| two estimates of the same quantity may differ by.
@@ -74,16 +76,16 @@ fn a_vdb_poiseuille_velocity_gives_the_analytic_tube_spectrum() {
     // sees the quadratic: velocity error ≤ 0.5 v_max (h/R)² = 0.008 v_max (linear interpolation
     // of a concave parabola lies below it), a sixth of a bin here. The single-scattering
     // spectrum is then the analytic tube's: flat on [0, f_max] (bins 0–18, χ² against uniform as
-    // in tests/doppler.rs), and bin by bin the same as the analytic Poiseuille field's run
+    // in tests/it/doppler.rs), and bin by bin the same as the analytic Poiseuille field's run
     // (independent seeds; two-sample χ² over bins 0–18). At the top edge (bin 19 ends at f_max,
     // bin 20 holds the 3° cone's blur beyond it) the grid's lower peak speed moves at most
     // 0.008/0.05 = 16 % of a bin's content below 0.95 f_max: asserted with 4σ of counting noise.
     // (Measured at 4× the paths: bins 0–18 χ² = 20.9 for 19, p = 0.34; bins 19–20 hold 977
     // against 1117, −12.5 %, within the 16 %.)
     let vdb = r#"{ type = "vdb", file = "tests/fixtures/vdb_media/tube.vdb", grid = "velocity", scale = 1e-3 }"#;
-    let grid = run(&common::tube_scene(vdb), &["run.seed=11"]);
-    let analytic = run(&common::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#), &["run.seed=12"]);
-    let counts = |r: &common::Run| -> Vec<f64> {
+    let grid = run(&tube_scene(vdb), &["run.seed=11"]);
+    let analytic = run(&tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#), &["run.seed=12"]);
+    let counts = |r: &Run| -> Vec<f64> {
         let ch = r.channel(0, 0, 2); // order 1
         ch.values.iter().map(|v| (v * r.paths()).round()).collect()
     };
@@ -98,7 +100,7 @@ fn a_vdb_poiseuille_velocity_gives_the_analytic_tube_spectrum() {
     assert_eq!(g[21], 0.0, "nothing beyond 1.05 f_max");
     // Two Poisson samples of the same spectrum (equal paths): (g − a)²/(g + a) is χ²₁ per bin.
     let chi2: f64 = g[..19].iter().zip(&a[..19]).map(|(x, y)| (x - y).powi(2) / (x + y)).sum();
-    let p = common::chi2_sf(chi2, 19);
+    let p = chi2_sf(chi2, 19);
     eprintln!("grid vs analytic tube, bins 0–18: χ² = {chi2:.1} for 19 (p = {p:.3})");
     assert!(p > 1e-4, "grid vs analytic: χ² = {chi2:.1} for 19: {g:?} vs {a:?}");
     let (top_g, top_a) = (g[19] + g[20], a[19] + a[20]);
@@ -162,21 +164,18 @@ fn lidar_gates_through_a_vdb_wind_box_follow_the_grid_along_the_beam() {
     let ohd::flow::VelocityField::Grid(field) = &medium.population().velocity else {
         panic!("the haze's velocity is not a grid")
     };
-    let beta = 3e-3 * common::hg_backscatter(0.7);
+    let beta = 3e-3 * hg_backscatter(0.7);
     let (sigma_t, lambda, dt) = (3.3e-3, 1550e-9, spec.dt());
     let w = |s: f64| field.value(glam::DVec3::new(30.0, -40.0, s)).z;
-    common::check_single_scattering_lags(&r, |g, d| {
+    check_single_scattering_lags(&r, |g, d| {
         let at = |s: f64| {
             let range = s + 1.0;
             let phase = 2.0 * std::f64::consts::PI * 2.0 * w(s) / lambda * d as f64 * dt;
             let geometry = spec.aperture_area() / (range * range)
                 * (-2.0 * sigma_t * s).exp()
-                * common::gate_lag_weight(spec, g, 2.0 * range / ohd::SPEED_OF_LIGHT, d);
+                * gate_lag_weight(spec, g, 2.0 * range / ohd::SPEED_OF_LIGHT, d);
             Complex64::from_polar(beta * geometry, phase)
         };
-        Complex64::new(
-            common::simpson(|s| at(s).re, 0.0, 400.0, 20_000),
-            common::simpson(|s| at(s).im, 0.0, 400.0, 20_000),
-        )
+        Complex64::new(simpson(|s| at(s).re, 0.0, 400.0, 20_000), simpson(|s| at(s).im, 0.0, 400.0, 20_000))
     });
 }

@@ -1,9 +1,9 @@
 //! Doppler physics against closed forms (validation-values §4): sign, rigid translation at every
 //! order, isotropic random directions, Poiseuille flow, mirror symmetry, Parseval, FMCW.
 
-mod common;
+use crate::support::run::{run, tube_scene};
+use crate::support::stats::chi_square;
 
-use common::run;
 use ohd::transport::walk::doppler_increment;
 
 /// A slab of isotropic scatterers, index-matched to its surroundings, watched from the top.
@@ -108,7 +108,7 @@ fn isotropic_random_directions_give_a_uniform_spectrum() {
     assert!(total > 5000.0, "only {total} single-scattering detections");
     // Out of range only through the 5° cone blur (|q| < 2k): none beyond the edges.
     assert_eq!(ch.below + ch.above, 0.0);
-    let (stat, dof, p) = common::chi_square(&counts, &[0.1; 10]);
+    let (stat, dof, p) = chi_square(&counts, &[0.1; 10]);
     assert!(p > 1e-4, "chi2 {stat:.1} / {dof} dof, p = {p:.2e}: {counts:?}");
 }
 
@@ -120,7 +120,7 @@ fn uniformly_illuminated_poiseuille_tube_gives_a_flat_spectrum() {
     // axis-parallel line over the same length, so v = v_max(1 − r²/R²) is uniform on [0, v_max]:
     // the spectrum is flat on [0, f_max], f_max = n v_max ê·(dir_in − dir_out)/λ0 = √2 v_max/λ0
     // (validation-values §4.4, "whole cross-section uniformly illuminated and weighted").
-    let text = common::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#);
+    let text = tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#);
     let r = run(&text, &["run.seed=9"]);
     let ch = r.channel(0, 0, 2); // order 1
     let counts: Vec<f64> = ch.values.iter().map(|v| (v * r.paths()).round()).collect();
@@ -129,7 +129,7 @@ fn uniformly_illuminated_poiseuille_tube_gives_a_flat_spectrum() {
     let inner = &counts[..19];
     let n_inner: f64 = inner.iter().sum();
     assert!(n_inner > 5000.0, "only {n_inner} detections");
-    let (stat, dof, p) = common::chi_square(inner, &[1.0 / 19.0; 19]);
+    let (stat, dof, p) = chi_square(inner, &[1.0 / 19.0; 19]);
     assert!(p > 1e-4, "chi2 {stat:.1} / {dof} dof, p = {p:.2e}: {inner:?}");
     assert_eq!(counts[21], 0.0);
     assert_eq!(ch.above, 0.0);

@@ -2,7 +2,8 @@
 //! Kolmogorov–Smirnov for free-flight distances (homogeneous and piecewise media, analytic and
 //! delta tracking). Fixed seeds; a test fails below p = 1e-4.
 
-mod common;
+use crate::support::stats::{chi_square, ks_test};
+use ohd::numeric::simpson;
 
 use glam::DVec3;
 use ohd::flow::VelocityField;
@@ -21,22 +22,11 @@ fn hg_mass(h: f64, a: f64, b: f64) -> f64 {
     let n = 400; // even
     if a <= 0.0 {
         // [0, b]: the density is smooth here (b is tiny); plain Simpson.
-        let hstep = b / n as f64;
-        let mut s = f(0.0) + f(b);
-        for i in 1..n {
-            s += f(i as f64 * hstep) * if i % 2 == 1 { 4.0 } else { 2.0 };
-        }
-        return s * hstep / 3.0;
+        return simpson(f, 0.0, b, n);
     }
     // Substitute m = e^u: ∫ f(m) dm = ∫ f(e^u) e^u du.
     let (ua, ub) = (a.ln(), b.ln());
-    let hstep = (ub - ua) / n as f64;
-    let g = |u: f64| f(u.exp()) * u.exp();
-    let mut s = g(ua) + g(ub);
-    for i in 1..n {
-        s += g(ua + i as f64 * hstep) * if i % 2 == 1 { 4.0 } else { 2.0 };
-    }
-    s * hstep / 3.0
+    simpson(|u: f64| f(u.exp()) * u.exp(), ua, ub, n)
 }
 
 #[test]
@@ -66,7 +56,7 @@ fn henyey_greenstein_chi_square() {
             let k = edges.partition_point(|&e| e <= t).saturating_sub(1).min(counts.len() - 1);
             counts[k] += 1.0;
         }
-        let (stat, dof, p) = common::chi_square(&counts, &probs);
+        let (stat, dof, p) = chi_square(&counts, &probs);
         assert!(p > P_MIN, "g={g}: chi2 = {stat:.1} for {dof} dof, p = {p:.2e}");
     }
 }
@@ -139,7 +129,7 @@ fn free_flight_distances_ks() {
     let mut homogeneous = piecewise_scene();
     homogeneous.layers[0].regions.clear();
     let (mut d, _) = sample_distances(&homogeneous, Tracking::Analytic, 200_000, 1);
-    let (ks, p) = common::ks_test(&mut d, |t| 1.0 - (-1000.0 * t).exp());
+    let (ks, p) = ks_test(&mut d, |t| 1.0 - (-1000.0 * t).exp());
     assert!(p > P_MIN, "homogeneous: D = {ks:.5}, p = {p:.2e}");
 
     // Piecewise: CDF 1 − exp(−τ(t)) for analytic segments, delta tracking with the exact and an
@@ -151,7 +141,7 @@ fn free_flight_distances_ks() {
             .enumerate()
     {
         let (mut d, nulls) = sample_distances(&scene, tracking, 200_000, 10 + k as u64);
-        let (ks, p) = common::ks_test(&mut d, |t| 1.0 - (-piecewise_depth(t)).exp());
+        let (ks, p) = ks_test(&mut d, |t| 1.0 - (-piecewise_depth(t)).exp());
         assert!(p > P_MIN, "{tracking:?}: D = {ks:.5}, p = {p:.2e}");
         match tracking {
             Tracking::Analytic => assert_eq!(nulls, 0, "analytic segments make no null collisions"),

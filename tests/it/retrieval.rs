@@ -3,7 +3,7 @@
 //! bin, and the VAD wind fit under noisy radial velocities. Seeds are fixed; every tolerance is
 //! stated in standard errors of the quantity tested (or as a tail probability).
 
-mod common;
+use crate::support::stats::{assert_within_sigma, gamma_q, ks_test};
 
 use glam::DVec3;
 use ohd::retrieval::{
@@ -215,10 +215,10 @@ fn gate_moments_of_a_noisy_line_scatter_about_the_truth() {
     // The SNR estimate is linear in the data: unbiased, with SD NOISE·√bins/(floor·bins).
     let sd_snr = NOISE * (axis.bins as f64).sqrt() / (floor * axis.bins as f64);
     eprintln!("centroid {mc:.4} ± {sc:.4} m/s; SNR {ms:.4} ± {ss:.4} vs {snr_true:.4} (SD {sd_snr:.4})");
-    common::assert_within_sigma("SNR", ms, ss / (n as f64).sqrt(), snr_true, 4.0);
+    assert_within_sigma("SNR", ms, ss / (n as f64).sqrt(), snr_true, 4.0);
     assert!((ss / sd_snr - 1.0).abs() < 4.0 / (2.0 * (n as f64 - 1.0)).sqrt());
     // The noisy window is asymmetric draw by draw but not on average: centroid unbiased to 4 SE.
-    common::assert_within_sigma("centroid", mc, sc / (n as f64).sqrt(), 2.0, 4.0);
+    assert_within_sigma("centroid", mc, sc / (n as f64).sqrt(), 2.0, 4.0);
 }
 
 /// 12 azimuths at 60° elevation.
@@ -261,8 +261,8 @@ fn vad_covariance_and_chi2_are_right() {
         assert!(m.abs() < 4.0 / (n as f64).sqrt(), "z[{i}] mean {m}");
     }
     // (V̂ − V)ᵀ C⁻¹ (V̂ − V) ~ χ²₃ and the residual χ² ~ χ²₉: Kolmogorov–Smirnov.
-    let (d3, p3) = common::ks_test(&mut maha, |x| 1.0 - common::gamma_q(1.5, 0.5 * x));
-    let (d9, p9) = common::ks_test(&mut chi2, |x| 1.0 - common::gamma_q(4.5, 0.5 * x));
+    let (d3, p3) = ks_test(&mut maha, |x| 1.0 - gamma_q(1.5, 0.5 * x));
+    let (d9, p9) = ks_test(&mut chi2, |x| 1.0 - gamma_q(4.5, 0.5 * x));
     eprintln!("Mahalanobis vs χ²₃: D {d3:.4} p {p3:.3}; residual χ² vs χ²₉: D {d9:.4} p {p9:.3}");
     assert!(p3 > 1e-3 && p9 > 1e-3);
 }

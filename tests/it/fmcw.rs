@@ -5,16 +5,17 @@
 //! gives a return spread over the slab's ranges whose power and mean range follow the
 //! single-scattering lidar equation.
 
-mod common;
+use crate::support::run::{Run, run};
+use crate::support::stats::assert_within_sigma;
+use ohd::numeric::simpson;
 
-use common::{Run, assert_within_sigma, run};
 use ohd::SPEED_OF_LIGHT;
 use ohd::io::write::manifest::{Invocation, write_run};
 use ohd::retrieval::FmcwEstimate;
 use ohd::retrieval::fmcw::range_frequency;
 
-const TARGET: &str = include_str!("../configs/fmcw_target.toml");
-const CLOUD: &str = include_str!("../configs/fmcw_cloud.toml");
+const TARGET: &str = include_str!("../../configs/fmcw_target.toml");
+const CLOUD: &str = include_str!("../../configs/fmcw_cloud.toml");
 
 /// The transceiver of both configs: 1550 nm, B = 1 GHz, T = 10 µs.
 const LAMBDA: f64 = 1550e-9;
@@ -101,13 +102,6 @@ fn approaching_target_mirrors_the_peaks() {
     let r = run(TARGET, &["run.samples=100000", "media.target.velocity.velocity_m_per_s=[0, 0, -1]"]);
     let e = check_hard_target(&r, -1.0);
     assert!(e.f_down_hz > e.f_up_hz);
-}
-
-/// `∫_a^b g` by composite Simpson with `n` (even) intervals.
-fn simpson(g: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
-    let h = (b - a) / n as f64;
-    let inner: f64 = (1..n).map(|i| g(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 }).sum();
-    (g(a) + inner + g(b)) * h / 3.0
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! segments and ratio tracking. Tolerances are in standard errors of the estimates; seeds are
 //! fixed.
 
-mod common;
+use crate::support::run::experiment;
+use crate::support::stats::ks_test;
 
 use glam::DVec3;
 use ohd::config::resolve::grid_heterogeneity;
@@ -115,13 +116,13 @@ fn with_grid(mut exp: Experiment, grid: VoxelGrid<f32>, spec: MajorantSpec) -> E
 #[test]
 fn a_constant_density_grid_equals_the_homogeneous_medium() {
     let text = slab(true);
-    let homogeneous = common::experiment(&text, &[]);
+    let homogeneous = experiment(&text, &[]);
     let reference = run(&homogeneous);
     // Density 1 on the lattice and outside it: every majorant cell is exact (no null collision,
     // no lookup) — and with the majorants doubled every tentative collision looks the density up.
     for (label, sets) in [("exact", vec![]), ("inflated", vec!["run.tracking = \"delta\"", "run.majorant_scale = 2"])] {
         let grid = lattice(1.0, 0.5, 1.0, |_| 1.0);
-        let exp = with_grid(common::experiment(&text, &sets), grid, MajorantSpec::default());
+        let exp = with_grid(experiment(&text, &sets), grid, MajorantSpec::default());
         let out = run(&exp);
         for s in [Scalar::ReflectanceDiffuse, Scalar::TransmittanceTotal, Scalar::AbsorbedFraction] {
             let (a, b) = (scalar(&out, s), scalar(&reference, s));
@@ -156,11 +157,11 @@ fn global_grid_and_inflated_majorants_agree() {
     let cell = MajorantSpec { kind: MajorantKind::Grid, cell: CellSize::Voxels(2) };
     let global = MajorantSpec { kind: MajorantKind::Global, cell: CellSize::Voxels(2) };
     let runs = [
-        ("grid", with_grid(common::experiment(&text, &[]), grid(), cell)),
-        ("global", with_grid(common::experiment(&text, &[]), grid(), global)),
+        ("grid", with_grid(experiment(&text, &[]), grid(), cell)),
+        ("global", with_grid(experiment(&text, &[]), grid(), global)),
         (
             "grid x2",
-            with_grid(common::experiment(&text, &["run.tracking = \"delta\"", "run.majorant_scale = 2"]), grid(), cell),
+            with_grid(experiment(&text, &["run.tracking = \"delta\"", "run.majorant_scale = 2"]), grid(), cell),
         ),
     ];
     let outs: Vec<(&str, RunOutput)> = runs.iter().map(|(l, e)| (*l, run(e))).collect();
@@ -239,7 +240,7 @@ fn ramp_collision_distances_follow_the_closed_form_optical_depth() {
                 }
             })
             .collect();
-        let (ks, p) = common::ks_test(&mut d, |t| 1.0 - (-1000.0 * ramp.integral(pos, dir, 0.0, t)).exp());
+        let (ks, p) = ks_test(&mut d, |t| 1.0 - (-1000.0 * ramp.integral(pos, dir, 0.0, t)).exp());
         println!("ramp {kind:?} {tracking:?}: D = {ks:.5}, p = {p:.3}, null collisions {nulls} for {n} flights");
         assert!(p > P_MIN, "{kind:?} {tracking:?}: D = {ks:.5}, p = {p:.2e}");
     }
@@ -336,7 +337,7 @@ fn an_albedo_grid_equals_layers_of_those_albedos() {
          [[layers]]\nname = \"dark\"\nthickness_mm = 0.275\nn = 1.0\nmedium = \"dark\"\n",
     );
     assert_ne!(two_layers, text, "the slab's layer table was not found");
-    let layered = common::experiment(&two_layers, &["run.samples = 200000"]);
+    let layered = experiment(&two_layers, &["run.samples = 200000"]);
     let reference = run(&layered);
     let density = lattice(1.0, 0.5, 1.0, |_| 1.0);
     let albedo = lattice(1.0, 0.5, 0.3, |p| if p.z < 0.225e-3 { 0.9 } else { 0.3 });
@@ -349,7 +350,7 @@ fn an_albedo_grid_equals_layers_of_those_albedos() {
         MajorantSpec::default(),
     )
     .expect("grid density with albedo");
-    let mut exp = common::experiment(&text, &["run.samples = 200000", "run.seed = 6"]);
+    let mut exp = experiment(&text, &["run.samples = 200000", "run.seed = 6"]);
     let m = exp.scene.layers[0].medium;
     exp.scene.media[m].set_heterogeneity(h);
     exp.scene.update_layers();

@@ -1,13 +1,14 @@
 //! Error against run time (issue 7): the σ a run reports for itself against its measured error,
 //! the `1/√N` law, analytic references from the configuration, and runs to a target error.
 
-mod common;
+use crate::support::run::experiment;
+use crate::support::stats::assert_within_sigma;
 
 use ohd::converge::{LadderOptions, Reference, Study, StudyLog, Target, study};
 use ohd::experiment::{Progress, Silent};
 
 /// The van de Hulst slab with its published references (validation/vdh_slab.toml).
-const VDH: &str = include_str!("../validation/vdh_slab.toml");
+const VDH: &str = include_str!("../../validation/vdh_slab.toml");
 
 struct Quiet;
 
@@ -47,7 +48,7 @@ f_min_khz = 1.55
 f_max_khz = 3.2
 bins = 40
 "#;
-    common::experiment(&text, &["run.seed=3", "run.batches=64"])
+    experiment(&text, &["run.seed=3", "run.batches=64"])
 }
 
 /// 5 rungs up to 3.2·10⁶ paths and a reference run of 4× that made on the fly. The spectrum's
@@ -99,7 +100,7 @@ fn self_reported_sigma_agrees_with_the_measured_error() {
 /// against van de Hulst's Rd and Tt and e^{−2}, and together their σ ratio is 1.
 #[test]
 fn analytic_references_from_the_configuration() {
-    let exp = common::experiment(VDH, &["run.seed=5"]);
+    let exp = experiment(VDH, &["run.seed=5"]);
     assert_eq!(exp.references.len(), 5);
     let s = study(&exp, Vec::new(), &ladder(2_000_000, 4), &mut Quiet);
     assert!(s.reference_run.is_none(), "all outputs with variance have analytic references");
@@ -157,7 +158,7 @@ fn a_biased_reference_is_detected() {
 fn target_error_stops_at_the_target_on_any_thread_count() {
     let target_error = 0.002;
     let run = |threads: &str| {
-        let exp = common::experiment(VDH, &["run.samples=32000", "run.seed=21", threads]);
+        let exp = experiment(VDH, &["run.samples=32000", "run.seed=21", threads]);
         let t = Target { output: exp.main_output(), relative_error: target_error, max_samples: 100_000_000 };
         let out = exp.run_until(&Silent, Some(&t));
         (exp, out)
@@ -176,13 +177,13 @@ fn target_error_stops_at_the_target_on_any_thread_count() {
     assert_eq!(one.main_output.0, "reflectance_diffuse");
     let (rd, se) = (one.estimates.mean()[1], one.estimates.stderr()[1]);
     assert!((se / rd - t.reached).abs() < 1e-12);
-    common::assert_within_sigma("Rd at the target error", rd, se, 0.09739, 4.0);
+    assert_within_sigma("Rd at the target error", rd, se, 0.09739, 4.0);
 }
 
 /// A target that cannot be met within `max_samples` stops there and says so.
 #[test]
 fn target_error_stops_at_max_samples() {
-    let exp = common::experiment(VDH, &["run.samples=16000", "run.seed=22"]);
+    let exp = experiment(VDH, &["run.samples=16000", "run.seed=22"]);
     let t = Target { output: exp.main_output(), relative_error: 1e-6, max_samples: 64_000 };
     let out = exp.run_until(&Silent, Some(&t));
     let o = out.target.clone().expect("an outcome");

@@ -2,12 +2,12 @@
 //! energy conservation, Fresnel interfaces, honesty of the error bars, and agreement of the
 //! tracking estimators.
 
-mod common;
+use crate::support::run::run;
+use crate::support::stats::assert_within_sigma;
 
-use common::{assert_within_sigma, run};
 use ohd::detect::Scalar;
 
-const VDH: &str = include_str!("../validation/vdh_slab.toml");
+const VDH: &str = include_str!("../../validation/vdh_slab.toml");
 
 #[test]
 fn van_de_hulst_slab() {

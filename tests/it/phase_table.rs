@@ -2,7 +2,8 @@
 //! log(1 − cos θ) for a red-blood-cell Mie table), orientation, and the van de Hulst slab with a
 //! tabulated Henyey–Greenstein table against the closed-form HG sampler. Fixed seeds.
 
-mod common;
+use crate::support::run::{Run, run};
+use crate::support::stats::{assert_within_sigma, chi_square};
 
 use std::f64::consts::PI;
 
@@ -64,12 +65,12 @@ fn rbc_table_sampling_chi_square_in_log_one_minus_cos() {
         sum_cos += d.cos;
         sum_cos2 += d.cos * d.cos;
     }
-    let (stat, dof, p) = common::chi_square(&counts, &probs);
+    let (stat, dof, p) = chi_square(&counts, &probs);
     assert!(p > P_MIN, "chi2 = {stat:.1} for {dof} dof, p = {p:.2e}");
     // The sample mean cosine estimates the table's g; the table's g approximates the exact Mie g.
     let mean = sum_cos / n as f64;
     let sd = ((sum_cos2 / n as f64 - mean * mean) / n as f64).sqrt();
-    common::assert_within_sigma("mean cos θ", mean, sd, t.mean_cosine(), 4.0);
+    assert_within_sigma("mean cos θ", mean, sd, t.mean_cosine(), 4.0);
     assert!((t.mean_cosine() - g_mie).abs() < 2e-4, "table g {} vs Mie g {g_mie}", t.mean_cosine());
     assert!(g_mie > 0.99 && g_mie < 0.999, "RBC g = {g_mie}");
 }
@@ -98,7 +99,7 @@ fn orientation_tripwire() {
 }
 
 /// The van de Hulst slab (validation-values.md §1) with `phase` in place of HG(0.75).
-fn vdh(phase: &str, seed: u64) -> common::Run {
+fn vdh(phase: &str, seed: u64) -> Run {
     let text = format!(
         r#"
 schema_version = 1
@@ -117,7 +118,7 @@ n = 1.0
 medium = "slab"
 "#
     );
-    common::run(&text, &[])
+    run(&text, &[])
 }
 
 #[test]

@@ -7,12 +7,13 @@
 //! single scattering from depth `s` (range `R = s + 1 m`) by populations `i` of backscatter
 //! `β_i = σs_i p_i(π)` and Doppler shifts `f_i`,
 //! `E[D_d] = Σ_i β_i·E[e^{2πi f_i d Δt}] · ∫ A/R²·e^{−2σt s}·W_{g,d}(2R/c) ds`,
-//! with `W_{g,d}` the lag-`d` pulse product of gate `g` ([`common::gate_lag_weight`]). Lag 0 is
+//! with `W_{g,d}` the lag-`d` pulse product of gate `g` ([`gate_lag_weight`]). Lag 0 is
 //! the lidar equation; lag 1 carries the Doppler phase of every population.
 
-mod common;
+use crate::support::lidar::{check_single_scattering_lags, gate_lag_weight, hg_backscatter};
+use crate::support::run::{Run, experiment, run};
+use ohd::numeric::simpson;
 
-use common::{Run, experiment, gate_lag_weight, hg_backscatter, run, simpson};
 use num_complex::Complex64;
 use ohd::SPEED_OF_LIGHT;
 use ohd::flow::VelocityField;
@@ -79,7 +80,7 @@ fn geometry(spec: &ohd::detect::LidarSpec, g: usize, d: usize, sigma_t: f64, dep
 /// asserts each |z| < 4.5 and the χ² over all of them p > 1e-3.
 fn check_lags(r: &Run, b: [Complex64; 2], sigma_t: f64, depth: f64) {
     let (spec, _) = r.lidar();
-    common::check_single_scattering_lags(r, |g, d| b[d] * geometry(spec, g, d, sigma_t, depth));
+    check_single_scattering_lags(r, |g, d| b[d] * geometry(spec, g, d, sigma_t, depth));
 }
 
 #[test]

@@ -2,9 +2,8 @@
 //! scattering Poiseuille vessel, Brownian and dispersive particle motion, √8 speckle noise, the
 //! mean of Algorithm 2, and the shipped retina scene (opposite M0− in artery and vein).
 
-mod common;
-
-use common::{Channel, Run, chi_square_estimates, roi_channel, roi_m0, run};
+use crate::support::run::{Channel, Run, roi_channel, roi_m0, run};
+use crate::support::stats::{chi_square_estimates, chi2_sf};
 
 /// Optically thin blood (isotropic scatterers, τ ≈ 3e-3 across the vessel) in a clear layer,
 /// index-matched throughout, a pencil beam through the vessel's axis, and a camera looking back
@@ -253,7 +252,7 @@ fn algorithm2_mean_over_windows_is_the_expected_periodogram_of_the_run() {
         stat += ((mean - e) / (e / (w as f64).sqrt())).powi(2);
         dof += 1;
     }
-    let p = common::chi2_sf(stat, dof);
+    let p = chi2_sf(stat, dof);
     assert!(s.lines > 30 && p > 1e-3, "chi² = {stat:.1} for {dof} bins (p = {p:.2e}), {} lines", s.lines);
 }
 

@@ -1,0 +1,7 @@
+//! Test support shared by the modules of the integration-test binary: [`stats`] (the statistics
+//! harness), [`run`] (running experiments from inline TOML and reading their tallies) and
+//! [`lidar`] (lidar physics for the wind-lidar tests).
+
+pub mod lidar;
+pub mod run;
+pub mod stats;
