@@ -12,7 +12,7 @@ pub mod lidar;
 use glam::DVec3;
 
 pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
-pub use lidar::{LidarLayout, LidarSpec, LineShape};
+pub use lidar::{LidarLayout, LidarSpec};
 
 use crate::SPEED_OF_LIGHT;
 use crate::spectrum::FrequencyAxis;
