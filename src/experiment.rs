@@ -6,7 +6,6 @@
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
 use crate::converge::{Target, TargetOutcome, rounds_needed};
-use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
@@ -86,12 +85,9 @@ pub struct RunOutput {
     pub stats: RunStats,
     pub threads: usize,
     pub wall_seconds: f64,
-    /// Paths detected in LDH regions of interest, in batch order (only when speckle is asked for).
+    /// Paths detected in LDH regions of interest, in batch order (only when speckle is asked for;
+    /// the speckle is synthesised from them after the run, [`crate::post::speckle_of`]).
     pub lines: Vec<RecordedLine>,
-    /// Speckle spectra of the LDH camera's ROIs, when asked for (synthesised after the run).
-    pub speckle: Vec<RoiSpeckle>,
-    /// Seconds spent synthesising them (not part of `wall_seconds`).
-    pub speckle_seconds: f64,
     /// Batches run (more than the plan's with a target error) of `paths_per_batch` paths each.
     pub batches: u64,
     pub paths_per_batch: u64,
@@ -436,8 +432,8 @@ impl Experiment {
     }
 
     /// The output of a run whose batches (`estimates.batches()` of them) were folded into
-    /// `estimates` in batch order, with its counters and recorded lines: the speckle synthesised
-    /// and the main output's error read off. `threads` is the plan's.
+    /// `estimates` in batch order, with its counters and recorded lines: the main output's error
+    /// read off. `threads` is the plan's.
     pub fn finish(
         &self,
         estimates: BatchAccumulator,
@@ -446,13 +442,6 @@ impl Experiment {
         wall_seconds: f64,
     ) -> RunOutput {
         let batches = estimates.batches() as u64;
-        let samples = batches * self.plan.paths_per_batch;
-        let t = std::time::Instant::now();
-        let speckle = match self.detectors.iter().find_map(|d| d.ldh.as_ref()) {
-            Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
-            None => Vec::new(),
-        };
-        let speckle_seconds = t.elapsed().as_secs_f64();
         let main = self.main_output();
         let err = main.relative_error(&estimates);
         RunOutput {
@@ -463,8 +452,6 @@ impl Experiment {
             threads: self.plan.effective_threads(),
             wall_seconds,
             lines,
-            speckle,
-            speckle_seconds,
             batches,
             paths_per_batch: self.plan.paths_per_batch,
             main_output: (main.name, err),

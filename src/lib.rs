@@ -71,6 +71,7 @@
 //! | [`spectrum`] | frequency axes and histograms |
 //! | [`stats`] | batch statistics (mean and standard error) |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
+//! | [`post`] | post-processing of a finished run's outputs: speckle synthesis from the recorded paths |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
@@ -85,6 +86,7 @@ pub mod io;
 pub mod medium;
 pub mod mie;
 pub mod phase;
+pub mod post;
 pub mod retrieval;
 pub mod sampling;
 pub mod scan;

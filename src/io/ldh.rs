@@ -9,9 +9,10 @@ use super::manifest::estimate;
 use super::plot::{PALETTE, Series, line_plot_png};
 use super::png::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
 use super::{exr_bytes, npy};
-use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec, RoiSpeckle, band_sums};
+use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec};
 use crate::detect::{Detector, ImageSpec};
 use crate::error::{Error, Result};
+use crate::post::{RoiSpeckle, band_sums};
 
 /// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
 pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
