@@ -13,7 +13,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::Source;
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{NeeTarget, WalkSettings, trace_path};
+use crate::transport::{NeeTarget, WalkContext, WalkSettings, trace_path};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -496,16 +496,16 @@ impl Experiment {
             acc: sums.sums_mut(),
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
-            nee: &nee,
             scratch: Vec::new(),
         };
+        let walk = WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         for i in 0..self.plan.paths_per_batch {
             let mut rng = key.path(i);
             if nee.is_empty() {
-                trace_path::<DOPPLER, LENGTH, false>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+                trace_path::<DOPPLER, LENGTH, false>(&walk, &mut rec, &mut rng);
             } else {
-                trace_path::<DOPPLER, LENGTH, true>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+                trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
             }
             if (i + 1) % PROGRESS_EVERY == 0 {
                 progress.advance(PROGRESS_EVERY);

@@ -17,7 +17,6 @@ pub use lidar::{LidarLayout, LidarSpec};
 use crate::SPEED_OF_LIGHT;
 use crate::spectrum::FrequencyAxis;
 use crate::stats::RunStats;
-use crate::transport::NeeTarget;
 
 /// Which surface of the stack a detector watches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -300,8 +299,6 @@ pub struct Recorder<'a> {
     pub stats: &'a mut RunStats,
     /// Paths detected in LDH regions of interest, kept when speckle is asked for (else `None`).
     pub lines: Option<&'a mut Vec<RecordedLine>>,
-    /// The detectors scored by next-event estimation.
-    pub nee: &'a [NeeTarget],
     /// Scratch space of the lidar receiver's pulse samples.
     pub scratch: Vec<f64>,
 }
