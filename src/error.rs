@@ -27,6 +27,16 @@ impl ConfigError {
     }
 }
 
+/// An OpenVDB file that cannot be read ([`crate::io::vdb`]): names the file, the grid when there
+/// is one, and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("VDB file {}{}: {message}", path.display(), grid.as_ref().map(|g| format!(", grid \"{g}\"")).unwrap_or_default())]
+pub struct VdbError {
+    pub path: PathBuf,
+    pub grid: Option<String>,
+    pub message: String,
+}
+
 /// Every error the library returns.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -41,7 +51,7 @@ pub enum Error {
     Write { path: PathBuf, source: std::io::Error },
     /// An OpenVDB file that cannot be read (exit status 2: it is input).
     #[error(transparent)]
-    Vdb(#[from] crate::io::formats::vdb::VdbError),
+    Vdb(#[from] VdbError),
     /// Any other bad input (a command-line value out of range), with its message (exit status 2).
     #[error("{0}")]
     Input(String),

@@ -5,7 +5,6 @@
 //! statistics in batch order, so the output does not depend on the number of threads.
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
-use crate::detect::ldh::{RoiSpeckle, synthesize_speckle};
 use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
@@ -14,7 +13,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{NeeTarget, WalkSettings, trace_path};
+use crate::transport::{NeeTarget, WalkContext, WalkSettings, trace_path};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -118,12 +117,9 @@ pub struct RunOutput {
     pub stats: RunStats,
     pub threads: usize,
     pub wall_seconds: f64,
-    /// Paths detected in LDH regions of interest, in batch order (only when speckle is asked for).
+    /// Paths detected in LDH regions of interest, in batch order (only when speckle is asked for;
+    /// the speckle is synthesised from them after the run, [`crate::post::speckle_of`]).
     pub lines: Vec<RecordedLine>,
-    /// Speckle spectra of the LDH camera's ROIs, when asked for (synthesised after the run).
-    pub speckle: Vec<RoiSpeckle>,
-    /// Seconds spent synthesising them (not part of `wall_seconds`).
-    pub speckle_seconds: f64,
     /// Batches run (more than the plan's with a target error) of `paths_per_batch` paths each.
     pub batches: u64,
     pub paths_per_batch: u64,
@@ -502,8 +498,8 @@ impl Experiment {
     }
 
     /// The output of a run whose batches (`estimates.batches()` of them) were folded into
-    /// `estimates` in batch order, with its counters and recorded lines: the speckle synthesised
-    /// and the main output's error read off. `threads` is the plan's.
+    /// `estimates` in batch order, with its counters and recorded lines: the main output's error
+    /// read off. `threads` is the plan's.
     pub fn finish(
         &self,
         estimates: BatchAccumulator,
@@ -512,13 +508,6 @@ impl Experiment {
         wall_seconds: f64,
     ) -> RunOutput {
         let batches = estimates.batches() as u64;
-        let samples = batches * self.plan.paths_per_batch;
-        let t = std::time::Instant::now();
-        let speckle = match self.detectors.iter().find_map(|d| d.ldh()) {
-            Some(spec) => synthesize_speckle(spec, &lines, samples, self.plan.seed),
-            None => Vec::new(),
-        };
-        let speckle_seconds = t.elapsed().as_secs_f64();
         let main = self.main_output();
         let err = main.relative_error(&estimates);
         RunOutput {
@@ -529,8 +518,6 @@ impl Experiment {
             threads: self.plan.effective_threads(),
             wall_seconds,
             lines,
-            speckle,
-            speckle_seconds,
             batches,
             paths_per_batch: self.plan.paths_per_batch,
             main_output: (main.name, err),
@@ -575,16 +562,16 @@ impl Experiment {
             acc: sums.sums_mut(),
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
-            nee: &nee,
             scratch: Vec::new(),
         };
+        let walk = WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         for i in 0..self.plan.paths_per_batch {
             let mut rng = key.path(i);
             if nee.is_empty() {
-                trace_path::<DOPPLER, LENGTH, false>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+                trace_path::<DOPPLER, LENGTH, false>(&walk, &mut rec, &mut rng);
             } else {
-                trace_path::<DOPPLER, LENGTH, true>(&self.scene, &self.source, &self.plan.walk, &mut rec, &mut rng);
+                trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
             }
             if (i + 1) % PROGRESS_EVERY == 0 {
                 progress.advance(PROGRESS_EVERY);

@@ -73,6 +73,7 @@
 //! | [`stats`] | batch statistics (mean and standard error) |
 //! | [`numeric`] | `ln Γ` and Simpson quadrature, shared with the tests |
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
+//! | [`post`] | post-processing of a finished run's outputs: speckle synthesis from the recorded paths |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
 //! | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
@@ -90,6 +91,7 @@ pub mod mie;
 pub mod numeric;
 pub mod output;
 pub mod phase;
+pub mod post;
 pub mod retrieval;
 pub mod run;
 pub mod sampling;

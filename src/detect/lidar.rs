@@ -60,17 +60,9 @@
 //!
 //! ## Per-gate estimates
 //!
-//! [`LidarSpec::retrieve_gate`] reads a gate's total spectrum plus that floor with the
-//! [`crate::retrieval`] estimators: moments (peak, centroid, width, FWHM, SNR) and one or two
-//! components on the fixed floor, chosen by an F-test at [`FIT_SELECTION_LEVEL`]. Each component
-//! is a Gaussian spread of velocities seen through the gate's spectral kernel
-//! ([`LidarSpec::gate_kernel`], [`fit_one_or_two_with_kernel`]), not a Gaussian in the spectrum:
-//! a short rectangular gate in a filled volume has a nearly Fejér (sinc²) kernel with ~10 % of
-//! its power in sidelobes, which a plain Gaussian misses and the F-test then takes for a second
-//! population (measured in `validation/README.md`). The fitted widths are the scatterers'
-//! spreads, the kernel deconvolved. Plain Gaussians are fitted too and kept when their
-//! one-component χ² is lower ([`LineShape`]): a gate that holds whole echoes shows the pulse's
-//! Gaussian, not a filled gate's kernel.
+//! What is read off a gate's total spectrum plus that floor (moments and one- or two-component
+//! fits through the gate's kernel) is post-processing of a finished run's spectra:
+//! [`crate::retrieval::lidar::retrieve_gate`].
 //!
 //! ## The gate's kernel
 //!
@@ -114,10 +106,7 @@ use num_complex::Complex;
 use super::detector_output;
 use crate::SPEED_OF_LIGHT;
 use crate::output::{Kind, Output, Registry, Slots};
-use crate::retrieval::{
-    FitOptions, Floor, GateEstimate, GateKernel, ModelChoice, RetrievalError, fit_one_or_two,
-    fit_one_or_two_with_kernel, gate_estimates,
-};
+use crate::retrieval::GateKernel;
 use crate::spectrum::FrequencyAxis;
 
 /// Path classes of the range–Doppler outputs: every path, single scattering, multiple.
@@ -454,118 +443,6 @@ impl LidarSpec {
     }
 }
 
-/// Nominal level of the F-test that keeps a second Gaussian component in a gate fit. At the
-/// retrieval module's default 0.01 the measured false-alarm rate on one-line spectra is 12 %
-/// ([`fit_one_or_two`]); at 10⁻³ it is 1.6 %.
-pub const FIT_SELECTION_LEVEL: f64 = 1e-3;
-
-/// What is read off one gate's total spectrum: the spectral moments and the one- or
-/// two-Gaussian fit, each with why it failed if it did ([`LidarSpec::retrieve_gate`]).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GateRetrieval {
-    /// The shot-noise floor per bin added to the spectrum ([`LidarSpec::noise_floor_per_bin`]).
-    pub noise_floor: f64,
-    /// How many bins had a zero standard error and were given the gate's smallest positive one.
-    pub stderr_substituted: usize,
-    /// Peak, centroid, width, FWHM and SNR ([`gate_estimates`]).
-    pub moments: Result<GateEstimate, RetrievalError>,
-    /// One or two components on the fixed floor, chosen by the F-test at
-    /// [`FIT_SELECTION_LEVEL`], of the line shape in [`line_shape`](Self::line_shape).
-    pub fit: Result<ModelChoice, RetrievalError>,
-    /// The line shape of [`fit`](Self::fit): the one whose one-component fit has the lower χ².
-    pub line_shape: LineShape,
-}
-
-/// The line shape of a gate's components ([`LidarSpec::retrieve_gate`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LineShape {
-    /// Gaussian velocity spreads seen through the gate's kernel (a filled gate).
-    GateKernel,
-    /// Gaussians in the spectrum (a gate holding whole echoes shows the pulse's Gaussian).
-    Gaussian,
-}
-
-impl LineShape {
-    /// `"gate_kernel"` or `"gaussian"`, as the outputs write it.
-    pub fn name(self) -> &'static str {
-        match self {
-            LineShape::GateKernel => "gate_kernel",
-            LineShape::Gaussian => "gaussian",
-        }
-    }
-}
-
-impl LidarSpec {
-    /// Estimates from one gate's expected periodogram `signal` (fftshift order, fraction of the
-    /// pulse energy per bin, as the receiver writes it), its batch standard errors `stderr` and
-    /// its spectral kernel `kernel` ([`gate_kernel_in`](Self::gate_kernel_in) with the run's gate
-    /// energies, as the outputs use; or [`gate_kernel`](Self::gate_kernel)).
-    ///
-    /// The spectrum a lidar would measure is the signal plus the shot-noise floor
-    /// ([`noise_floor_per_bin`](Self::noise_floor_per_bin)), so the moments and fits are taken
-    /// on `signal + floor` with that floor known: [`gate_estimates`] subtracts it (its SNR is the
-    /// gate's wideband CNR), and one or two components are fitted with `Floor::Fixed(floor)` and
-    /// the standard errors as weights, in two line shapes: Gaussian velocity spreads seen
-    /// through `kernel` ([`fit_one_or_two_with_kernel`]) and plain Gaussians
-    /// ([`crate::retrieval::fit_one_or_two`]). The shape whose one-component χ² is lower is kept
-    /// (both have three parameters per component: the likelihood decides). The kernel is that
-    /// of a filled gate; a thin layer inside a long gate shows the pulse's own Gaussian spectrum
-    /// instead, and there the filled-gate kernel's sidelobes (the window's triangle) misfit by
-    /// far. A shape whose fit fails gives way to the other.
-    ///
-    /// **Zero standard errors.** A bin whose batch standard error is 0 (every batch gave the
-    /// same value, usually a gate no path reached) would be an infinite weight. It is given the
-    /// smallest positive standard error of the same gate: zero spread over a finite number of
-    /// batches does not mean an exact value, and the best precision the run resolved anywhere in
-    /// that gate is the most that can be claimed for it; the bin then weighs no more than the
-    /// gate's best-measured bin. A gate with no positive standard error at all is fitted
-    /// unweighted (the fit then estimates the noise level from its residuals).
-    pub fn retrieve_gate(&self, signal: &[f64], stderr: &[f64], kernel: &GateKernel) -> GateRetrieval {
-        let floor = self.noise_floor_per_bin();
-        let values: Vec<f64> = signal.iter().map(|v| v + floor).collect();
-        let smallest = stderr.iter().copied().filter(|&s| s > 0.0).fold(f64::INFINITY, f64::min);
-        let mut substituted = 0;
-        let se: Option<Vec<f64>> = smallest.is_finite().then(|| {
-            stderr
-                .iter()
-                .map(|&s| {
-                    if s == 0.0 {
-                        substituted += 1;
-                        smallest
-                    } else {
-                        s
-                    }
-                })
-                .collect()
-        });
-        let Some(axis) = self.frequency_axis() else {
-            let e = RetrievalError::InvalidParameter {
-                name: "sample_rate",
-                value: self.sample_rate,
-                expected: "a positive digitiser rate",
-            };
-            return GateRetrieval {
-                noise_floor: floor,
-                stderr_substituted: 0,
-                moments: Err(e.clone()),
-                fit: Err(e),
-                line_shape: LineShape::GateKernel,
-            };
-        };
-        let moments = gate_estimates(&axis, &values, floor, self.wavelength);
-        let options =
-            FitOptions { floor: Floor::Fixed(floor), selection_level: FIT_SELECTION_LEVEL, ..FitOptions::default() };
-        let through = fit_one_or_two_with_kernel(&axis, &values, se.as_deref(), self.wavelength, &options, kernel);
-        let plain = fit_one_or_two(&axis, &values, se.as_deref(), self.wavelength, &options);
-        let (fit, line_shape) = match (through, plain) {
-            (Ok(k), Ok(p)) if p.one.chi2 < k.one.chi2 => (Ok(p), LineShape::Gaussian),
-            (Err(_), Ok(p)) => (Ok(p), LineShape::Gaussian),
-            (k, _) => (k, LineShape::GateKernel),
-        };
-        GateRetrieval { noise_floor: floor, stderr_substituted: substituted, moments, fit, line_shape }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -792,7 +669,7 @@ mod tests {
                 None,
                 1,
                 s.wavelength,
-                &FitOptions::default(),
+                &crate::retrieval::FitOptions::default(),
                 &kernel,
             )
             .unwrap();
@@ -855,34 +732,5 @@ mod tests {
         assert_eq!(near.gate_kernel_in(0, &energies), near.gate_kernel());
         assert_eq!(s.gate_kernel_in(0, &energies), uniform);
         assert_ne!(s.gate_kernel_in(4, &energies), uniform);
-    }
-
-    #[test]
-    fn gate_retrieval_substitutes_zero_errors_and_reports_empty_gates() {
-        // A Gaussian spread of velocities at +2 MHz (1.55 m/s), σ 1 MHz, seen through the gate's
-        // kernel, with 1 % errors, one of them 0: that bin gets the smallest positive error, and
-        // one component at the line is found.
-        let s = LidarSpec { fft_points: 256, ..spec() };
-        let floor = s.noise_floor_per_bin();
-        let kernel = s.gate_kernel();
-        let signal: Vec<f64> =
-            (0..256).map(|k| kernel.periodogram(1e5 * floor, 2e6, 1e6, s.bin_frequency(k))).collect();
-        let mut stderr: Vec<f64> = signal.iter().map(|v| 0.01 * v + 1e-3 * floor).collect();
-        stderr[10] = 0.0;
-        let r = s.retrieve_gate(&signal, &stderr, &kernel);
-        assert_eq!(r.stderr_substituted, 1);
-        assert_eq!(r.noise_floor, floor);
-        let m = r.moments.unwrap();
-        assert!((m.peak_frequency_hz - 2e6).abs() < 1e3, "{}", m.peak_frequency_hz);
-        assert_eq!(r.line_shape, LineShape::GateKernel);
-        let fit = r.fit.unwrap();
-        assert_eq!(fit.components, 1);
-        let c = &fit.one.components[0];
-        assert!((c.mean_hz - 2e6).abs() < 1e3 && (c.sigma_hz / 1e6 - 1.0).abs() < 1e-3, "{c:?}");
-        assert!((c.mean_velocity_m_per_s - 0.5 * s.wavelength * 2e6).abs() < 1e-3);
-        // An empty gate: no signal for both, never a panic.
-        let r = s.retrieve_gate(&[0.0; 256], &[0.0; 256], &kernel);
-        assert_eq!(r.moments, Err(RetrievalError::NoSignal));
-        assert_eq!(r.fit, Err(RetrievalError::NoSignal));
     }
 }

@@ -14,13 +14,12 @@ pub mod lidar;
 use glam::DVec3;
 
 pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
-pub use lidar::{LidarLayout, LidarSpec, LineShape};
+pub use lidar::{LidarLayout, LidarSpec};
 
 use crate::SPEED_OF_LIGHT;
 use crate::output::{Kind, Output, Registry, Slots};
 use crate::spectrum::FrequencyAxis;
 use crate::stats::RunStats;
-use crate::transport::NeeTarget;
 
 /// Which surface of the stack a detector watches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -485,8 +484,6 @@ pub struct Recorder<'a> {
     pub stats: &'a mut RunStats,
     /// Paths detected in LDH regions of interest, kept when speckle is asked for (else `None`).
     pub lines: Option<&'a mut Vec<RecordedLine>>,
-    /// The detectors scored by next-event estimation.
-    pub nee: &'a [NeeTarget],
     /// Scratch space of the lidar receiver's pulse samples.
     pub scratch: Vec<f64>,
 }

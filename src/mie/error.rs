@@ -1,7 +1,7 @@
 //! Errors of the Mie solver and the ensemble integrator. Every message states the offending value and
 //! the accepted range.
 
-use super::solver::{K_MAX, MX_MAX, N_MAX, N_MIN, X_MAX, X_MIN};
+use super::limits::{K_MAX, MX_MAX, N_MAX, N_MIN, X_MAX, X_MIN};
 
 /// Invalid input to [`MieSolution::new`](super::MieSolution::new) or
 /// [`ensemble_optics`](super::ensemble_optics).

@@ -13,6 +13,7 @@
 
 pub mod ensemble;
 mod error;
+mod limits;
 mod quadrature;
 pub mod solver;
 

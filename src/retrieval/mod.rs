@@ -10,6 +10,9 @@
 //! * [`fmcw`]: range and radial velocity of an FMCW target from its up- and down-chirp spectra
 //!   (peaks and centroids), with the range and velocity one frequency bin spans
 //!   ([`fmcw_estimates`]).
+//! * [`lidar`]: what is read off one gate of a pulsed lidar receiver's range–Doppler spectra —
+//!   the moments and the one- or two-component fit on the shot-noise floor, through the gate's
+//!   spectral kernel or as plain Gaussians ([`retrieve_gate`]).
 //! * [`vad`]: velocity–azimuth display — the least-squares wind vector from radial velocities
 //!   along several pointings, with its covariance and the horizontal speed and direction
 //!   ([`vad_fit`]).
@@ -24,6 +27,7 @@
 pub mod fit;
 pub mod fmcw;
 pub mod gate;
+pub mod lidar;
 mod linalg;
 mod special;
 pub mod vad;
@@ -34,6 +38,7 @@ pub use fit::{
 };
 pub use fmcw::{FmcwEstimate, fmcw_estimates};
 pub use gate::{GateEstimate, MomentOptions, gate_estimates, gate_estimates_with};
+pub use lidar::{FIT_SELECTION_LEVEL, GateRetrieval, LineShape, retrieve_gate};
 pub use vad::{VadFit, pointing, vad_fit};
 
 /// Why a retrieval could not be made.

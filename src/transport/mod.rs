@@ -7,4 +7,4 @@ pub mod walk;
 
 pub use nee::NeeTarget;
 pub use tracking::{Flight, Tracking, free_flight};
-pub use walk::{PathState, WalkSettings, trace_path};
+pub use walk::{PathState, WalkContext, WalkSettings, trace_path};

@@ -19,6 +19,7 @@ use crate::sampling::{PathRng, warp};
 use crate::source::Source;
 
 use super::fresnel;
+use super::nee::NeeTarget;
 use super::tracking::{Flight, Tracking, free_flight};
 
 /// Knobs of the random walk.
@@ -42,6 +43,17 @@ impl Default for WalkSettings {
             max_events: 1_000_000,
         }
     }
+}
+
+/// What every path of a run walks through: the scene, the source, the walk's knobs and the
+/// detectors scored by next-event estimation (empty: none; the walk is then compiled without
+/// shadow rays, `NEE = false`).
+#[derive(Debug, Clone, Copy)]
+pub struct WalkContext<'a> {
+    pub scene: &'a Scene,
+    pub source: &'a Source,
+    pub settings: &'a WalkSettings,
+    pub nee: &'a [NeeTarget],
 }
 
 /// The state a path carries between events.
@@ -156,12 +168,11 @@ enum End {
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
 pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
-    scene: &Scene,
-    source: &Source,
-    settings: &WalkSettings,
+    ctx: &WalkContext,
     rec: &mut Recorder,
     rng: &mut PathRng,
 ) {
+    let WalkContext { scene, source, settings, nee } = *ctx;
     rec.stats.paths += 1;
     let start = source.emit(rng);
     let dir = source.emit_direction(rng);
@@ -199,8 +210,16 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end =
-        walk::<DOPPLER, LENGTH, NEE>(scene, settings, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, NEE>(
+        scene,
+        settings,
+        nee,
+        &mut s,
+        &mut local,
+        &mut absorbed,
+        &mut null_collisions,
+        rec,
+    );
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
@@ -233,6 +252,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
 fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     scene: &Scene,
     settings: &WalkSettings,
+    nee: &[NeeTarget],
     s: &mut PathState,
     rng: &mut PathRng,
     absorbed: &mut f64,
@@ -301,6 +321,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                 }
                 if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
                     scene,
+                    nee,
                     li,
                     s,
                     medium,
@@ -403,6 +424,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
 #[inline(never)]
 fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     scene: &Scene,
+    nee: &[NeeTarget],
     li: usize,
     s: &mut PathState,
     m: &Medium,
@@ -436,13 +458,12 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     } else {
         0.0
     };
-    let targets = if boost > 0.0 { rec.nee.len() } else { 0 };
-    for i in 0..targets {
-        let target = rec.nee[i];
+    let targets = if boost > 0.0 { nee } else { &[] };
+    for target in targets {
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let hit = match &target.aperture {
-            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, &pop.phase, &target, u1, u2, rng),
-            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, &target, a, u1, u2, rng),
+            None => super::nee::shadow_ray(scene, li, s.pos, s.dir, &pop.phase, target, u1, u2, rng),
+            Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, target, a, u1, u2, rng),
         };
         let Some(h) = hit else { continue };
         let mut e = Escape {

@@ -17,6 +17,7 @@ use ohd::numeric::simpson;
 use num_complex::Complex64;
 use ohd::SPEED_OF_LIGHT;
 use ohd::flow::VelocityField;
+use ohd::retrieval::retrieve_gate;
 
 /// Vacuum wavelength, m.
 const LAMBDA: f64 = 1550e-9;
@@ -379,10 +380,12 @@ fn on_the_shipped_30_m_gates_the_kernel_fit_separates_aerosol_and_rain() {
     let k = spec.fft_points;
     let (mean, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
     let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lay.lags + g * spec.gate_points * 2]).collect();
+    let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
     let mut found = Vec::new();
     for g in 0..spec.gates {
         let o = lay.spectra + g * k;
-        let ret = spec.retrieve_gate(&mean[o..o + k], &se[o..o + k], &spec.gate_kernel_in(g, &energies));
+        let kernel = spec.gate_kernel_in(g, &energies);
+        let ret = retrieve_gate(axis.as_ref(), floor, spec.wavelength, &mean[o..o + k], &se[o..o + k], &kernel);
         let choice = ret.fit.unwrap_or_else(|e| panic!("gate {g}: {e}"));
         let fit = choice.chosen();
         let comps: Vec<(f64, f64, f64)> =
@@ -398,7 +401,7 @@ fn on_the_shipped_30_m_gates_the_kernel_fit_separates_aerosol_and_rain() {
         found.push((g, ret.line_shape, choice.components, comps));
     }
     for (g, shape, n, comps) in &found {
-        assert_eq!(*shape, ohd::detect::LineShape::GateKernel, "gate {g}");
+        assert_eq!(*shape, ohd::retrieval::LineShape::GateKernel, "gate {g}");
         assert_eq!(*n, 2, "gate {g}");
         let (aerosol, rain) = (comps[0], comps[1]);
         assert!(aerosol.0.abs() < 0.1 && (0.2..0.4).contains(&aerosol.1), "gate {g}: aerosol {aerosol:?}");

@@ -174,8 +174,7 @@ fn erfc(x: f64) -> f64 {
 /// Relative standard deviation over windows of the single-window M0+ of rows of `n` values.
 fn single_window_m0_spread(spec: &ohd::detect::LdhSpec, rows: &[f64]) -> f64 {
     let n = spec.stft.samples();
-    let m0: Vec<f64> =
-        rows.chunks_exact(n).map(|w| ohd::detect::ldh::band_sums(&spec.stft, spec.band, w).m0_plus).collect();
+    let m0: Vec<f64> = rows.chunks_exact(n).map(|w| ohd::post::band_sums(&spec.stft, spec.band, w).m0_plus).collect();
     let k = m0.len() as f64;
     let mean = m0.iter().sum::<f64>() / k;
     let var = m0.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0);
@@ -204,7 +203,7 @@ fn single_window_m0_noise_falls_by_about_sqrt8_from_64_to_512_samples() {
         ];
         let r = run(THIN_VESSEL, &sets);
         let spec = r.exp.detectors[0].ldh().unwrap();
-        let s = &r.out.speckle[0];
+        let s = &ohd::post::speckle_of(&r.exp, &r.out)[0];
         let band: Vec<f64> = (1..n)
             .filter(|&k| {
                 let f = spec.stft.bin_frequency(k).abs();
@@ -238,7 +237,7 @@ fn algorithm2_mean_over_windows_is_the_expected_periodogram_of_the_run() {
         THIN_VESSEL,
         &["run.samples=200000", "detectors.0.ldh.window_samples=64", "detectors.0.ldh.speckle={ windows = 2000 }"],
     );
-    let s = &r.out.speckle[0];
+    let s = &ohd::post::speckle_of(&r.exp, &r.out)[0];
     let n = 64;
     let w = s.algorithm2.len() / n;
     let mut stat = 0.0;

@@ -64,11 +64,11 @@
 //! are not a positive per-axis scale plus a translation (`AffineMap`, `UnitaryMap`,
 //! `NonlinearFrustumMap`, …). The whole file is read into memory once.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::DVec3;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, VdbError};
 use crate::medium::grid::{IndexTransform, VoxelGrid};
 
 /// The file format versions accepted: 222 introduced the per-grid compression flags and the value
@@ -88,15 +88,6 @@ const COMPRESS_ACTIVE_MASK: u32 = 0x2;
 const COMPRESS_BLOSC: u32 = 0x4;
 const HALF_SUFFIX: &str = "_HalfFloat";
 const NONE: u32 = u32::MAX;
-
-/// An OpenVDB file that cannot be read: names the file, the grid when there is one, and why.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("VDB file {}{}: {message}", path.display(), grid.as_ref().map(|g| format!(", grid \"{g}\"")).unwrap_or_default())]
-pub struct VdbError {
-    pub path: PathBuf,
-    pub grid: Option<String>,
-    pub message: String,
-}
 
 /// Options for reading a grid.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,12 +9,13 @@ use serde_json::{Map, Value, json};
 
 use super::{Entry, IMAGE_LAYOUT, Put, Writer, estimate};
 use crate::detect::ImageSpec;
-use crate::detect::ldh::{CLASS_NAMES, LdhSpec, RoiSpeckle, band_sums};
+use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
 use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
 use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
 use crate::io::formats::npy;
 use crate::output::Kind;
+use crate::post::{RoiSpeckle, band_sums};
 
 /// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
 /// mirrored axis `[−f_max, −f_min)` is bin `bins − 1 − k` of the original, and the tails swap.

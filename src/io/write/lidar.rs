@@ -2,18 +2,18 @@
 //! multiple scattering) as `.npy` with standard errors, their axes, a range–Doppler map and a plot
 //! of a few gates' spectra as PNG, and per gate (CSV and the manifest) the energies by class, the
 //! shot-noise SNR, the spectral moments and the one- or two-component fit of the total spectrum
-//! ([`LidarSpec::retrieve_gate`]).
+//! ([`retrieve_gate`]).
 
 use serde_json::{Value, json};
 
 use super::{Writer, estimate};
 use crate::detect::LidarSpec;
-use crate::detect::lidar::{FIT_SELECTION_LEVEL, GateRetrieval, LIDAR_CHANNELS};
+use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::error::Result;
 use crate::io::figures::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
 use crate::io::figures::raster::Colormap;
 use crate::io::formats::npy;
-use crate::retrieval::{RetrievalError, radial_velocity};
+use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
 
 /// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).
 const PLOTTED_GATES: usize = 4;
@@ -59,6 +59,7 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
     let noise_energy = m as f64 * spec.noise_variance_per_sample();
     // The total channel's gate energies: the echo density that shapes each gate's kernel.
     let total_energies: Vec<f64> = (0..gates).map(|g| energy(0, g).0).collect();
+    let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
     let mut csv = String::from("gate,range_m");
     for name in LIDAR_CHANNELS {
         csv.push_str(&format!(",energy_{name},energy_{name}_stderr"));
@@ -90,7 +91,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         row.insert("snr".into(), json!(estimate(snr, snr_se)));
         row.insert("snr_db".into(), json!(snr_db));
         let (values, errors) = spectrum(0, g);
-        let gate = spec.retrieve_gate(values, errors, &spec.gate_kernel_in(g, &total_energies));
+        let kernel = spec.gate_kernel_in(g, &total_energies);
+        let gate = retrieve_gate(axis.as_ref(), floor, spec.wavelength, values, errors, &kernel);
         gate_columns(&mut csv, &mut row, &gate, spec.wavelength);
         csv.push('\n');
         table.push(Value::Object(row));

@@ -160,6 +160,10 @@ pub fn write_run(
 ) -> Result<Manifest> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     let stderr = out.estimates.stderr();
+    // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
+    let t = std::time::Instant::now();
+    let speckle = crate::post::speckle_of(exp, out);
+    let speckle_seconds = t.elapsed().as_secs_f64();
     let mut files: Vec<String> = Vec::new();
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> {
         write_atomic(&dir.join(&name), &bytes)?;
@@ -209,7 +213,7 @@ pub fn write_run(
                     });
                 }
                 if let (Some(spec), Some(im)) = (&s.ldh, &s.image) {
-                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, &out.speckle, &mut estimates)?);
+                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, &speckle, &mut estimates)?);
                 }
             }
             DetectorKind::Lidar(spec) => {
@@ -272,7 +276,7 @@ pub fn write_run(
             roulette_terminations: st.roulette_terminations,
             truncated_paths: st.truncated_paths,
             non_finite: st.non_finite,
-            speckle_seconds: out.speckle_seconds,
+            speckle_seconds,
             out_of_range_weight: out_of_range_total,
             doppler: exp.needs_doppler(),
             path_length: exp.needs_length(),
