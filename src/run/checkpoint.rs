@@ -10,21 +10,6 @@ use super::Part;
 use crate::error::{Error, Result};
 use crate::experiment::{Checkpoint, RunOutput, RunState};
 
-/// FNV-1a (64 bit) of `text`: the fingerprint of a configuration.
-pub fn fingerprint(text: &str) -> u64 {
-    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
-}
-
-/// The fingerprint of the configuration as run, without `run.threads` (results do not depend
-/// on it, so a run may resume, or a shard run, on another thread count).
-pub fn config_fingerprint(table: &toml::Table) -> u64 {
-    let mut t = table.clone();
-    if let Some(toml::Value::Table(run)) = t.get_mut("run") {
-        run.remove("threads");
-    }
-    fingerprint(&toml::to_string(&t).unwrap_or_default())
-}
-
 /// Saves a part's state into its checkpoint file every `every`.
 #[derive(Debug)]
 pub struct FileCheckpoint {
@@ -69,18 +54,4 @@ fn create_dir(part: &Part) -> Result<()> {
 pub fn save_final(part: &Part, output: &RunOutput) -> Result<()> {
     create_dir(part)?;
     crate::io::persist::checkpoint::write(&part.checkpoint(), part.fingerprint, &output.final_state())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fingerprints_differ_and_ignore_threads() {
-        assert_ne!(fingerprint("a = 1"), fingerprint("a = 2"));
-        let t = |s: &str| -> toml::Table { s.parse().unwrap() };
-        let a = config_fingerprint(&t("[run]\nseed = 1\nthreads = 1\n"));
-        assert_eq!(a, config_fingerprint(&t("[run]\nseed = 1\nthreads = 4\n")));
-        assert_ne!(a, config_fingerprint(&t("[run]\nseed = 2\nthreads = 1\n")));
-    }
 }

@@ -4,10 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use super::checkpoint::{config_fingerprint, fingerprint};
 use super::{Event, Observer};
 use crate::error::Result;
 use crate::experiment::{Experiment, RunOutput};
+use crate::io::persist::{config_fingerprint, fingerprint};
 use crate::scan::GateWind;
 
 /// A run, or one pointing of a scan: its experiment, output directory and fingerprint.

@@ -28,7 +28,7 @@ const MAX_HEADER: u64 = 1 << 30;
 /// Which part of which run a shard is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShardHeader {
-    /// Of the configuration as run, without `run.threads` ([`crate::run::checkpoint::config_fingerprint`]).
+    /// Of the configuration as run, without `run.threads` ([`super::config_fingerprint`]).
     pub fingerprint: u64,
     /// This is part `index` of `count`, batches `first..last` of the run's `batches`.
     pub index: u64,
