@@ -75,12 +75,14 @@
 //! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
 //! | [`post`] | post-processing of a finished run's outputs: speckle synthesis from the recorded paths |
 //! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
+//! | [`describe`] | the resolved experiment in words and human units (`Display`, for `ohd check`) |
 //! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
 //! | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
 //! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
 
 pub mod config;
 pub mod converge;
+pub mod describe;
 pub mod detect;
 pub mod error;
 pub mod experiment;

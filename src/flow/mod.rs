@@ -168,30 +168,6 @@ pub enum VelocityField {
 }
 
 impl VelocityField {
-    /// A short description for `ohd check`: the variant and its parameters, a grid by its size
-    /// and place (never its voxels).
-    pub fn describe(&self) -> String {
-        match self {
-            VelocityField::Grid(g) => {
-                let lo = DVec3::from_array(g.grid.min.map(f64::from));
-                let dims = DVec3::from_array(g.grid.dims.map(|n| n as f64));
-                let (lo, hi) = (g.to_world(lo), g.to_world(lo + dims - DVec3::ONE));
-                format!(
-                    "grid of {:?} voxels ({:?}) spanning {:?} … {:?} m, background {:?} m/s",
-                    g.grid.dims,
-                    g.interpolation,
-                    lo.to_array(),
-                    hi.to_array(),
-                    g.grid.background
-                )
-            }
-            VelocityField::TerminalFall { fall, .. } => {
-                format!("wind + fall (σs-weighted mean {:.3} m/s)", fall.mean())
-            }
-            v => format!("{v:?}"),
-        }
-    }
-
     /// Whether any particle can have a non-zero velocity.
     pub fn is_moving(&self) -> bool {
         match *self {

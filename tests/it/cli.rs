@@ -60,7 +60,10 @@ fn check_prints_the_resolved_experiment() {
     assert!(out.contains("valid"), "{out}");
     assert!(out.contains("layers:"), "{out}");
     assert!(out.contains("slab"), "{out}");
-    assert!(out.contains("0.2000 mm"), "the 0.2 mm slab: {out}");
+    assert!(out.contains("slab: 0–200 µm"), "the 0.2 mm slab, in µm: {out}");
+    assert!(out.contains("σs 9 mm⁻¹"), "the slab's σs = 9/mm: {out}");
+    // Human units, no Debug dumps of internal structs.
+    assert!(!out.contains('{') && !out.contains("DVec3"), "{out}");
     assert!(out.contains("paths"), "{out}");
     // `check` writes nothing.
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0, "check wrote files");
