@@ -7,7 +7,7 @@
 pub mod preset;
 pub mod resolve;
 pub mod schema;
-mod units;
+pub mod units;
 
 use std::path::Path;
 
@@ -123,9 +123,10 @@ pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigEr
             ));
         }
     }
-    serde_path_to_error::deserialize(toml::Value::Table(doc.clone())).map_err(|e| {
+    // Quantities learn the key they were given under (and so their unit) from one pre-pass.
+    serde_path_to_error::deserialize(toml::Value::Table(units::mark(doc)?)).map_err(|e| {
         let path = e.path().to_string();
         let path = if path == "." { "(top level)".to_string() } else { path };
-        ConfigError::new(path, e.into_inner().message().to_string())
+        ConfigError::new(path, units::order_expected_keys(e.into_inner().message()))
     })
 }

@@ -5,9 +5,9 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::{Ctx, R, err, join, length_arr, length_req};
+use super::{Ctx, R, err, given_arr, join, require};
 use crate::config::schema::*;
-use crate::config::units::unit_of;
+use crate::config::units::{Length, Quantity, unit_of};
 use crate::error::ConfigError;
 use crate::medium::density::{
     CellSize, Density, DensityInfo, GridDensity, GridError, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
@@ -19,9 +19,7 @@ use crate::medium::{Heterogeneity, Medium};
 pub(super) fn resolve_placement(
     path: &str,
     scale: Option<f64>,
-    um: Option<[f64; 3]>,
-    mm: Option<[f64; 3]>,
-    m: Option<[f64; 3]>,
+    translate: &Option<Quantity<Length, [f64; 3]>>,
 ) -> R<Placement> {
     let scale = match scale {
         None => 1.0,
@@ -33,8 +31,8 @@ pub(super) fn resolve_placement(
             );
         }
     };
-    // Finite numbers are checked where the unit is picked.
-    let translation = length_arr(path, "translate", um, mm, m)?.map_or(DVec3::ZERO, |(t, _)| DVec3::from_array(t));
+    // Finite numbers are checked with the quantity.
+    let translation = given_arr(path, translate)?.map_or(DVec3::ZERO, |(t, _)| DVec3::from_array(t));
     Ok(Placement { translation, scale })
 }
 
@@ -83,9 +81,7 @@ fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R
             albedo_grid,
             interpolation: i,
             scale,
-            translate_um,
-            translate_mm,
-            translate_m,
+            translate,
             majorant,
             majorant_cell_voxels,
         } => {
@@ -94,7 +90,7 @@ fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R
                 Some(name) => Some(ctx.files.float(path, ctx.base, file, Some(name))?),
                 None => None,
             };
-            let place = resolve_placement(path, *scale, *translate_um, *translate_mm, *translate_m)?;
+            let place = resolve_placement(path, *scale, translate)?;
             let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t)?;
             let mut h = grid_heterogeneity(
                 path,
@@ -108,26 +104,15 @@ fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R
             h.info.source = Some(format!("{file}:{}", grid.as_deref().unwrap_or("(first float grid)")));
             Ok(h)
         }
-        DensitySection::Ramp {
-            axis,
-            from_um,
-            from_mm,
-            from_m,
-            to_um,
-            to_mm,
-            to_m,
-            density_from,
-            density_to,
-            majorant,
-        } => {
+        DensitySection::Ramp { axis, from, to, density_from, density_to, majorant } => {
             let a = match axis.as_str() {
                 "x" => 0,
                 "y" => 1,
                 "z" => 2,
                 other => return err(join(path, "axis"), format!("= \"{other}\": expected \"x\", \"y\" or \"z\"")),
             };
-            let from = length_req(path, "from", *from_um, *from_mm, *from_m)?;
-            let to = length_req(path, "to", *to_um, *to_mm, *to_m)?;
+            let from = require(path, "from", from, "from")?;
+            let to = require(path, "to", to, "to")?;
             for g in [&from, &to] {
                 if !g.0.is_finite() {
                     return err(g.1.clone(), format!("= {}: expected a finite position {}", g.2, unit_of(&g.1)));

@@ -2,12 +2,10 @@
 
 use glam::DVec3;
 
-use super::{
-    R, err, frequency, join, length, length_arr, length_arr_req, length_req, non_negative, pick, pick_arr, positive,
-    require, unit_vector,
-};
+use super::{R, err, given, given_arr, join, non_negative, positive, require, require_arr, unit_vector};
 use crate::config::schema::*;
 use crate::config::units::unit_of;
+use crate::config::units::{Length, Quantity};
 use crate::detect::{Area, Detector, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec};
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -25,11 +23,15 @@ fn file_name(path: &str, name: &str) -> R<()> {
     Ok(())
 }
 
-/// A rectangle of the detector plane from `center_*` (default the origin) and `size_*` (µm, mm,
-/// m): its `(min, max)` corners.
-fn rectangle(path: &str, center: [Option<[f64; 2]>; 3], size: [Option<[f64; 2]>; 3]) -> R<([f64; 2], [f64; 2])> {
-    let c = length_arr(path, "center", center[0], center[1], center[2])?.map_or([0.0; 2], |c| c.0);
-    let (s, sp) = length_arr_req(path, "size", size[0], size[1], size[2])?;
+/// A rectangle of the detector plane from `center` (default the origin) and `size`: its
+/// `(min, max)` corners.
+fn rectangle(
+    path: &str,
+    center: &Option<Quantity<Length, [f64; 2]>>,
+    size: &Option<Quantity<Length, [f64; 2]>>,
+) -> R<([f64; 2], [f64; 2])> {
+    let c = given_arr(path, center)?.map_or([0.0; 2], |c| c.0);
+    let (s, sp) = require_arr(path, "size", size, "size")?;
     if s.iter().any(|&x| x <= 0.0) {
         return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
     }
@@ -44,8 +46,8 @@ pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];
 pub const LDH_DEFAULT_SPECKLE_WINDOWS: u64 = 16;
 
 fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
-    let fs = pick(path, &[("frame_rate_hz", l.frame_rate_hz, 1.0), ("frame_rate_khz", l.frame_rate_khz, 1e3)])?
-        .map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
+    let fs =
+        given(path, &l.frame_rate)?.map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
     let n = l.window_samples.unwrap_or(LDH_DEFAULT_WINDOW_SAMPLES);
     if !(2..=1 << 20).contains(&n) || n % 2 != 0 {
         return err(join(path, "window_samples"), format!("= {n}: expected an even number of samples from 2 to 2^20"));
@@ -56,8 +58,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     };
     let stft = Stft::new(fs, n as usize, window)
         .ok_or_else(|| ConfigError::new(join(path, "frame_rate_hz"), format!("= {fs}: expected a finite rate > 0")))?;
-    let (band, band_path) = pick_arr(path, &[("band_hz", l.band_hz, 1.0), ("band_khz", l.band_khz, 1e3)])?
-        .unwrap_or((LDH_DEFAULT_BAND_HZ, join(path, "band_hz")));
+    let (band, band_path) = given_arr(path, &l.band)?.unwrap_or((LDH_DEFAULT_BAND_HZ, join(path, "band_hz")));
     let nyquist = 0.5 * fs;
     if !(0.0 < band[0] && band[0] < band[1] && band[1] <= nyquist) {
         let unit = unit_of(&band_path);
@@ -65,7 +66,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             band_path,
             format!(
                 "= {:?} {}: expected 0 < f1 < f2 ≤ f_s/2 = {nyquist} Hz (the camera's Nyquist frequency)",
-                l.band_khz.or(l.band_hz).unwrap_or(band),
+                l.band.as_ref().map_or(band, |q| q.value),
                 unit
             ),
         );
@@ -77,8 +78,8 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             .expect("a valid default axis"),
         Some(s) => {
             let p = join(path, "spectrum");
-            let fmin = frequency(&p, "f_min", [s.f_min_hz, s.f_min_khz, None, None], "the lower edge")?;
-            let fmax = frequency(&p, "f_max", [s.f_max_hz, s.f_max_khz, None, None], "the upper edge")?;
+            let fmin = require(&p, "f_min", &s.f_min, "the lower edge")?;
+            let fmax = require(&p, "f_max", &s.f_max, "the upper edge")?;
             let bins = s.bins.unwrap_or(n + 1);
             if !(1..=1_000_000).contains(&bins) {
                 return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
@@ -95,7 +96,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
         if rois.iter().any(|o| o.name == r.name) {
             return err(join(&p, "name"), format!("= \"{}\": ROI names must be unique", r.name));
         }
-        let (min, max) = rectangle(&p, [r.center_um, r.center_mm, r.center_m], [r.size_um, r.size_mm, r.size_m])?;
+        let (min, max) = rectangle(&p, &r.center, &r.size)?;
         let roi = Roi { name: r.name.clone(), min, max };
         let inside = |x: f64, y: f64| im.min[0] <= x && x <= im.max[0] && im.min[1] <= y && y <= im.max[1];
         if !(inside(roi.min[0], roi.min[1]) && inside(roi.max[0], roi.max[1])) {
@@ -159,43 +160,15 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
             format!("= {}: a lidar receiver traces straight rays and needs n = 1 in every layer", layer.n),
         );
     }
-    let radius = positive(
-        require(
-            path,
-            &[("aperture_radius_mm", l.aperture_radius_mm, 1e-3), ("aperture_radius_m", l.aperture_radius_m, 1.0)],
-            "the aperture radius",
-        )?,
-        "an aperture radius",
-    )?;
-    let fov = require(
-        path,
-        &[
-            ("field_of_view_urad", l.field_of_view_urad, 1e-6),
-            ("field_of_view_mrad", l.field_of_view_mrad, 1e-3),
-            ("field_of_view_deg", l.field_of_view_deg, std::f64::consts::PI / 180.0),
-        ],
-        "the field-of-view half-angle",
-    )?;
+    let radius =
+        positive(require(path, "aperture_radius", &l.aperture_radius, "the aperture radius")?, "an aperture radius")?;
+    let fov = require(path, "field_of_view", &l.field_of_view, "the field-of-view half-angle")?;
     if !(fov.0 > 0.0 && fov.0 <= std::f64::consts::FRAC_PI_2) {
         return err(fov.1, format!("= {}: expected a half-angle in (0, 90°]", fov.2));
     }
-    let fwhm = positive(
-        require(
-            path,
-            &[("pulse_fwhm_ns", l.pulse_fwhm_ns, 1e-9), ("pulse_fwhm_us", l.pulse_fwhm_us, 1e-6)],
-            "the pulse FWHM",
-        )?,
-        "a pulse width",
-    )?;
-    let rate = positive(
-        require(
-            path,
-            &[("sample_rate_hz", l.sample_rate_hz, 1.0), ("sample_rate_mhz", l.sample_rate_mhz, 1e6)],
-            "the digitiser rate",
-        )?,
-        "a sample rate",
-    )?;
-    let first = match l.first_gate_m {
+    let fwhm = positive(require(path, "pulse_fwhm", &l.pulse_fwhm, "the pulse FWHM")?, "a pulse width")?;
+    let rate = positive(require(path, "sample_rate", &l.sample_rate, "the digitiser rate")?, "a sample rate")?;
+    let first = match l.first_gate.as_ref().map(|q| q.si()) {
         None => 0.0,
         Some(v) if v.is_finite() && v >= 0.0 => v,
         Some(v) => return err(join(path, "first_gate_m"), format!("= {v}: expected a range ≥ 0 m")),
@@ -217,10 +190,7 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
     if gates * fft_points > 20_000_000 {
         return err(join(path, "gates"), format!("= {gates}: gates × fft_points must stay below 2·10^7 (memory)"));
     }
-    let pulse_energy = match pick(
-        path,
-        &[("pulse_energy_uj", l.pulse_energy_uj, 1e-6), ("pulse_energy_mj", l.pulse_energy_mj, 1e-3)],
-    )? {
+    let pulse_energy = match given(path, &l.pulse_energy)? {
         Some(v) => positive(v, "a pulse energy")?,
         None => crate::detect::lidar::DEFAULT_PULSE_ENERGY,
     };
@@ -295,31 +265,28 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<
                 a
             }
         };
-        let half = d.acceptance_half_angle_deg.unwrap_or(90.0);
+        // Degrees as written.
+        let half = d.acceptance_half_angle.as_ref().map_or(90.0, |q| q.value);
         if !(half > 0.0 && half <= 90.0) {
             return err(
                 join(&path, "acceptance_half_angle_deg"),
                 format!("= {half}: expected a half-angle in (0, 90] degrees"),
             );
         }
-        let distance = match length(&path, "distance", d.distance_um, d.distance_mm, d.distance_m)? {
+        let distance = match given(&path, &d.distance)? {
             None => 0.0,
             Some(v) => non_negative(v, "a distance from the surface")?,
         };
         let area = match d.area.as_ref().unwrap_or(&AreaSection::All {}) {
             AreaSection::All {} => Area::All,
-            AreaSection::Disk { center_um, center_mm, center_m, radius_um, radius_mm, radius_m } => {
+            AreaSection::Disk { center, radius } => {
                 let p = join(&path, "area");
-                let c = length_arr(&p, "center", *center_um, *center_mm, *center_m)?.map_or([0.0; 2], |c| c.0);
-                let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
+                let c = given_arr(&p, center)?.map_or([0.0; 2], |c| c.0);
+                let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
                 Area::Disk { center: c, radius: r }
             }
-            AreaSection::Rect { center_um, center_mm, center_m, size_um, size_mm, size_m } => {
-                let (min, max) = rectangle(
-                    &join(&path, "area"),
-                    [*center_um, *center_mm, *center_m],
-                    [*size_um, *size_mm, *size_m],
-                )?;
+            AreaSection::Rect { center, size } => {
+                let (min, max) = rectangle(&join(&path, "area"), center, size)?;
                 Area::Rect { min, max }
             }
         };
@@ -327,18 +294,8 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<
             None => None,
             Some(s) => {
                 let p = join(&path, "spectrum");
-                let fmin = frequency(
-                    &p,
-                    "f_min",
-                    [s.f_min_hz, s.f_min_khz, s.f_min_mhz, s.f_min_ghz],
-                    "the lower edge of the frequency axis",
-                )?;
-                let fmax = frequency(
-                    &p,
-                    "f_max",
-                    [s.f_max_hz, s.f_max_khz, s.f_max_mhz, s.f_max_ghz],
-                    "the upper edge of the frequency axis",
-                )?;
+                let fmin = require(&p, "f_min", &s.f_min, "the lower edge of the frequency axis")?;
+                let fmax = require(&p, "f_max", &s.f_max, "the upper edge of the frequency axis")?;
                 let bins = s.bins.unwrap_or(256);
                 if !(1..=10_000_000).contains(&bins) {
                     return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^7 bins"));

@@ -6,8 +6,9 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::density::{interpolation, resolve_placement};
-use super::{GridFiles, R, err, join, non_negative, pick, positive, require, require_arr};
+use super::{GridFiles, R, err, given, join, non_negative, positive, require, require_arr};
 use crate::config::schema::*;
+use crate::config::units::{Speed, UnitSet};
 use crate::error::ConfigError;
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
 use crate::medium::density::GridField;
@@ -47,48 +48,46 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             let wind = fc.wind.cloned().unwrap_or(WindProfile::Uniform(DVec3::ZERO));
             VelocityField::TerminalFall { wind, fall: Arc::new(fall) }
         }
-        VelocitySection::Uniform { velocity_mm_per_s, velocity_m_per_s } => {
-            let (v, _) = require_arr(
-                path,
-                &[("velocity_mm_per_s", *velocity_mm_per_s, 1e-3), ("velocity_m_per_s", *velocity_m_per_s, 1.0)],
-                "the velocity vector",
-            )?;
+        VelocitySection::Uniform { velocity } => {
+            let (v, _) = require_arr(path, "velocity", velocity, "the velocity vector")?;
             VelocityField::Uniform(DVec3::from_array(v))
         }
-        VelocitySection::RandomDirection { speed_mm_per_s, speed_m_per_s } => {
-            let s = require(
-                path,
-                &[("speed_mm_per_s", *speed_mm_per_s, 1e-3), ("speed_m_per_s", *speed_m_per_s, 1.0)],
-                "the speed",
-            )?;
+        VelocitySection::RandomDirection { speed } => {
+            let s = require(path, "speed", speed, "the speed")?;
             VelocityField::RandomDirection { speed: non_negative(s, "a speed")? }
         }
-        VelocitySection::Poiseuille { v_max_mm_per_s, v_max_m_per_s, mean_mm_per_s, mean_m_per_s } => {
+        VelocitySection::Poiseuille { v_max, mean } => {
             let Some(&Shape::Cylinder { center, axis, radius, .. }) = cylinder else {
                 return err(
                     join(path, "type"),
                     "= \"poiseuille\": a Poiseuille profile needs a cylinder region (its axis and radius); use it on a region with shape.type = \"cylinder\"",
                 );
             };
-            let v = require(
-                path,
-                &[
-                    ("v_max_mm_per_s", *v_max_mm_per_s, 1e-3),
-                    ("v_max_m_per_s", *v_max_m_per_s, 1.0),
-                    // Mean over the cross-section of v_max(1 − r²/R²) is v_max/2.
-                    ("mean_mm_per_s", *mean_mm_per_s, 2e-3),
-                    ("mean_m_per_s", *mean_m_per_s, 2.0),
-                ],
-                "the centre-line (v_max) or mean speed",
-            )?;
+            // Mean over the cross-section of v_max(1 − r²/R²) is v_max/2 (the factor 2 is exact, so
+            // 2·(unit factor) is the factor of the mean's unit to v_max in m/s).
+            let v = match (v_max, mean) {
+                (Some(_), None) => given(path, v_max)?.expect("given"),
+                (None, Some(q)) => {
+                    let (_, key, v) = given(path, mean)?.expect("given");
+                    (v * (2.0 * q.unit.factor), key, v)
+                }
+                (Some(a), Some(b)) => return err(path, format!("give only one of {}, {}", a.key, b.key)),
+                (None, None) => {
+                    let keys = [Speed::keys("v_max"), Speed::keys("mean")].concat();
+                    return err(
+                        path,
+                        format!("missing the centre-line (v_max) or mean speed: give one of {}", keys.join(", ")),
+                    );
+                }
+            };
             if !v.0.is_finite() {
                 return err(v.1, "expected a finite speed (negative reverses the flow along the axis)");
             }
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
-        VelocitySection::Vdb { file, grid, interpolation: i, scale, translate_um, translate_mm, translate_m } => {
+        VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {
             let g = fc.files.vec3(path, fc.base, file, grid.as_deref())?;
-            let place = resolve_placement(path, *scale, *translate_um, *translate_mm, *translate_m)?;
+            let place = resolve_placement(path, *scale, translate)?;
             if !g.background.iter().all(|c| c.is_finite()) {
                 return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));
             }
@@ -130,8 +129,9 @@ pub(super) fn resolve_wind(w: &WindSection) -> R<WindProfile> {
         if v.is_finite() && v > 0.0 { Ok(v) } else { err(join("wind", key), format!("= {v}: expected a height > 0 m")) }
     };
     Ok(match w {
-        WindSection::Uniform { velocity_m_per_s } => {
-            let v = DVec3::from_array(*velocity_m_per_s);
+        WindSection::Uniform { velocity } => {
+            let velocity_m_per_s = velocity.si();
+            let v = DVec3::from_array(velocity_m_per_s);
             if !v.is_finite() || v.length() > 200.0 {
                 return err(
                     "wind.velocity_m_per_s",
@@ -140,7 +140,7 @@ pub(super) fn resolve_wind(w: &WindSection) -> R<WindProfile> {
             }
             WindProfile::Uniform(v)
         }
-        WindSection::PowerLaw { speed_m_per_s, reference_height_m, exponent, direction_from_deg, vertical_m_per_s } => {
+        WindSection::PowerLaw { speed: u, reference_height: h, exponent, direction_from, vertical: w } => {
             if !(exponent.is_finite() && (0.0..=1.0).contains(exponent)) {
                 return err(
                     "wind.exponent",
@@ -148,31 +148,31 @@ pub(super) fn resolve_wind(w: &WindSection) -> R<WindProfile> {
                 );
             }
             WindProfile::PowerLaw {
-                direction: horizontal(*direction_from_deg)?,
-                speed_ref: speed("speed_m_per_s", *speed_m_per_s)?,
-                height_ref: height("reference_height_m", *reference_height_m)?,
+                direction: horizontal(direction_from.value)?,
+                speed_ref: speed("speed_m_per_s", u.si())?,
+                height_ref: height("reference_height_m", h.si())?,
                 exponent: *exponent,
-                vertical: vertical(*vertical_m_per_s)?,
+                vertical: vertical(w.as_ref().map(|q| q.si()))?,
             }
         }
         WindSection::LogLaw {
-            friction_velocity_m_per_s,
-            speed_m_per_s,
-            reference_height_m,
-            roughness_length_m,
-            displacement_height_m,
-            direction_from_deg,
-            vertical_m_per_s,
+            friction_velocity,
+            speed: u,
+            reference_height,
+            roughness_length,
+            displacement_height,
+            direction_from,
+            vertical: w,
         } => {
-            let z0 = height("roughness_length_m", *roughness_length_m)?;
-            let d = displacement_height_m.unwrap_or(0.0);
+            let z0 = height("roughness_length_m", roughness_length.si())?;
+            let d = displacement_height.as_ref().map_or(0.0, |q| q.si());
             if !(d.is_finite() && d >= 0.0) {
                 return err("wind.displacement_height_m", format!("= {d}: expected a height ≥ 0 m"));
             }
-            let u_star = match (friction_velocity_m_per_s, speed_m_per_s, reference_height_m) {
-                (Some(u), None, None) => speed("friction_velocity_m_per_s", *u)?,
+            let u_star = match (friction_velocity, u, reference_height) {
+                (Some(u), None, None) => speed("friction_velocity_m_per_s", u.si())?,
                 (None, Some(u), Some(h)) => {
-                    let h = height("reference_height_m", *h)?;
+                    let h = height("reference_height_m", h.si())?;
                     if h - d <= z0 {
                         return err(
                             "wind.reference_height_m",
@@ -183,7 +183,7 @@ pub(super) fn resolve_wind(w: &WindSection) -> R<WindProfile> {
                         );
                     }
                     // u(h) = (u*/κ) ln((h − d)/z0), solved for u*.
-                    speed("speed_m_per_s", *u)? * VON_KARMAN / ((h - d) / z0).ln()
+                    speed("speed_m_per_s", u.si())? * VON_KARMAN / ((h - d) / z0).ln()
                 }
                 _ => {
                     return err(
@@ -193,14 +193,16 @@ pub(super) fn resolve_wind(w: &WindSection) -> R<WindProfile> {
                 }
             };
             WindProfile::LogLaw {
-                direction: horizontal(*direction_from_deg)?,
+                direction: horizontal(direction_from.value)?,
                 friction_velocity: u_star,
                 roughness: z0,
                 displacement: d,
-                vertical: vertical(*vertical_m_per_s)?,
+                vertical: vertical(w.as_ref().map(|q| q.si()))?,
             }
         }
-        WindSection::Table { heights_m, velocities_m_per_s } => {
+        WindSection::Table { heights, velocities } => {
+            // Metres and metres per second: SI as written.
+            let (heights_m, velocities_m_per_s) = (&heights.value, &velocities.value);
             if velocities_m_per_s.is_empty() || heights_m.len() != velocities_m_per_s.len() + 1 {
                 return err(
                     "wind.heights_m",
@@ -269,14 +271,16 @@ pub(super) fn resolve_height_profile(path: &str, h: &HeightProfileSection) -> R<
         if v.is_finite() && v > 0.0 { Ok(v) } else { err(join(path, key), format!("= {v}: expected a length > 0 m")) }
     };
     Ok(match h {
-        HeightProfileSection::Exponential { scale_height_m } => {
-            HeightProfile::Exponential { scale: length("scale_height_m", *scale_height_m)? }
+        HeightProfileSection::Exponential { scale_height } => {
+            HeightProfile::Exponential { scale: length("scale_height_m", scale_height.si())? }
         }
-        HeightProfileSection::BoundaryLayer { top_m, scale_height_m } => HeightProfile::BoundaryLayer {
-            top: length("top_m", *top_m)?,
-            scale: length("scale_height_m", *scale_height_m)?,
+        HeightProfileSection::BoundaryLayer { top, scale_height } => HeightProfile::BoundaryLayer {
+            top: length("top_m", top.si())?,
+            scale: length("scale_height_m", scale_height.si())?,
         },
-        HeightProfileSection::Table { heights_m, factors } => {
+        HeightProfileSection::Table { heights, factors } => {
+            // Metres: SI as written.
+            let heights_m = &heights.value;
             if heights_m.is_empty() || heights_m.len() != factors.len() {
                 return err(
                     join(path, "factors"),
@@ -301,19 +305,12 @@ pub(super) fn resolve_height_profile(path: &str, h: &HeightProfileSection) -> R<
 /// `[media.X.motion]`: a per-event velocity dispersion and a diffusion coefficient, given directly
 /// or by Stokes–Einstein from radius, temperature and viscosity.
 pub(super) fn resolve_motion(path: &str, m: &MotionSection) -> R<Motion> {
-    let dispersion = pick(
-        path,
-        &[("dispersion_mm_per_s", m.dispersion_mm_per_s, 1e-3), ("dispersion_m_per_s", m.dispersion_m_per_s, 1.0)],
-    )?
-    .map_or(Ok(0.0), |v| non_negative(v, "a velocity standard deviation"))?;
-    let direct = pick(
-        path,
-        &[("diffusion_m2_per_s", m.diffusion_m2_per_s, 1.0), ("diffusion_um2_per_s", m.diffusion_um2_per_s, 1e-12)],
-    )?;
-    let radius = pick(path, &[("radius_um", m.radius_um, 1e-6), ("radius_nm", m.radius_nm, 1e-9)])?;
-    let temperature = pick(path, &[("temperature_k", m.temperature_k, 1.0)])?;
-    let viscosity =
-        pick(path, &[("viscosity_mpa_s", m.viscosity_mpa_s, 1e-3), ("viscosity_pa_s", m.viscosity_pa_s, 1.0)])?;
+    let dispersion =
+        given(path, &m.dispersion)?.map_or(Ok(0.0), |v| non_negative(v, "a velocity standard deviation"))?;
+    let direct = given(path, &m.diffusion)?;
+    let radius = given(path, &m.radius)?;
+    let temperature = given(path, &m.temperature)?;
+    let viscosity = given(path, &m.viscosity)?;
     let stokes = radius.is_some() || temperature.is_some() || viscosity.is_some();
     let diffusion = match (direct, stokes) {
         (Some(d), false) => non_negative(d, "a diffusion coefficient")?,

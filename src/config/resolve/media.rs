@@ -5,8 +5,9 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use super::flow::{FlowCtx, resolve_height_profile, resolve_motion, resolve_velocity};
-use super::{Ctx, Given, R, err, index_of_refraction, join, length, pick, positive};
+use super::{Ctx, Given, R, err, given, index_of_refraction, join, positive};
 use crate::config::schema::*;
+use crate::config::units::{Coefficient, Length, Quantity, UnitSet};
 use crate::error::ConfigError;
 use crate::flow::{VelocityField, WindProfile};
 use crate::io::table::read_phase_table;
@@ -56,8 +57,7 @@ fn check_wavelength(path: &str, what: &str, given: f64, source: f64) -> R<()> {
 }
 
 fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
-    if let Some(wl) = pick(path, &[("wavelength_nm", m.wavelength_nm, 1e-9), ("wavelength_um", m.wavelength_um, 1e-6)])?
-    {
+    if let Some(wl) = given(path, &m.wavelength)? {
         check_wavelength(&wl.1, "this medium's values are for", wl.0, ctx.wavelength)?;
     }
     // Only a Mie phase function needs the full angle grid; σ and g alone need very few angles.
@@ -79,15 +79,15 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
             Some(resolve_particles(&join(path, "particles"), list, angles, ctx)?)
         }
     };
-    let coeff = |key: &str, per_m: Option<f64>, per_cm: Option<f64>, per_mm: Option<f64>, mie: Option<f64>| -> R<f64> {
-        let keys = [format!("{key}_per_m"), format!("{key}_per_cm"), format!("{key}_per_mm")];
-        let opts =
-            [(keys[0].as_str(), per_m, 1.0), (keys[1].as_str(), per_cm, 100.0), (keys[2].as_str(), per_mm, 1000.0)];
-        let Some(v) = pick(path, &opts)? else {
+    let coeff = |key: &str, q: &Option<Quantity<Coefficient>>, mie: Option<f64>| -> R<f64> {
+        let Some(v) = given(path, q)? else {
             return mie.ok_or_else(|| {
                 ConfigError::new(
                     path,
-                    format!("missing {key} (a coefficient): give one of {}, or particles", keys.join(", ")),
+                    format!(
+                        "missing {key} (a coefficient): give one of {}, or particles",
+                        Coefficient::keys(key).join(", ")
+                    ),
                 )
             });
         };
@@ -96,10 +96,8 @@ fn resolve_optics(path: &str, m: &MediumSection, ctx: &Ctx) -> R<Optics> {
         }
         Ok(v.0)
     };
-    let sigma_a =
-        coeff("sigma_a", m.sigma_a_per_m, m.sigma_a_per_cm, m.sigma_a_per_mm, particles.as_ref().map(|p| p.sigma_a))?;
-    let sigma_s =
-        coeff("sigma_s", m.sigma_s_per_m, m.sigma_s_per_cm, m.sigma_s_per_mm, particles.as_ref().map(|p| p.sigma_s))?;
+    let sigma_a = coeff("sigma_a", &m.sigma_a, particles.as_ref().map(|p| p.sigma_a))?;
+    let sigma_s = coeff("sigma_s", &m.sigma_s, particles.as_ref().map(|p| p.sigma_s))?;
     let scale = m.sigma_s_scale.unwrap_or(1.0);
     if !(scale.is_finite() && scale >= 0.0) {
         return err(join(path, "sigma_s_scale"), format!("= {scale}: expected a factor ≥ 0"));
@@ -237,24 +235,24 @@ fn resolve_classes(path: &str, m: &MediumSection, classes: u64, mie_angles: Opti
     Ok(Optics { sigma_a, sigma_s: sigma_s * scale, phase: out[0].phase.clone(), info, sizes: Vec::new(), classes: out })
 }
 
-/// A positive length given as `NAME_um`, `NAME_mm` or `NAME_m`, if given.
-fn positive_length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<Given>> {
-    let Some(v) = length(prefix, name, um, mm, m)? else { return Ok(None) };
+/// A positive length `name`, if given.
+fn positive_length(prefix: &str, name: &str, q: &Option<Quantity<Length>>) -> R<Option<Given>> {
+    let Some(v) = given(prefix, q)? else { return Ok(None) };
     positive(v.clone(), &format!("a {}", name.replace('_', " ")))?;
     Ok(Some(v))
 }
 
-/// A size range `[lo, hi]` (m) from its two length keys (`names`, each in µm, mm or m), with
-/// defaults when both are optional.
+/// A size range `[lo, hi]` (m) from its two lengths (named `names`), with defaults when both are
+/// optional.
 fn size_range(
     prefix: &str,
     names: (&str, &str),
-    lo: [Option<f64>; 3],
-    hi: [Option<f64>; 3],
+    lo: &Option<Quantity<Length>>,
+    hi: &Option<Quantity<Length>>,
     default: Option<(f64, f64)>,
 ) -> R<(f64, f64)> {
-    let lo = positive_length(prefix, names.0, lo[0], lo[1], lo[2])?;
-    let hi = positive_length(prefix, names.1, hi[0], hi[1], hi[2])?;
+    let lo = positive_length(prefix, names.0, lo)?;
+    let hi = positive_length(prefix, names.1, hi)?;
     let (lo, hi) = match (lo, hi, default) {
         (Some(a), Some(b), _) => (a, b),
         (a, b, Some((da, db))) => {
@@ -346,9 +344,9 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
         let n_medium = index_of_refraction(&join(&here, "n_medium"), p.n_medium)?;
         let sp = join(&here, "size");
         let distribution = match &p.size {
-            SizeSection::Monodisperse { diameter_um, diameter_mm, diameter_m, radius_um, radius_mm, radius_m } => {
-                let d = positive_length(&sp, "diameter", *diameter_um, *diameter_mm, *diameter_m)?;
-                let r = positive_length(&sp, "radius", *radius_um, *radius_mm, *radius_m)?;
+            SizeSection::Monodisperse { diameter, radius } => {
+                let d = positive_length(&sp, "diameter", diameter)?;
+                let r = positive_length(&sp, "radius", radius)?;
                 let radius = match (d, r) {
                     (Some(d), None) => 0.5 * d.0,
                     (None, Some(r)) => r.0,
@@ -359,65 +357,28 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
                 };
                 SizeDistribution::Monodisperse { radius }
             }
-            SizeSection::LogNormal {
-                median_radius_um,
-                median_radius_mm,
-                median_radius_m,
-                sigma_g,
-                min_radius_um,
-                min_radius_mm,
-                min_radius_m,
-                max_radius_um,
-                max_radius_mm,
-                max_radius_m,
-            } => {
-                let median_radius =
-                    positive_length(&sp, "median_radius", *median_radius_um, *median_radius_mm, *median_radius_m)?
-                        .ok_or_else(|| ConfigError::new(&sp, "missing median_radius_um (or _mm, _m)"))?;
+            SizeSection::LogNormal { median_radius, sigma_g, min_radius, max_radius } => {
+                let median_radius = positive_length(&sp, "median_radius", median_radius)?
+                    .ok_or_else(|| ConfigError::new(&sp, "missing median_radius_um (or _mm, _m)"))?;
                 if !(sigma_g.is_finite() && *sigma_g > 1.0 && *sigma_g <= 10.0) {
                     return err(
                         join(&sp, "sigma_g"),
                         format!("= {sigma_g}: expected a geometric standard deviation in (1, 10]"),
                     );
                 }
-                let (r_min, r_max) = size_range(
-                    &sp,
-                    ("min_radius", "max_radius"),
-                    [*min_radius_um, *min_radius_mm, *min_radius_m],
-                    [*max_radius_um, *max_radius_mm, *max_radius_m],
-                    None,
-                )?;
+                let (r_min, r_max) = size_range(&sp, ("min_radius", "max_radius"), min_radius, max_radius, None)?;
                 SizeDistribution::LogNormal { median_radius: median_radius.0, sigma_g: *sigma_g, r_min, r_max }
             }
-            SizeSection::ModifiedGamma {
-                mode_radius_um,
-                mode_radius_mm,
-                mode_radius_m,
-                alpha,
-                gamma,
-                min_radius_um,
-                min_radius_mm,
-                min_radius_m,
-                max_radius_um,
-                max_radius_mm,
-                max_radius_m,
-            } => {
-                let mode_radius =
-                    positive_length(&sp, "mode_radius", *mode_radius_um, *mode_radius_mm, *mode_radius_m)?
-                        .ok_or_else(|| ConfigError::new(&sp, "missing mode_radius_um (or _mm, _m)"))?;
+            SizeSection::ModifiedGamma { mode_radius, alpha, gamma, min_radius, max_radius } => {
+                let mode_radius = positive_length(&sp, "mode_radius", mode_radius)?
+                    .ok_or_else(|| ConfigError::new(&sp, "missing mode_radius_um (or _mm, _m)"))?;
                 if !(alpha.is_finite() && *alpha > 0.0 && *alpha <= 100.0) {
                     return err(join(&sp, "alpha"), format!("= {alpha}: expected a shape exponent α in (0, 100]"));
                 }
                 if !(gamma.is_finite() && *gamma > 0.0 && *gamma <= 100.0) {
                     return err(join(&sp, "gamma"), format!("= {gamma}: expected an exponent γ in (0, 100]"));
                 }
-                let (r_min, r_max) = size_range(
-                    &sp,
-                    ("min_radius", "max_radius"),
-                    [*min_radius_um, *min_radius_mm, *min_radius_m],
-                    [*max_radius_um, *max_radius_mm, *max_radius_m],
-                    None,
-                )?;
+                let (r_min, r_max) = size_range(&sp, ("min_radius", "max_radius"), min_radius, max_radius, None)?;
                 SizeDistribution::ModifiedGamma {
                     alpha: *alpha,
                     gamma: *gamma,
@@ -426,15 +387,9 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
                     r_max,
                 }
             }
-            SizeSection::MarshallPalmer {
-                rain_rate_mm_per_h,
-                min_diameter_um,
-                min_diameter_mm,
-                min_diameter_m,
-                max_diameter_um,
-                max_diameter_mm,
-                max_diameter_m,
-            } => {
+            SizeSection::MarshallPalmer { rain_rate, min_diameter, max_diameter } => {
+                // mm/h as written: the distribution's own unit.
+                let rain_rate_mm_per_h = &rain_rate.value;
                 if !(rain_rate_mm_per_h.is_finite() && *rain_rate_mm_per_h > 0.0 && *rain_rate_mm_per_h <= 500.0) {
                     return err(
                         join(&sp, "rain_rate_mm_per_h"),
@@ -445,21 +400,24 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
                 let (d_min, d_max) = size_range(
                     &sp,
                     ("min_diameter", "max_diameter"),
-                    [*min_diameter_um, *min_diameter_mm, *min_diameter_m],
-                    [*max_diameter_um, *max_diameter_mm, *max_diameter_m],
+                    min_diameter,
+                    max_diameter,
                     Some((0.05e-3, 6e-3)),
                 )?;
                 SizeDistribution::MarshallPalmer { rain_rate_mm_per_h: *rain_rate_mm_per_h, d_min, d_max }
             }
         };
-        let conc = pick(
-            &here,
-            &[
-                ("number_density_per_m3", p.number_density_per_m3, 1.0),
-                ("number_density_per_cm3", p.number_density_per_cm3, 1e6),
-                ("volume_fraction", p.volume_fraction, 1.0),
-            ],
-        )?;
+        let conc = match (&p.number_density, p.volume_fraction) {
+            (Some(n), Some(_)) => return err(&here, format!("give only one of {}, volume_fraction", n.key)),
+            (_, None) => given(&here, &p.number_density)?,
+            (None, Some(v)) => {
+                let path = join(&here, "volume_fraction");
+                if v.is_nan() {
+                    return err(path, "= nan: expected a number");
+                }
+                Some((v, path, v))
+            }
+        };
         let concentration = match (&distribution, conc) {
             (SizeDistribution::MarshallPalmer { .. }, Some(c)) => {
                 return err(c.1, "Marshall–Palmer fixes the drop concentration (N0 = 8000 m⁻³ mm⁻¹); remove this key");
@@ -504,16 +462,12 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
     Ok(specs)
 }
 
-/// The explicit σa and σs keys of a medium, with whether each is given.
-fn coefficient_keys(m: &MediumSection) -> [(&'static str, bool); 6] {
-    [
-        ("sigma_a_per_m", m.sigma_a_per_m.is_some()),
-        ("sigma_a_per_cm", m.sigma_a_per_cm.is_some()),
-        ("sigma_a_per_mm", m.sigma_a_per_mm.is_some()),
-        ("sigma_s_per_m", m.sigma_s_per_m.is_some()),
-        ("sigma_s_per_cm", m.sigma_s_per_cm.is_some()),
-        ("sigma_s_per_mm", m.sigma_s_per_mm.is_some()),
-    ]
+/// The explicit σa and σs keys of a medium (as written), with whether each is given.
+fn coefficient_keys(m: &MediumSection) -> [(&str, bool); 2] {
+    fn key(q: &Option<Quantity<Coefficient>>) -> (&str, bool) {
+        q.as_ref().map_or(("", false), |q| (q.key.as_str(), true))
+    }
+    [key(&m.sigma_a), key(&m.sigma_s)]
 }
 
 /// A mixture medium (`populations`) takes everything from its populations.

@@ -31,7 +31,7 @@ use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
 use super::schema::*;
-use super::units::unit_of;
+use super::units::{Quantity, UnitSet, unit_of};
 use crate::detect::LdhSpec;
 use crate::error::ConfigError;
 use crate::experiment::Experiment;
@@ -50,70 +50,40 @@ fn join(prefix: &str, key: &str) -> String {
 /// A quantity as given: its SI value, the key path it came from and the number as written.
 type Given = (f64, String, f64);
 
-/// A quantity that may be given under one of several unit-suffixed keys.
-fn pick(prefix: &str, options: &[(&str, Option<f64>, f64)]) -> R<Option<Given>> {
-    let given: Vec<_> = options.iter().filter(|o| o.1.is_some()).collect();
-    match given.as_slice() {
-        [] => Ok(None),
-        [(key, Some(v), scale)] => {
-            let path = join(prefix, key);
-            if v.is_nan() {
-                return err(path, "= nan: expected a number");
-            }
-            Ok(Some((v * scale, path, *v)))
-        }
-        _ => err(
-            prefix.to_string(),
-            format!("give only one of {}", given.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
-        ),
+/// A quantity, if given: its SI value with the key path as written; NaN is refused.
+fn given<S>(prefix: &str, q: &Option<Quantity<S>>) -> R<Option<Given>> {
+    let Some(q) = q else { return Ok(None) };
+    let path = join(prefix, &q.key);
+    if q.value.is_nan() {
+        return err(path, "= nan: expected a number");
     }
+    Ok(Some((q.si(), path, q.value)))
 }
 
-fn require(prefix: &str, options: &[(&str, Option<f64>, f64)], what: &str) -> R<Given> {
-    pick(prefix, options)?.map_or_else(
-        || {
-            err(
-                prefix.to_string(),
-                format!("missing {what}: give one of {}", options.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
-            )
-        },
-        Ok,
-    )
+/// A required quantity `name` (`what` for the message that lists its keys).
+fn require<S: UnitSet>(prefix: &str, name: &str, q: &Option<Quantity<S>>, what: &str) -> R<Given> {
+    given(prefix, q)?
+        .map_or_else(|| err(prefix, format!("missing {what}: give one of {}", S::keys(name).join(", "))), Ok)
 }
 
-/// Same as [`pick`] for fixed-size arrays.
-fn pick_arr<const N: usize>(prefix: &str, options: &[(&str, Option<[f64; N]>, f64)]) -> R<Option<([f64; N], String)>> {
-    let given: Vec<_> = options.iter().filter(|o| o.1.is_some()).collect();
-    match given.as_slice() {
-        [] => Ok(None),
-        [(key, Some(v), scale)] => {
-            let path = join(prefix, key);
-            if v.iter().any(|x| !x.is_finite()) {
-                return err(path, format!("= {v:?}: expected finite numbers"));
-            }
-            Ok(Some((v.map(|x| x * scale), path)))
-        }
-        _ => err(
-            prefix.to_string(),
-            format!("give only one of {}", given.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
-        ),
+/// Same as [`given`] for fixed-size arrays, whose numbers must all be finite.
+fn given_arr<S, const N: usize>(prefix: &str, q: &Option<Quantity<S, [f64; N]>>) -> R<Option<([f64; N], String)>> {
+    let Some(q) = q else { return Ok(None) };
+    let path = join(prefix, &q.key);
+    if q.value.iter().any(|x| !x.is_finite()) {
+        return err(path, format!("= {:?}: expected finite numbers", q.value));
     }
+    Ok(Some((q.si(), path)))
 }
 
-fn require_arr<const N: usize>(
+fn require_arr<S: UnitSet, const N: usize>(
     prefix: &str,
-    options: &[(&str, Option<[f64; N]>, f64)],
+    name: &str,
+    q: &Option<Quantity<S, [f64; N]>>,
     what: &str,
 ) -> R<([f64; N], String)> {
-    pick_arr(prefix, options)?.map_or_else(
-        || {
-            err(
-                prefix.to_string(),
-                format!("missing {what}: give one of {}", options.iter().map(|o| o.0).collect::<Vec<_>>().join(", ")),
-            )
-        },
-        Ok,
-    )
+    given_arr(prefix, q)?
+        .map_or_else(|| err(prefix, format!("missing {what}: give one of {}", S::keys(name).join(", "))), Ok)
 }
 
 fn positive(v: Given, what: &str) -> R<f64> {
@@ -148,74 +118,6 @@ fn index_of_refraction(path: &str, n: f64) -> R<f64> {
     } else {
         err(path, format!("= {}: expected a refractive index in [1, 10]", n))
     }
-}
-
-const LENGTH_UNITS: [(&str, f64); 3] = [("um", 1e-6), ("mm", 1e-3), ("m", 1.0)];
-
-fn length_opts<'a>(
-    name: &str,
-    um: Option<f64>,
-    mm: Option<f64>,
-    m: Option<f64>,
-    keys: &'a mut Vec<String>,
-) -> Vec<(&'a str, Option<f64>, f64)> {
-    *keys = LENGTH_UNITS.iter().map(|(u, _)| format!("{name}_{u}")).collect();
-    vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
-}
-
-fn length_arr_opts<'a, const N: usize>(
-    name: &str,
-    um: Option<[f64; N]>,
-    mm: Option<[f64; N]>,
-    m: Option<[f64; N]>,
-    keys: &'a mut Vec<String>,
-) -> Vec<(&'a str, Option<[f64; N]>, f64)> {
-    *keys = LENGTH_UNITS.iter().map(|(u, _)| format!("{name}_{u}")).collect();
-    vec![(keys[0].as_str(), um, 1e-6), (keys[1].as_str(), mm, 1e-3), (keys[2].as_str(), m, 1.0)]
-}
-
-fn length(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Option<Given>> {
-    let mut keys = Vec::new();
-    let opts = length_opts(name, um, mm, m, &mut keys);
-    pick(prefix, &opts)
-}
-
-fn length_req(prefix: &str, name: &str, um: Option<f64>, mm: Option<f64>, m: Option<f64>) -> R<Given> {
-    let mut keys = Vec::new();
-    let opts = length_opts(name, um, mm, m, &mut keys);
-    require(prefix, &opts, name)
-}
-
-fn length_arr<const N: usize>(
-    prefix: &str,
-    name: &str,
-    um: Option<[f64; N]>,
-    mm: Option<[f64; N]>,
-    m: Option<[f64; N]>,
-) -> R<Option<([f64; N], String)>> {
-    let mut keys = Vec::new();
-    let opts = length_arr_opts(name, um, mm, m, &mut keys);
-    pick_arr(prefix, &opts)
-}
-
-fn length_arr_req<const N: usize>(
-    prefix: &str,
-    name: &str,
-    um: Option<[f64; N]>,
-    mm: Option<[f64; N]>,
-    m: Option<[f64; N]>,
-) -> R<([f64; N], String)> {
-    let mut keys = Vec::new();
-    let opts = length_arr_opts(name, um, mm, m, &mut keys);
-    require_arr(prefix, &opts, name)
-}
-
-/// A required frequency given as `NAME_hz`, `NAME_khz`, `NAME_mhz` or `NAME_ghz` (values in that order).
-fn frequency(prefix: &str, name: &str, values: [Option<f64>; 4], what: &str) -> R<Given> {
-    let keys = ["hz", "khz", "mhz", "ghz"].map(|u| format!("{name}_{u}"));
-    let scales = [1.0, 1e3, 1e6, 1e9];
-    let opts: Vec<(&str, Option<f64>, f64)> = (0..4).map(|i| (keys[i].as_str(), values[i], scales[i])).collect();
-    require(prefix, &opts, what)
 }
 
 /// Resolve a deserialised experiment file into a validated experiment; files it names are found

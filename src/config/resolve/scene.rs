@@ -8,7 +8,7 @@ use glam::DVec3;
 use super::density::attach_density;
 use super::flow::resolve_wind;
 use super::media::{Optics, check_mixture, populations_of};
-use super::{Ctx, R, err, index_of_refraction, join, length, length_arr_req, length_req, positive, unit_vector};
+use super::{Ctx, R, err, given, index_of_refraction, join, positive, require, require_arr, unit_vector};
 use crate::config::schema::*;
 use crate::error::ConfigError;
 use crate::medium::{Heterogeneity, Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Region, Scene, Shape};
@@ -16,36 +16,25 @@ use crate::medium::{Heterogeneity, Layer, MAX_REGIONS_PER_LAYER, Medium, MediumI
 fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
     let p = join(path, "shape");
     Ok(match s {
-        ShapeSection::Sphere { center_um, center_mm, center_m, radius_um, radius_mm, radius_m } => {
-            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
-            let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
+        ShapeSection::Sphere { center, radius } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
+            let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
             Shape::Sphere { center: DVec3::from_array(c), radius: r }
         }
-        ShapeSection::Box { center_um, center_mm, center_m, size_um, size_mm, size_m } => {
-            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
-            let (sz, sp) = length_arr_req(&p, "size", *size_um, *size_mm, *size_m)?;
+        ShapeSection::Box { center, size } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
+            let (sz, sp) = require_arr(&p, "size", size, "size")?;
             if sz.iter().any(|&x| x <= 0.0) {
                 return err(sp, format!("= {sz:?} m: expected three edge lengths > 0"));
             }
             let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
             Shape::Box { min: c - h, max: c + h }
         }
-        ShapeSection::Cylinder {
-            center_um,
-            center_mm,
-            center_m,
-            axis,
-            radius_um,
-            radius_mm,
-            radius_m,
-            length_um,
-            length_mm,
-            length_m,
-        } => {
-            let (c, _) = length_arr_req(&p, "center", *center_um, *center_mm, *center_m)?;
+        ShapeSection::Cylinder { center, axis, radius, length } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
             let axis = unit_vector(&join(&p, "axis"), *axis)?;
-            let r = positive(length_req(&p, "radius", *radius_um, *radius_mm, *radius_m)?, "a radius")?;
-            let half_length = match length(&p, "length", *length_um, *length_mm, *length_m)? {
+            let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
+            let half_length = match given(&p, length)? {
                 None => f64::INFINITY,
                 Some(l) => 0.5 * positive(l, "a length (omit it for a tube crossing its whole layer)")?,
             };
@@ -148,7 +137,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         if !(1..=100_000).contains(&parts) {
             return err(join(&path, "sublayers"), format!("= {parts}: expected 1 to 100000 layers"));
         }
-        let th = length_req(&path, "thickness", l.thickness_um, l.thickness_mm, l.thickness_m)?;
+        let th = require(&path, "thickness", &l.thickness, "thickness")?;
         let last = i + 1 == f.layers.len();
         let thickness = if th.0 == f64::INFINITY && last {
             f64::INFINITY

@@ -2,22 +2,18 @@
 
 use glam::DVec3;
 
-use super::{R, err, length, length_arr, non_negative, pick, positive, require, unit_vector};
+use super::{R, err, given, given_arr, non_negative, positive, require, unit_vector};
 use crate::config::schema::*;
 use crate::error::ConfigError;
 use crate::source::{Chirp, Pointing, Profile, Source};
 
 pub(super) fn resolve_source(s: &SourceSection) -> R<Source> {
-    let wl = require(
-        "source",
-        &[("wavelength_nm", s.wavelength_nm, 1e-9), ("wavelength_um", s.wavelength_um, 1e-6)],
-        "the vacuum wavelength",
-    )?;
+    let wl = require("source", "wavelength", &s.wavelength, "the vacuum wavelength")?;
     if !(wl.0.is_finite() && (1e-8..=1e-3).contains(&wl.0)) {
         return err(wl.1, format!("= {}: expected a vacuum wavelength from 10 nm to 1 mm", wl.2));
     }
-    let radius = length("source", "radius", s.radius_um, s.radius_mm, s.radius_m)?;
-    let waist = length("source", "waist", s.waist_um, s.waist_mm, s.waist_m)?;
+    let radius = given("source", &s.radius)?;
+    let waist = given("source", &s.waist)?;
     let profile = match s.profile.unwrap_or(ProfileKind::Pencil) {
         ProfileKind::Pencil => {
             if let Some(r) = radius.as_ref().or(waist.as_ref()) {
@@ -47,7 +43,7 @@ pub(super) fn resolve_source(s: &SourceSection) -> R<Source> {
             Profile::Gaussian { waist: positive(w, "a 1/e² beam radius")? }
         }
     };
-    let position = length_arr("source", "position", s.position_um, s.position_mm, s.position_m)?;
+    let position = given_arr("source", &s.position)?;
     let position = match position {
         Some((p, path)) => {
             if p[2] > 0.0 {
@@ -71,10 +67,7 @@ pub(super) fn resolve_source(s: &SourceSection) -> R<Source> {
             ),
         );
     }
-    let divergence = match pick(
-        "source",
-        &[("divergence_urad", s.divergence_urad, 1e-6), ("divergence_mrad", s.divergence_mrad, 1e-3)],
-    )? {
+    let divergence = match given("source", &s.divergence)? {
         None => 0.0,
         Some(d) => {
             if !(d.0.is_finite() && (0.0..=0.1).contains(&d.0)) {
@@ -96,24 +89,8 @@ pub(super) fn resolve_source(s: &SourceSection) -> R<Source> {
     let chirp = match &s.chirp {
         None => None,
         Some(c) => {
-            let b = require(
-                "source.chirp",
-                &[
-                    ("bandwidth_hz", c.bandwidth_hz, 1.0),
-                    ("bandwidth_mhz", c.bandwidth_mhz, 1e6),
-                    ("bandwidth_ghz", c.bandwidth_ghz, 1e9),
-                ],
-                "the chirp bandwidth B",
-            )?;
-            let t = require(
-                "source.chirp",
-                &[
-                    ("duration_s", c.duration_s, 1.0),
-                    ("duration_ms", c.duration_ms, 1e-3),
-                    ("duration_us", c.duration_us, 1e-6),
-                ],
-                "the chirp duration T",
-            )?;
+            let b = require("source.chirp", "bandwidth", &c.bandwidth, "the chirp bandwidth B")?;
+            let t = require("source.chirp", "duration", &c.duration, "the chirp duration T")?;
             // B = 0 is accepted: a chirp of zero bandwidth is a single-frequency laser, and its up-
             // and down-chirp spectra are the CW Doppler spectrum and its mirror (f = ±(dl/dt)/λ0).
             // Only the range retrieval needs B > 0, and says so (`retrieval::fmcw`).
@@ -140,11 +117,13 @@ fn resolve_pointings(s: &SourceSection) -> R<Vec<Pointing>> {
         }
         Ok(Pointing::new(az, el))
     };
-    let single = s.azimuth_deg.is_some() || s.elevation_deg.is_some();
+    // Degrees as written.
+    let (azimuth, elevation) = (s.azimuth.as_ref().map(|q| q.value), s.elevation.as_ref().map(|q| q.value));
+    let single = azimuth.is_some() || elevation.is_some();
     if single && s.direction.is_some() {
         return err("source", "give the pointing as direction or as azimuth_deg/elevation_deg, not both");
     }
-    if let Some(list) = &s.pointings_deg {
+    if let Some(list) = s.pointings.as_ref().map(|q| &q.value) {
         if single || s.direction.is_some() {
             return err(
                 "source.pointings_deg",
@@ -161,8 +140,8 @@ fn resolve_pointings(s: &SourceSection) -> R<Vec<Pointing>> {
             .collect();
     }
     if single {
-        let el = s.elevation_deg.unwrap_or(90.0);
-        return Ok(vec![angles("source", s.azimuth_deg.unwrap_or(0.0), el)?]);
+        let el = elevation.unwrap_or(90.0);
+        return Ok(vec![angles("source", azimuth.unwrap_or(0.0), el)?]);
     }
     Ok(Vec::new())
 }
