@@ -124,9 +124,13 @@ pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigEr
         }
     }
     // Quantities learn the key they were given under (and so their unit) from one pre-pass.
-    serde_path_to_error::deserialize(toml::Value::Table(units::mark(doc)?)).map_err(|e| {
+    let mut marked = units::mark(doc);
+    serde_path_to_error::deserialize(toml::Value::Table(std::mem::take(&mut marked.table))).map_err(|e| {
         let path = e.path().to_string();
         let path = if path == "." { "(top level)".to_string() } else { path };
-        ConfigError::new(path, units::order_expected_keys(e.into_inner().message()))
+        let message = e.into_inner().message().to_string();
+        marked
+            .duplicate(&path, &message)
+            .unwrap_or_else(|| ConfigError::new(path, units::order_expected_keys(&message)))
     })
 }

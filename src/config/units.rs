@@ -241,54 +241,83 @@ impl<'de, S: UnitSet, V: DeserializeOwned> Deserialize<'de> for Quantity<S, V> {
     }
 }
 
+/// A table ready to deserialise, from [`mark`].
+pub struct Marked {
+    pub table: toml::Table,
+    /// Quantities given under more than one key of a table: (the table's path, the keys in the
+    /// order of [`UNITS`]).
+    pub twice: Vec<(String, Vec<String>)>,
+}
+
+impl Marked {
+    /// The message for serde's "duplicate field" error at `path` (a quantity given in two of the
+    /// units its field accepts): "give only one of …" at the table's path.
+    pub fn duplicate(&self, path: &str, message: &str) -> Option<ConfigError> {
+        let field = message.strip_prefix("duplicate field `")?.strip_suffix('`')?;
+        let (quantity, _) = split_key(field)?;
+        let (at, keys) = self
+            .twice
+            .iter()
+            .filter(|(at, keys)| {
+                let within = path == at || path.strip_prefix(at.as_str()).is_some_and(|r| r.starts_with(['.', '[']));
+                within && keys.iter().any(|k| split_key(k).is_some_and(|(q, _)| q == quantity))
+            })
+            .max_by_key(|(at, _)| at.len())?;
+        let at = if at.is_empty() { "(top level)" } else { at };
+        Some(ConfigError::new(at, format!("give only one of {}", keys.join(", "))))
+    }
+}
+
 /// A copy of `doc` ready to deserialise: in every table of the schema, the value of each key
 /// with a unit suffix is wrapped with the key as written, for [`Quantity`]. The names of media
-/// and the keys of `[reference]` are names, not fields, and are left alone. A quantity given in
-/// two units is refused, naming the table and the keys.
-pub fn mark(doc: &toml::Table) -> Result<toml::Table, ConfigError> {
-    let mut out = doc.clone();
-    for (key, value) in out.iter_mut() {
+/// and the keys of `[reference]` are names, not fields, and are left alone. Quantities given in
+/// two units are noted (serde refuses them as duplicates if the field accepts both keys, and as
+/// unknown keys otherwise).
+pub fn mark(doc: &toml::Table) -> Marked {
+    let mut table = doc.clone();
+    let mut twice = Vec::new();
+    for (key, value) in table.iter_mut() {
         match (key.as_str(), value) {
             ("reference", _) => {}
             ("media", toml::Value::Table(media)) => {
                 for (name, medium) in media.iter_mut() {
-                    mark_value(&format!("media.{name}"), medium)?;
+                    mark_value(&format!("media.{name}"), medium, &mut twice);
                 }
             }
-            (_, value) => mark_value(key, value)?,
+            (_, value) => mark_value(key, value, &mut twice),
         }
     }
-    mark_table("", &mut out)?;
-    Ok(out)
+    mark_table("", &mut table, &mut twice);
+    Marked { table, twice }
 }
 
-fn mark_value(path: &str, value: &mut toml::Value) -> Result<(), ConfigError> {
+fn mark_value(path: &str, value: &mut toml::Value, twice: &mut Vec<(String, Vec<String>)>) {
     match value {
         toml::Value::Table(t) => {
             for (key, v) in t.iter_mut() {
-                mark_value(&format!("{path}.{key}"), v)?;
+                mark_value(&format!("{path}.{key}"), v, twice);
             }
-            mark_table(path, t)
+            mark_table(path, t, twice);
         }
-        toml::Value::Array(a) => a.iter_mut().enumerate().try_for_each(|(i, v)| mark_value(&format!("{path}[{i}]"), v)),
-        _ => Ok(()),
+        toml::Value::Array(a) => {
+            for (i, v) in a.iter_mut().enumerate() {
+                mark_value(&format!("{path}[{i}]"), v, twice);
+            }
+        }
+        _ => {}
     }
 }
 
-/// Wrap the suffixed keys of one table (its sub-tables are done).
-fn mark_table(path: &str, table: &mut toml::Table) -> Result<(), ConfigError> {
+/// Wrap the suffixed keys of one table (its sub-tables are done), noting quantities given twice.
+fn mark_table(path: &str, table: &mut toml::Table, twice: &mut Vec<(String, Vec<String>)>) {
     let suffixed: Vec<(String, String)> =
         table.keys().filter_map(|k| split_key(k).map(|(q, _)| (k.clone(), q.to_string()))).collect();
-    for (key, quantity) in &suffixed {
-        let same: Vec<&(String, String)> = suffixed.iter().filter(|(_, q)| q == quantity).collect();
-        if same.len() > 1 {
-            if same[0].0 != *key {
-                continue;
-            }
-            let mut keys: Vec<&str> = same.iter().map(|(k, _)| k.as_str()).collect();
+    for (i, (key, quantity)) in suffixed.iter().enumerate() {
+        let same: Vec<&str> = suffixed.iter().filter(|(_, q)| q == quantity).map(|(k, _)| k.as_str()).collect();
+        if same.len() > 1 && !suffixed[..i].iter().any(|(_, q)| q == quantity) {
+            let mut keys: Vec<String> = same.iter().map(|k| k.to_string()).collect();
             keys.sort_by_key(|k| split_key(k).map(|(_, u)| UNITS.iter().position(|x| x == u)));
-            let at = if path.is_empty() { "(top level)" } else { path };
-            return Err(ConfigError::new(at, format!("give only one of {}", keys.join(", "))));
+            twice.push((path.to_string(), keys));
         }
         let slot = table.get_mut(key).expect("a key of the table");
         let value = std::mem::replace(slot, toml::Value::Boolean(false));
@@ -297,7 +326,6 @@ fn mark_table(path: &str, table: &mut toml::Table) -> Result<(), ConfigError> {
         wrapped.insert(VALUE.into(), value);
         *slot = toml::Value::Table(wrapped);
     }
-    Ok(())
 }
 
 /// A serde message listing the expected keys ("unknown field `x`, expected one of `a_um`, …") with
@@ -385,7 +413,7 @@ mod tests {
     }
 
     #[test]
-    fn marking_wraps_suffixed_keys_and_refuses_two_units() {
+    fn marking_wraps_suffixed_keys_and_notes_two_units() {
         let doc: toml::Table = r#"
             [source]
             wavelength_nm = 633
@@ -396,7 +424,9 @@ mod tests {
         "#
         .parse()
         .unwrap();
-        let m = mark(&doc).unwrap();
+        let m = mark(&doc);
+        assert!(m.twice.is_empty());
+        let m = m.table;
         assert_eq!(m["source"]["wavelength_nm"][KEY].as_str(), Some("wavelength_nm"));
         assert_eq!(m["source"]["wavelength_nm"][VALUE].as_integer(), Some(633));
         assert!(m["media"]["tissue_mm"]["sigma_s_per_mm"].is_table());
@@ -405,7 +435,10 @@ mod tests {
         assert_eq!((q.si(), q.key.as_str()), (633.0 * 1e-9, "wavelength_nm"));
 
         let two: toml::Table = "[[layers]]\nthickness_mm = 1\nthickness_um = 2\n".parse().unwrap();
-        let e = mark(&two).unwrap_err();
+        let m = mark(&two);
+        assert_eq!(m.twice, [("layers[0]".to_string(), vec!["thickness_um".to_string(), "thickness_mm".to_string()])]);
+        let e = m.duplicate("layers[0]", "duplicate field `thickness_um`").unwrap();
         assert_eq!(e.to_string(), "layers[0]: give only one of thickness_um, thickness_mm");
+        assert!(m.duplicate("layers[0]", "duplicate field `n`").is_none());
     }
 }
