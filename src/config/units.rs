@@ -6,9 +6,13 @@
 //! suffixes that key accepts (the serde attributes of the field name the same keys, for
 //! `deny_unknown_fields`). [`mark`], one pre-pass over a copy of the table before it is
 //! deserialised, wraps each value of a suffixed key together with the key as written, so that the
-//! quantity knows its unit and messages name the key as the user wrote it; it also refuses a
-//! quantity given in two units at once. The table as written (recorded in the manifest) is not
-//! changed.
+//! quantity knows its unit and messages name the key as the user wrote it; it also notes a
+//! quantity given in two units, which serde refuses as a duplicate field and
+//! [`Marked::duplicate`] words as "give only one of …". The table as written (recorded in the
+//! manifest) is not changed. A key's accepted units are declared twice, necessarily: in its
+//! field's serde names (what serde accepts and lists for a typo) and in its unit set (what
+//! [`Quantity`] checks and what "missing …: give one of …" lists); a unit of the wrong set fails
+//! at deserialisation.
 //!
 //! The same table serves overrides, which replace a quantity given in another unit
 //! ([`insert_replacing`]).
