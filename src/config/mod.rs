@@ -7,7 +7,7 @@
 pub mod preset;
 pub mod resolve;
 pub mod schema;
-mod units;
+pub mod units;
 
 use std::path::Path;
 
@@ -123,9 +123,14 @@ pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigEr
             ));
         }
     }
-    serde_path_to_error::deserialize(toml::Value::Table(doc.clone())).map_err(|e| {
+    // Quantities learn the key they were given under (and so their unit) from one pre-pass.
+    let mut marked = units::mark(doc);
+    serde_path_to_error::deserialize(toml::Value::Table(std::mem::take(&mut marked.table))).map_err(|e| {
         let path = e.path().to_string();
         let path = if path == "." { "(top level)".to_string() } else { path };
-        ConfigError::new(path, e.into_inner().message().to_string())
+        let message = e.into_inner().message().to_string();
+        marked
+            .duplicate(&path, &message)
+            .unwrap_or_else(|| ConfigError::new(path, units::order_expected_keys(&message)))
     })
 }

@@ -1,16 +1,24 @@
 //! The experiment file as written: serde structs mirroring the TOML, with `deny_unknown_fields`
 //! everywhere. Quantities whose natural unit is not SI carry it in the key (`thickness_mm`,
 //! `sigma_s_per_cm`, `speed_mm_per_s`, `f_max_khz`); a quantity may be given in any one of its
-//! listed units. Nothing here is validated: [`super::resolve()`] does that, once.
+//! listed units. Each is one [`Quantity`] field whose unit set names the suffixes it accepts, and
+//! whose serde name and aliases are the same keys (see [`super::units`]). Nothing here is
+//! validated: [`super::resolve()`] does that, once.
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
+
+use super::units::{
+    Aperture, CameraFrequency, ChirpBandwidth, ChirpDuration, Coefficient, Degrees, Diffusivity, FieldOfView,
+    Frequency, Length, Metres, MetresPerSecond, NumberDensity, PulseEnergy, PulseWidth, Quantity, RainRate, SampleRate,
+    SmallAngle, SmallRadius, Speed, Temperature, Viscosity, Wavelength,
+};
 
 /// The schema version this build reads.
 pub const SCHEMA_VERSION: i64 = 1;
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExperimentFile {
     pub schema_version: i64,
@@ -40,7 +48,7 @@ pub struct ExperimentFile {
 
 /// A `[reference]` value: a number for a scalar output, an array for a spectrum or image
 /// (in the order of its `.npy` file).
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
 pub enum ReferenceValue {
     Scalar(f64),
@@ -50,52 +58,78 @@ pub enum ReferenceValue {
 /// `[wind]`: horizontal wind as a function of height, plus a vertical velocity. Directions are
 /// meteorological: `direction_from_deg` is where the wind blows *from*, clockwise from north
 /// (270 = a westerly, blowing toward +x = east); `y` is north, `z` up.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum WindSection {
     Uniform {
-        velocity_m_per_s: [f64; 3],
+        #[serde(rename = "velocity_m_per_s")]
+        velocity: Quantity<MetresPerSecond, [f64; 3]>,
     },
     /// `u(h) = u_ref·(h/h_ref)^α`.
     PowerLaw {
-        speed_m_per_s: f64,
-        reference_height_m: f64,
+        #[serde(rename = "speed_m_per_s")]
+        speed: Quantity<MetresPerSecond>,
+        #[serde(rename = "reference_height_m")]
+        reference_height: Quantity<Metres>,
         exponent: f64,
-        direction_from_deg: f64,
-        vertical_m_per_s: Option<f64>,
+        #[serde(rename = "direction_from_deg")]
+        direction_from: Quantity<Degrees>,
+        #[serde(rename = "vertical_m_per_s")]
+        vertical: Option<Quantity<MetresPerSecond>>,
     },
     /// `u(h) = (u*/κ)·ln((h − d)/z0)`; give u* or the speed at a reference height.
     LogLaw {
-        friction_velocity_m_per_s: Option<f64>,
-        speed_m_per_s: Option<f64>,
-        reference_height_m: Option<f64>,
-        roughness_length_m: f64,
-        displacement_height_m: Option<f64>,
-        direction_from_deg: f64,
-        vertical_m_per_s: Option<f64>,
+        #[serde(rename = "friction_velocity_m_per_s")]
+        friction_velocity: Option<Quantity<MetresPerSecond>>,
+        #[serde(rename = "speed_m_per_s")]
+        speed: Option<Quantity<MetresPerSecond>>,
+        #[serde(rename = "reference_height_m")]
+        reference_height: Option<Quantity<Metres>>,
+        #[serde(rename = "roughness_length_m")]
+        roughness_length: Quantity<Metres>,
+        #[serde(rename = "displacement_height_m")]
+        displacement_height: Option<Quantity<Metres>>,
+        #[serde(rename = "direction_from_deg")]
+        direction_from: Quantity<Degrees>,
+        #[serde(rename = "vertical_m_per_s")]
+        vertical: Option<Quantity<MetresPerSecond>>,
     },
     /// One velocity per layer of height: `velocities_m_per_s[i]` for
     /// `heights_m[i] ≤ h < heights_m[i + 1]`.
     Table {
-        heights_m: Vec<f64>,
-        velocities_m_per_s: Vec<[f64; 3]>,
+        #[serde(rename = "heights_m")]
+        heights: Quantity<Metres, Vec<f64>>,
+        #[serde(rename = "velocities_m_per_s")]
+        velocities: Quantity<MetresPerSecond, Vec<[f64; 3]>>,
     },
 }
 
 /// How a medium's coefficients change with height (`z`, m, above the ground at `z = 0`):
 /// a factor on σs and σa, taken at the middle of each layer the medium fills.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum HeightProfileSection {
     /// `exp(−h/H)`.
-    Exponential { scale_height_m: f64 },
+    Exponential {
+        #[serde(rename = "scale_height_m")]
+        scale_height: Quantity<Metres>,
+    },
     /// 1 up to the boundary-layer top, then `exp(−(h − top)/H)`.
-    BoundaryLayer { top_m: f64, scale_height_m: f64 },
+    BoundaryLayer {
+        #[serde(rename = "top_m")]
+        top: Quantity<Metres>,
+        #[serde(rename = "scale_height_m")]
+        scale_height: Quantity<Metres>,
+    },
     /// Piecewise linear through `(heights_m[i], factors[i])`, constant beyond the ends.
-    Table { heights_m: Vec<f64>, factors: Vec<f64> },
+    Table {
+        #[serde(rename = "heights_m")]
+        heights: Quantity<Metres, Vec<f64>>,
+        factors: Vec<f64>,
+    },
 }
 
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RunSection {
     pub samples: Option<u64>,
@@ -111,45 +145,45 @@ pub struct RunSection {
     pub memory_budget_gib: Option<f64>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TrackingKind {
     Analytic,
     Delta,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SourceSection {
-    pub wavelength_nm: Option<f64>,
-    pub wavelength_um: Option<f64>,
+    #[serde(rename = "wavelength_nm", alias = "wavelength_um")]
+    pub wavelength: Option<Quantity<Wavelength>>,
     #[serde(default)]
     pub profile: Option<ProfileKind>,
     /// Disk radius.
-    pub radius_um: Option<f64>,
-    pub radius_mm: Option<f64>,
-    pub radius_m: Option<f64>,
+    #[serde(rename = "radius_um", alias = "radius_mm", alias = "radius_m")]
+    pub radius: Option<Quantity<Length>>,
     /// Gaussian 1/e² intensity radius.
-    pub waist_um: Option<f64>,
-    pub waist_mm: Option<f64>,
-    pub waist_m: Option<f64>,
-    pub position_um: Option<[f64; 3]>,
-    pub position_mm: Option<[f64; 3]>,
-    pub position_m: Option<[f64; 3]>,
+    #[serde(rename = "waist_um", alias = "waist_mm", alias = "waist_m")]
+    pub waist: Option<Quantity<Length>>,
+    #[serde(rename = "position_um", alias = "position_mm", alias = "position_m")]
+    pub position: Option<Quantity<Length, [f64; 3]>>,
     pub direction: Option<[f64; 3]>,
     /// Pointing by angles instead of `direction`, in the frame x = east, y = north, z = up (the
     /// depth axis of the stack): azimuth clockwise from north, elevation above the horizontal.
-    pub azimuth_deg: Option<f64>,
-    pub elevation_deg: Option<f64>,
+    #[serde(rename = "azimuth_deg")]
+    pub azimuth: Option<Quantity<Degrees>>,
+    #[serde(rename = "elevation_deg")]
+    pub elevation: Option<Quantity<Degrees>>,
     /// A scan: `[[azimuth, elevation], …]` in degrees, one run per pointing (a VAD scan).
-    pub pointings_deg: Option<Vec<[f64; 2]>>,
+    #[serde(rename = "pointings_deg")]
+    pub pointings: Option<Quantity<Degrees, Vec<[f64; 2]>>>,
     /// Far-field divergence of the Gaussian beam: the 1/e² intensity half-angle.
-    pub divergence_urad: Option<f64>,
-    pub divergence_mrad: Option<f64>,
+    #[serde(rename = "divergence_urad", alias = "divergence_mrad")]
+    pub divergence: Option<Quantity<SmallAngle>>,
     pub chirp: Option<ChirpSection>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProfileKind {
     Pencil,
@@ -157,25 +191,23 @@ pub enum ProfileKind {
     Gaussian,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ChirpSection {
-    pub bandwidth_hz: Option<f64>,
-    pub bandwidth_mhz: Option<f64>,
-    pub bandwidth_ghz: Option<f64>,
-    pub duration_s: Option<f64>,
-    pub duration_ms: Option<f64>,
-    pub duration_us: Option<f64>,
+    #[serde(rename = "bandwidth_hz", alias = "bandwidth_mhz", alias = "bandwidth_ghz")]
+    pub bandwidth: Option<Quantity<ChirpBandwidth>>,
+    #[serde(rename = "duration_s", alias = "duration_ms", alias = "duration_us")]
+    pub duration: Option<Quantity<ChirpDuration>>,
 }
 
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AmbientSection {
     pub n_above: Option<f64>,
     pub n_below: Option<f64>,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MediumSection {
     /// The preset this medium was expanded from (see [`super::preset`]); for the record.
@@ -183,19 +215,17 @@ pub struct MediumSection {
     pub description: Option<String>,
     pub references: Option<Vec<String>>,
     /// The vacuum wavelength the medium's values are for; checked against the source.
-    pub wavelength_nm: Option<f64>,
-    pub wavelength_um: Option<f64>,
+    #[serde(rename = "wavelength_nm", alias = "wavelength_um")]
+    pub wavelength: Option<Quantity<Wavelength>>,
     /// Particles whose Mie optics give σs, σa and the phase function (explicit σs, σa win).
     pub particles: Option<OneOrMany<ParticlesSection>>,
     /// Factor applied to σs after everything else (≥ 0; e.g. to calibrate a sphere model to a
     /// measured σs, or to thin a medium for tractability).
     pub sigma_s_scale: Option<f64>,
-    pub sigma_a_per_m: Option<f64>,
-    pub sigma_a_per_cm: Option<f64>,
-    pub sigma_a_per_mm: Option<f64>,
-    pub sigma_s_per_m: Option<f64>,
-    pub sigma_s_per_cm: Option<f64>,
-    pub sigma_s_per_mm: Option<f64>,
+    #[serde(rename = "sigma_a_per_m", alias = "sigma_a_per_cm", alias = "sigma_a_per_mm")]
+    pub sigma_a: Option<Quantity<Coefficient>>,
+    #[serde(rename = "sigma_s_per_m", alias = "sigma_s_per_cm", alias = "sigma_s_per_mm")]
+    pub sigma_s: Option<Quantity<Coefficient>>,
     #[serde(default)]
     pub phase: Option<PhaseSection>,
     #[serde(default)]
@@ -217,19 +247,17 @@ pub struct MediumSection {
 }
 
 /// `density = {…}` of a medium: a heterogeneous medium.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DensitySection {
     /// Linear along `axis` ("x", "y" or "z") from `density_from` at the plane `from_*` to
     /// `density_to` at the plane `to_*`, constant beyond the planes.
     Ramp {
         axis: String,
-        from_um: Option<f64>,
-        from_mm: Option<f64>,
-        from_m: Option<f64>,
-        to_um: Option<f64>,
-        to_mm: Option<f64>,
-        to_m: Option<f64>,
+        #[serde(rename = "from_um", alias = "from_mm", alias = "from_m")]
+        from: Option<Quantity<Length>>,
+        #[serde(rename = "to_um", alias = "to_mm", alias = "to_m")]
+        to: Option<Quantity<Length>>,
         density_from: f64,
         density_to: f64,
         /// "grid" (default: bounds per piece of the ray between the planes) or "global" (one
@@ -251,9 +279,8 @@ pub enum DensitySection {
         /// 1; 1e-3 for a file in millimetres).
         scale: Option<f64>,
         /// Moves the grid after scaling.
-        translate_um: Option<[f64; 3]>,
-        translate_mm: Option<[f64; 3]>,
-        translate_m: Option<[f64; 3]>,
+        #[serde(rename = "translate_um", alias = "translate_mm", alias = "translate_m")]
+        translate: Option<Quantity<Length, [f64; 3]>>,
         /// "grid" (default: per-cell bounds) or "global" (one bound for the whole grid).
         majorant: Option<MajorantSection>,
         /// Edge of a majorant cell in voxels (default 4).
@@ -262,14 +289,14 @@ pub enum DensitySection {
 }
 
 /// How a grid is read between its voxel points.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum InterpolationSection {
     Trilinear,
     Nearest,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MajorantSection {
     Grid,
@@ -277,23 +304,24 @@ pub enum MajorantSection {
 }
 
 /// `[media.X.motion]`: a per-event random velocity and Brownian diffusion.
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionSection {
     /// Standard deviation of each velocity component, drawn per scattering event.
-    pub dispersion_mm_per_s: Option<f64>,
-    pub dispersion_m_per_s: Option<f64>,
+    #[serde(rename = "dispersion_mm_per_s", alias = "dispersion_m_per_s")]
+    pub dispersion: Option<Quantity<Speed>>,
     /// The diffusion coefficient D, or the particle radius, temperature and viscosity that give it.
-    pub diffusion_m2_per_s: Option<f64>,
-    pub diffusion_um2_per_s: Option<f64>,
-    pub radius_um: Option<f64>,
-    pub radius_nm: Option<f64>,
-    pub temperature_k: Option<f64>,
-    pub viscosity_mpa_s: Option<f64>,
-    pub viscosity_pa_s: Option<f64>,
+    #[serde(rename = "diffusion_m2_per_s", alias = "diffusion_um2_per_s")]
+    pub diffusion: Option<Quantity<Diffusivity>>,
+    #[serde(rename = "radius_um", alias = "radius_nm")]
+    pub radius: Option<Quantity<SmallRadius>>,
+    #[serde(rename = "temperature_k")]
+    pub temperature: Option<Quantity<Temperature>>,
+    #[serde(rename = "viscosity_mpa_s", alias = "viscosity_pa_s")]
+    pub viscosity: Option<Quantity<Viscosity>>,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PhaseSection {
     Isotropic {},
@@ -313,8 +341,7 @@ pub enum PhaseSection {
 }
 
 /// A single table or an array of them (`particles = {…}` or `[[media.x.particles]]`).
-#[derive(Debug, Clone, Serialize)]
-#[serde(untagged)]
+#[derive(Debug, Clone)]
 pub enum OneOrMany<T> {
     One(T),
     Many(Vec<T>),
@@ -353,7 +380,7 @@ impl<T> OneOrMany<T> {
 }
 
 /// One kind of particle in a medium: optical constants, size distribution and concentration.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticlesSection {
     /// A label (e.g. an OPAC component name), for messages and the manifest.
@@ -365,8 +392,8 @@ pub struct ParticlesSection {
     /// Refractive index of the host the particles sit in (1 for air).
     pub n_medium: f64,
     pub size: SizeSection,
-    pub number_density_per_m3: Option<f64>,
-    pub number_density_per_cm3: Option<f64>,
+    #[serde(rename = "number_density_per_m3", alias = "number_density_per_cm3")]
+    pub number_density: Option<Quantity<NumberDensity>>,
     /// Fraction of the volume the particles fill (the hematocrit, for red blood cells).
     pub volume_fraction: Option<f64>,
     pub packing: Option<PackingKind>,
@@ -374,80 +401,71 @@ pub struct ParticlesSection {
     pub size_points: Option<u64>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PackingKind {
     None,
     Twersky,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum SizeSection {
     Monodisperse {
-        diameter_um: Option<f64>,
-        diameter_mm: Option<f64>,
-        diameter_m: Option<f64>,
-        radius_um: Option<f64>,
-        radius_mm: Option<f64>,
-        radius_m: Option<f64>,
+        #[serde(rename = "diameter_um", alias = "diameter_mm", alias = "diameter_m")]
+        diameter: Option<Quantity<Length>>,
+        #[serde(rename = "radius_um", alias = "radius_mm", alias = "radius_m")]
+        radius: Option<Quantity<Length>>,
     },
     /// Number distribution log-normal in radius (OPAC): median radius, geometric standard deviation.
     LogNormal {
-        median_radius_um: Option<f64>,
-        median_radius_mm: Option<f64>,
-        median_radius_m: Option<f64>,
+        #[serde(rename = "median_radius_um", alias = "median_radius_mm", alias = "median_radius_m")]
+        median_radius: Option<Quantity<Length>>,
         sigma_g: f64,
-        min_radius_um: Option<f64>,
-        min_radius_mm: Option<f64>,
-        min_radius_m: Option<f64>,
-        max_radius_um: Option<f64>,
-        max_radius_mm: Option<f64>,
-        max_radius_m: Option<f64>,
+        #[serde(rename = "min_radius_um", alias = "min_radius_mm", alias = "min_radius_m")]
+        min_radius: Option<Quantity<Length>>,
+        #[serde(rename = "max_radius_um", alias = "max_radius_mm", alias = "max_radius_m")]
+        max_radius: Option<Quantity<Length>>,
     },
     /// Deirmendjian's modified gamma, n(r) ∝ r^α exp(−(α/γ)(r/r_c)^γ), mode radius r_c.
     ModifiedGamma {
-        mode_radius_um: Option<f64>,
-        mode_radius_mm: Option<f64>,
-        mode_radius_m: Option<f64>,
+        #[serde(rename = "mode_radius_um", alias = "mode_radius_mm", alias = "mode_radius_m")]
+        mode_radius: Option<Quantity<Length>>,
         alpha: f64,
         gamma: f64,
-        min_radius_um: Option<f64>,
-        min_radius_mm: Option<f64>,
-        min_radius_m: Option<f64>,
-        max_radius_um: Option<f64>,
-        max_radius_mm: Option<f64>,
-        max_radius_m: Option<f64>,
+        #[serde(rename = "min_radius_um", alias = "min_radius_mm", alias = "min_radius_m")]
+        min_radius: Option<Quantity<Length>>,
+        #[serde(rename = "max_radius_um", alias = "max_radius_mm", alias = "max_radius_m")]
+        max_radius: Option<Quantity<Length>>,
     },
     /// Marshall–Palmer raindrops, N(D) = 8000 m⁻³ mm⁻¹ exp(−4.1 R^−0.21 D): absolute concentration.
     MarshallPalmer {
-        rain_rate_mm_per_h: f64,
-        min_diameter_um: Option<f64>,
-        min_diameter_mm: Option<f64>,
-        min_diameter_m: Option<f64>,
-        max_diameter_um: Option<f64>,
-        max_diameter_mm: Option<f64>,
-        max_diameter_m: Option<f64>,
+        #[serde(rename = "rain_rate_mm_per_h")]
+        rain_rate: Quantity<RainRate>,
+        #[serde(rename = "min_diameter_um", alias = "min_diameter_mm", alias = "min_diameter_m")]
+        min_diameter: Option<Quantity<Length>>,
+        #[serde(rename = "max_diameter_um", alias = "max_diameter_mm", alias = "max_diameter_m")]
+        max_diameter: Option<Quantity<Length>>,
     },
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum VelocitySection {
     None {},
     Uniform {
-        velocity_mm_per_s: Option<[f64; 3]>,
-        velocity_m_per_s: Option<[f64; 3]>,
+        #[serde(rename = "velocity_mm_per_s", alias = "velocity_m_per_s")]
+        velocity: Option<Quantity<Speed, [f64; 3]>>,
     },
     Poiseuille {
-        v_max_mm_per_s: Option<f64>,
-        v_max_m_per_s: Option<f64>,
-        mean_mm_per_s: Option<f64>,
-        mean_m_per_s: Option<f64>,
+        #[serde(rename = "v_max_mm_per_s", alias = "v_max_m_per_s")]
+        v_max: Option<Quantity<Speed>>,
+        #[serde(rename = "mean_mm_per_s", alias = "mean_m_per_s")]
+        mean: Option<Quantity<Speed>>,
     },
     RandomDirection {
-        speed_mm_per_s: Option<f64>,
-        speed_m_per_s: Option<f64>,
+        #[serde(rename = "speed_mm_per_s", alias = "speed_m_per_s")]
+        speed: Option<Quantity<Speed>>,
     },
     /// Carried by the `[wind]` at the particle's height.
     Wind {},
@@ -466,20 +484,18 @@ pub enum VelocitySection {
         /// 1; 1e-3 for a file in millimetres).
         scale: Option<f64>,
         /// Moves the grid after scaling.
-        translate_um: Option<[f64; 3]>,
-        translate_mm: Option<[f64; 3]>,
-        translate_m: Option<[f64; 3]>,
+        #[serde(rename = "translate_um", alias = "translate_mm", alias = "translate_m")]
+        translate: Option<Quantity<Length, [f64; 3]>>,
     },
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSection {
     pub name: Option<String>,
     /// `inf` (a TOML float) for a semi-infinite last layer.
-    pub thickness_um: Option<f64>,
-    pub thickness_mm: Option<f64>,
-    pub thickness_m: Option<f64>,
+    #[serde(rename = "thickness_um", alias = "thickness_mm", alias = "thickness_m")]
+    pub thickness: Option<Quantity<Length>>,
     pub n: Option<f64>,
     pub medium: String,
     /// Split the layer into this many equal layers (named `NAME[i]`), e.g. 100 layers of 10 m for
@@ -487,7 +503,7 @@ pub struct LayerSection {
     pub sublayers: Option<u64>,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegionSection {
     pub name: Option<String>,
@@ -498,50 +514,43 @@ pub struct RegionSection {
     pub shape: ShapeSection,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeSection {
     Cylinder {
-        center_um: Option<[f64; 3]>,
-        center_mm: Option<[f64; 3]>,
-        center_m: Option<[f64; 3]>,
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 3]>>,
         axis: [f64; 3],
-        radius_um: Option<f64>,
-        radius_mm: Option<f64>,
-        radius_m: Option<f64>,
-        length_um: Option<f64>,
-        length_mm: Option<f64>,
-        length_m: Option<f64>,
+        #[serde(rename = "radius_um", alias = "radius_mm", alias = "radius_m")]
+        radius: Option<Quantity<Length>>,
+        #[serde(rename = "length_um", alias = "length_mm", alias = "length_m")]
+        length: Option<Quantity<Length>>,
     },
     Box {
-        center_um: Option<[f64; 3]>,
-        center_mm: Option<[f64; 3]>,
-        center_m: Option<[f64; 3]>,
-        size_um: Option<[f64; 3]>,
-        size_mm: Option<[f64; 3]>,
-        size_m: Option<[f64; 3]>,
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 3]>>,
+        #[serde(rename = "size_um", alias = "size_mm", alias = "size_m")]
+        size: Option<Quantity<Length, [f64; 3]>>,
     },
     Sphere {
-        center_um: Option<[f64; 3]>,
-        center_mm: Option<[f64; 3]>,
-        center_m: Option<[f64; 3]>,
-        radius_um: Option<f64>,
-        radius_mm: Option<f64>,
-        radius_m: Option<f64>,
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 3]>>,
+        #[serde(rename = "radius_um", alias = "radius_mm", alias = "radius_m")]
+        radius: Option<Quantity<Length>>,
     },
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DetectorSection {
     pub name: String,
     pub side: Option<SideKind>,
     pub area: Option<AreaSection>,
-    pub acceptance_half_angle_deg: Option<f64>,
+    #[serde(rename = "acceptance_half_angle_deg")]
+    pub acceptance_half_angle: Option<Quantity<Degrees>>,
     pub axis: Option<[f64; 3]>,
-    pub distance_um: Option<f64>,
-    pub distance_mm: Option<f64>,
-    pub distance_m: Option<f64>,
+    #[serde(rename = "distance_um", alias = "distance_mm", alias = "distance_m")]
+    pub distance: Option<Quantity<Length>>,
     pub include_specular: Option<bool>,
     /// Score the detector by next-event estimation (a shadow ray from every scattering vertex into
     /// its cone) as well as by the paths that escape into it; top detectors only. Always on for
@@ -557,30 +566,30 @@ pub struct DetectorSection {
 
 /// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,
 /// looking along the source's direction, and its range gates.
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LidarSection {
-    pub aperture_radius_mm: Option<f64>,
-    pub aperture_radius_m: Option<f64>,
+    #[serde(rename = "aperture_radius_mm", alias = "aperture_radius_m")]
+    pub aperture_radius: Option<Quantity<Aperture>>,
     /// Field-of-view half-angle.
-    pub field_of_view_urad: Option<f64>,
-    pub field_of_view_mrad: Option<f64>,
-    pub field_of_view_deg: Option<f64>,
+    #[serde(rename = "field_of_view_urad", alias = "field_of_view_mrad", alias = "field_of_view_deg")]
+    pub field_of_view: Option<Quantity<FieldOfView>>,
     /// Intensity FWHM of the Gaussian pulse.
-    pub pulse_fwhm_ns: Option<f64>,
-    pub pulse_fwhm_us: Option<f64>,
-    pub sample_rate_mhz: Option<f64>,
-    pub sample_rate_hz: Option<f64>,
+    #[serde(rename = "pulse_fwhm_ns", alias = "pulse_fwhm_us")]
+    pub pulse_fwhm: Option<Quantity<PulseWidth>>,
+    #[serde(rename = "sample_rate_hz", alias = "sample_rate_mhz")]
+    pub sample_rate: Option<Quantity<SampleRate>>,
     /// Range of the start of the first gate.
-    pub first_gate_m: Option<f64>,
+    #[serde(rename = "first_gate_m")]
+    pub first_gate: Option<Quantity<Metres>>,
     /// Samples per gate (gate length = points·c/(2 f_s)).
     pub gate_points: Option<u64>,
     pub gates: Option<u64>,
     /// Length of the (zero-padded) DFT of a gate.
     pub fft_points: Option<u64>,
     /// Transmitted pulse energy (sets the shot-noise floor; default 100 µJ).
-    pub pulse_energy_uj: Option<f64>,
-    pub pulse_energy_mj: Option<f64>,
+    #[serde(rename = "pulse_energy_uj", alias = "pulse_energy_mj")]
+    pub pulse_energy: Option<Quantity<PulseEnergy>>,
     /// Detector quantum efficiency in (0, 1] (default 0.8).
     pub quantum_efficiency: Option<f64>,
     /// Heterodyne (mixing, mode-matching) efficiency in (0, 1] (default 0.4).
@@ -588,17 +597,17 @@ pub struct LidarSection {
 }
 
 /// `[detectors.ldh]`: the LDH acquisition (camera rate, STFT window, band) and its outputs.
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LdhSection {
-    pub frame_rate_hz: Option<f64>,
-    pub frame_rate_khz: Option<f64>,
+    #[serde(rename = "frame_rate_hz", alias = "frame_rate_khz")]
+    pub frame_rate: Option<Quantity<CameraFrequency>>,
     /// Samples N_w of one short-time Fourier transform window.
     pub window_samples: Option<u64>,
     pub window: Option<WindowKind>,
     /// `[f1, f2]` of the M0± band.
-    pub band_hz: Option<[f64; 2]>,
-    pub band_khz: Option<[f64; 2]>,
+    #[serde(rename = "band_hz", alias = "band_khz")]
+    pub band: Option<Quantity<CameraFrequency, [f64; 2]>>,
     /// Report frequencies (M0−, spectra) with the opposite sign.
     pub flip_sign: Option<bool>,
     /// Also accumulate the first moment M1.
@@ -614,90 +623,80 @@ pub struct LdhSection {
     pub speckle: Option<SpeckleSection>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum WindowKind {
     Rect,
     Hann,
 }
 
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LdhSpectrumSection {
-    pub f_min_hz: Option<f64>,
-    pub f_min_khz: Option<f64>,
-    pub f_max_hz: Option<f64>,
-    pub f_max_khz: Option<f64>,
+    #[serde(rename = "f_min_hz", alias = "f_min_khz")]
+    pub f_min: Option<Quantity<CameraFrequency>>,
+    #[serde(rename = "f_max_hz", alias = "f_max_khz")]
+    pub f_max: Option<Quantity<CameraFrequency>>,
     pub bins: Option<u64>,
 }
 
 /// `[[detectors.ldh.roi]]`: a named rectangle of the detector plane.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RoiSection {
     pub name: String,
-    pub center_um: Option<[f64; 2]>,
-    pub center_mm: Option<[f64; 2]>,
-    pub center_m: Option<[f64; 2]>,
-    pub size_um: Option<[f64; 2]>,
-    pub size_mm: Option<[f64; 2]>,
-    pub size_m: Option<[f64; 2]>,
+    #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+    pub center: Option<Quantity<Length, [f64; 2]>>,
+    #[serde(rename = "size_um", alias = "size_mm", alias = "size_m")]
+    pub size: Option<Quantity<Length, [f64; 2]>>,
 }
 
 /// `[detectors.ldh.speckle]`: single-window speckle of the ROI spectra, Algorithms 1 and 2.
-#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpeckleSection {
     /// Independent windows (speckle realisations) per ROI; default 16.
     pub windows: Option<u64>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SideKind {
     Top,
     Bottom,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum AreaSection {
     All {},
     Disk {
-        center_um: Option<[f64; 2]>,
-        center_mm: Option<[f64; 2]>,
-        center_m: Option<[f64; 2]>,
-        radius_um: Option<f64>,
-        radius_mm: Option<f64>,
-        radius_m: Option<f64>,
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 2]>>,
+        #[serde(rename = "radius_um", alias = "radius_mm", alias = "radius_m")]
+        radius: Option<Quantity<Length>>,
     },
     Rect {
-        center_um: Option<[f64; 2]>,
-        center_mm: Option<[f64; 2]>,
-        center_m: Option<[f64; 2]>,
-        size_um: Option<[f64; 2]>,
-        size_mm: Option<[f64; 2]>,
-        size_m: Option<[f64; 2]>,
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 2]>>,
+        #[serde(rename = "size_um", alias = "size_mm", alias = "size_m")]
+        size: Option<Quantity<Length, [f64; 2]>>,
     },
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpectrumSection {
-    pub f_min_hz: Option<f64>,
-    pub f_min_khz: Option<f64>,
-    pub f_min_mhz: Option<f64>,
-    pub f_min_ghz: Option<f64>,
-    pub f_max_hz: Option<f64>,
-    pub f_max_khz: Option<f64>,
-    pub f_max_mhz: Option<f64>,
-    pub f_max_ghz: Option<f64>,
+    #[serde(rename = "f_min_hz", alias = "f_min_khz", alias = "f_min_mhz", alias = "f_min_ghz")]
+    pub f_min: Option<Quantity<Frequency>>,
+    #[serde(rename = "f_max_hz", alias = "f_max_khz", alias = "f_max_mhz", alias = "f_max_ghz")]
+    pub f_max: Option<Quantity<Frequency>>,
     pub bins: Option<u64>,
     pub by_order: Option<u64>,
     pub by_doppler_events: Option<u64>,
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImageSection {
     pub pixels: [u64; 2],

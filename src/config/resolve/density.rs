@@ -1,0 +1,225 @@
+//! `density` of a medium: ramps and voxel grids, their placement and majorants.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::{Ctx, R, err, given_arr, join, require};
+use crate::config::schema::*;
+use crate::config::units::{Length, Quantity, unit_of};
+use crate::error::ConfigError;
+use crate::medium::density::{
+    CellSize, Density, DensityInfo, GridDensity, GridError, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
+};
+use crate::medium::grid::VoxelGrid;
+use crate::medium::{Heterogeneity, Medium};
+
+/// A grid's placement from its keys `scale` and `translate_*` under `path`.
+pub(super) fn resolve_placement(
+    path: &str,
+    scale: Option<f64>,
+    translate: &Option<Quantity<Length, [f64; 3]>>,
+) -> R<Placement> {
+    let scale = match scale {
+        None => 1.0,
+        Some(s) if s.is_finite() && s > 0.0 => s,
+        Some(s) => {
+            return err(
+                join(path, "scale"),
+                format!("= {s}: expected the file's length unit in metres, > 0 (1e-3 for millimetres)"),
+            );
+        }
+    };
+    // Finite numbers are checked with the quantity.
+    let translation = given_arr(path, translate)?.map_or(DVec3::ZERO, |(t, _)| DVec3::from_array(t));
+    Ok(Placement { translation, scale })
+}
+
+pub(super) fn interpolation(i: Option<InterpolationSection>) -> Interpolation {
+    match i {
+        None | Some(InterpolationSection::Trilinear) => Interpolation::Trilinear,
+        Some(InterpolationSection::Nearest) => Interpolation::Nearest,
+    }
+}
+
+/// Give `m` the density of its section, if it has one: built once per named medium (`built`),
+/// shared by every layer, sublayer and region that uses it.
+pub(super) fn attach_density(
+    path: &str,
+    ms: &MediumSection,
+    m: &mut Medium,
+    ctx: &Ctx,
+    built: &mut BTreeMap<String, Arc<Heterogeneity>>,
+) -> R<()> {
+    let Some(d) = &ms.density else { return Ok(()) };
+    let h = match built.get(&m.name) {
+        Some(h) => h.clone(),
+        None => {
+            let h = Arc::new(resolve_density(&join(path, "density"), d, m.sigma_t(), ctx)?);
+            built.insert(m.name.clone(), h.clone());
+            h
+        }
+    };
+    m.set_shared_heterogeneity(h);
+    Ok(())
+}
+
+fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
+    match m {
+        None | Some(MajorantSection::Grid) => MajorantKind::Grid,
+        Some(MajorantSection::Global) => MajorantKind::Global,
+    }
+}
+
+/// `density = { type = "ramp" | "vdb", … }`.
+fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<Heterogeneity> {
+    match d {
+        DensitySection::Vdb {
+            file,
+            grid,
+            albedo_grid,
+            interpolation: i,
+            scale,
+            translate,
+            majorant,
+            majorant_cell_voxels,
+        } => {
+            let density = ctx.files.float(path, ctx.base, file, grid.as_deref())?;
+            let albedo = match albedo_grid {
+                Some(name) => Some(ctx.files.float(path, ctx.base, file, Some(name))?),
+                None => None,
+            };
+            let place = resolve_placement(path, *scale, translate)?;
+            let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t)?;
+            let mut h = grid_heterogeneity(
+                path,
+                Arc::unwrap_or_clone(density),
+                albedo.map(Arc::unwrap_or_clone),
+                place,
+                interpolation(*i),
+                majorant,
+            )?;
+            h.info.kind = "vdb".into();
+            h.info.source = Some(format!("{file}:{}", grid.as_deref().unwrap_or("(first float grid)")));
+            Ok(h)
+        }
+        DensitySection::Ramp { axis, from, to, density_from, density_to, majorant } => {
+            let a = match axis.as_str() {
+                "x" => 0,
+                "y" => 1,
+                "z" => 2,
+                other => return err(join(path, "axis"), format!("= \"{other}\": expected \"x\", \"y\" or \"z\"")),
+            };
+            let from = require(path, "from", from, "from")?;
+            let to = require(path, "to", to, "to")?;
+            for g in [&from, &to] {
+                if !g.0.is_finite() {
+                    return err(g.1.clone(), format!("= {}: expected a finite position {}", g.2, unit_of(&g.1)));
+                }
+            }
+            if from.0 == to.0 {
+                return err(
+                    to.1,
+                    format!("= {}: the ramp's two planes coincide (from = to); give two different positions", to.2),
+                );
+            }
+            for (key, v) in [("density_from", density_from), ("density_to", density_to)] {
+                if !(v.is_finite() && *v >= 0.0) {
+                    return err(
+                        join(path, key),
+                        format!("= {v}: expected a density ≥ 0 (a factor on σa and σs, no unit)"),
+                    );
+                }
+            }
+            let kind = majorant_kind(*majorant);
+            let ramp = Ramp::new(a, from.0, to.0, *density_from, *density_to, kind)
+                .ok_or_else(|| ConfigError::new(path, "not a valid ramp"))?;
+            let (min, max) = ramp.range();
+            let info = DensityInfo { kind: "ramp".into(), majorant: Some(kind), min, max, ..DensityInfo::default() };
+            Ok(Heterogeneity { density: Density::Ramp(ramp), albedo: None, info })
+        }
+    }
+}
+
+/// The majorant settings of a grid density from its keys `majorant` and `majorant_cell_voxels`
+/// under `path` (for the file-backed densities), of a medium with extinction `sigma_t` (1/m) at
+/// density 1: without `majorant_cell_voxels` the cell size is chosen for it ([`CellSize::Auto`]).
+pub fn resolve_majorant(
+    path: &str,
+    kind: Option<MajorantSection>,
+    cell_voxels: Option<u64>,
+    sigma_t: f64,
+) -> R<MajorantSpec> {
+    let kind = majorant_kind(kind);
+    let cell = match cell_voxels {
+        None => CellSize::Auto { sigma_t },
+        Some(_) if kind == MajorantKind::Global => {
+            return err(join(path, "majorant_cell_voxels"), "only applies with majorant = \"grid\"");
+        }
+        Some(n) if (1..=4096).contains(&n) => CellSize::Voxels(n as usize),
+        Some(n) => {
+            return err(
+                join(path, "majorant_cell_voxels"),
+                format!("= {n}: expected 1 to 4096 voxels per majorant cell edge"),
+            );
+        }
+    };
+    Ok(MajorantSpec { kind, cell })
+}
+
+/// The medium fields of a voxel-grid density: the hook the file loaders call (`path` is the key
+/// of the `density` table, for messages). `density` is scaled onto σa and σs (negative voxels
+/// are clamped to 0 and counted in the manifest), `albedo` (values in [0, 1]) overrides the
+/// single-scattering albedo at a collision; both are placed by their own index-to-world map and
+/// then `placement`, and read with `interpolation`.
+pub fn grid_heterogeneity(
+    path: &str,
+    density: VoxelGrid<f32>,
+    albedo: Option<VoxelGrid<f32>>,
+    placement: Placement,
+    interpolation: Interpolation,
+    majorant: MajorantSpec,
+) -> R<Heterogeneity> {
+    let voxels = density.dims;
+    let describe = |e: GridError, what: &str| -> ConfigError {
+        let (key, msg) = match e {
+            GridError::NotFinite(None) => (what.to_string(), "the background value is not a finite number".to_string()),
+            GridError::NotFinite(Some(ijk)) => (what.to_string(), format!("voxel {ijk:?} is not a finite number")),
+            GridError::AlbedoRange(None, v) => (what.to_string(), format!("background albedo {v}: expected 0 to 1")),
+            GridError::AlbedoRange(Some(ijk), v) => {
+                (what.to_string(), format!("voxel {ijk:?} = {v}: expected an albedo from 0 to 1"))
+            }
+            GridError::Placement => (
+                "placement".to_string(),
+                format!(
+                    "scale {} / translation {:?}: expected a finite scale > 0 and a finite translation in m",
+                    placement.scale,
+                    placement.translation.to_array()
+                ),
+            ),
+            GridError::CellVoxels(n) => ("majorant_cell_voxels".to_string(), format!("= {n}: expected 1 to 4096")),
+        };
+        ConfigError::new(join(path, &key), msg)
+    };
+    let (grid, clamped) =
+        GridDensity::new(density, interpolation, placement, majorant).map_err(|e| describe(e, "density"))?;
+    let albedo = albedo
+        .map(|a| Heterogeneity::albedo_grid(a, interpolation, placement))
+        .transpose()
+        .map_err(|e| describe(e, "albedo"))?;
+    let info = DensityInfo {
+        kind: "grid".into(),
+        interpolation: Some(interpolation),
+        majorant: Some(majorant.kind),
+        majorant_cells: grid.majorant.as_ref().map(|m| m.dims),
+        majorant_cell_voxels: grid.majorant_cell_voxels(),
+        voxels: Some(voxels),
+        negative_voxels_clamped: clamped,
+        min: grid.min,
+        max: grid.max,
+        albedo_grid: albedo.is_some(),
+        source: None,
+    };
+    Ok(Heterogeneity { density: Density::Grid(grid), albedo, info })
+}

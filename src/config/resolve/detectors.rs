@@ -1,0 +1,379 @@
+//! `[[detectors]]`: areas, spectra, images, LDH cameras and lidar receivers.
+
+use glam::DVec3;
+
+use super::{R, err, given, given_arr, join, non_negative, positive, require, require_arr, unit_vector};
+use crate::config::schema::*;
+use crate::config::units::unit_of;
+use crate::config::units::{Length, Quantity};
+use crate::detect::{
+    Area, Detector, DetectorKind, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec, Surface,
+};
+use crate::error::ConfigError;
+use crate::medium::Scene;
+use crate::source::Source;
+use crate::spectrum::{FrequencyAxis, Stft, Window};
+
+/// `name` names output files: a non-empty word of letters, digits, `_` and `-`.
+fn file_name(path: &str, name: &str) -> R<()> {
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+        return err(
+            join(path, "name"),
+            format!("= \"{name}\": expected a non-empty name of letters, digits, _ and - (it names output files)"),
+        );
+    }
+    Ok(())
+}
+
+/// A rectangle of the detector plane from `center` (default the origin) and `size`: its
+/// `(min, max)` corners.
+fn rectangle(
+    path: &str,
+    center: &Option<Quantity<Length, [f64; 2]>>,
+    size: &Option<Quantity<Length, [f64; 2]>>,
+) -> R<([f64; 2], [f64; 2])> {
+    let c = given_arr(path, center)?.map_or([0.0; 2], |c| c.0);
+    let (s, sp) = require_arr(path, "size", size, "size")?;
+    if s.iter().any(|&x| x <= 0.0) {
+        return err(sp, format!("= {s:?} m: expected two edge lengths > 0"));
+    }
+    Ok(([c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]], [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]]))
+}
+
+/// Defaults of an LDH camera: Kim et al. 2025's replica of Puyo et al. 2018 (39 kHz, N_w = 512)
+/// with HoloDoppler's M0 band (6–18.3 kHz); see `scene-parameters.md` §A4.
+pub const LDH_DEFAULT_FRAME_RATE_HZ: f64 = 39_000.0;
+pub const LDH_DEFAULT_WINDOW_SAMPLES: u64 = 512;
+pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];
+pub const LDH_DEFAULT_SPECKLE_WINDOWS: u64 = 16;
+
+fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
+    let fs =
+        given(path, &l.frame_rate)?.map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
+    let n = l.window_samples.unwrap_or(LDH_DEFAULT_WINDOW_SAMPLES);
+    if !(2..=1 << 20).contains(&n) || n % 2 != 0 {
+        return err(join(path, "window_samples"), format!("= {n}: expected an even number of samples from 2 to 2^20"));
+    }
+    let window = match l.window.unwrap_or(WindowKind::Hann) {
+        WindowKind::Rect => Window::Rect,
+        WindowKind::Hann => Window::Hann,
+    };
+    let stft = Stft::new(fs, n as usize, window)
+        .ok_or_else(|| ConfigError::new(join(path, "frame_rate_hz"), format!("= {fs}: expected a finite rate > 0")))?;
+    let (band, band_path) = given_arr(path, &l.band)?.unwrap_or((LDH_DEFAULT_BAND_HZ, join(path, "band_hz")));
+    let nyquist = 0.5 * fs;
+    if !(0.0 < band[0] && band[0] < band[1] && band[1] <= nyquist) {
+        let unit = unit_of(&band_path);
+        return err(
+            band_path,
+            format!(
+                "= {:?} {}: expected 0 < f1 < f2 ≤ f_s/2 = {nyquist} Hz (the camera's Nyquist frequency)",
+                l.band.as_ref().map_or(band, |q| q.value),
+                unit
+            ),
+        );
+    }
+    let bin = stft.bin_width();
+    let axis = match &l.spectrum {
+        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w.
+        None => FrequencyAxis::new(-(0.5 * n as f64 + 0.5) * bin, (0.5 * n as f64 + 0.5) * bin, n as usize + 1)
+            .expect("a valid default axis"),
+        Some(s) => {
+            let p = join(path, "spectrum");
+            let fmin = require(&p, "f_min", &s.f_min, "the lower edge")?;
+            let fmax = require(&p, "f_max", &s.f_max, "the upper edge")?;
+            let bins = s.bins.unwrap_or(n + 1);
+            if !(1..=1_000_000).contains(&bins) {
+                return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
+            }
+            FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
+                ConfigError::new(fmax.1.clone(), format!("= {} Hz: expected f_min ({} Hz) < f_max", fmax.0, fmin.0))
+            })?
+        }
+    };
+    let mut rois: Vec<Roi> = Vec::new();
+    for (i, r) in l.roi.iter().enumerate() {
+        let p = format!("{path}.roi[{i}]");
+        file_name(&p, &r.name)?;
+        if rois.iter().any(|o| o.name == r.name) {
+            return err(join(&p, "name"), format!("= \"{}\": ROI names must be unique", r.name));
+        }
+        let (min, max) = rectangle(&p, &r.center, &r.size)?;
+        let roi = Roi { name: r.name.clone(), min, max };
+        let inside = |x: f64, y: f64| im.min[0] <= x && x <= im.max[0] && im.min[1] <= y && y <= im.max[1];
+        if !(inside(roi.min[0], roi.min[1]) && inside(roi.max[0], roi.max[1])) {
+            return err(
+                p,
+                format!(
+                    "the ROI spans x {:?}, y {:?} m, not inside the image (x {:?}, y {:?} m)",
+                    [roi.min[0], roi.max[0]],
+                    [roi.min[1], roi.max[1]],
+                    [im.min[0], im.max[0]],
+                    [im.min[1], im.max[1]]
+                ),
+            );
+        }
+        rois.push(roi);
+    }
+    let speckle = match &l.speckle {
+        None => None,
+        Some(sp) => {
+            if rois.is_empty() {
+                return err(
+                    join(path, "speckle"),
+                    "speckle is synthesised for ROIs: add [[detectors.ldh.roi]] entries",
+                );
+            }
+            let w = sp.windows.unwrap_or(LDH_DEFAULT_SPECKLE_WINDOWS);
+            if !(1..=1_000_000).contains(&w) {
+                return err(join(path, "speckle.windows"), format!("= {w}: expected 1 to 10^6 windows"));
+            }
+            Some(SpeckleSpec { windows: w as u32 })
+        }
+    };
+    LdhSpec::new(
+        stft,
+        (band[0], band[1]),
+        l.flip_sign.unwrap_or(false),
+        l.m1.unwrap_or(false),
+        l.by_class.unwrap_or(false),
+        rois,
+        axis,
+        l.pixel_spectra.unwrap_or(false),
+        speckle,
+    )
+    .ok_or_else(|| {
+        ConfigError::new(
+            join(path, "band_hz"),
+            format!("= [{}, {}] Hz holds no STFT bin (bins are {bin} Hz wide): widen the band", band[0], band[1]),
+        )
+    })
+}
+
+/// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so
+/// every index in the scene must be 1 (the atmosphere; 1.0003 is within the model's accuracy).
+pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -> R<LidarSpec> {
+    if scene.n_above != 1.0 {
+        return err("ambient.n_above", format!("= {}: a lidar receiver needs n = 1 above the stack", scene.n_above));
+    }
+    if let Some((i, layer)) = scene.layers.iter().enumerate().find(|(_, l)| l.n != 1.0) {
+        return err(
+            format!("layers[{i}].n"),
+            format!("= {}: a lidar receiver traces straight rays and needs n = 1 in every layer", layer.n),
+        );
+    }
+    let radius =
+        positive(require(path, "aperture_radius", &l.aperture_radius, "the aperture radius")?, "an aperture radius")?;
+    let fov = require(path, "field_of_view", &l.field_of_view, "the field-of-view half-angle")?;
+    if !(fov.0 > 0.0 && fov.0 <= std::f64::consts::FRAC_PI_2) {
+        return err(fov.1, format!("= {}: expected a half-angle in (0, 90°]", fov.2));
+    }
+    let fwhm = positive(require(path, "pulse_fwhm", &l.pulse_fwhm, "the pulse FWHM")?, "a pulse width")?;
+    let rate = positive(require(path, "sample_rate", &l.sample_rate, "the digitiser rate")?, "a sample rate")?;
+    let first = match l.first_gate.as_ref().map(|q| q.si()) {
+        None => 0.0,
+        Some(v) if v.is_finite() && v >= 0.0 => v,
+        Some(v) => return err(join(path, "first_gate_m"), format!("= {v}: expected a range ≥ 0 m")),
+    };
+    let count = |key: &str, v: Option<u64>, default: u64, max: u64| -> R<usize> {
+        let v = v.unwrap_or(default);
+        if (1..=max).contains(&v) {
+            Ok(v as usize)
+        } else {
+            err(join(path, key), format!("= {v}: expected 1 to {max}"))
+        }
+    };
+    let gate_points = count("gate_points", l.gate_points, 10, 4096)?;
+    let gates = count("gates", l.gates, 32, 100_000)?;
+    let fft_points = count("fft_points", l.fft_points, gate_points.next_power_of_two().max(64) as u64, 65_536)?;
+    if fft_points < gate_points {
+        return err(join(path, "fft_points"), format!("= {fft_points}: expected at least gate_points ({gate_points})"));
+    }
+    if gates * fft_points > 20_000_000 {
+        return err(join(path, "gates"), format!("= {gates}: gates × fft_points must stay below 2·10^7 (memory)"));
+    }
+    let pulse_energy = match given(path, &l.pulse_energy)? {
+        Some(v) => positive(v, "a pulse energy")?,
+        None => crate::detect::lidar::DEFAULT_PULSE_ENERGY,
+    };
+    let efficiency = |key: &str, v: Option<f64>, default: f64| -> R<f64> {
+        match v {
+            None => Ok(default),
+            Some(v) if v > 0.0 && v <= 1.0 => Ok(v),
+            Some(v) => err(join(path, key), format!("= {v}: expected an efficiency in (0, 1]")),
+        }
+    };
+    let quantum_efficiency =
+        efficiency("quantum_efficiency", l.quantum_efficiency, crate::detect::lidar::DEFAULT_QUANTUM_EFFICIENCY)?;
+    let heterodyne_efficiency = efficiency(
+        "heterodyne_efficiency",
+        l.heterodyne_efficiency,
+        crate::detect::lidar::DEFAULT_HETERODYNE_EFFICIENCY,
+    )?;
+    Ok(LidarSpec {
+        position: source.position,
+        axis: source.direction,
+        aperture_radius: radius,
+        cos_fov: fov.0.cos(),
+        pulse_fwhm: fwhm,
+        sample_rate: rate,
+        first_sample_time: 2.0 * first / crate::SPEED_OF_LIGHT,
+        gate_points,
+        gates,
+        fft_points,
+        wavelength: source.wavelength,
+        pulse_energy,
+        quantum_efficiency,
+        heterodyne_efficiency,
+    })
+}
+
+pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> {
+    let mut out: Vec<Detector> = Vec::new();
+    for (i, d) in ds.iter().enumerate() {
+        let path = format!("detectors[{i}]");
+        file_name(&path, &d.name)?;
+        if out.iter().any(|o| o.name == d.name) {
+            return err(join(&path, "name"), format!("= \"{}\": detector names must be unique", d.name));
+        }
+        let side = match d.side.unwrap_or(SideKind::Top) {
+            SideKind::Top => Side::Top,
+            SideKind::Bottom => {
+                if !scene.z_bottom().is_finite() {
+                    return err(
+                        join(&path, "side"),
+                        "= \"bottom\": the stack ends in a semi-infinite layer, so nothing leaves through a bottom",
+                    );
+                }
+                Side::Bottom
+            }
+        };
+        let outward = if side == Side::Top { DVec3::NEG_Z } else { DVec3::Z };
+        let axis = match d.axis {
+            None => outward,
+            Some(a) => {
+                let a = unit_vector(&join(&path, "axis"), a)?;
+                if a.dot(outward) <= 0.0 {
+                    return err(
+                        join(&path, "axis"),
+                        format!(
+                            "= {:?}: must point away from the stack ({} z for a {} detector)",
+                            d.axis.unwrap(),
+                            if side == Side::Top { "negative" } else { "positive" },
+                            if side == Side::Top { "top" } else { "bottom" }
+                        ),
+                    );
+                }
+                a
+            }
+        };
+        // Degrees as written.
+        let half = d.acceptance_half_angle.as_ref().map_or(90.0, |q| q.value);
+        if !(half > 0.0 && half <= 90.0) {
+            return err(
+                join(&path, "acceptance_half_angle_deg"),
+                format!("= {half}: expected a half-angle in (0, 90] degrees"),
+            );
+        }
+        let distance = match given(&path, &d.distance)? {
+            None => 0.0,
+            Some(v) => non_negative(v, "a distance from the surface")?,
+        };
+        let area = match d.area.as_ref().unwrap_or(&AreaSection::All {}) {
+            AreaSection::All {} => Area::All,
+            AreaSection::Disk { center, radius } => {
+                let p = join(&path, "area");
+                let c = given_arr(&p, center)?.map_or([0.0; 2], |c| c.0);
+                let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
+                Area::Disk { center: c, radius: r }
+            }
+            AreaSection::Rect { center, size } => {
+                let (min, max) = rectangle(&join(&path, "area"), center, size)?;
+                Area::Rect { min, max }
+            }
+        };
+        let spectrum = match &d.spectrum {
+            None => None,
+            Some(s) => {
+                let p = join(&path, "spectrum");
+                let fmin = require(&p, "f_min", &s.f_min, "the lower edge of the frequency axis")?;
+                let fmax = require(&p, "f_max", &s.f_max, "the upper edge of the frequency axis")?;
+                let bins = s.bins.unwrap_or(256);
+                if !(1..=10_000_000).contains(&bins) {
+                    return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^7 bins"));
+                }
+                let axis = FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
+                    ConfigError::new(
+                        fmax.1.clone(),
+                        format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0),
+                    )
+                })?;
+                let split = |key: &str, v: Option<u64>| -> R<Option<u32>> {
+                    match v {
+                        None => Ok(None),
+                        Some(k) if (1..=1000).contains(&k) => Ok(Some(k as u32)),
+                        Some(k) => {
+                            err(join(&p, key), format!("= {k}: expected K from 1 to 1000 (channels 0 … K−1 and ≥ K)"))
+                        }
+                    }
+                };
+                Some(SpectrumSpec {
+                    axis,
+                    by_order: split("by_order", s.by_order)?,
+                    by_doppler_events: split("by_doppler_events", s.by_doppler_events)?,
+                })
+            }
+        };
+        let image = match &d.image {
+            None => None,
+            Some(im) => {
+                let Some((min, max)) = area.bounds() else {
+                    return err(
+                        join(&path, "image"),
+                        "an image needs a bounded detector area (area.type = \"disk\" or \"rect\")",
+                    );
+                };
+                let [nx, ny] = im.pixels;
+                if !(1..=16_384).contains(&nx) || !(1..=16_384).contains(&ny) {
+                    return err(
+                        join(&path, "image.pixels"),
+                        format!("= {:?}: expected [nx, ny], each 1 to 16384", im.pixels),
+                    );
+                }
+                Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
+            }
+        };
+        let next_event = d.next_event.unwrap_or(false);
+        if next_event && side != Side::Top {
+            return err(
+                join(&path, "next_event"),
+                "= true: next-event estimation scores top detectors only (shadow rays leave through z = 0)",
+            );
+        }
+        let mut surface = Surface {
+            side,
+            distance,
+            area,
+            axis,
+            cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
+            include_specular: d.include_specular.unwrap_or(true),
+            spectrum,
+            image,
+            ldh: None,
+            next_event,
+        };
+        if let Some(l) = &d.ldh {
+            let p = join(&path, "ldh");
+            let Some(im) = image else {
+                return err(p, "an LDH camera needs the detector's image (add [detectors.image] pixels = [nx, ny])");
+            };
+            if out.iter().any(|o| o.ldh().is_some()) {
+                return err(p, "only one detector may be an LDH camera");
+            }
+            surface.ldh = Some(Box::new(resolve_ldh(&p, l, &im)?));
+            surface.next_event = true;
+        }
+        out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
+    }
+    Ok(out)
+}

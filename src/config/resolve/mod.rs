@@ -1,0 +1,296 @@
+//! The one step from the schema to validated SI runtime objects, and the only producer of
+//! configuration errors. Each check names the key path, the value and the expected range and unit.
+//!
+//! One submodule per part of the runtime it builds: `run` (the run plan),
+//! `source` (laser, pointings), `flow` (velocity fields, wind, height profiles, motion), `media`
+//! (optics, Mie particles, size classes, mixtures, populations), `scene` (shapes, layers,
+//! regions), `density` (ramps, voxel grids, majorants) and `detectors` (areas, spectra, images,
+//! LDH, lidar). This module holds the entry points, the cross-checks between parts (lidar, LDH
+//! and chirp; references; the memory budget) and the helpers they share.
+
+mod density;
+mod detectors;
+mod flow;
+mod media;
+mod run;
+mod scene;
+mod source;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+pub use self::density::{grid_heterogeneity, resolve_majorant};
+pub use self::detectors::{
+    LDH_DEFAULT_BAND_HZ, LDH_DEFAULT_FRAME_RATE_HZ, LDH_DEFAULT_SPECKLE_WINDOWS, LDH_DEFAULT_WINDOW_SAMPLES,
+};
+use self::detectors::{resolve_detectors, resolve_lidar};
+use self::run::resolve_run;
+use self::scene::resolve_scene;
+use self::source::resolve_source;
+use super::schema::*;
+use super::units::{Quantity, UnitSet, unit_of};
+use crate::detect::DetectorKind;
+use crate::error::ConfigError;
+use crate::experiment::Experiment;
+use crate::medium::grid::VoxelGrid;
+
+type R<T> = Result<T, ConfigError>;
+
+fn err<T>(path: impl Into<String>, msg: impl Into<String>) -> R<T> {
+    Err(ConfigError::new(path, msg))
+}
+
+fn join(prefix: &str, key: &str) -> String {
+    if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") }
+}
+
+/// A quantity as given: its SI value, the key path it came from and the number as written.
+type Given = (f64, String, f64);
+
+/// A quantity, if given: its SI value with the key path as written; NaN is refused.
+fn given<S>(prefix: &str, q: &Option<Quantity<S>>) -> R<Option<Given>> {
+    let Some(q) = q else { return Ok(None) };
+    let path = join(prefix, &q.key);
+    if q.value.is_nan() {
+        return err(path, "= nan: expected a number");
+    }
+    Ok(Some((q.si(), path, q.value)))
+}
+
+/// A required quantity `name` (`what` for the message that lists its keys).
+fn require<S: UnitSet>(prefix: &str, name: &str, q: &Option<Quantity<S>>, what: &str) -> R<Given> {
+    given(prefix, q)?
+        .map_or_else(|| err(prefix, format!("missing {what}: give one of {}", S::keys(name).join(", "))), Ok)
+}
+
+/// Same as [`given`] for fixed-size arrays, whose numbers must all be finite.
+fn given_arr<S, const N: usize>(prefix: &str, q: &Option<Quantity<S, [f64; N]>>) -> R<Option<([f64; N], String)>> {
+    let Some(q) = q else { return Ok(None) };
+    let path = join(prefix, &q.key);
+    if q.value.iter().any(|x| !x.is_finite()) {
+        return err(path, format!("= {:?}: expected finite numbers", q.value));
+    }
+    Ok(Some((q.si(), path)))
+}
+
+fn require_arr<S: UnitSet, const N: usize>(
+    prefix: &str,
+    name: &str,
+    q: &Option<Quantity<S, [f64; N]>>,
+    what: &str,
+) -> R<([f64; N], String)> {
+    given_arr(prefix, q)?
+        .map_or_else(|| err(prefix, format!("missing {what}: give one of {}", S::keys(name).join(", "))), Ok)
+}
+
+fn positive(v: Given, what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 > 0.0 {
+        Ok(v.0)
+    } else {
+        let unit = unit_of(&v.1);
+        err(v.1, format!("= {}: expected {what} > 0 {unit}", v.2))
+    }
+}
+
+fn non_negative(v: Given, what: &str) -> R<f64> {
+    if v.0.is_finite() && v.0 >= 0.0 {
+        Ok(v.0)
+    } else {
+        let unit = unit_of(&v.1);
+        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", v.2))
+    }
+}
+
+fn unit_vector(path: &str, v: [f64; 3]) -> R<DVec3> {
+    let d = DVec3::from_array(v);
+    if !d.is_finite() || d.length() < 1e-12 {
+        return err(path, format!("= {v:?}: expected a non-zero direction vector [x, y, z]"));
+    }
+    Ok(d.normalize())
+}
+
+fn index_of_refraction(path: &str, n: f64) -> R<f64> {
+    if n.is_finite() && (1.0..=10.0).contains(&n) {
+        Ok(n)
+    } else {
+        err(path, format!("= {}: expected a refractive index in [1, 10]", n))
+    }
+}
+
+/// Resolve a deserialised experiment file into a validated experiment; files it names are found
+/// relative to the working directory.
+pub fn resolve(f: &ExperimentFile) -> R<Experiment> {
+    resolve_in(f, Path::new("."))
+}
+
+/// As [`resolve`], with files named by the configuration found relative to `base`.
+pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
+    let plan = resolve_run(&f.run)?;
+    let source = resolve_source(&f.source)?;
+    let n_above = index_of_refraction("ambient.n_above", f.ambient.n_above.unwrap_or(1.0))?;
+    let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
+    let ctx = Ctx { base, wavelength: source.wavelength, files: GridFiles::default() };
+    let scene = resolve_scene(f, n_above, n_below, &ctx)?;
+    let mut detectors = resolve_detectors(&f.detectors, &scene)?;
+    for (i, d) in f.detectors.iter().enumerate() {
+        if let Some(l) = &d.lidar {
+            let path = format!("detectors[{i}].lidar");
+            if detectors.iter().any(|o| o.lidar().is_some()) {
+                return err(path, "only one detector may be a lidar receiver");
+            }
+            if source.chirp.is_some() {
+                return err(path, "a pulsed lidar receiver needs a single-frequency laser: remove source.chirp");
+            }
+            let spec = resolve_lidar(&path, l, &source, &scene)?;
+            let distance = d.distance.as_ref().map(|q| q.key.as_str());
+            let given = [
+                ("side", d.side.is_some()),
+                ("area", d.area.is_some()),
+                ("acceptance_half_angle_deg", d.acceptance_half_angle.is_some()),
+                ("axis", d.axis.is_some()),
+                (distance.unwrap_or("distance"), distance.is_some()),
+                ("include_specular", d.include_specular.is_some()),
+                ("next_event", d.next_event.is_some()),
+                ("spectrum", d.spectrum.is_some()),
+                ("image", d.image.is_some()),
+                ("ldh", d.ldh.is_some()),
+            ];
+            if let Some((key, _)) = given.iter().find(|g| g.1) {
+                return err(
+                    format!("detectors[{i}].{key}"),
+                    "is not used by a lidar receiver (it sits at the source, looks along the beam and writes range-gate spectra): remove it",
+                );
+            }
+            detectors[i].kind = DetectorKind::Lidar(spec);
+        }
+    }
+    if source.chirp.is_some()
+        && let Some(i) = detectors.iter().position(|d| d.ldh().is_some())
+    {
+        return err(
+            format!("detectors[{i}].ldh"),
+            "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
+        );
+    }
+    let mut exp = Experiment {
+        name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
+        scene,
+        source,
+        detectors,
+        plan,
+        references: Vec::new(),
+    };
+    check_memory(&exp)?;
+    exp.references = resolve_references(&f.reference, &exp)?;
+    Ok(exp)
+}
+
+/// `[reference]`: each key a named output of the experiment, each value finite and of its size;
+/// stored in the tally's convention (an M0− written with `flip_sign` is negated back).
+fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment) -> R<Vec<(String, Vec<f64>)>> {
+    if refs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let outputs = exp.outputs();
+    let mut out = Vec::with_capacity(refs.len());
+    for (name, value) in refs {
+        let path = format!("reference.{name}");
+        let Some(o) = outputs.iter().find(|o| &o.name == name) else {
+            let names: Vec<&str> = outputs.iter().map(|o| o.name.as_str()).collect();
+            return err(path, format!("is not an output of this experiment; expected one of {}", names.join(", ")));
+        };
+        let values = match value {
+            ReferenceValue::Scalar(v) => vec![*v],
+            ReferenceValue::Array(v) => v.clone(),
+        };
+        if values.len() != o.range().len() {
+            return err(path, format!("has {} values: expected {} (the output's size)", values.len(), o.range().len()));
+        }
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return err(path, format!("contains {v}: expected finite values"));
+        }
+        out.push((name.clone(), values.iter().map(|v| v * o.sign).collect()));
+    }
+    Ok(out)
+}
+
+/// Default of `run.memory_budget_gib`.
+pub const DEFAULT_MEMORY_BUDGET_GIB: f64 = 8.0;
+
+/// Refuse an experiment whose tallies ([`Experiment::memory_estimate`]: the tally vector times
+/// the batches in flight, the mean and the variance) exceed `run.memory_budget_gib`, before
+/// anything is allocated. The error names the key of the largest block of tallies.
+fn check_memory(exp: &Experiment) -> R<()> {
+    let need = exp.memory_estimate();
+    if need <= exp.plan.memory_budget {
+        return Ok(());
+    }
+    let layout = exp.tally_layout();
+    let blocks = layout.registry.budget_blocks();
+    let (key, value) = blocks
+        .into_iter()
+        .max_by_key(|b| b.2)
+        .map_or(("run.memory_budget_gib".to_string(), String::new()), |b| (b.0, b.1));
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    err(
+        key,
+        format!(
+            "{value}: the tallies need {:.1} GiB ({} tallies × 8 bytes × (2 + batches in flight)), above the memory budget of {:.1} GiB (run.memory_budget_gib)",
+            gib(need),
+            layout.len,
+            gib(exp.plan.memory_budget)
+        ),
+    )
+}
+
+/// What resolving needs besides the file: where relative paths start, and the wavelength media
+/// are computed for.
+struct Ctx<'a> {
+    base: &'a Path,
+    wavelength: f64,
+    files: GridFiles,
+}
+
+/// The OpenVDB grids read so far, by file and grid name: a file is read once however many layers,
+/// sublayers and regions use its grids.
+#[derive(Default)]
+struct GridFiles {
+    float: GridCache<f32>,
+    vec3: GridCache<[f32; 3]>,
+}
+
+/// Grids by (file, grid name).
+type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>;
+
+impl GridFiles {
+    /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
+    fn float(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<f32>>> {
+        Self::get(&self.float, key, base, file, grid, crate::io::formats::vdb::read_float)
+    }
+
+    /// The vec3 grid `grid` (or the first) of `file`.
+    fn vec3(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<[f32; 3]>>> {
+        Self::get(&self.vec3, key, base, file, grid, crate::io::formats::vdb::read_vec3)
+    }
+
+    fn get<T>(
+        cache: &GridCache<T>,
+        key: &str,
+        base: &Path,
+        file: &str,
+        grid: Option<&str>,
+        read: impl Fn(std::path::PathBuf, Option<&str>) -> crate::error::Result<crate::io::formats::vdb::VdbGrid<T>>,
+    ) -> R<Arc<VoxelGrid<T>>> {
+        let path = base.join(file);
+        let id = (path.clone(), grid.map(str::to_string));
+        if let Some(g) = cache.borrow().get(&id) {
+            return Ok(g.clone());
+        }
+        let g = Arc::new(read(path, grid).map_err(|e| ConfigError::new(join(key, "file"), e.to_string()))?.grid);
+        cache.borrow_mut().insert(id, g.clone());
+        Ok(g)
+    }
+}

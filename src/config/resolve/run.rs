@@ -1,0 +1,62 @@
+//! `[run]`: the run plan (samples, batches, seed, walk settings).
+
+use super::{DEFAULT_MEMORY_BUDGET_GIB, R, err};
+use crate::config::schema::*;
+use crate::experiment::RunPlan;
+use crate::transport::{Tracking, WalkSettings};
+
+pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
+    let batches = r.batches.unwrap_or(32);
+    if !(16..=65_536).contains(&batches) {
+        return err("run.batches", format!("= {batches}: expected 16 to 65536 independent batches"));
+    }
+    let samples = r.samples.unwrap_or(1_000_000);
+    if samples == 0 || samples > 1 << 48 {
+        return err("run.samples", format!("= {samples}: expected 1 to 2^48 paths"));
+    }
+    let threads = r.threads.unwrap_or(0);
+    if threads > 1024 {
+        return err("run.threads", format!("= {threads}: expected 0 (all cores) to 1024"));
+    }
+    let tracking = match r.tracking.unwrap_or(TrackingKind::Analytic) {
+        TrackingKind::Analytic => {
+            if r.majorant_scale.is_some() {
+                return err("run.majorant_scale", "only applies with run.tracking = \"delta\"");
+            }
+            Tracking::Analytic
+        }
+        TrackingKind::Delta => {
+            let s = r.majorant_scale.unwrap_or(1.0);
+            if !(s.is_finite() && (1.0..=1e6).contains(&s)) {
+                return err("run.majorant_scale", format!("= {s}: expected a factor in [1, 1e6]"));
+            }
+            Tracking::Delta { majorant_scale: s }
+        }
+    };
+    let roulette_threshold = r.roulette_threshold.unwrap_or(1e-4);
+    if !(roulette_threshold.is_finite() && (0.0..1.0).contains(&roulette_threshold)) {
+        return err("run.roulette_threshold", format!("= {roulette_threshold}: expected a weight in [0, 1)"));
+    }
+    let roulette_survival = r.roulette_survival.unwrap_or(0.1);
+    if !(roulette_survival > 0.0 && roulette_survival <= 1.0) {
+        return err("run.roulette_survival", format!("= {roulette_survival}: expected a probability in (0, 1]"));
+    }
+    let max_events = r.max_scattering_events.unwrap_or(1_000_000);
+    if max_events == 0 || max_events > u32::MAX as u64 {
+        return err("run.max_scattering_events", format!("= {max_events}: expected 1 to {}", u32::MAX));
+    }
+    let budget = r.memory_budget_gib.unwrap_or(DEFAULT_MEMORY_BUDGET_GIB);
+    if !(budget.is_finite() && budget > 0.0 && budget <= 1e6) {
+        return err("run.memory_budget_gib", format!("= {budget}: expected a budget in (0, 10^6] GiB"));
+    }
+    let paths_per_batch = samples.div_ceil(batches);
+    Ok(RunPlan {
+        requested_samples: samples,
+        batches,
+        paths_per_batch,
+        seed: r.seed.unwrap_or(1),
+        threads: threads as usize,
+        walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
+        memory_budget: (budget * (1u64 << 30) as f64) as u64,
+    })
+}

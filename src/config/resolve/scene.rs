@@ -1,0 +1,238 @@
+//! The scene: shapes, `[[layers]]` (and sublayers) and `[[regions]]`.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::density::attach_density;
+use super::flow::resolve_wind;
+use super::media::{Optics, check_mixture, populations_of};
+use super::{Ctx, R, err, given, index_of_refraction, join, positive, require, require_arr, unit_vector};
+use crate::config::schema::*;
+use crate::error::ConfigError;
+use crate::medium::{Heterogeneity, Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Region, Scene, Shape};
+
+fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
+    let p = join(path, "shape");
+    Ok(match s {
+        ShapeSection::Sphere { center, radius } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
+            let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
+            Shape::Sphere { center: DVec3::from_array(c), radius: r }
+        }
+        ShapeSection::Box { center, size } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
+            let (sz, sp) = require_arr(&p, "size", size, "size")?;
+            if sz.iter().any(|&x| x <= 0.0) {
+                return err(sp, format!("= {sz:?} m: expected three edge lengths > 0"));
+            }
+            let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
+            Shape::Box { min: c - h, max: c + h }
+        }
+        ShapeSection::Cylinder { center, axis, radius, length } => {
+            let (c, _) = require_arr(&p, "center", center, "center")?;
+            let axis = unit_vector(&join(&p, "axis"), *axis)?;
+            let r = positive(require(&p, "radius", radius, "radius")?, "a radius")?;
+            let half_length = match given(&p, length)? {
+                None => f64::INFINITY,
+                Some(l) => 0.5 * positive(l, "a length (omit it for a tube crossing its whole layer)")?,
+            };
+            Shape::Cylinder { center: DVec3::from_array(c), axis, radius: r, half_length }
+        }
+    })
+}
+
+pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R<Scene> {
+    if f.media.is_empty() {
+        return err("media", "no media defined: add a [media.NAME] table with sigma_a_* and sigma_s_*");
+    }
+    if f.layers.is_empty() {
+        return err("layers", "no layers: add at least one [[layers]] with thickness, n and medium");
+    }
+    let known = f.media.keys().cloned().collect::<Vec<_>>().join(", ");
+    let lookup = |path: String, name: &str| -> R<&MediumSection> {
+        f.media
+            .get(name)
+            .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
+    };
+    let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
+    // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
+    let mut optics: BTreeMap<String, Optics> = BTreeMap::new();
+    // Densities likewise (a grid's majorant is built once).
+    let mut densities: BTreeMap<String, Arc<Heterogeneity>> = BTreeMap::new();
+    // A medium at height `height` (for its height profile); `velocity` overrides the medium's
+    // own (a region's), `cylinder` is the region's shape if it is one.
+    let mut make = |path: &str,
+                    name: &str,
+                    ms: &MediumSection,
+                    velocity: Option<(String, &VelocitySection)>,
+                    cylinder: Option<&Shape>,
+                    height: f64|
+     -> R<Medium> {
+        let Some(list) = &ms.populations else {
+            let velocity = velocity.or_else(|| ms.velocity.as_ref().map(|v| (join(path, "velocity"), v)));
+            let (sigma_a, populations, info) =
+                populations_of(&mut optics, ctx, wind.as_ref(), path, name, ms, velocity, cylinder, height)?;
+            let mut m = Medium::mixture(name, sigma_a, populations);
+            m.info = info;
+            attach_density(path, ms, &mut m, ctx, &mut densities)?;
+            return Ok(m);
+        };
+        check_mixture(path, ms)?;
+        if let Some((p, _)) = velocity {
+            return err(p, format!("medium \"{name}\" is a mixture: each population keeps its own velocity"));
+        }
+        if list.is_empty() {
+            return err(join(path, "populations"), "an empty list: name at least one medium");
+        }
+        let (mut sigma_a, mut all, mut names) = (0.0, Vec::new(), Vec::new());
+        for (j, pname) in list.iter().enumerate() {
+            let key = format!("{}[{j}]", join(path, "populations"));
+            let pms = lookup(key.clone(), pname)?;
+            if pms.populations.is_some() {
+                return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
+            }
+            if pms.density.is_some() {
+                return err(
+                    format!("media.{pname}.density"),
+                    format!(
+                        "medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"
+                    ),
+                );
+            }
+            let ppath = format!("media.{pname}");
+            let pv = pms.velocity.as_ref().map(|v| (join(&ppath, "velocity"), v));
+            let (sa, pops, _) =
+                populations_of(&mut optics, ctx, wind.as_ref(), &ppath, pname, pms, pv, cylinder, height)?;
+            sigma_a += sa;
+            all.extend(pops);
+            names.push(pname.clone());
+        }
+        let mut m = Medium::mixture(name, sigma_a, all);
+        let g =
+            m.populations().iter().map(|p| p.sigma_s * p.phase.mean_cosine()).sum::<f64>() / m.sigma_s().max(1e-300);
+        m.info = MediumInfo {
+            preset: ms.preset.clone(),
+            phase: format!("mixture of {}", names.join(", ")),
+            g,
+            sigma_s_scale: 1.0,
+            ..MediumInfo::default()
+        };
+        attach_density(path, ms, &mut m, ctx, &mut densities)?;
+        Ok(m)
+    };
+    let mut media: Vec<Medium> = Vec::new();
+    let mut layers: Vec<Layer> = Vec::new();
+    let mut layer_index: BTreeMap<String, usize> = BTreeMap::new();
+    let mut split: Vec<String> = Vec::new();
+    let mut z = 0.0;
+    for (i, l) in f.layers.iter().enumerate() {
+        let path = format!("layers[{i}]");
+        let name = l.name.clone().unwrap_or_else(|| format!("layer{i}"));
+        if layer_index.contains_key(&name) || split.contains(&name) {
+            return err(join(&path, "name"), format!("= \"{name}\": layer names must be unique"));
+        }
+        let parts = l.sublayers.unwrap_or(1);
+        if !(1..=100_000).contains(&parts) {
+            return err(join(&path, "sublayers"), format!("= {parts}: expected 1 to 100000 layers"));
+        }
+        let th = require(&path, "thickness", &l.thickness, "thickness")?;
+        let last = i + 1 == f.layers.len();
+        let thickness = if th.0 == f64::INFINITY && last {
+            f64::INFINITY
+        } else if th.0 == f64::INFINITY {
+            return err(th.1, "= inf: only the last layer may be semi-infinite");
+        } else {
+            positive(th, "a thickness (or inf for a semi-infinite last layer)")?
+        };
+        let n = index_of_refraction(
+            &join(&path, "n"),
+            l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?,
+        )?;
+        let ms = lookup(join(&path, "medium"), &l.medium)?;
+        let mpath = format!("media.{}", l.medium);
+        if parts > 1 && thickness == f64::INFINITY {
+            return err(join(&path, "sublayers"), "a semi-infinite layer cannot be split");
+        }
+        let step = thickness / parts as f64;
+        for j in 0..parts {
+            // (The last bottom is exact, and a single semi-infinite layer never forms 0·∞.)
+            let top = if j == 0 { z } else { z + j as f64 * step };
+            let bottom = if j + 1 == parts { z + thickness } else { z + (j + 1) as f64 * step };
+            let height = if bottom.is_finite() { 0.5 * (top + bottom) } else { top };
+            let m = make(&mpath, &l.medium, ms, None, None, height)
+                .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?;
+            media.push(m);
+            layers.push(Layer {
+                name: if parts > 1 { format!("{name}[{j}]") } else { name.clone() },
+                z_top: top,
+                z_bottom: bottom,
+                n,
+                medium: media.len() - 1,
+                regions: Vec::new(),
+                majorant: 0.0,
+                minorant: 0.0,
+                heterogeneous: false,
+                tau_above: 0.0,
+            });
+        }
+        if parts > 1 {
+            split.push(name);
+        } else {
+            layer_index.insert(name, layers.len() - 1);
+        }
+        z += thickness;
+    }
+    let mut regions: Vec<Region> = Vec::new();
+    for (i, r) in f.regions.iter().enumerate() {
+        let path = format!("regions[{i}]");
+        let name = r.name.clone().unwrap_or_else(|| format!("region{i}"));
+        if split.contains(&r.layer) {
+            return err(
+                join(&path, "layer"),
+                format!("= \"{}\" is split into sublayers: regions need an unsplit layer", r.layer),
+            );
+        }
+        let li = *layer_index.get(&r.layer).ok_or_else(|| {
+            ConfigError::new(
+                join(&path, "layer"),
+                format!(
+                    "= \"{}\": unknown layer; layers are {}",
+                    r.layer,
+                    layer_index.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })?;
+        let shape = resolve_shape(&path, &r.shape)?;
+        let (zmin, zmax) = shape.z_range();
+        let layer = &layers[li];
+        if zmax <= layer.z_top || zmin >= layer.z_bottom {
+            return err(
+                join(&path, "shape"),
+                format!(
+                    "lies outside its layer \"{}\" (z from {} to {} m; the shape spans {} to {} m)",
+                    layer.name, layer.z_top, layer.z_bottom, zmin, zmax
+                ),
+            );
+        }
+        if layers[li].regions.len() == MAX_REGIONS_PER_LAYER {
+            return err(
+                path,
+                format!(
+                    "layer \"{}\" already holds {MAX_REGIONS_PER_LAYER} regions, the most one layer may hold",
+                    layer.name
+                ),
+            );
+        }
+        let ms = lookup(join(&path, "medium"), &r.medium)?;
+        let mpath = format!("media.{}", r.medium);
+        let velocity = r.velocity.as_ref().map(|v| (join(&path, "velocity"), v));
+        media.push(make(&mpath, &r.medium, ms, velocity, Some(&shape), 0.5 * (zmin + zmax))?);
+        regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
+        layers[li].regions.push(regions.len() - 1);
+    }
+    let mut scene = Scene { layers, regions, media, n_above, n_below };
+    scene.update_layers();
+    Ok(scene)
+}
