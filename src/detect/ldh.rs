@@ -56,6 +56,19 @@ pub struct SpeckleSpec {
     pub windows: u32,
 }
 
+/// What an LDH camera records besides its M0± images, as configured ([`LdhSpec::new`]; the
+/// fields mean what [`LdhSpec`]'s of the same names do).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LdhOptions {
+    pub flip_sign: bool,
+    pub m1: bool,
+    pub by_class: bool,
+    pub rois: Vec<Roi>,
+    pub spectrum_axis: FrequencyAxis,
+    pub pixel_spectra: bool,
+    pub speckle: Option<SpeckleSpec>,
+}
+
 /// The LDH acquisition and what to accumulate.
 #[derive(Debug, Clone)]
 pub struct LdhSpec {
@@ -96,20 +109,10 @@ impl PartialEq for LdhSpec {
 
 impl LdhSpec {
     /// Build the band kernel and the static path's band powers. `None` if the band holds no bin.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        stft: Stft,
-        band: (f64, f64),
-        flip_sign: bool,
-        m1: bool,
-        by_class: bool,
-        rois: Vec<Roi>,
-        spectrum_axis: FrequencyAxis,
-        pixel_spectra: bool,
-        speckle: Option<SpeckleSpec>,
-    ) -> Option<Self> {
+    pub fn new(stft: Stft, band: (f64, f64), o: LdhOptions) -> Option<Self> {
         let kernel = BandKernel::new(&stft, band.0, band.1)?;
         let static_powers = kernel.eval(0.0, 0.0);
+        let LdhOptions { flip_sign, m1, by_class, rois, spectrum_axis, pixel_spectra, speckle } = o;
         Some(LdhSpec {
             stft,
             band,

@@ -13,7 +13,7 @@ pub mod lidar;
 
 use glam::DVec3;
 
-pub use ldh::{LdhLayout, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
+pub use ldh::{LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
 pub use lidar::{LidarLayout, LidarSpec};
 
 use crate::SPEED_OF_LIGHT;

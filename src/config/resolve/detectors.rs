@@ -7,7 +7,8 @@ use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
-    Area, Detector, DetectorKind, ImageSpec, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec, Surface,
+    Area, Detector, DetectorKind, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec,
+    Surface,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -131,18 +132,16 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             Some(SpeckleSpec { windows: w as u32 })
         }
     };
-    LdhSpec::new(
-        stft,
-        (band[0], band[1]),
-        l.flip_sign.unwrap_or(false),
-        l.m1.unwrap_or(false),
-        l.by_class.unwrap_or(false),
+    let options = LdhOptions {
+        flip_sign: l.flip_sign.unwrap_or(false),
+        m1: l.m1.unwrap_or(false),
+        by_class: l.by_class.unwrap_or(false),
         rois,
-        axis,
-        l.pixel_spectra.unwrap_or(false),
+        spectrum_axis: axis,
+        pixel_spectra: l.pixel_spectra.unwrap_or(false),
         speckle,
-    )
-    .ok_or_else(|| {
+    };
+    LdhSpec::new(stft, (band[0], band[1]), options).ok_or_else(|| {
         ConfigError::new(
             join(path, "band_hz"),
             format!("= [{}, {}] Hz holds no STFT bin (bins are {bin} Hz wide): widen the band", band[0], band[1]),
