@@ -55,30 +55,26 @@
 //!   any number of processes: a run resumed from a checkpoint, or cut into shards (`ohd run
 //!   --shard I/N`, contiguous batch ranges) and merged, folds the same batches in the same order.
 //!
-//! ## Module map
+//! ## Architecture
 //!
-//! | module | role |
-//! |---|---|
-//! | [`config`] | TOML schema (serde), `--set` overrides, the one resolve step into SI runtime types |
-//! | [`sampling`] | random-number streams and warps (pure maps from uniforms) |
-//! | [`phase`] | phase functions (isotropic, Henyey–Greenstein, tabulated) |
-//! | [`mie`] | Lorenz–Mie scattering by spheres, particle ensembles and their bulk optics |
-//! | [`flow`] | velocity fields attached to media: flows, wind profiles, terminal fall of drops |
-//! | [`scan`] | one run per beam pointing and the VAD wind per range gate |
-//! | [`medium`] | media of one or several particle populations, density fields (ramp, voxel grid) with their majorant grids, region shapes, the layer stack (the scene) |
-//! | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta tracking over majorant segments, ratio tracking), the random walk |
-//! | [`detect`] | detectors and what a finished path is recorded into |
-//! | [`output`] | the registry of a run's named outputs: kind, shape, units, tally slots, file, sign |
-//! | [`spectrum`] | frequency axes and histograms |
-//! | [`stats`] | batch statistics (mean and standard error) |
-//! | [`numeric`] | `ln Γ` and Simpson quadrature, shared with the tests |
-//! | [`retrieval`] | wind-lidar gate estimators (spectral moments, Gaussian-component fits, VAD wind), FMCW range and velocity |
-//! | [`post`] | post-processing of a finished run's outputs: speckle synthesis from the recorded paths |
-//! | [`experiment`] | builds and runs an experiment, reduces batches, writes outputs |
-//! | [`describe`] | the resolved experiment in words and human units (`Display`, for `ohd check`) |
-//! | [`converge`] | a run's named outputs and their errors, runs to a target error, the convergence study |
-//! | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
-//! | [`io`] | atomic files, `.npy`, EXR, phase-table files, the run manifest |
+//! One library and a thin binary. The modules form layers; a module may import from its own layer
+//! (without cycles) and from the layers below it, never from above. `validation/architecture.py`
+//! checks both on every CI run (its `LAYERS` table is this one).
+//!
+//! | layer | modules | role |
+//! |---|---|---|
+//! | foundations | [`error`], [`numeric`], [`sampling`], [`stats`], [`spectrum`], [`phase`], [`mie`], [`output`], [`retrieval`] | errors; `ln Γ` and quadrature; random-number streams and warps; batch statistics; frequency axes, histograms, STFT and speckle synthesis; phase functions; Lorenz–Mie scattering and particle ensembles; the registry of a run's named outputs (kind, shape, units, tally slots, file, sign); estimators read off spectra (gate moments and fits, VAD wind, FMCW range and velocity) |
+//! | scene | [`medium`], [`flow`], [`source`], [`io::formats`] | media, density fields with their majorant grids, shapes and the layer stack; velocity fields; the laser; file formats read and written (`.npy`, EXR, PNG, phase tables, the OpenVDB reader) |
+//! | recording | [`detect`] | detectors ([`detect::DetectorKind`]) and the tally a finished path is recorded into; each detector declares its outputs in the registry as it lays out its tallies |
+//! | transport | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk |
+//! | runs | [`experiment`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
+//! | configuration | [`config`], [`describe`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types; the resolved experiment printed in human units |
+//! | outputs | [`io`] ([`io::write`], [`io::persist`], [`io::figures`]) | a finished run's files and manifest, read off the registry; shard and checkpoint files; figures |
+//! | orchestration | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
+//! | binary | `cli` (`main.rs`) | argument parsing, the progress bar, printing, exit codes |
+//!
+//! Closed sets on the per-collision path are enums with `match` (phase functions, media, velocity
+//! fields, detectors); trait objects only at cold seams (progress, observers, checkpoints).
 
 pub mod config;
 pub mod converge;

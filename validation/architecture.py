@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""Import cycles between the modules of src/ (issue 19): exits 1 if there is one.
+"""Import cycles and layer violations between the modules of src/ (issue 19): exits 1 if there is
+one.
 
-    python3 validation/import_cycles.py            # the cycles, or "no import cycles"
-    python3 validation/import_cycles.py --edges    # also every module's dependencies
+    python3 validation/architecture.py            # the cycles, or "no import cycles"
+    python3 validation/architecture.py --edges    # also every module's dependencies
 
 A module is a file (`src/io/vdb.rs` is `io::vdb`, `src/io/mod.rs` is `io`). Module A depends on
 module B when A's code (comments, doc links and `#[cfg(test)]` modules left out) names a path into
@@ -13,6 +14,10 @@ module is a dependency on that module. A module and its own ancestors or descend
 unit of the hierarchy (a parent re-exporting its children, a child using its parent's error
 type): those edges are not counted. A cycle is a strongly connected component of two or more
 modules; one shortest cycle through each of its modules is printed.
+
+Layers: every module belongs to a layer of `LAYERS` (the architecture of src/lib.rs's docs, by the
+longest matching prefix) and may depend only on modules of its own layer or of lower ones; an
+edge upwards is printed as a violation, and a module in no layer is one too.
 """
 
 import argparse
@@ -22,6 +27,31 @@ from collections import deque
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parent.parent / "src"
+
+
+# The layers of src/, lowest first (src/lib.rs, "Architecture"): (name, module prefixes).
+LAYERS = [
+    ("foundations", ["error", "numeric", "sampling", "stats", "spectrum", "phase", "mie", "output", "retrieval"]),
+    ("scene", ["medium", "flow", "source", "io::formats"]),
+    ("recording", ["detect"]),
+    ("transport", ["transport"]),
+    ("runs", ["experiment", "post", "scan", "converge"]),
+    ("configuration", ["config", "describe"]),
+    ("outputs", ["io::write", "io::persist", "io::figures", "io"]),
+    ("orchestration", ["run"]),
+    ("binary", ["cli"]),
+]
+
+
+def layer_of(mod):
+    """Index into LAYERS of module `mod` (a tuple of segments): the longest prefix that matches."""
+    best = None
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for p in prefixes:
+            segs = tuple(p.split("::"))
+            if mod[: len(segs)] == segs and (best is None or len(segs) > best[1]):
+                best = (i, len(segs))
+    return None if best is None else best[0]
 
 
 def module_of(path):
@@ -256,9 +286,23 @@ def main():
                     q.append(w)
         return None
 
+    bad = 0
+    for m in sorted(modules, key=name):
+        if not m:
+            continue
+        lm = layer_of(m)
+        if lm is None:
+            print(f"module {name(m)} is in no layer of LAYERS")
+            bad += 1
+            continue
+        for t in sorted(edges[m], key=name):
+            lt = layer_of(t) if t else 0
+            if lt is not None and lt > lm:
+                print(f"layer violation: {name(m)} ({LAYERS[lm][0]}) → {name(t)} ({LAYERS[lt][0]})")
+                bad += 1
     if not sccs:
-        print("no import cycles")
-        return 0
+        print("no import cycles" + ("" if bad else f"; every module within its layer ({len(LAYERS)} layers)"))
+        return 1 if bad else 0
     for comp in sorted(sccs, key=lambda c: name(c[0])):
         cset = set(comp)
         print(f"cycle among {len(comp)} modules: {', '.join(map(name, comp))}")
