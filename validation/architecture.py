@@ -5,7 +5,7 @@ one.
     python3 validation/architecture.py            # the cycles, or "no import cycles"
     python3 validation/architecture.py --edges    # also every module's dependencies
 
-A module is a file (`src/io/vdb.rs` is `io::vdb`, `src/io/mod.rs` is `io`). Module A depends on
+A module is a file (`src/io/formats/vdb.rs` is `io::formats::vdb`, `src/io/mod.rs` is `io`). Module A depends on
 module B when A's code (comments, doc links and `#[cfg(test)]` modules left out) names a path into
 B: a `use` of `crate::…`, `super::…`, `self::…` or of a child module, or an inline `crate::…` /
 `super::…` path. A path is followed through modules and through `pub use` re-exports to the module
