@@ -27,7 +27,7 @@ impl ConfigError {
     }
 }
 
-/// An OpenVDB file that cannot be read ([`crate::io::vdb`]): names the file, the grid when there
+/// An OpenVDB file that cannot be read ([`crate::io::formats::vdb`]): names the file, the grid when there
 /// is one, and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("VDB file {}{}: {message}", path.display(), grid.as_ref().map(|g| format!(", grid \"{g}\"")).unwrap_or_default())]

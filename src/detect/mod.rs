@@ -6,7 +6,7 @@
 //! spectra (`chirps × channels × (bins + 2)`, the last two slots of a channel being the
 //! below/above out-of-range tallies), then the image (`ny × nx`, row-major), then an LDH camera's
 //! or a lidar receiver's tallies. Each detector declares its named outputs in the
-//! [`Registry`](crate::output::Registry) as it lays them out ([`TallyLayout::new`]).
+//! [`crate::output::Registry`] as it lays them out ([`TallyLayout::new`]).
 
 pub mod ldh;
 pub mod lidar;

@@ -2,7 +2,7 @@
 //!
 //! * [`formats`]: what bytes look like — `.npy`, OpenEXR, PNG encoding, phase-function tables and
 //!   the OpenVDB reader;
-//! * [`write`]: a finished run's outputs, as its output registry declares them, and the manifest;
+//! * [`write`](mod@write): a finished run's outputs, as its output registry declares them, and the manifest;
 //! * [`figures`]: PNG previews and plots;
 //! * [`persist`]: runs in progress, as shard and checkpoint files (one binary codec);
 //! * [`write_atomic`]: every output file is written to a temporary name and renamed into place.

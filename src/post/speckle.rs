@@ -20,7 +20,7 @@ pub fn speckle_of(exp: &Experiment, out: &RunOutput) -> Vec<RoiSpeckle> {
 }
 
 /// Band sums of a periodogram in fftshift order (as [`Stft::bin_frequency`]): M0± and M1 of a
-/// single window, with the same bins as [`BandKernel`].
+/// single window, with the same bins as [`crate::spectrum::BandKernel`].
 pub fn band_sums(stft: &Stft, band: (f64, f64), p: &[f64]) -> BandPowers {
     let mut out = BandPowers::default();
     for (k, &v) in p.iter().enumerate().skip(1) {

@@ -1,6 +1,6 @@
 //! Persistence of runs in progress: the per-batch tally sums of a part of a run for `ohd merge`
 //! ([`shard`]) and the state of a run for `--resume` ([`checkpoint`]), in one binary codec
-//! ([`binary`]). Both carry the [`config_fingerprint`] of the configuration they belong to.
+//! (`binary`). Both carry the [`config_fingerprint`] of the configuration they belong to.
 
 mod binary;
 pub mod checkpoint;

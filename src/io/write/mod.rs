@@ -1,4 +1,4 @@
-//! Writing a finished run's outputs, as the run's [`Registry`](crate::output::Registry)
+//! Writing a finished run's outputs, as the run's [`crate::output::Registry`]
 //! declares them: `manifest.json` and every detector's files ([`manifest::write_run`]), an LDH
 //! camera's ([`ldh`]) and a lidar receiver's ([`lidar`]) outputs, FMCW read-offs ([`fmcw`]), a
 //! scan's VAD wind ([`scan`]) and the convergence study ([`converge`]).
