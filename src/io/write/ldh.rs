@@ -63,7 +63,7 @@ pub fn write_ldh(
             w.image(out(&format!("m0_minus_{cname}")), "value")?;
         }
     }
-    let put = &mut *w.put;
+    let (put, written) = (&mut *w.put, &mut w.written);
 
     // Previews (y up).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
@@ -111,10 +111,12 @@ pub fn write_ldh(
         let roi_out = |what: &str| out(&format!("roi_{}.{what}", roi.name));
         for what in ["m0_plus", "m0_minus"] {
             let o = roi_out(what);
+            written.insert(o.name.clone());
             let s = o.slots.start;
             estimates.insert(format!("{what}_roi_{}", roi.name), Entry::Estimate(estimate(o.sign * mean[s], se[s])));
         }
         let o = roi_out("spectrum");
+        written.insert(o.name.clone());
         // Each channel's bins and tails, on the written (possibly mirrored) axis.
         let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..o.slots.rows)
             .map(|ch| {
@@ -169,6 +171,7 @@ pub fn write_ldh(
     }
     if spec.pixel_spectra {
         let o = out("pixel_spectra");
+        written.insert(o.name.clone());
         let Kind::PixelSpectra { mirrored, .. } = o.kind else { unreachable!("declared as pixel spectra") };
         let mut v = Vec::with_capacity(n * bins);
         for p in 0..o.slots.rows {

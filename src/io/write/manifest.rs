@@ -170,7 +170,7 @@ pub fn write_run(
         files.push(name);
         Ok(())
     };
-    let mut w = Writer { put: &mut put, registry: &out.layout.registry, mean: out.estimates.mean(), stderr: &stderr };
+    let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
     let mut det_estimates = BTreeMap::new();
@@ -220,6 +220,7 @@ pub fn write_run(
                 info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec)?);
             }
         }
+        w.rest(i, &mut de)?;
         det_estimates.insert(d.name.clone(), Entry::Group(de));
         det_info.insert(d.name.clone(), info);
     }

@@ -10,7 +10,7 @@ pub mod lidar;
 pub mod manifest;
 pub mod scan;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
@@ -58,9 +58,15 @@ pub struct Writer<'a, 'p> {
     pub registry: &'a Registry,
     pub mean: &'a [f64],
     pub stderr: &'a [f64],
+    /// The outputs written so far, by name ([`Writer::rest`] writes the others).
+    pub written: BTreeSet<String>,
 }
 
-impl<'a> Writer<'a, '_> {
+impl<'a, 'p> Writer<'a, 'p> {
+    pub fn new(put: &'a mut Put<'p>, registry: &'a Registry, mean: &'a [f64], stderr: &'a [f64]) -> Self {
+        Writer { put, registry, mean, stderr, written: BTreeSet::new() }
+    }
+
     /// Write a file.
     pub fn put(&mut self, name: String, bytes: Vec<u8>) -> Result<()> {
         (self.put)(name, bytes)
@@ -72,7 +78,8 @@ impl<'a> Writer<'a, '_> {
     }
 
     /// A scalar output as an estimate (`sign ×` its tally, and its standard error).
-    pub fn estimate(&self, o: &Output) -> Estimate {
+    pub fn estimate(&mut self, o: &Output) -> Estimate {
+        self.written.insert(o.name.clone());
         let s = o.slots.start;
         estimate(o.sign * self.mean[s], self.stderr[s])
     }
@@ -80,6 +87,7 @@ impl<'a> Writer<'a, '_> {
     /// An array output's values (`sign ×` the tallies) and standard errors as `.npy` files (the
     /// latter unless the output has none); returns them.
     pub fn array(&mut self, o: &Output) -> Result<(Vec<f64>, Vec<f64>)> {
+        self.written.insert(o.name.clone());
         let (v, e) = o.values(self.mean, self.stderr);
         self.put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
         if o.stderr {
@@ -98,5 +106,79 @@ impl<'a> Writer<'a, '_> {
             .map_err(|m| Error::Write { path: name.clone().into(), source: std::io::Error::other(m) })?;
         self.put(name, exr)?;
         Ok((v, e))
+    }
+
+    /// Detector `i`'s declared outputs that no writer of its kind has written: arrays as `.npy`
+    /// (with their standard errors), scalars into `estimates` under their name after the
+    /// detector's. An output declared in the registry and recorded into is thus written even
+    /// before its detector's writer knows of it.
+    pub fn rest(&mut self, i: usize, estimates: &mut BTreeMap<String, Entry>) -> Result<()> {
+        let registry = self.registry;
+        for o in registry.of_detector(i) {
+            if self.written.contains(&o.name) {
+                continue;
+            }
+            match o.kind {
+                Kind::Internal => {}
+                Kind::Scalar => {
+                    let key = o.name.split_once('.').map_or(o.name.as_str(), |(_, k)| k).to_string();
+                    let e = self.estimate(o);
+                    estimates.insert(key, Entry::Estimate(e));
+                }
+                _ => {
+                    self.array(o)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::Slots;
+
+    /// An output declared and recorded into, but unknown to its detector's writer, is still
+    /// written: an array as `.npy` with its standard errors, a scalar into the estimates.
+    #[test]
+    fn outputs_no_writer_knows_are_written_by_rest() {
+        let mut reg = Registry::default();
+        let base = |name: &str, kind, slots, shape| Output {
+            name: name.into(),
+            detector: Some(0),
+            kind,
+            slots,
+            shape,
+            units: "",
+            file: String::new(),
+            stderr: true,
+            sign: -1.0,
+            primary: false,
+            budget_key: None,
+        };
+        let start = reg.take(4);
+        let image = Kind::Image { nx: 2, ny: 1, min: [0.0; 2], max: [1.0; 2] };
+        reg.declare(Output {
+            file: "new.npy".into(),
+            ..base("cam.new", image, Slots::contiguous(start, 2), vec![1, 2])
+        });
+        reg.declare(base("cam.flux", Kind::Scalar, Slots::contiguous(start + 2, 1), vec![]));
+        reg.declare(base("cam.work", Kind::Internal, Slots::contiguous(start + 3, 1), vec![1]));
+        let (mean, se) = ([1.0, 2.0, 3.0, 4.0], [0.1, 0.2, 0.3, 0.4]);
+        let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+        let mut put = |name: String, bytes: Vec<u8>| -> Result<()> {
+            files.push((name, bytes));
+            Ok(())
+        };
+        let mut w = Writer::new(&mut put, &reg, &mean, &se);
+        let mut estimates = BTreeMap::new();
+        w.rest(0, &mut estimates).unwrap();
+        assert_eq!(estimates.get("flux"), Some(&Entry::Estimate(estimate(-3.0, 0.3))));
+        assert_eq!(estimates.len(), 1);
+        let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+        assert_eq!(names, ["new.npy", "new_stderr.npy"]);
+        assert_eq!(npy::from_bytes(&files[0].1), Some((vec![1, 2], vec![-1.0, -2.0])));
+        assert_eq!(npy::from_bytes(&files[1].1), Some((vec![1, 2], vec![0.1, 0.2])));
     }
 }
