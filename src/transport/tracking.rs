@@ -280,14 +280,13 @@ fn heterogeneous(
     null_collisions: &mut u64,
 ) -> (Flight, PathRng) {
     let mut st = DeltaState { tau: rng.exponential(), rng, nulls: 0 };
-    let LayerRay { scene, layer, pos, dir } = *ray;
-    let hit = for_each_span(scene, layer, pos, dir, t_boundary, |a, b, medium| {
-        let m = &scene.media[medium];
+    let hit = for_each_span(ray.scene, ray.layer, ray.pos, ray.dir, t_boundary, |a, b, medium| {
+        let m = &ray.scene.media[medium];
         let sigma_t = m.sigma_t();
         let hit = match m.density() {
             None => constant_segment(sigma_t, sigma_t * scale, a, b, &mut st),
-            Some(Density::Ramp(f)) => delta_field(f, sigma_t, scale, pos, dir, (a, b), &mut st),
-            Some(Density::Grid(f)) => delta_field(f, sigma_t, scale, pos, dir, (a, b), &mut st),
+            Some(Density::Ramp(f)) => delta_field(f, sigma_t, scale, ray, (a, b), &mut st),
+            Some(Density::Grid(f)) => delta_field(f, sigma_t, scale, ray, (a, b), &mut st),
         };
         match hit {
             Some(t) => ControlFlow::Break(Flight::Collision { t, medium }),
@@ -325,17 +324,17 @@ fn constant_segment(sigma_t: f64, majorant: f64, mut t0: f64, t1: f64, st: &mut 
 }
 
 /// Delta tracking through a density field `f` scaling σt, over its majorant segments of
-/// the span `[a, b)` of `pos + t·dir`, majorants inflated by `scale`. Compiled per field type.
+/// the span `[a, b)` of `ray`, majorants inflated by `scale`. Compiled per field type.
 #[inline(always)]
 fn delta_field<F: Field>(
     f: &F,
     sigma_t: f64,
     scale: f64,
-    pos: DVec3,
-    dir: DVec3,
+    ray: &LayerRay,
     (a, b): (f64, f64),
     st: &mut DeltaState,
 ) -> Option<f64> {
+    let (pos, dir) = (ray.pos, ray.dir);
     let DeltaState { tau, rng, nulls } = st;
     for seg in f.segments(pos, dir, a, b) {
         let majorant = seg.max * sigma_t * scale;
