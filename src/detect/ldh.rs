@@ -234,24 +234,11 @@ impl LdhSpec {
         LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra }
     }
 
-    /// Record one detected path of weight `w`, beat frequency `f` (library sign) and line
-    /// half-width `gamma`, landing at `(x, y)` in pixel `pixel` (if inside the image). Returns
-    /// the indices of the ROIs it fell in, for the speckle records.
-    #[allow(clippy::too_many_arguments)]
+    /// Record one detected path `d`. Calls `in_roi` with the index of every ROI it fell in, for
+    /// the speckle records.
     #[inline]
-    pub fn record(
-        &self,
-        lay: &LdhLayout,
-        acc: &mut [f64],
-        pixel: Option<usize>,
-        x: f64,
-        y: f64,
-        w: f64,
-        f: f64,
-        gamma: f64,
-        class: usize,
-        mut in_roi: impl FnMut(usize),
-    ) {
+    pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
+        let Detection { pixel, x, y, weight: w, frequency: f, gamma, class } = d;
         let mut powers: Option<BandPowers> = None;
         let mut bp = || *powers.get_or_insert_with(|| self.band_powers(f, gamma));
         if let Some(p) = pixel {
@@ -285,6 +272,23 @@ impl LdhSpec {
             in_roi(i);
         }
     }
+}
+
+/// A detected path as an LDH camera records it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection {
+    /// The image pixel it lands in (`None` outside the image).
+    pub pixel: Option<usize>,
+    /// Where it lands on the detector plane, m.
+    pub x: f64,
+    pub y: f64,
+    pub weight: f64,
+    /// Beat frequency, Hz (library sign).
+    pub frequency: f64,
+    /// Lorentzian half-width, Hz.
+    pub gamma: f64,
+    /// Its Doppler class ([`class_of`]).
+    pub class: usize,
 }
 
 /// Offsets of an LDH camera's tallies.

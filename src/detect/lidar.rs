@@ -370,11 +370,10 @@ impl LidarSpec {
         ((c * self.gates + g) * self.gate_points + d) * 2
     }
 
-    /// Record a detected path of weight `w`, optical path length `l` (emission to aperture, m) and
-    /// beat frequency `f` (Hz) into channel 0 and the channel of its scattering order. `x` is
-    /// scratch space for the pulse samples, reused across calls (no allocation per path).
-    #[allow(clippy::too_many_arguments)]
-    pub fn record(&self, lay: &LidarLayout, acc: &mut [f64], x: &mut Vec<f64>, w: f64, l: f64, f: f64, order: u32) {
+    /// Record a detected path `echo` into channel 0 and the channel of its scattering order. `x`
+    /// is scratch space for the pulse samples, reused across calls (no allocation per path).
+    pub fn record(&self, lay: &LidarLayout, acc: &mut [f64], x: &mut Vec<f64>, echo: Echo) {
+        let Echo { weight: w, length: l, frequency: f, order } = echo;
         let class = if order <= 1 { 1 } else { 2 };
         let dt = self.dt();
         let sigma = self.pulse_sigma();
@@ -443,6 +442,18 @@ impl LidarSpec {
     }
 }
 
+/// A detected path as a lidar records it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Echo {
+    pub weight: f64,
+    /// Optical path length from emission to the aperture, m.
+    pub length: f64,
+    /// Beat frequency, Hz.
+    pub frequency: f64,
+    /// Scattering order.
+    pub order: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -472,7 +483,7 @@ mod tests {
         let mut acc = vec![0.0; reg.len];
         let mut x = Vec::new();
         for &(w, l, f, o) in lines {
-            s.record(&lay, &mut acc, &mut x, w, l, f, o);
+            s.record(&lay, &mut acc, &mut x, Echo { weight: w, length: l, frequency: f, order: o });
         }
         s.finish_batch(&lay, &mut acc);
         (lay, acc)

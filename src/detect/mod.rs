@@ -13,8 +13,8 @@ pub mod lidar;
 
 use glam::DVec3;
 
-pub use ldh::{LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
-pub use lidar::{LidarLayout, LidarSpec};
+pub use ldh::{Detection, LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
+pub use lidar::{Echo, LidarLayout, LidarSpec};
 
 use crate::SPEED_OF_LIGHT;
 use crate::output::{Kind, Output, Registry, Slots};
@@ -534,7 +534,12 @@ impl Recorder<'_> {
         if let (DetectorKind::Lidar(spec), Some(ll)) = (&self.detectors[i].kind, &self.layout.detectors[i].lidar) {
             self.acc[self.layout.detectors[i].power] += e.weight;
             let f = self.beat.frequency(0, e.l, e.dldt);
-            spec.record(ll, self.acc, &mut self.scratch, e.weight, e.l, f, e.order);
+            spec.record(
+                ll,
+                self.acc,
+                &mut self.scratch,
+                Echo { weight: e.weight, length: e.l, frequency: f, order: e.order },
+            );
             return;
         }
         self.detect_one(i, e, n_ambient);
@@ -618,7 +623,8 @@ impl Recorder<'_> {
             }
             let class = ldh::class_of(e.doppler_events);
             let lines = &mut self.lines;
-            ldh.record(ll, self.acc, pixel, p.x, p.y, w, f, gamma, class, |roi| {
+            let hit = Detection { pixel, x: p.x, y: p.y, weight: w, frequency: f, gamma, class };
+            ldh.record(ll, self.acc, hit, |roi| {
                 if let Some(v) = lines.as_deref_mut() {
                     v.push(RecordedLine { roi: roi as u32, class: class as u8, weight: w, frequency: f, gamma });
                 }

@@ -6,5 +6,5 @@ pub mod tracking;
 pub mod walk;
 
 pub use nee::NeeTarget;
-pub use tracking::{Flight, Tracking, free_flight};
+pub use tracking::{Flight, LayerRay, Tracking, free_flight};
 pub use walk::{PathState, WalkContext, WalkSettings, trace_path};

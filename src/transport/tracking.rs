@@ -45,6 +45,26 @@ pub enum Tracking {
     },
 }
 
+/// The ray `pos + t·dir` through `layer` of `scene`: what every tracker of this module follows
+/// (small and `Copy`; the trackers are inlined or outlined per call frequency, see
+/// `DESIGN.md`).
+#[derive(Debug, Clone, Copy)]
+pub struct LayerRay<'a> {
+    pub scene: &'a Scene,
+    pub layer: &'a Layer,
+    pub pos: DVec3,
+    pub dir: DVec3,
+}
+
+/// What delta tracking carries from one majorant segment to the next: the optical depth `tau`
+/// left to the next tentative collision, the generator (by value, see `PathRng`) and the count of
+/// null collisions.
+struct DeltaState {
+    tau: f64,
+    rng: PathRng,
+    nulls: u64,
+}
+
 /// The outcome of a free flight.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Flight {
@@ -55,32 +75,28 @@ pub enum Flight {
     Boundary { t: f64 },
 }
 
-/// Sample the next real collision along `pos + t·dir` in `layer`, before the boundary plane that
+/// Sample the next real collision along `ray` (`pos + t·dir` in `layer`), before the boundary plane that
 /// lies `dz ≥ 0` away along z (in the direction of travel), with `abs_dir_z = |dir.z|`.
 /// `null_collisions` counts the rejected tentative collisions of delta tracking.
 ///
 /// The homogeneous case compares `t·|dir.z| < dz`, so the division giving the distance to the
 /// boundary is only done when the boundary is reached.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn free_flight(
-    scene: &Scene,
-    layer: &Layer,
-    pos: DVec3,
-    dir: DVec3,
+    ray: LayerRay,
     dz: f64,
     abs_dir_z: f64,
     tracking: Tracking,
     rng: &mut PathRng,
     null_collisions: &mut u64,
 ) -> Flight {
+    let LayerRay { scene, layer, .. } = ray;
     if layer.heterogeneous {
         let scale = match tracking {
             Tracking::Analytic => 1.0,
             Tracking::Delta { majorant_scale } => majorant_scale,
         };
-        let (flight, advanced) =
-            heterogeneous(scene, layer, pos, dir, dz / abs_dir_z, scale, rng.clone(), null_collisions);
+        let (flight, advanced) = heterogeneous(&ray, dz / abs_dir_z, scale, rng.clone(), null_collisions);
         *rng = advanced;
         return flight;
     }
@@ -96,18 +112,10 @@ pub fn free_flight(
     // The outlined trackers never see `rng` itself (see `PathRng`): the analytic one needs one
     // optical depth, drawn here, and delta tracking works on the generator passed by value.
     match tracking {
-        Tracking::Analytic => analytic_segments(scene, layer, pos, dir, t_boundary, rng.exponential()),
+        Tracking::Analytic => analytic_segments(&ray, t_boundary, rng.exponential()),
         Tracking::Delta { majorant_scale } => {
-            let (flight, advanced) = delta(
-                scene,
-                layer,
-                pos,
-                dir,
-                t_boundary,
-                layer.majorant * majorant_scale,
-                rng.clone(),
-                null_collisions,
-            );
+            let (flight, advanced) =
+                delta(&ray, t_boundary, layer.majorant * majorant_scale, rng.clone(), null_collisions);
             *rng = advanced;
             flight
         }
@@ -115,8 +123,9 @@ pub fn free_flight(
 }
 
 #[inline(never)]
-fn analytic_segments(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_boundary: f64, mut tau: f64) -> Flight {
+fn analytic_segments(ray: &LayerRay, t_boundary: f64, mut tau: f64) -> Flight {
     // Invert the optical depth across the spans of constant σt.
+    let LayerRay { scene, layer, pos, dir } = *ray;
     let hit = for_each_span(scene, layer, pos, dir, t_boundary, |t0, t1, medium| {
         let m = &scene.media[medium];
         let depth = m.sigma_t() * (t1 - t0);
@@ -129,13 +138,9 @@ fn analytic_segments(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_bou
     hit.unwrap_or(Flight::Boundary { t: t_boundary })
 }
 
-#[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn delta(
-    scene: &Scene,
-    layer: &Layer,
-    pos: DVec3,
-    dir: DVec3,
+    ray: &LayerRay,
     t_boundary: f64,
     majorant: f64,
     mut rng: PathRng,
@@ -144,6 +149,7 @@ fn delta(
     if majorant <= 0.0 {
         return (Flight::Boundary { t: t_boundary }, rng);
     }
+    let LayerRay { scene, layer, pos, dir } = *ray;
     let inv = 1.0 / majorant;
     let mut t = 0.0;
     loop {
@@ -265,54 +271,41 @@ fn spans(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3, t_end: f64) -> ([
 
 /// Delta tracking over majorant segments through a layer with density media (see the module
 /// docs); `scale ≥ 1` inflates every majorant. Gets the generator by value (see `PathRng`).
-#[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn heterogeneous(
-    scene: &Scene,
-    layer: &Layer,
-    pos: DVec3,
-    dir: DVec3,
+    ray: &LayerRay,
     t_boundary: f64,
     scale: f64,
     mut rng: PathRng,
     null_collisions: &mut u64,
 ) -> (Flight, PathRng) {
-    let mut tau = rng.exponential();
-    let mut nulls = 0;
-    let hit = for_each_span(scene, layer, pos, dir, t_boundary, |a, b, medium| {
-        let m = &scene.media[medium];
+    let mut st = DeltaState { tau: rng.exponential(), rng, nulls: 0 };
+    let hit = for_each_span(ray.scene, ray.layer, ray.pos, ray.dir, t_boundary, |a, b, medium| {
+        let m = &ray.scene.media[medium];
         let sigma_t = m.sigma_t();
         let hit = match m.density() {
-            None => constant_segment(sigma_t, sigma_t * scale, a, b, &mut tau, &mut rng, &mut nulls),
-            Some(Density::Ramp(f)) => delta_field(f, sigma_t, scale, pos, dir, a, b, &mut tau, &mut rng, &mut nulls),
-            Some(Density::Grid(f)) => delta_field(f, sigma_t, scale, pos, dir, a, b, &mut tau, &mut rng, &mut nulls),
+            None => constant_segment(sigma_t, sigma_t * scale, a, b, &mut st),
+            Some(Density::Ramp(f)) => delta_field(f, sigma_t, scale, ray, (a, b), &mut st),
+            Some(Density::Grid(f)) => delta_field(f, sigma_t, scale, ray, (a, b), &mut st),
         };
         match hit {
             Some(t) => ControlFlow::Break(Flight::Collision { t, medium }),
             None => ControlFlow::Continue(()),
         }
     });
-    *null_collisions += nulls;
-    (hit.unwrap_or(Flight::Boundary { t: t_boundary }), rng)
+    *null_collisions += st.nulls;
+    (hit.unwrap_or(Flight::Boundary { t: t_boundary }), st.rng)
 }
 
 /// Delta tracking on `[t0, t1)` where σt is the constant `sigma_t` and the majorant `majorant`
-/// (≥ σt), with the optical depth `tau` left from earlier segments (at their majorants). `Some`
-/// distance of a real collision, else `tau` is what is left past `t1`.
-#[allow(clippy::too_many_arguments)]
+/// (≥ σt), with the optical depth `st.tau` left from earlier segments (at their majorants).
+/// `Some` distance of a real collision, else `st.tau` is what is left past `t1`.
 #[inline(always)]
-fn constant_segment(
-    sigma_t: f64,
-    majorant: f64,
-    mut t0: f64,
-    t1: f64,
-    tau: &mut f64,
-    rng: &mut PathRng,
-    nulls: &mut u64,
-) -> Option<f64> {
+fn constant_segment(sigma_t: f64, majorant: f64, mut t0: f64, t1: f64, st: &mut DeltaState) -> Option<f64> {
     if majorant <= 0.0 {
         return None;
     }
+    let DeltaState { tau, rng, nulls } = st;
     loop {
         let depth = majorant * (t1 - t0);
         if *tau >= depth {
@@ -331,21 +324,18 @@ fn constant_segment(
 }
 
 /// Delta tracking through a density field `f` scaling σt, over its majorant segments of
-/// `[a, b)`, majorants inflated by `scale`. Compiled per field type.
-#[allow(clippy::too_many_arguments)]
+/// the span `[a, b)` of `ray`, majorants inflated by `scale`. Compiled per field type.
 #[inline(always)]
 fn delta_field<F: Field>(
     f: &F,
     sigma_t: f64,
     scale: f64,
-    pos: DVec3,
-    dir: DVec3,
-    a: f64,
-    b: f64,
-    tau: &mut f64,
-    rng: &mut PathRng,
-    nulls: &mut u64,
+    ray: &LayerRay,
+    (a, b): (f64, f64),
+    st: &mut DeltaState,
 ) -> Option<f64> {
+    let (pos, dir) = (ray.pos, ray.dir);
+    let DeltaState { tau, rng, nulls } = st;
     for seg in f.segments(pos, dir, a, b) {
         let majorant = seg.max * sigma_t * scale;
         if majorant <= 0.0 {
@@ -386,8 +376,8 @@ pub fn ratio_transmittance(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3,
         let sigma_t = m.sigma_t();
         match m.density() {
             None => tau += sigma_t * (b - a),
-            Some(Density::Ramp(f)) => tr *= ratio_field(f, sigma_t, pos, dir, a, b, &mut tau, rng),
-            Some(Density::Grid(f)) => tr *= ratio_field(f, sigma_t, pos, dir, a, b, &mut tau, rng),
+            Some(Density::Ramp(f)) => tr *= ratio_field(f, sigma_t, pos, dir, (a, b), &mut tau, rng),
+            Some(Density::Grid(f)) => tr *= ratio_field(f, sigma_t, pos, dir, (a, b), &mut tau, rng),
         }
         if tr <= 0.0 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
     });
@@ -398,15 +388,13 @@ pub fn ratio_transmittance(scene: &Scene, layer: &Layer, pos: DVec3, dir: DVec3,
 }
 
 /// The ratio-tracking factor of a density span (the control's optical depth is added to `tau`).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn ratio_field<F: Field>(
     f: &F,
     sigma_t: f64,
     pos: DVec3,
     dir: DVec3,
-    a: f64,
-    b: f64,
+    (a, b): (f64, f64),
     tau: &mut f64,
     rng: &mut PathRng,
 ) -> f64 {

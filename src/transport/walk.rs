@@ -20,7 +20,7 @@ use crate::source::Source;
 
 use super::fresnel;
 use super::nee::NeeTarget;
-use super::tracking::{Flight, Tracking, free_flight};
+use super::tracking::{Flight, LayerRay, Tracking, free_flight};
 
 /// Knobs of the random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,6 +54,15 @@ pub struct WalkContext<'a> {
     pub source: &'a Source,
     pub settings: &'a WalkSettings,
     pub nee: &'a [NeeTarget],
+}
+
+/// A real collision as the event loop hands it to [`collide`]: the medium collided in, its albedo
+/// there and the refractive index `n` of the layer.
+#[derive(Debug, Clone, Copy)]
+struct Vertex<'a> {
+    medium: &'a Medium,
+    albedo: f64,
+    n: f64,
 }
 
 /// The state a path carries between events.
@@ -172,7 +181,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     rec: &mut Recorder,
     rng: &mut PathRng,
 ) {
-    let WalkContext { scene, source, settings, nee } = *ctx;
+    let WalkContext { scene, source, .. } = *ctx;
     rec.stats.paths += 1;
     let start = source.emit(rng);
     let dir = source.emit_direction(rng);
@@ -210,16 +219,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk::<DOPPLER, LENGTH, NEE>(
-        scene,
-        settings,
-        nee,
-        &mut s,
-        &mut local,
-        &mut absorbed,
-        &mut null_collisions,
-        rec,
-    );
+    let end = walk::<DOPPLER, LENGTH, NEE>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
@@ -248,17 +248,15 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
 /// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
 /// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
-    scene: &Scene,
-    settings: &WalkSettings,
-    nee: &[NeeTarget],
+    ctx: &WalkContext,
     s: &mut PathState,
     rng: &mut PathRng,
     absorbed: &mut f64,
     null_collisions: &mut u64,
     rec: &mut Recorder,
 ) -> End {
+    let WalkContext { scene, settings, .. } = *ctx;
     let mut li = 0usize;
     // The next event count at which `collide` looks at the event cap and renormalises.
     let mut checkpoint = RENORMALISE_EVERY.min(settings.max_events);
@@ -297,10 +295,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                 // Distance along z to the boundary plane ahead (either one for a horizontal ray).
                 let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
                 match free_flight(
-                    scene,
-                    layer,
-                    s.pos,
-                    s.dir,
+                    LayerRay { scene, layer, pos: s.pos, dir: s.dir },
                     dz,
                     s.dir.z.abs(),
                     settings.tracking,
@@ -321,7 +316,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                 }
                 if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
                     scene,
-                    nee,
+                    ctx.nee,
                     li,
                     s,
                     medium,
@@ -336,7 +331,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                     return end;
                 }
             } else if let Some(end) =
-                collide::<DOPPLER, LENGTH>(s, t, medium, albedo, n, settings, rng, absorbed, &mut checkpoint)
+                collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n }, settings, rng, absorbed, &mut checkpoint)
             {
                 return end;
             }
@@ -381,22 +376,19 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     }
 }
 
-/// A real collision of `s` at distance `t` in medium `m` of a layer of index `n`: absorption
-/// weighting, a new direction, the Doppler term, the event cap and Russian roulette. `Some` if
-/// the path ends here.
-#[allow(clippy::too_many_arguments)]
+/// A real collision `v` of `s` at distance `t`: absorption weighting, a new direction, the
+/// Doppler term, the event cap and Russian roulette. `Some` if the path ends here.
 #[inline(always)]
 fn collide<const DOPPLER: bool, const LENGTH: bool>(
     s: &mut PathState,
     t: f64,
-    m: &Medium,
-    albedo: f64,
-    n: f64,
+    v: Vertex,
     settings: &WalkSettings,
     rng: &mut PathRng,
     absorbed: &mut f64,
     checkpoint: &mut u32,
 ) -> Option<End> {
+    let Vertex { medium: m, albedo, n } = v;
     s.pos += t * s.dir;
     if LENGTH {
         s.l += n * t;
@@ -420,6 +412,13 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
 /// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
 /// every next-event detector (see [`super::nee`]) is scored with the velocity the vertex's
 /// particle has; then the path scatters on as usual. `s.pos` is already at the vertex.
+//
+// The allow is the measured exception of issue 19: taking `(ctx: &WalkContext, s, v: Vertex,
+// rng, absorbed, checkpoint, rec)` instead (with the shadow rays taking their vertex as one
+// `ShadowOrigin` struct, `nee::shadow_ray`/`receiver_ray`) cost, in callgrind instructions of
+// `run_batch`, vessels_ldh 337.15M → 343.04M (+1.75 %), retina_ldh 446.17M → 453.31M (+1.60 %),
+// fmcw_target 587.64M → 593.53M (+1.00 %): this function alone 33.9M → 38.6M on vessels_ldh
+// (it is outlined, so the grouped arguments go through memory).
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(

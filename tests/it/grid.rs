@@ -15,7 +15,7 @@ use ohd::medium::grid::{IndexTransform, VoxelGrid};
 use ohd::medium::{Density, Heterogeneity, Layer, Medium, Scene};
 use ohd::phase::PhaseFunction;
 use ohd::sampling::{PathRng, Purpose};
-use ohd::transport::tracking::{Flight, Tracking, free_flight, ratio_transmittance};
+use ohd::transport::tracking::{Flight, LayerRay, Tracking, free_flight, ratio_transmittance};
 
 /// p-value below which a KS test fails (fixed seeds: never re-rolled).
 const P_MIN: f64 = 1e-3;
@@ -231,7 +231,14 @@ fn ramp_collision_distances_follow_the_closed_form_optical_depth() {
         let mut d: Vec<f64> = (0..n)
             .map(|_| {
                 let dz = f64::INFINITY;
-                match free_flight(&scene, &scene.layers[0], pos, dir, dz, dir.z, tracking, &mut rng, &mut nulls) {
+                match free_flight(
+                    LayerRay { scene: &scene, layer: &scene.layers[0], pos, dir },
+                    dz,
+                    dir.z,
+                    tracking,
+                    &mut rng,
+                    &mut nulls,
+                ) {
                     Flight::Collision { t, medium } => {
                         assert_eq!(medium, 0);
                         t

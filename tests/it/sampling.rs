@@ -10,7 +10,7 @@ use ohd::flow::VelocityField;
 use ohd::medium::{Layer, Medium, Region, Scene, Shape};
 use ohd::phase::{HenyeyGreenstein, PhaseFunction};
 use ohd::sampling::{PathRng, Purpose};
-use ohd::transport::{Flight, Tracking, free_flight};
+use ohd::transport::{Flight, LayerRay, Tracking, free_flight};
 
 const P_MIN: f64 = 1e-4;
 
@@ -114,7 +114,14 @@ fn sample_distances(scene: &Scene, tracking: Tracking, n: usize, stream: u64) ->
     let layer = &scene.layers[0];
     let d: Vec<f64> = (0..n)
         .map(|_| {
-            match free_flight(scene, layer, DVec3::ZERO, DVec3::Z, f64::INFINITY, 1.0, tracking, &mut rng, &mut nulls) {
+            match free_flight(
+                LayerRay { scene, layer, pos: DVec3::ZERO, dir: DVec3::Z },
+                f64::INFINITY,
+                1.0,
+                tracking,
+                &mut rng,
+                &mut nulls,
+            ) {
                 Flight::Collision { t, .. } => t,
                 Flight::Boundary { t } => t,
             }
@@ -158,10 +165,7 @@ fn collisions_report_the_medium_they_happen_in() {
     for tracking in [Tracking::Analytic, Tracking::Delta { majorant_scale: 2.0 }] {
         for _ in 0..20_000 {
             if let Flight::Collision { t, medium } = free_flight(
-                &scene,
-                &scene.layers[0],
-                DVec3::ZERO,
-                DVec3::Z,
+                LayerRay { scene: &scene, layer: &scene.layers[0], pos: DVec3::ZERO, dir: DVec3::Z },
                 f64::INFINITY,
                 1.0,
                 tracking,

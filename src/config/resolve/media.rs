@@ -490,20 +490,29 @@ pub(super) fn check_mixture(path: &str, ms: &MediumSection) -> R<()> {
     }
 }
 
+/// Where a medium is used, as far as its populations depend on it.
+pub(super) struct Placement<'a> {
+    /// The scene's wind profile, if any.
+    pub wind: Option<&'a WindProfile>,
+    /// The velocity section that applies (the medium's own or a region's), with its key.
+    pub velocity: Option<(String, &'a VelocitySection)>,
+    /// The region's shape if it is a cylinder.
+    pub cylinder: Option<&'a Shape>,
+    /// Height of the medium, for its height profile.
+    pub height: f64,
+}
+
 /// The populations of a medium that is not a mixture: one, or one per size class; with its total
-/// σa and its provenance. σs and σa are scaled by the height profile at `height`.
-#[allow(clippy::too_many_arguments)]
+/// σa and its provenance. σs and σa are scaled by the height profile at `at.height`.
 pub(super) fn populations_of(
     optics: &mut BTreeMap<String, Optics>,
     ctx: &Ctx,
-    wind: Option<&WindProfile>,
     path: &str,
     name: &str,
     ms: &MediumSection,
-    velocity: Option<(String, &VelocitySection)>,
-    cylinder: Option<&Shape>,
-    height: f64,
+    at: Placement,
 ) -> R<(f64, Vec<Population>, MediumInfo)> {
+    let Placement { wind, velocity, cylinder, height } = at;
     if !optics.contains_key(name) {
         let o = resolve_optics(path, ms, ctx)?;
         optics.insert(name.to_string(), o);

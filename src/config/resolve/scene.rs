@@ -7,7 +7,7 @@ use glam::DVec3;
 
 use super::density::attach_density;
 use super::flow::resolve_wind;
-use super::media::{Optics, check_mixture, populations_of};
+use super::media::{Optics, Placement, check_mixture, populations_of};
 use super::{Ctx, R, err, given, index_of_refraction, join, positive, require, require_arr, unit_vector};
 use crate::config::schema::*;
 use crate::error::ConfigError;
@@ -72,8 +72,8 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
      -> R<Medium> {
         let Some(list) = &ms.populations else {
             let velocity = velocity.or_else(|| ms.velocity.as_ref().map(|v| (join(path, "velocity"), v)));
-            let (sigma_a, populations, info) =
-                populations_of(&mut optics, ctx, wind.as_ref(), path, name, ms, velocity, cylinder, height)?;
+            let at = Placement { wind: wind.as_ref(), velocity, cylinder, height };
+            let (sigma_a, populations, info) = populations_of(&mut optics, ctx, path, name, ms, at)?;
             let mut m = Medium::mixture(name, sigma_a, populations);
             m.info = info;
             attach_density(path, ms, &mut m, ctx, &mut densities)?;
@@ -103,8 +103,8 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             }
             let ppath = format!("media.{pname}");
             let pv = pms.velocity.as_ref().map(|v| (join(&ppath, "velocity"), v));
-            let (sa, pops, _) =
-                populations_of(&mut optics, ctx, wind.as_ref(), &ppath, pname, pms, pv, cylinder, height)?;
+            let at = Placement { wind: wind.as_ref(), velocity: pv, cylinder, height };
+            let (sa, pops, _) = populations_of(&mut optics, ctx, &ppath, pname, pms, at)?;
             sigma_a += sa;
             all.extend(pops);
             names.push(pname.clone());
