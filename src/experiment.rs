@@ -262,7 +262,7 @@ impl<'a> BatchRunner<'a> {
     fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress, sink: &mut BatchSink) -> Result<()> {
         let BatchRunner { exp, pool, layout, beat, in_flight, spare } = self;
         let (exp, layout, beat, in_flight) = (*exp, &*layout, *beat, *in_flight);
-        let len = layout.len;
+        let len = layout.tallies();
         let Some(pool) = pool else {
             for b in range {
                 let sums = spare.pop().unwrap_or_else(|| Tallies::new(len));
@@ -394,7 +394,7 @@ impl Experiment {
 
     /// Estimated peak memory of the tallies, bytes.
     pub fn memory_estimate(&self) -> u64 {
-        let len = self.tally_layout().len as u64;
+        let len = self.tally_layout().tallies() as u64;
         len.saturating_mul(8 * (2 + self.batches_in_flight()))
     }
 
@@ -425,7 +425,7 @@ impl Experiment {
         let round = self.plan.batches;
         let mut runner = BatchRunner::new(self);
         let mut st = resume.unwrap_or_else(|| RunState {
-            estimates: BatchAccumulator::new(runner.layout.len),
+            estimates: BatchAccumulator::new(runner.layout.tallies()),
             stats: RunStats::default(),
             lines: Vec::new(),
             next: 0,
@@ -508,10 +508,11 @@ impl Experiment {
         wall_seconds: f64,
     ) -> RunOutput {
         let batches = estimates.batches() as u64;
-        let main = self.main_output();
-        let err = main.relative_error(&estimates);
+        let layout = self.tally_layout();
+        let main = layout.registry.main();
+        let main_output = (main.name.clone(), main.relative_error(&estimates));
         RunOutput {
-            layout: self.tally_layout(),
+            layout,
             beat: self.beat_model(),
             estimates,
             stats,
@@ -520,7 +521,7 @@ impl Experiment {
             lines,
             batches,
             paths_per_batch: self.plan.paths_per_batch,
-            main_output: (main.name, err),
+            main_output,
             target: None,
         }
     }

@@ -17,6 +17,9 @@ use std::ops::Range;
 
 use crate::spectrum::FrequencyAxis;
 
+/// Units of the tallies that are fractions of the emitted power.
+pub const POWER_UNITS: &str = "fraction of emitted power";
+
 /// Where an output's values lie in the tally vector: `rows` rows of `len` values, row `r`
 /// starting at `start + r·stride`. A spectrum's rows are followed by their below/above
 /// out-of-range tallies (`stride = len + 2`).
@@ -49,11 +52,6 @@ impl Slots {
     /// The first row's values (all of them for a one-row output).
     pub fn range(&self) -> Range<usize> {
         self.row_range(0)
-    }
-
-    /// The values of every row, in order, from a vector laid out as the tallies.
-    pub fn gather(&self, v: &[f64]) -> Vec<f64> {
-        (0..self.rows).flat_map(|r| v[self.row_range(r)].iter().copied()).collect()
     }
 
     /// Tally slots the output occupies, with the gaps between its rows.
@@ -112,6 +110,30 @@ pub struct Output {
 }
 
 impl Output {
+    /// An output of the global tallies (`detector: None`) with the defaults: power units, no
+    /// file, standard errors written, sign +1, not a main output, no memory key.
+    pub fn new(name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Self {
+        Output {
+            name,
+            detector: None,
+            kind,
+            slots,
+            shape,
+            units: POWER_UNITS,
+            file: String::new(),
+            stderr: true,
+            sign: 1.0,
+            primary: false,
+            budget_key: None,
+        }
+    }
+
+    /// Whether it is written on the negated frequency axis: each row's bins reversed and its
+    /// out-of-range tails swapped ([`Kind::Spectrum`], [`Kind::PixelSpectra`]).
+    pub fn mirrored(&self) -> bool {
+        matches!(self.kind, Kind::Spectrum { mirrored: true, .. } | Kind::PixelSpectra { mirrored: true, .. })
+    }
+
     /// A scalar (absolute error) rather than an array (relative RMS error).
     pub fn is_scalar(&self) -> bool {
         self.kind == Kind::Scalar
@@ -122,12 +144,27 @@ impl Output {
         self.slots.range()
     }
 
-    /// The written values (`sign ×` the tallies, every row) and standard errors, read off a
-    /// run's mean and standard error vectors.
+    /// The written values (`sign ×` the tallies, every row, mirrored if [`mirrored`](Self::mirrored))
+    /// and standard errors, read off a run's mean and standard error vectors.
     pub fn values(&self, mean: &[f64], stderr: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let v = self.slots.gather(mean);
+        let gather = |v: &[f64]| -> Vec<f64> {
+            let rows = (0..self.slots.rows).map(|r| &v[self.slots.row_range(r)]);
+            if self.mirrored() {
+                rows.flat_map(|row| row.iter().rev().copied()).collect()
+            } else {
+                rows.flat_map(|row| row.iter().copied()).collect()
+            }
+        };
+        let v = gather(mean);
         let v = if self.sign == 1.0 { v } else { v.into_iter().map(|x| self.sign * x).collect() };
-        (v, self.slots.gather(stderr))
+        (v, gather(stderr))
+    }
+
+    /// The below and above out-of-range tallies of row `r` of a spectrum, as written (swapped
+    /// on a mirrored axis), read off `v` laid out as the tallies.
+    pub fn tails(&self, v: &[f64], r: usize) -> (f64, f64) {
+        let t = self.slots.row_range(r).end;
+        if self.mirrored() { (v[t + 1], v[t]) } else { (v[t], v[t + 1]) }
     }
 }
 
@@ -156,6 +193,11 @@ impl Registry {
     /// The output called `name`.
     pub fn get(&self, name: &str) -> Option<&Output> {
         self.outputs.iter().find(|o| o.name == name)
+    }
+
+    /// The output called `name`, which the caller's detector declared (a bug otherwise).
+    pub fn expect(&self, name: &str) -> &Output {
+        self.get(name).unwrap_or_else(|| panic!("the output {name} is declared"))
     }
 
     /// The outputs of detector `i`, in declaration order.

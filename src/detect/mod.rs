@@ -264,8 +264,6 @@ impl BeatModel {
 /// detector records into (the same slots, in the form the recording code reads fastest).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TallyLayout {
-    /// Length of the tally vector.
-    pub len: usize,
     pub registry: Registry,
     pub detectors: Vec<DetectorLayout>,
 }
@@ -282,9 +280,6 @@ pub struct DetectorLayout {
     pub lidar: Option<LidarLayout>,
 }
 
-/// Units of the tallies that are fractions of the emitted power.
-pub const POWER_UNITS: &str = "fraction of emitted power";
-
 impl TallyLayout {
     /// Lay out the scalar tallies, then each detector's block, declaring every output.
     pub fn new(detectors: &[Detector], beat: &BeatModel) -> Self {
@@ -293,21 +288,18 @@ impl TallyLayout {
             let slot = reg.take(1);
             debug_assert_eq!(slot, s as usize);
             reg.declare(Output {
-                name: s.name().to_string(),
-                detector: None,
-                kind: Kind::Scalar,
-                slots: Slots::contiguous(slot, 1),
-                shape: Vec::new(),
-                units: POWER_UNITS,
                 file: format!("/estimates/{}/value", s.name()),
-                stderr: true,
-                sign: 1.0,
                 primary: true,
-                budget_key: None,
+                ..Output::new(s.name().to_string(), Kind::Scalar, Slots::contiguous(slot, 1), Vec::new())
             });
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
-        TallyLayout { len: reg.len, registry: reg, detectors: layouts }
+        TallyLayout { registry: reg, detectors: layouts }
+    }
+
+    /// Length of the tally vector.
+    pub fn tallies(&self) -> usize {
+        self.registry.len
     }
 
     /// Derive a finished batch's non-linear-in-layout outputs from its sums (the lidar gate
@@ -321,21 +313,9 @@ impl TallyLayout {
     }
 }
 
-/// The fields every output of a detector shares, for [`Output`]'s struct update syntax.
+/// An output of detector `i` with [`Output::new`]'s defaults, for struct update syntax.
 pub(crate) fn detector_output(i: usize, name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Output {
-    Output {
-        name,
-        detector: Some(i),
-        kind,
-        slots,
-        shape,
-        units: POWER_UNITS,
-        file: String::new(),
-        stderr: true,
-        sign: 1.0,
-        primary: false,
-        budget_key: None,
-    }
+    Output { detector: Some(i), ..Output::new(name, kind, slots, shape) }
 }
 
 impl Detector {

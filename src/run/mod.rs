@@ -228,7 +228,7 @@ pub fn run_part(
     }
     // A scan resumes the pointings it has a checkpoint of and starts the others.
     let resume = if opts.resume && (!keep || path.exists()) {
-        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, exp.tally_layout().len)?;
+        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, exp.tally_layout().tallies())?;
         obs.event(Event::Resuming { state: &state, path: &path });
         Some(state)
     } else {

@@ -11,7 +11,8 @@ files they are masked by key name before comparing, and the figures and CSV file
 
 Cases (see `cases()`): `ohd run` on every configs/*.toml, validation/*.toml,
 validation/features/*.toml, validation/vdb/vessels_bench.toml and tests/configs/good/*.toml
-(with --samples N, default 20000, unless the case sets fewer), the built-in default, a run in
+(with --samples N, default 20000, unless the case sets fewer), the built-in default, an LDH
+camera with the sign flipped (mirrored spectra) and speckle, a run in
 3 shards merged, a run with --target-error, a checkpointed run, `ohd converge` with a fixed
 ladder, and `ohd mie` with a table. Baseline outputs are cached in --work/baseline (delete it,
 or pass --fresh, after changing the baseline binary).
@@ -60,6 +61,14 @@ def cases(samples):
             [["run", retina, "--samples", str(samples), "--quiet", "--shard", f"{i}/3", "--out", "{out}/s%d" % i]
              for i in range(3)]
             + [["merge", "{out}/s0", "{out}/s1", "{out}/s2", "--out", "{out}/merged"]],
+        )
+    )
+    full = os.path.join(ROOT, "validation", "features", "ldh_full_spectra.toml")
+    out.append(
+        (
+            "ldh_flip_sign_speckle",
+            [["run", full, "--samples", str(samples), "--quiet", "--set", "detectors.0.ldh.flip_sign=true",
+              "--set", "detectors.0.ldh.speckle={ windows = 4 }", "--out", "{out}"]],
         )
     )
     wind = os.path.join(ROOT, "configs", "wind_sunny.toml")

@@ -240,7 +240,7 @@ fn check_memory(exp: &Experiment) -> R<()> {
         format!(
             "{value}: the tallies need {:.1} GiB ({} tallies × 8 bytes × (2 + batches in flight)), above the memory budget of {:.1} GiB (run.memory_budget_gib)",
             gib(need),
-            layout.len,
+            layout.tallies(),
             gib(exp.plan.memory_budget)
         ),
     )

@@ -7,24 +7,14 @@ use std::collections::BTreeMap;
 
 use serde_json::{Map, Value, json};
 
-use super::{Entry, IMAGE_LAYOUT, Put, Writer, estimate};
+use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
 use crate::detect::ImageSpec;
 use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
 use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
 use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
 use crate::io::formats::npy;
-use crate::output::Kind;
 use crate::post::{RoiSpeckle, band_sums};
-
-/// Mirror a spectrum laid out as `bins` then below/above: with the sign flipped, bin `k` of the
-/// mirrored axis `[−f_max, −f_min)` is bin `bins − 1 − k` of the original, and the tails swap.
-fn mirror_slots(v: &[f64], bins: usize) -> Vec<f64> {
-    let mut m: Vec<f64> = v[..bins].iter().rev().copied().collect();
-    m.push(v[bins + 1]);
-    m.push(v[bins]);
-    m
-}
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
 /// unpaired `−f_s/2` bin (k = 0) is its own alias.
@@ -49,9 +39,8 @@ pub fn write_ldh(
     speckle: &[RoiSpeckle],
     estimates: &mut BTreeMap<String, Entry>,
 ) -> Result<Value> {
-    let n = im.nx * im.ny;
-    let (reg, mean, se) = (w.registry, w.mean, w.stderr);
-    let out = |what: &str| reg.get(&format!("{name}.{what}")).unwrap_or_else(|| panic!("{name}.{what} is declared"));
+    let registry = w.registry;
+    let out = |what: &str| registry.expect(&format!("{name}.{what}"));
     let (m0p, _) = w.image(out("m0_plus"), "value")?;
     let (m0m, _) = w.image(out("m0_minus"), "value")?;
     if spec.m1 {
@@ -63,11 +52,10 @@ pub fn write_ldh(
             w.image(out(&format!("m0_minus_{cname}")), "value")?;
         }
     }
-    let (put, written) = (&mut *w.put, &mut w.written);
 
     // Previews (y up).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
-    put(
+    w.put(
         "m0_plus.png".into(),
         image_png(
             &m0p,
@@ -79,7 +67,7 @@ pub fn write_ldh(
             "fraction of emitted power",
         ),
     )?;
-    put(
+    w.put(
         "m0_minus.png".into(),
         image_png(
             &m0m,
@@ -93,7 +81,7 @@ pub fn write_ldh(
     )?;
     let pos: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p + m)).collect();
     let neg: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p - m)).collect();
-    put("m0_directional.png".into(), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
+    w.put("m0_directional.png".into(), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
 
     // ROI spectra.
     let axis = spec.spectrum_axis;
@@ -102,7 +90,7 @@ pub fn write_ldh(
     let width = axis.bin_width();
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
     if !spec.rois.is_empty() || spec.pixel_spectra {
-        put("ldh_frequency_hz.npy".into(), npy::to_bytes(&[bins], &centres))?;
+        w.put("ldh_frequency_hz.npy".into(), npy::to_bytes(&[bins], &centres))?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
@@ -110,37 +98,20 @@ pub fn write_ldh(
     for (r, roi) in spec.rois.iter().enumerate() {
         let roi_out = |what: &str| out(&format!("roi_{}.{what}", roi.name));
         for what in ["m0_plus", "m0_minus"] {
-            let o = roi_out(what);
-            written.insert(o.name.clone());
-            let s = o.slots.start;
-            estimates.insert(format!("{what}_roi_{}", roi.name), Entry::Estimate(estimate(o.sign * mean[s], se[s])));
+            let e = w.estimate(roi_out(what));
+            estimates.insert(format!("{what}_roi_{}", roi.name), Entry::Estimate(e));
         }
+        // On the written axis: mirrored with the set-up's sign flipped.
         let o = roi_out("spectrum");
-        written.insert(o.name.clone());
-        // Each channel's bins and tails, on the written (possibly mirrored) axis.
-        let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..o.slots.rows)
-            .map(|ch| {
-                let r = o.slots.row_range(ch);
-                let slots = r.start..r.end + 2;
-                let (mv, me) = (&mean[slots.clone()], &se[slots]);
-                if spec.flip_sign {
-                    (mirror_slots(mv, bins), mirror_slots(me, bins))
-                } else {
-                    (mv.to_vec(), me.to_vec())
-                }
-            })
-            .collect();
-        let v: Vec<f64> = rows.iter().flat_map(|(m, _)| m[..bins].iter().copied()).collect();
-        let e: Vec<f64> = rows.iter().flat_map(|(_, s)| s[..bins].iter().copied()).collect();
+        let (v, _) = w.array(o)?;
         let mut out_of_range = Map::new();
-        for (chname, (mv, me)) in channel_names.iter().zip(&rows) {
+        for (ch, chname) in channel_names.iter().enumerate() {
+            let ((below, above), (below_se, above_se)) = (o.tails(w.mean, ch), o.tails(w.stderr, ch));
             out_of_range.insert(
                 chname.clone(),
-                json!({ "below": estimate(mv[bins], me[bins]), "above": estimate(mv[bins + 1], me[bins + 1]) }),
+                json!({ "below": estimate(below, below_se), "above": estimate(above, above_se) }),
             );
         }
-        put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
-        put(super::stderr_file(&o.file), npy::to_bytes(&o.shape, &e))?;
         let khz: Vec<f64> = centres.iter().map(|f| f / 1e3).collect();
         let dbs: Vec<Vec<f64>> = v.chunks_exact(bins).map(|c| c.iter().map(|&x| db(x)).collect()).collect();
         let series: Vec<Series> = channel_names
@@ -149,7 +120,7 @@ pub fn write_ldh(
             .enumerate()
             .map(|(i, (name, y))| Series { label: name, x: &khz, y, color: PALETTE[i % PALETTE.len()] })
             .collect();
-        put(
+        w.put(
             format!("roi_{}_spectrum.png", roi.name),
             line_plot_png(
                 &series,
@@ -165,25 +136,12 @@ pub fn write_ldh(
         info.insert("spectrum_file".into(), json!(o.file));
         info.insert("out_of_range".into(), Value::Object(out_of_range));
         if let Some(s) = speckle.get(r) {
-            info.insert("speckle".into(), write_speckle(put, spec, &roi.name, s)?);
+            info.insert("speckle".into(), write_speckle(w, spec, &roi.name, s)?);
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
     if spec.pixel_spectra {
-        let o = out("pixel_spectra");
-        written.insert(o.name.clone());
-        let Kind::PixelSpectra { mirrored, .. } = o.kind else { unreachable!("declared as pixel spectra") };
-        let mut v = Vec::with_capacity(n * bins);
-        for p in 0..o.slots.rows {
-            let r = o.slots.row_range(p);
-            let s = &mean[r.start..r.end + 2];
-            if mirrored {
-                v.extend_from_slice(&mirror_slots(s, bins)[..bins]);
-            } else {
-                v.extend_from_slice(&s[..bins]);
-            }
-        }
-        put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
+        w.array(out("pixel_spectra"))?;
     }
 
     let total = |v: &[f64]| v.iter().sum::<f64>();
@@ -225,17 +183,17 @@ pub fn write_ldh(
 
 /// Speckle files of one ROI and their summary: the expected periodogram and single windows of
 /// both algorithms (`.npy`), and the single-window M0± statistics.
-fn write_speckle(put: &mut Put, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> Result<Value> {
+fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> Result<Value> {
     let n = spec.stft.samples();
     let prep = |v: &[f64]| -> Vec<f64> {
         if spec.flip_sign { v.chunks_exact(n).flat_map(mirror_fftshift).collect() } else { v.to_vec() }
     };
     let windows = s.algorithm1.len() / n.max(1);
     let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
-    put("stft_frequency_hz.npy".into(), npy::to_bytes(&[n], &freqs))?;
-    put(format!("roi_{name}_periodogram.npy"), npy::to_bytes(&[n], &prep(&s.expected)))?;
-    put(format!("roi_{name}_speckle_algorithm1.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm1)))?;
-    put(format!("roi_{name}_speckle_algorithm2.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm2)))?;
+    w.put("stft_frequency_hz.npy".into(), npy::to_bytes(&[n], &freqs))?;
+    w.put(format!("roi_{name}_periodogram.npy"), npy::to_bytes(&[n], &prep(&s.expected)))?;
+    w.put(format!("roi_{name}_speckle_algorithm1.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm1)))?;
+    w.put(format!("roi_{name}_speckle_algorithm2.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm2)))?;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows

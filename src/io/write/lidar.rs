@@ -24,7 +24,7 @@ const MAP_RANGE_DB: f64 = 60.0;
 /// energies and estimates).
 pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value> {
     let (reg, mean, se) = (w.registry, w.mean, w.stderr);
-    let output = |name: &str| reg.get(name).unwrap_or_else(|| panic!("{name} is declared"));
+    let output = |name: &str| reg.expect(name);
     let (gates, bins, m) = (spec.gates, spec.fft_points, spec.gate_points);
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();

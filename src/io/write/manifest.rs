@@ -325,15 +325,14 @@ fn write_spectra(
             w.array(o)?;
             let Kind::Spectrum { channels, .. } = &o.kind else { unreachable!("{} is declared a spectrum", o.name) };
             for (r, ch) in channels.iter().enumerate() {
-                let t = o.slots.row_range(r).end;
-                let tails = [("below", t), ("above", t + 1)];
-                let g = tails.iter().map(|&(k, s)| (k.to_string(), Entry::Estimate(estimate(mean[s], se[s]))));
-                oor.insert(ch.clone(), Entry::Group(g.collect()));
+                let ((below, above), (below_se, above_se)) = (o.tails(mean, r), o.tails(se, r));
+                let tails = [("below", estimate(below, below_se)), ("above", estimate(above, above_se))];
+                oor.insert(ch.clone(), Entry::Group(tails.map(|(k, e)| (k.to_string(), Entry::Estimate(e))).into()));
                 names.push(ch.clone());
             }
         }
-        let t = group[0].slots.range().end;
-        out_of_range_total += mean[t] + mean[t + 1];
+        let (below, above) = group[0].tails(mean, 0);
+        out_of_range_total += below + above;
         de.insert(format!("out_of_range_{key}"), Entry::Group(oor));
         chirps.insert(key.to_string(), infix);
         channel_names = names;

@@ -74,7 +74,7 @@ impl<'a, 'p> Writer<'a, 'p> {
 
     /// The output `name` (declared by the detector being written).
     pub fn output(&self, name: &str) -> &'a Output {
-        self.registry.get(name).unwrap_or_else(|| panic!("the output {name} is declared"))
+        self.registry.expect(name)
     }
 
     /// A scalar output as an estimate (`sign ×` its tally, and its standard error).
