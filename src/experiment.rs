@@ -13,7 +13,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{NeeTarget, WalkContext, WalkSettings, trace_path};
+use crate::transport::{CameraTarget, NeeTarget, WalkContext, WalkSettings, trace_camera_path, trace_path};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -372,6 +372,26 @@ impl Experiment {
             .collect()
     }
 
+    /// The detectors scored by camera paths ([`crate::transport::camera`]).
+    pub fn camera_targets(&self) -> Vec<CameraTarget> {
+        self.detectors
+            .iter()
+            .enumerate()
+            .filter_map(|(i, d)| {
+                let s = d.surface()?;
+                let im = s.image?;
+                (s.estimator == crate::detect::Estimator::Camera)
+                    .then(|| CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance))
+            })
+            .collect()
+    }
+
+    /// Camera paths traced per batch (all camera-estimated detectors together).
+    pub fn camera_paths_per_batch(&self) -> u64 {
+        let ppb = self.plan.paths_per_batch;
+        self.camera_targets().iter().map(|c| c.paths_per_pixel(ppb) * c.pixels() as u64).sum()
+    }
+
     /// FMCW range and radial velocity of detector `i` from its total up- and down-chirp spectra
     /// in `out` ([`fmcw_estimates`]). `None` without a chirp or without a spectrum on the detector;
     /// an error when they cannot be read off (no signal).
@@ -565,20 +585,51 @@ impl Experiment {
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
         };
-        let walk = WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee };
+        let walk =
+            WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee, shot: None };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
-        for i in 0..self.plan.paths_per_batch {
+        let ppb = self.plan.paths_per_batch;
+        let cameras = self.camera_targets();
+        // Progress counts forward paths; with camera paths, which cost the most, it follows them.
+        let forward_progress = cameras.is_empty();
+        for i in 0..ppb {
             let mut rng = key.path(i);
             if nee.is_empty() {
                 trace_path::<DOPPLER, LENGTH, false>(&walk, &mut rec, &mut rng);
             } else {
                 trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
             }
-            if (i + 1) % PROGRESS_EVERY == 0 {
+            if forward_progress && (i + 1) % PROGRESS_EVERY == 0 {
                 progress.advance(PROGRESS_EVERY);
             }
         }
-        progress.advance(self.plan.paths_per_batch % PROGRESS_EVERY);
+        if forward_progress {
+            progress.advance(ppb % PROGRESS_EVERY);
+        }
+        let camera_total = self.camera_paths_per_batch().max(1);
+        let (mut done, mut reported) = (0u64, 0u64);
+        for cam in &cameras {
+            // Pixel-major: every pixel gets `spp` paths, each weighing `ppb/spp` in the batch's
+            // per-path mean, so each pixel's batch estimate is the mean of its own paths.
+            let spp = cam.paths_per_pixel(ppb);
+            let batch_weight = ppb as f64 / spp as f64;
+            let key = StreamKey::new(self.plan.seed, Purpose::Camera, batch | (cam.detector as u64) << 48);
+            for pixel in 0..cam.pixels() {
+                for k in 0..spp {
+                    let mut rng = key.path(pixel as u64 * spp + k);
+                    trace_camera_path::<DOPPLER, LENGTH>(&walk, cam, pixel, batch_weight, &mut rec, &mut rng);
+                }
+                done += spp;
+                let due = done * ppb / camera_total;
+                if due - reported >= PROGRESS_EVERY {
+                    progress.advance(due - reported);
+                    reported = due;
+                }
+            }
+        }
+        if !cameras.is_empty() {
+            progress.advance(ppb - reported);
+        }
         layout.finish_batch(&self.detectors, sums.sums_mut());
         (sums, stats, lines)
     }

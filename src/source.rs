@@ -117,6 +117,45 @@ impl Source {
         }
     }
 
+    /// Whether the beam has a footprint (a camera path can meet it): a disk or a Gaussian. A
+    /// pencil lights a line, which a path reaches with probability zero.
+    pub fn has_footprint(&self) -> bool {
+        !matches!(self.profile, Profile::Pencil)
+    }
+
+    /// Irradiance (W/m² per watt emitted) of the beam's light travelling along `dir` through the
+    /// point `s` of the ambient medium above the stack, on a plane perpendicular to `dir`, before
+    /// any interface: the profile's density where the ray back from `s` along `−dir` meets the
+    /// emission plane, times `dir · direction` (the emission plane's area seen along `dir`).
+    /// `dir` is [`Source::direction`] for a collimated beam; with a divergence it is a direction
+    /// drawn by [`emit_direction`](Self::emit_direction), which makes this an unbiased estimate.
+    /// 0 for a pencil beam and behind the emission plane.
+    pub fn irradiance_along(&self, s: DVec3, dir: DVec3) -> f64 {
+        let cos = dir.dot(self.direction);
+        let back = (s - self.position).dot(self.direction) / cos;
+        if !(cos > 0.0 && back >= 0.0) {
+            return 0.0;
+        }
+        let y = s - back * dir - self.position;
+        let (u, v) = (y.dot(self.basis.0), y.dot(self.basis.1));
+        let r2 = u * u + v * v;
+        let density = match self.profile {
+            Profile::Pencil => 0.0,
+            Profile::Disk { radius } => {
+                if r2 <= radius * radius {
+                    1.0 / (std::f64::consts::PI * radius * radius)
+                } else {
+                    0.0
+                }
+            }
+            // The density of `warp::gaussian_beam`: I(r) = 2/(πw²)·exp(−2r²/w²).
+            Profile::Gaussian { waist } => {
+                2.0 / (std::f64::consts::PI * waist * waist) * (-2.0 * r2 / (waist * waist)).exp()
+            }
+        };
+        density / cos
+    }
+
     #[inline(never)]
     fn emit_spread(&self, u1: f64, u2: f64) -> DVec3 {
         let (x, y) = match self.profile {

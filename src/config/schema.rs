@@ -556,12 +556,24 @@ pub struct DetectorSection {
     /// its cone) as well as by the paths that escape into it; top detectors only. Always on for
     /// LDH cameras and lidar receivers.
     pub next_event: Option<bool>,
+    /// How the detector's scattered light is estimated: `"forward"` (paths from the laser, the
+    /// default) or `"camera"` (paths from its pixels, connected to the laser at every
+    /// scattering vertex; a top detector with an image, under a disk or Gaussian beam).
+    pub estimator: Option<EstimatorKind>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
     /// A laser Doppler holography camera over the image's pixels.
     pub ldh: Option<LdhSection>,
     /// A pulsed lidar receiver at the source (monostatic), with range gates.
     pub lidar: Option<LidarSection>,
+}
+
+/// `estimator = "…"` of a detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EstimatorKind {
+    Forward,
+    Camera,
 }
 
 /// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,

@@ -133,6 +133,29 @@ pub struct Surface {
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
+    /// How its scattered light is estimated: by the forward paths, or by camera paths from its
+    /// pixels ([`crate::transport::camera`]; the specular reflection stays with the forward ones).
+    pub estimator: Estimator,
+}
+
+/// The estimator of a surface detector's scattered light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Estimator {
+    /// The paths from the laser: their escapes into the cone and, with `next_event`, their
+    /// shadow rays.
+    Forward,
+    /// Paths from the camera's pixels, connected to the laser at every scattering vertex.
+    Camera,
+}
+
+impl Estimator {
+    /// The name in the configuration and the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Forward => "forward",
+            Estimator::Camera => "camera",
+        }
+    }
 }
 
 impl Surface {
@@ -164,10 +187,11 @@ impl Detector {
         self.surface()?.ldh.as_deref()
     }
 
-    /// Scored by next-event estimation (a lidar receiver always is).
+    /// Scored by next-event estimation (a lidar receiver always is; a camera-estimated detector
+    /// never is).
     pub fn next_event(&self) -> bool {
         match &self.kind {
-            DetectorKind::Surface(s) => s.next_event,
+            DetectorKind::Surface(s) => s.next_event && s.estimator == Estimator::Forward,
             DetectorKind::Lidar(_) => true,
         }
     }
@@ -416,6 +440,18 @@ impl Surface {
 }
 
 impl ImageSpec {
+    /// The pixel (row-major index) holding the point `(x, y)` of the detector plane.
+    #[inline]
+    pub fn pixel_at(&self, x: f64, y: f64) -> Option<usize> {
+        let fx = (x - self.min[0]) / (self.max[0] - self.min[0]);
+        let fy = (y - self.min[1]) / (self.max[1] - self.min[1]);
+        ((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy)).then(|| {
+            let ix = ((fx * self.nx as f64) as usize).min(self.nx - 1);
+            let iy = ((fy * self.ny as f64) as usize).min(self.ny - 1);
+            iy * self.nx + ix
+        })
+    }
+
     /// The kind of an image over this detector's pixels.
     pub fn kind(&self) -> Kind {
         Kind::Image { nx: self.nx, ny: self.ny, min: self.min, max: self.max }
@@ -525,12 +561,27 @@ impl Recorder<'_> {
         self.detect_one(i, e, n_ambient);
     }
 
+    /// A camera path's connection `e` to the laser, scored into its pixel (`e.l` is the whole
+    /// optical path length).
+    #[inline(never)]
+    pub fn camera(&mut self, shot: &crate::transport::camera::Shot, e: &Escape) {
+        if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
+            self.stats.non_finite += 1;
+            return;
+        }
+        self.score(shot.detector, shot.x, shot.y, Some(shot.pixel), e.l, e);
+    }
+
     /// The detectors' share of [`escape`](Self::escape) (a finite path).
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
-            if d.side != side || (e.specular && !d.include_specular) || e.dir.dot(d.axis) < d.cos_acceptance {
+            if d.side != side
+                || (e.specular && !d.include_specular)
+                || (d.estimator == Estimator::Camera && !e.specular)
+                || e.dir.dot(d.axis) < d.cos_acceptance
+            {
                 continue;
             }
             if d.next_event && e.order > 0 {
@@ -553,7 +604,7 @@ impl Recorder<'_> {
 
     /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area.
     fn detect_one(&mut self, i: usize, e: &Escape, n_ambient: f64) {
-        let (DetectorKind::Surface(d), lay) = (&self.detectors[i].kind, &self.layout.detectors[i]) else { return };
+        let DetectorKind::Surface(d) = &self.detectors[i].kind else { return };
         // Travel on to the detector plane.
         let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
         let p = e.pos + dist * e.dir;
@@ -561,6 +612,14 @@ impl Recorder<'_> {
             return;
         }
         let l = e.l + n_ambient * dist;
+        let pixel = d.image.and_then(|im| im.pixel_at(p.x, p.y));
+        self.score(i, p.x, p.y, pixel, l, e);
+    }
+
+    /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the
+    /// optical path length `l`, into the detector's tallies.
+    fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &Escape) {
+        let (DetectorKind::Surface(d), lay) = (&self.detectors[i].kind, &self.layout.detectors[i]) else { return };
         let w = e.weight;
         self.acc[lay.power] += w;
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
@@ -582,15 +641,6 @@ impl Recorder<'_> {
                 }
             }
         }
-        let pixel = d.image.and_then(|im| {
-            let fx = (p.x - im.min[0]) / (im.max[0] - im.min[0]);
-            let fy = (p.y - im.min[1]) / (im.max[1] - im.min[1]);
-            ((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy)).then(|| {
-                let ix = ((fx * im.nx as f64) as usize).min(im.nx - 1);
-                let iy = ((fy * im.ny as f64) as usize).min(im.ny - 1);
-                iy * im.nx + ix
-            })
-        });
         if let (Some(px), Some(start)) = (pixel, lay.image) {
             self.acc[start + px] += w;
         }
@@ -603,7 +653,7 @@ impl Recorder<'_> {
             }
             let class = ldh::class_of(e.doppler_events);
             let lines = &mut self.lines;
-            let hit = Detection { pixel, x: p.x, y: p.y, weight: w, frequency: f, gamma, class };
+            let hit = Detection { pixel, x, y, weight: w, frequency: f, gamma, class };
             ldh.record(ll, self.acc, hit, |roi| {
                 if let Some(v) = lines.as_deref_mut() {
                     v.push(RecordedLine { roi: roi as u32, class: class as u8, weight: w, frequency: f, gamma });

@@ -16,6 +16,9 @@ use rand_distr::{Distribution, Exp1, StandardNormal};
 pub enum Purpose {
     /// Random walks of photon paths.
     Path = 0x5041_5448,
+    /// Camera paths ([`crate::transport::camera`]): element = batch and detector, sample = the
+    /// path's index in the batch (pixel-major).
+    Camera = 0x4341_4d52,
     /// Anything a test needs.
     Test = 0x5445_5354,
     /// Speckle of single measurements: Algorithm 2's random phases and Cauchy frequencies,

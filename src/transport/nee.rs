@@ -156,7 +156,7 @@ pub fn receiver_ray(
 
 /// Optical depth of the segment `p + s·d`, `0 ≤ s ≤ t`, inside `layer`: its filling medium plus
 /// what its regions add over it (regions assumed not to overlap along the segment).
-fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
+pub(super) fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
     let fill = scene.media[layer.medium].sigma_t();
     let mut tau = fill * t;
     for &r in &layer.regions {
@@ -169,6 +169,16 @@ fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, 
         }
     }
     tau
+}
+
+/// A direction uniform in the cone of half-angle cosine `cos_acceptance` about `axis` (with
+/// `basis` completing it) from the uniforms `(u1, u2)`: `cos θ′` uniform on `[cos α, 1]`.
+#[inline(always)]
+pub fn cone_direction(axis: DVec3, basis: (DVec3, DVec3), cos_acceptance: f64, u1: f64, u2: f64) -> DVec3 {
+    let c = 1.0 - u1 * (1.0 - cos_acceptance);
+    let s = (1.0 - c * c).max(0.0).sqrt();
+    let (sin_phi, cos_phi) = (std::f64::consts::TAU * u2).sin_cos();
+    axis * c + (basis.0 * cos_phi + basis.1 * sin_phi) * s
 }
 
 /// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
@@ -188,11 +198,7 @@ pub fn shadow_ray(
     u2: f64,
     rng: &mut PathRng,
 ) -> Option<ShadowHit> {
-    // Exit direction uniform in the cone: cos θ' uniform on [cos α, 1] about the axis.
-    let c = 1.0 - u1 * (1.0 - target.cos_acceptance);
-    let s = (1.0 - c * c).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = (std::f64::consts::TAU * u2).sin_cos();
-    let dir = target.axis * c + (target.basis.0 * cos_phi + target.basis.1 * sin_phi) * s;
+    let dir = cone_direction(target.axis, target.basis, target.cos_acceptance, u1, u2);
     if dir.z >= 0.0 {
         return None;
     }

@@ -18,6 +18,7 @@ use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
 use crate::source::Source;
 
+use super::camera::{CameraTarget, Shot};
 use super::fresnel;
 use super::nee::NeeTarget;
 use super::tracking::{Flight, LayerRay, Tracking, free_flight};
@@ -47,13 +48,15 @@ impl Default for WalkSettings {
 
 /// What every path of a run walks through: the scene, the source, the walk's knobs and the
 /// detectors scored by next-event estimation (empty: none; the walk is then compiled without
-/// shadow rays, `NEE = false`).
+/// shadow rays, `NEE = false`). A camera path ([`trace_camera_path`]) also carries its pixel
+/// (`shot`; `None` for forward paths).
 #[derive(Debug, Clone, Copy)]
 pub struct WalkContext<'a> {
     pub scene: &'a Scene,
     pub source: &'a Source,
     pub settings: &'a WalkSettings,
     pub nee: &'a [NeeTarget],
+    pub shot: Option<Shot>,
 }
 
 /// A real collision as the event loop hands it to [`collide`]: the medium collided in, its albedo
@@ -219,7 +222,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk::<DOPPLER, LENGTH, NEE>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, NEE, false>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
@@ -239,8 +242,45 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     }
 }
 
+/// Trace one camera path of pixel `pixel` of `cam` ([`super::camera`]), recording its
+/// connections to the laser into `rec` with the tally weight `batch_weight` per path.
+pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    cam: &CameraTarget,
+    pixel: usize,
+    batch_weight: f64,
+    rec: &mut Recorder,
+    rng: &mut PathRng,
+) {
+    let mut local = rng.clone();
+    let Some((shot, pos, dir, weight, l)) = super::camera::start(cam, ctx.scene, pixel, batch_weight, &mut local)
+    else {
+        *rng = local;
+        return;
+    };
+    let mut s = PathState {
+        pos,
+        dir,
+        weight,
+        l: if LENGTH { l } else { 0.0 },
+        dldt: 0.0,
+        order: 0,
+        doppler_events: 0,
+        brownian: 0.0,
+        mis: -1.0,
+    };
+    let ctx = WalkContext { shot: Some(shot), ..*ctx };
+    let (mut absorbed, mut null_collisions) = (0.0, 0);
+    let end = walk::<DOPPLER, LENGTH, false, true>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    *rng = local;
+    if end == End::Truncated {
+        rec.stats.truncated_paths += 1;
+    }
+}
+
 /// The random walk of `s` from the top surface until it ends; the weight deposited by
-/// absorption is added to `absorbed`.
+/// absorption is added to `absorbed`. A camera path (`CAMERA`) connects to the laser at every
+/// real collision and carries radiance across interfaces (see [`super::camera`]).
 ///
 /// The loop is nested: the outer one runs once per visit of a layer and reads what the event
 /// loop needs from the layer and its filling medium (bounds, index, `1/σt`, the medium itself)
@@ -248,7 +288,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
 /// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
 /// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
 #[inline(always)]
-fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
+fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool>(
     ctx: &WalkContext,
     s: &mut PathState,
     rng: &mut PathRng,
@@ -309,7 +349,17 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
                     Flight::Boundary { .. } => break,
                 }
             };
-            if NEE {
+            if CAMERA {
+                s.pos += t * s.dir;
+                if LENGTH {
+                    s.l += n * t;
+                }
+                if let Some(end) =
+                    collide_camera::<DOPPLER, LENGTH>(ctx, li, s, medium, albedo, n, rng, &mut checkpoint, rec)
+                {
+                    return end;
+                }
+            } else if NEE {
                 s.pos += t * s.dir;
                 if LENGTH {
                     s.l += n * t;
@@ -371,6 +421,10 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         s.dir = fresnel::refract(s.dir, n, n2, cos_t);
         if beyond.is_none() {
             return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 };
+        }
+        if CAMERA {
+            // Radiance across the interface: `L/n²` is invariant.
+            s.weight *= (n / n2) * (n / n2);
         }
         li = next;
     }
@@ -492,6 +546,77 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     s.dir = out;
     s.order += 1;
     end_of_event(s, settings, rng, checkpoint)
+}
+
+/// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
+/// laser scored into the path's pixel (see [`super::camera`]), then a new direction as
+/// [`collide`]. One particle velocity serves the connection and the continuation.
+//
+// Outlined, as `collide_nee`: the connection is a trace through every layer above.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    li: usize,
+    s: &mut PathState,
+    m: &Medium,
+    albedo: f64,
+    n: f64,
+    rng: &mut PathRng,
+    checkpoint: &mut u32,
+    rec: &mut Recorder,
+) -> Option<End> {
+    s.weight *= albedo;
+    if s.weight <= 0.0 {
+        return Some(End::Absorbed);
+    }
+    let (pop, dynamic) = m.pick_dynamic(rng);
+    let dynamic = DOPPLER && dynamic;
+    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    // Connection roulette, as the forward shadow rays': the beam reaches the vertex through at
+    // least the optical depth `τ_min` straight up, so connections that cannot carry more than
+    // `weight·exp(−τ_min)` are traced with probability `bound/threshold` and weighted by its
+    // inverse (unbiased). Vertices under a pigmented layer then cost little.
+    let q = s.weight * (-ctx.scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    let boost = if q >= 1.0 {
+        1.0
+    } else if rng.uniform() < q {
+        1.0 / q
+    } else {
+        0.0
+    };
+    let connect = if boost > 0.0 { ctx.shot } else { None };
+    if let Some(shot) = connect
+        && let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, s.pos, rng)
+    {
+        // The light arrives along `b.dir` and leaves towards the camera along `−s.dir`.
+        let p = pop.phase.eval(-b.dir.dot(s.dir));
+        let mut e = Escape {
+            pos: s.pos,
+            dir: -s.dir,
+            weight: s.weight * p * b.irradiance * shot.scale * boost,
+            l: if LENGTH { s.l + b.length } else { 0.0 },
+            dldt: s.dldt,
+            order: s.order + 1,
+            doppler_events: s.doppler_events,
+            brownian: s.brownian,
+            mis: -1.0,
+            specular: false,
+        };
+        if dynamic {
+            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, pop, n, v, b.dir + s.dir);
+        }
+        rec.camera(&shot, &e);
+    }
+    let d = pop.phase.sample(rng.uniform());
+    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    if dynamic {
+        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
+    }
+    s.dir = out;
+    s.order += 1;
+    end_of_event(s, ctx.settings, rng, checkpoint)
 }
 
 /// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if

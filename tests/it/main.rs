@@ -6,6 +6,7 @@
 mod support;
 
 mod atmosphere;
+mod camera;
 mod cli;
 mod config_fixtures;
 mod converge;

@@ -7,8 +7,8 @@ use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
-    Area, Detector, DetectorKind, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec, SpectrumSpec,
-    Surface,
+    Area, Detector, DetectorKind, Estimator, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec,
+    SpectrumSpec, Surface,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -227,7 +227,32 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
     })
 }
 
-pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<Detector>> {
+/// The estimator of a surface detector (`estimator`, default `"forward"`): the camera-side one
+/// ([`crate::transport::camera`]) needs a top detector, an image (its paths are spread over the
+/// pixels) and a beam with a footprint.
+fn resolve_estimator(
+    path: &str,
+    kind: Option<EstimatorKind>,
+    side: Side,
+    image: bool,
+    source: &Source,
+) -> R<Estimator> {
+    if kind != Some(EstimatorKind::Camera) {
+        return Ok(Estimator::Forward);
+    }
+    let why_not = if side != Side::Top {
+        "camera paths leave from a top detector (they enter the stack through z = 0)"
+    } else if !image {
+        "camera paths are spread over the detector's pixels: add [detectors.image] pixels = [nx, ny]"
+    } else if !source.has_footprint() {
+        "a pencil beam lights a line, which a camera path's connections reach with probability zero: use source.profile = \"disk\" or \"gaussian\""
+    } else {
+        return Ok(Estimator::Camera);
+    };
+    err(join(path, "estimator"), format!("= \"camera\": {why_not}"))
+}
+
+pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &Source) -> R<Vec<Detector>> {
     let mut out: Vec<Detector> = Vec::new();
     for (i, d) in ds.iter().enumerate() {
         let path = format!("detectors[{i}]");
@@ -349,6 +374,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<
                 "= true: next-event estimation scores top detectors only (shadow rays leave through z = 0)",
             );
         }
+        let estimator = resolve_estimator(&path, d.estimator, side, image.is_some(), source)?;
         let mut surface = Surface {
             side,
             distance,
@@ -360,6 +386,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene) -> R<Vec<
             image,
             ldh: None,
             next_event,
+            estimator,
         };
         if let Some(l) = &d.ldh {
             let p = join(&path, "ldh");

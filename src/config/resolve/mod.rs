@@ -134,7 +134,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
     let ctx = Ctx { base, wavelength: source.wavelength, files: GridFiles::default() };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
-    let mut detectors = resolve_detectors(&f.detectors, &scene)?;
+    let mut detectors = resolve_detectors(&f.detectors, &scene, &source)?;
     for (i, d) in f.detectors.iter().enumerate() {
         if let Some(l) = &d.lidar {
             let path = format!("detectors[{i}].lidar");
@@ -154,6 +154,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
                 (distance.unwrap_or("distance"), distance.is_some()),
                 ("include_specular", d.include_specular.is_some()),
                 ("next_event", d.next_event.is_some()),
+                ("estimator", d.estimator.is_some()),
                 ("spectrum", d.spectrum.is_some()),
                 ("image", d.image.is_some()),
                 ("ldh", d.ldh.is_some()),

@@ -1,0 +1,196 @@
+//! The camera-side (adjoint) estimator of a camera's images: paths start at a pixel and connect
+//! to the laser at every real scattering vertex.
+//!
+//! A camera pixel measures the power `P = ∫_A ∫_cone L0(x, ω) |cos θ| dω dA` crossing its area `A`
+//! within the acceptance cone, `L0` being the radiance above the stack. Forward tracing with
+//! next-event estimation ([`super::nee`]) spreads each path's contributions over whichever pixels
+//! its shadow rays land in; the adjoint walk instead estimates `L0` for a point drawn uniformly in
+//! the pixel and a direction drawn uniformly in the cone, so every pixel gets the same number of
+//! paths and each path's every vertex scores into its own pixel (Veach 1997 §3.7: importance
+//! transport; Pharr, Jakob & Humphreys, *PBR* 4th ed., ch. 14, volumetric path tracing from the
+//! sensor with next-event estimation to lights).
+//!
+//! The walk itself is the forward one ([`super::walk`]) run backwards from the pixel: the same
+//! free flights, absorption weighting, phase sampling and Fresnel choices, with two differences.
+//! It carries radiance, not power, so refraction from a layer of index `n_a` into one of `n_b`
+//! multiplies its weight by `(n_a/n_b)²` (`L/n²` is invariant, and the Fresnel transmittance is
+//! the probability of the choice); the exit into the camera's medium at the start, `(1 − R)·(n0/n1)²`,
+//! is applied deterministically. And at every real collision, at `x` in layer `k`, it connects to
+//! the collimated beam ([`beam_connection`]): the beam reaches `x` along the one direction `ω_k`
+//! that refracts from the laser's direction (`n sin θ` is conserved through the planes), with
+//! the irradiance
+//!
+//! `E_k(x) = E0(y)·(cos θ0/cos θ_k)·Π(1 − R_i)·exp(−τ)`,
+//!
+//! where `E0(y)` is the profile's irradiance where the ray back from `x` leaves the emission plane
+//! ([`crate::source::Source::irradiance_along`]), the cosine ratio turns power per horizontal area
+//! (conserved through the planes) into irradiance across the refracted beam, `R_i` are the Fresnel
+//! reflectances of the interfaces crossed and `τ` the optical depth of the straight segments
+//! (analytic, or ratio tracking in density layers). The vertex scores
+//! `W·p(ω_k · ω_out)·E_k(x)`, with `W` the walk's weight after the absorption weighting (the
+//! collision density `σt·e^{−τ}` turns the in-scattered radiance `σs·p·E` into `albedo·p·E`) and
+//! `ω_out = −dir` the light's direction towards the camera.
+//!
+//! Doppler and path length: the light's path is the adjoint path reversed. At a vertex reached
+//! along `d_in` and left along `d_out` by the adjoint walk, the light arrives along `−d_out` and
+//! leaves along `−d_in`, so `dir_in − dir_out` is the same vector both ways and the walk's own
+//! Doppler bookkeeping gives the light's `dl/dt` with the library's sign (DESIGN.md: reciprocal
+//! paths, same sign); the connection adds its vertex's term with `ω_k − (−dir)`.
+//!
+//! A collimated beam is a delta in direction, so no walk can hit it by chance: the connections
+//! are the whole estimate and need no multiple importance sampling. A pencil beam lights a line,
+//! which a connection reaches with probability zero: the camera estimator needs a disk or
+//! Gaussian footprint.
+
+use glam::DVec3;
+
+use crate::detect::{Area, ImageSpec};
+use crate::medium::Scene;
+use crate::sampling::PathRng;
+use crate::source::Source;
+
+use super::fresnel;
+use super::nee::segment_optical_depth;
+use super::tracking::ratio_transmittance;
+
+/// A surface detector scored by the camera-side estimator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraTarget {
+    /// Index of the detector.
+    pub detector: usize,
+    pub image: ImageSpec,
+    pub area: Area,
+    /// Height of the detector plane above the surface, m.
+    pub distance: f64,
+    /// Cone axis (pointing away from the stack, `z < 0`) and its perpendicular basis.
+    pub axis: DVec3,
+    pub basis: (DVec3, DVec3),
+    pub cos_acceptance: f64,
+}
+
+impl CameraTarget {
+    pub fn new(detector: usize, image: ImageSpec, area: Area, distance: f64, axis: DVec3, cos_acceptance: f64) -> Self {
+        let basis = crate::sampling::warp::orthonormal_basis(axis);
+        CameraTarget { detector, image, area, distance, axis, basis, cos_acceptance }
+    }
+
+    pub fn pixels(&self) -> usize {
+        self.image.nx * self.image.ny
+    }
+
+    /// Camera paths per pixel in a batch of `paths_per_batch` forward paths: as many camera paths
+    /// as forward paths, rounded up to a whole number per pixel, so that every pixel gets exactly
+    /// the same number in every batch (no pixel is left without an estimate in any batch).
+    pub fn paths_per_pixel(&self, paths_per_batch: u64) -> u64 {
+        paths_per_batch.div_ceil(self.pixels() as u64).max(1)
+    }
+}
+
+/// Which pixel a camera path scores into, where it starts, and the factor turning its
+/// contributions into the batch's tally (see [`start`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shot {
+    pub detector: usize,
+    pub pixel: usize,
+    /// Its point on the detector plane, m.
+    pub x: f64,
+    pub y: f64,
+    /// `A_pixel · Ω_cone · |cos θ0|` (the inverse density of the start, times the flux cosine)
+    /// times the batch's weight of one path of this pixel.
+    pub scale: f64,
+}
+
+/// The start of a camera path for pixel `pixel` of `cam`: a point uniform in the pixel, a
+/// direction uniform in the acceptance cone, carried to the surface and refracted in. `None` if
+/// the point is off the detector's area or the direction cannot enter the stack. `batch_weight`
+/// is the tally weight of one of this pixel's paths in its batch. Returns the shot and the
+/// walk's starting position, direction, weight and path length.
+pub fn start(
+    cam: &CameraTarget,
+    scene: &Scene,
+    pixel: usize,
+    batch_weight: f64,
+    rng: &mut PathRng,
+) -> Option<(Shot, DVec3, DVec3, f64, f64)> {
+    let im = &cam.image;
+    let (dx, dy) = ((im.max[0] - im.min[0]) / im.nx as f64, (im.max[1] - im.min[1]) / im.ny as f64);
+    let (ix, iy) = (pixel % im.nx, pixel / im.nx);
+    let x = im.min[0] + (ix as f64 + rng.uniform()) * dx;
+    let y = im.min[1] + (iy as f64 + rng.uniform()) * dy;
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    if !cam.area.contains(x, y) {
+        return None;
+    }
+    // The light's direction, uniform in the cone; the walk goes the other way.
+    let out = super::nee::cone_direction(cam.axis, cam.basis, cam.cos_acceptance, u1, u2);
+    if out.z >= 0.0 {
+        return None;
+    }
+    let d = -out;
+    let t0 = cam.distance / d.z;
+    let pos = DVec3::new(x + t0 * d.x, y + t0 * d.y, 0.0);
+    let (n0, n1) = (scene.n_above, scene.layers[0].n);
+    let (r, cos_t) = fresnel::reflectance(n0, n1, d.z);
+    if r >= 1.0 {
+        return None;
+    }
+    let solid_angle = crate::detect::cone_solid_angle(cam.cos_acceptance);
+    let scale = batch_weight * dx * dy * solid_angle * d.z;
+    let weight = (1.0 - r) * (n0 / n1) * (n0 / n1);
+    let shot = Shot { detector: cam.detector, pixel, x, y, scale };
+    Some((shot, pos, fresnel::refract(d, n0, n1, cos_t), weight, n0 * t0))
+}
+
+/// The laser's light at a vertex: the direction it arrives along, its irradiance there across
+/// that direction, and its optical path length from the emission plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamHit {
+    /// Direction of travel at the vertex (inside its layer).
+    pub dir: DVec3,
+    /// W/m² per watt emitted.
+    pub irradiance: f64,
+    /// m.
+    pub length: f64,
+}
+
+/// The unscattered laser light reaching `pos` in layer `li` (see the module docs). `None` where
+/// none does: outside the footprint, or a direction that cannot exist in some layer.
+pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rng: &mut PathRng) -> Option<BeamHit> {
+    let beam = source.emit_direction(rng);
+    let n0 = scene.n_above;
+    let tangential = DVec3::new(beam.x, beam.y, 0.0) * n0;
+    let direction_in = |n: f64| -> Option<DVec3> {
+        let t = tangential / n;
+        let sin2 = t.length_squared();
+        (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
+    };
+    let dir = direction_in(scene.layers[li].n)?;
+    let (mut p, mut tau, mut length, mut transmit) = (pos, 0.0, 0.0, 1.0);
+    for j in (0..=li).rev() {
+        let layer = &scene.layers[j];
+        let d = if j == li { dir } else { direction_in(layer.n)? };
+        // Back up the beam to the layer's top.
+        let t = (p.z - layer.z_top) / d.z;
+        if layer.heterogeneous {
+            transmit *= ratio_transmittance(scene, layer, p, -d, t, rng);
+        } else {
+            tau += segment_optical_depth(scene, layer, p, -d, t);
+        }
+        length += layer.n * t;
+        p -= t * d;
+        p.z = layer.z_top;
+        let n_above = if j == 0 { n0 } else { scene.layers[j - 1].n };
+        let (r, _) = fresnel::reflectance(layer.n, n_above, d.z);
+        transmit *= 1.0 - r;
+    }
+    if transmit <= 0.0 {
+        return None;
+    }
+    let e0 = source.irradiance_along(p, beam);
+    if e0 <= 0.0 {
+        return None;
+    }
+    let back = (p - source.position).dot(source.direction) / beam.dot(source.direction);
+    let irradiance = e0 * (beam.z / dir.z) * transmit * (-tau).exp();
+    Some(BeamHit { dir, irradiance, length: length + n0 * back })
+}
