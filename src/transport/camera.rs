@@ -37,25 +37,6 @@
 //! Doppler bookkeeping gives the light's `dl/dt` with the library's sign (DESIGN.md: reciprocal
 //! paths, same sign); the connection adds its vertex's term with `ω_k − (−dir)`.
 //!
-//! Two ways to the last vertex. Tissue and blood scatter strongly forward (Henyey–Greenstein
-//! g = 0.95–0.97: half of each deflection within ~(1 − g) rad), so the light under the beam is
-//! concentrated within a degree or two of the beam's direction, and a connection's phase factor
-//! `p(ω_k · ω_out)` is large (up to `(1 + g)/(4π(1 − g)²)` ≈ 170 sr⁻¹) only where the walk happens
-//! to travel back up the beam within that cone. Measured on `configs/retina_ldh.toml` (one
-//! pixel, 64 000 paths, 6.4·10⁶ connections): the largest 1 % of connections carried 95 % of the
-//! signal and all but 2·10⁻⁶ of its variance, all of them in the retina with `ω_out` within 2° of
-//! the beam. So from every vertex `x` (reached along `d`) the path is also extended by one vertex
-//! in the direction the beam's lobe favours: a direction `d2` drawn from the vertex's phase
-//! function centred on `−ω_k` (the guide density `q(d2) = p(−ω_k · d2)`), a free flight in the
-//! layer, and a connection there. The same last vertex can come from the walk itself (its next
-//! direction drawn from `p(d · d2)`), so both are weighted by the balance heuristic (Veach 1997,
-//! ch. 9) with their direction densities (the flight's density is common to both): the walk's
-//! next connection by `p_walk/(p_walk + q)` when no interface lies between (an interface makes
-//! the path one the lobe sampling cannot produce: weight 1), the lobe's by
-//! `p_walk/(p_walk + q)` over its own density `q`, i.e. `p(d·d2)/(p(d·d2) + q(d2))`. A spike of
-//! the phase function at the connection is thus replaced by the smooth value `p(d · d2)` of the
-//! vertex before.
-//!
 //! A collimated beam is a delta in direction, so no walk can hit it by chance: the connections
 //! are the whole estimate and need no multiple importance sampling. A pencil beam lights a line,
 //! which a connection reaches with probability zero: the camera estimator needs a disk or
@@ -170,14 +151,6 @@ pub struct BeamHit {
     pub irradiance: f64,
     /// m.
     pub length: f64,
-}
-
-/// The direction of the laser's (mean) direction `beam` after refraction into layer `li` (`n sin θ`
-/// is conserved through the planes); `None` if it cannot exist there.
-pub fn beam_direction(scene: &Scene, beam: DVec3, li: usize) -> Option<DVec3> {
-    let t = DVec3::new(beam.x, beam.y, 0.0) * (scene.n_above / scene.layers[li].n);
-    let sin2 = t.length_squared();
-    (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
 }
 
 /// The unscattered laser light reaching `pos` in layer `li` (see the module docs). `None` where

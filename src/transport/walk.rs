@@ -413,7 +413,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
         let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
         if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
             s.dir.z = -s.dir.z;
-            if NEE || CAMERA {
+            if NEE {
                 s.mis = -1.0;
             }
             continue;
@@ -423,10 +423,8 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
             return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 };
         }
         if CAMERA {
-            // Radiance across the interface: `L/n²` is invariant. The next vertex is no longer
-            // one the lobe sampling of `collide_camera` can reach.
+            // Radiance across the interface: `L/n²` is invariant.
             s.weight *= (n / n2) * (n / n2);
-            s.mis = -1.0;
         }
         li = next;
     }
@@ -551,11 +549,10 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
 }
 
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
-/// laser scored into the path's pixel, the beam-lobe connection one vertex further, then a new
-/// direction as [`collide`] (see [`super::camera`], "Two ways to the last vertex"). One particle
-/// velocity serves the connections and the continuation.
+/// laser scored into the path's pixel (see [`super::camera`]), then a new direction as
+/// [`collide`]. One particle velocity serves the connection and the continuation.
 //
-// Outlined, as `collide_nee`: the connections are traces through every layer above.
+// Outlined, as `collide_nee`: the connection is a trace through every layer above.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
@@ -573,7 +570,6 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     if s.weight <= 0.0 {
         return Some(End::Absorbed);
     }
-    let scene = ctx.scene;
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
@@ -581,7 +577,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     // least the optical depth `τ_min` straight up, so connections that cannot carry more than
     // `weight·exp(−τ_min)` are traced with probability `bound/threshold` and weighted by its
     // inverse (unbiased). Vertices under a pigmented layer then cost little.
-    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    let q = s.weight * (-ctx.scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
     let boost = if q >= 1.0 {
         1.0
     } else if rng.uniform() < q {
@@ -589,124 +585,38 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     } else {
         0.0
     };
-    // The beam's (mean) direction in this layer: the centre of the guide lobe.
-    let beam = super::camera::beam_direction(scene, ctx.source.direction, li);
-    if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
-        // This vertex as the last one of the path the walk sampled, weighted against the lobe
-        // sampling from the vertex before (`s.mis`, 1 when that could not have made it).
-        let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
-        let mis = if s.mis >= 0.0 { s.mis } else { 1.0 };
-        let tail = Tail { l: s.l, dldt: s.dldt, brownian: s.brownian, events: s.doppler_events, order: s.order };
-        connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * mis * boost, rng, rec);
-        // One more vertex, in the direction the beam's lobe favours: a direction `d2` from this
-        // vertex's phase function centred on `−beam`, a flight in this layer, and a connection
-        // there, weighted by the balance heuristic against the walk's own sampling of `d2`.
-        if let Some(beam) = beam {
-            let dd = pop.phase.sample(rng.uniform());
-            let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
-            let (d2, _) = scatter_direction(-beam, dd, cos_phi, sin_phi);
-            let (p_walk, p_lobe) = (pop.phase.eval(s.dir.dot(d2)), pop.phase.eval(dd.cos));
-            let layer = &scene.layers[li];
-            let dz = if d2.z >= 0.0 { layer.z_bottom - s.pos.z } else { s.pos.z - layer.z_top };
-            let ray = LayerRay { scene, layer, pos: s.pos, dir: d2 };
-            let mut nulls = 0;
-            if let Flight::Collision { t, medium } =
-                free_flight(ray, dz, d2.z.abs(), ctx.settings.tracking, rng, &mut nulls)
-            {
-                let m2 = &scene.media[medium];
-                let pos = s.pos + t * d2;
-                let albedo2 = if layer.heterogeneous { m2.albedo_at(pos) } else { m2.albedo() };
-                let (pop2, dynamic2) = m2.pick_dynamic(rng);
-                let dynamic2 = DOPPLER && dynamic2;
-                let v2 = if dynamic2 { particle_velocity(pop2, pos, rng) } else { DVec3::ZERO };
-                let mut tail = tail;
-                if dynamic {
-                    doppler_event(&mut tail.dldt, &mut tail.brownian, &mut tail.events, pop, n, v, s.dir - d2);
-                }
-                tail.order += 1;
-                tail.l += if LENGTH { n * t } else { 0.0 };
-                let there = Link { pos, dir_in: d2, pop: pop2, v: v2, dynamic: dynamic2, n };
-                let w = s.weight * boost * p_walk / (p_walk + p_lobe) * albedo2;
-                connect::<LENGTH>(ctx, li, &shot, there, tail, w, rng, rec);
-            }
+    let connect = if boost > 0.0 { ctx.shot } else { None };
+    if let Some(shot) = connect
+        && let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, s.pos, rng)
+    {
+        // The light arrives along `b.dir` and leaves towards the camera along `−s.dir`.
+        let p = pop.phase.eval(-b.dir.dot(s.dir));
+        let mut e = Escape {
+            pos: s.pos,
+            dir: -s.dir,
+            weight: s.weight * p * b.irradiance * shot.scale * boost,
+            l: if LENGTH { s.l + b.length } else { 0.0 },
+            dldt: s.dldt,
+            order: s.order + 1,
+            doppler_events: s.doppler_events,
+            brownian: s.brownian,
+            mis: -1.0,
+            specular: false,
+        };
+        if dynamic {
+            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, pop, n, v, b.dir + s.dir);
         }
+        rec.camera(&shot, &e);
     }
     let d = pop.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
-    // The balance-heuristic weight of the walk's sampling of `out`, should the next vertex be
-    // reached without meeting an interface (the lobe sampling makes no other paths).
-    s.mis = match beam {
-        Some(beam) => {
-            let p_walk = pop.phase.eval(d.cos);
-            p_walk / (p_walk + pop.phase.eval(-beam.dot(out)))
-        }
-        None => -1.0,
-    };
     if dynamic {
         doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
     end_of_event(s, ctx.settings, rng, checkpoint)
-}
-
-/// A vertex a camera path connects to the laser from: where, the walk's direction into it, the
-/// particle scattering there (and its velocity), and the layer's index.
-#[derive(Clone, Copy)]
-struct Link<'a> {
-    pos: DVec3,
-    dir_in: DVec3,
-    pop: &'a Population,
-    v: DVec3,
-    dynamic: bool,
-    n: f64,
-}
-
-/// What a camera path carries up to a [`Link`]: its optical path length, `dl/dt`, Brownian sum,
-/// Doppler events and scattering order before the link's own event.
-#[derive(Clone, Copy)]
-struct Tail {
-    l: f64,
-    dldt: f64,
-    brownian: f64,
-    events: u32,
-    order: u32,
-}
-
-/// Connect `at` (in layer `li`) to the laser and score the path into `shot`'s pixel with the
-/// weight `w` (the walk's weight, with every factor but the phase function and the irradiance).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn connect<const LENGTH: bool>(
-    ctx: &WalkContext,
-    li: usize,
-    shot: &Shot,
-    at: Link,
-    tail: Tail,
-    w: f64,
-    rng: &mut PathRng,
-    rec: &mut Recorder,
-) {
-    let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
-    // The light arrives along `b.dir` and leaves towards the camera along `−dir_in`.
-    let p = at.pop.phase.eval(-b.dir.dot(at.dir_in));
-    let mut e = Escape {
-        pos: at.pos,
-        dir: -at.dir_in,
-        weight: w * p * b.irradiance * shot.scale,
-        l: if LENGTH { tail.l + b.length } else { 0.0 },
-        dldt: tail.dldt,
-        order: tail.order + 1,
-        doppler_events: tail.events,
-        brownian: tail.brownian,
-        mis: -1.0,
-        specular: false,
-    };
-    if at.dynamic {
-        doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, at.pop, at.n, at.v, b.dir + at.dir_in);
-    }
-    rec.camera(shot, &e);
 }
 
 /// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if
