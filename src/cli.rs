@@ -445,7 +445,24 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 /// written run, on stderr.
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
-    eprintln!("  main output {main}: relative error {:.4}%", 100.0 * err);
+    eprintln!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
+    // Images are read pixel by pixel: each main image's per-pixel relative errors.
+    let (mean, stderr) = (output.estimates.mean(), output.estimates.stderr());
+    for o in output.layout.registry.outputs.iter().filter(|o| o.primary) {
+        if let Some(pe) = o.pixel_errors(mean, &stderr) {
+            let blank = if pe.without_signal > 0 {
+                format!(", {} pixels without signal", pe.without_signal)
+            } else {
+                String::new()
+            };
+            eprintln!(
+                "  {}: per-pixel relative error median {:.1}%, p90 {:.1}%{blank}",
+                o.name,
+                100.0 * pe.median,
+                100.0 * pe.p90
+            );
+        }
+    }
     if let Some(t) = &output.target {
         if t.met {
             eprintln!(

@@ -160,11 +160,50 @@ impl Output {
         (v, gather(stderr))
     }
 
+    /// Per-pixel relative errors of an image output (`None` for other kinds), read off a run's
+    /// mean and standard error vectors.
+    pub fn pixel_errors(&self, mean: &[f64], stderr: &[f64]) -> Option<PixelErrors> {
+        matches!(self.kind, Kind::Image { .. }).then(|| {
+            let (v, e) = self.values(mean, stderr);
+            PixelErrors::of(&v, &e)
+        })
+    }
+
     /// The below and above out-of-range tallies of row `r` of a spectrum, as written (swapped
     /// on a mirrored axis), read off `v` laid out as the tallies.
     pub fn tails(&self, v: &[f64], r: usize) -> (f64, f64) {
         let t = self.slots.row_range(r).end;
         if self.mirrored() { (v[t + 1], v[t]) } else { (v[t], v[t + 1]) }
+    }
+}
+
+/// The relative error `σ/|value|` of every pixel of an image, and its median and 90th
+/// percentile over the pixels with a non-zero value (a pixel nothing reached has no relative
+/// error: NaN in `map`, counted in `without_signal`; the percentiles are NaN if no pixel has one).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelErrors {
+    pub map: Vec<f64>,
+    pub median: f64,
+    pub p90: f64,
+    pub without_signal: usize,
+}
+
+impl PixelErrors {
+    pub fn of(values: &[f64], stderr: &[f64]) -> Self {
+        let map: Vec<f64> =
+            values.iter().zip(stderr).map(|(&v, &e)| if v != 0.0 { e / v.abs() } else { f64::NAN }).collect();
+        let mut sorted: Vec<f64> = map.iter().copied().filter(|r| !r.is_nan()).collect();
+        sorted.sort_by(f64::total_cmp);
+        // Nearest rank: the smallest value with at least q of the pixels at or below it.
+        let rank = |q: f64| {
+            if sorted.is_empty() {
+                f64::NAN
+            } else {
+                sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
+            }
+        };
+        let (median, p90) = (rank(0.5), rank(0.9));
+        PixelErrors { without_signal: map.len() - sorted.len(), map, median, p90 }
     }
 }
 
@@ -248,5 +287,28 @@ impl Registry {
         };
         blocks.sort_by_key(|b| (b.0, rank(&b.1)));
         blocks.into_iter().map(|b| (b.1, b.2, b.3)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pixel_errors_are_nearest_rank_percentiles_over_pixels_with_signal() {
+        // Relative errors 0.1, 0.2, …, 1.0 over ten pixels with signal (signs do not matter),
+        // and two pixels nothing reached.
+        let mut values: Vec<f64> = (1..=10).map(|k| if k % 2 == 0 { -2.0 } else { 2.0 }).collect();
+        let mut stderr: Vec<f64> = (1..=10).map(|k| 0.2 * k as f64).collect();
+        values.extend([0.0, 0.0]);
+        stderr.extend([0.0, 0.5]);
+        let pe = PixelErrors::of(&values, &stderr);
+        assert_eq!(pe.without_signal, 2);
+        assert!(pe.map[10].is_nan() && pe.map[11].is_nan());
+        assert!((pe.map[3] - 0.4).abs() < 1e-15);
+        assert!((pe.median - 0.5).abs() < 1e-15, "median {}", pe.median);
+        assert!((pe.p90 - 0.9).abs() < 1e-15, "p90 {}", pe.p90);
+        let none = PixelErrors::of(&[0.0; 3], &[0.0; 3]);
+        assert!(none.median.is_nan() && none.p90.is_nan() && none.without_signal == 3);
     }
 }

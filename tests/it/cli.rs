@@ -532,14 +532,20 @@ fn assert_same_run(a: &Path, b: &Path) -> usize {
 }
 
 /// `ohd run --shard I/N` on every part (any thread counts) and `ohd merge` (shards in any
-/// order) give a single run's outputs byte for byte: the vessel camera's spectra and image, and
-/// the retina LDH camera's M0± images and ROI speckle, which needs every recorded line in batch
-/// order. Mismatched, missing, repeated and truncated shards are refused (exit 2, nothing written).
+/// order) give a single run's outputs byte for byte: the vessel camera's spectra and image, the
+/// retina LDH camera's M0± images and ROI speckle, which needs every recorded line in batch
+/// order, and a camera-estimated LDH camera (camera paths by batch and pixel). Mismatched,
+/// missing, repeated and truncated shards are refused (exit 2, nothing written).
 #[test]
 fn shards_merge_into_a_single_run() {
     let tmp = tempfile::tempdir().unwrap();
     let retina = repo().join("configs/retina_ldh.toml");
-    for (case, config, samples, count) in [("vessel", None, "400000", 3u64), ("retina", Some(&retina), "200000", 5)] {
+    let camera = repo().join("tests/configs/good/camera_estimator.toml");
+    for (case, config, samples, count) in [
+        ("vessel", None, "400000", 3u64),
+        ("retina", Some(&retina), "200000", 5),
+        ("camera", Some(&camera), "64000", 3),
+    ] {
         let base = |dir: &Path| -> Vec<String> {
             let mut a: Vec<String> = vec!["run".into()];
             a.extend(config.map(|c| path_str(c).to_string()));

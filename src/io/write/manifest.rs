@@ -55,6 +55,9 @@ pub struct Manifest {
     pub estimates: BTreeMap<String, Entry>,
     /// Per detector: what its files hold (axes, units, layout).
     pub detectors: BTreeMap<String, DetectorEntry>,
+    /// Per main image output: the median and 90th percentile of its per-pixel relative errors,
+    /// and the file of the map.
+    pub pixel_errors: BTreeMap<String, super::PixelErrorEntry>,
     /// Every file written, in order.
     pub files: Vec<String>,
 }
@@ -89,6 +92,8 @@ pub struct RunStatistics {
     pub scattering_events: u64,
     pub events_per_second: f64,
     pub paths_per_second: f64,
+    /// Paths traced from the pixels of camera-estimated detectors (besides `paths`).
+    pub camera_paths: u64,
     pub null_collisions: u64,
     pub roulette_terminations: u64,
     pub truncated_paths: u64,
@@ -115,6 +120,9 @@ pub struct MediumEntry {
 #[derive(Debug, Clone, Serialize)]
 pub struct DetectorEntry {
     pub side: &'static str,
+    /// How its scattered light was estimated (`"forward"` or `"camera"`; absent for a lidar).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub spectrum: Option<SpectrumEntry>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -184,6 +192,7 @@ pub fn write_run(
         de.insert("detected_power".to_string(), Entry::Estimate(power));
         let mut info = DetectorEntry {
             side: if d.side() == Side::Top { "top" } else { "bottom" },
+            estimator: d.surface().map(|s| s.estimator.name()),
             spectrum: None,
             fmcw: None,
             image: None,
@@ -227,6 +236,7 @@ pub fn write_run(
     if fmcw_any {
         w.put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
     }
+    let pixel_errors = std::mem::take(&mut w.pixel_errors);
     if !det_estimates.is_empty() {
         estimates.insert("detectors".into(), Entry::Group(det_estimates));
     }
@@ -273,6 +283,7 @@ pub fn write_run(
             scattering_events: st.scattering_events,
             events_per_second: st.scattering_events as f64 / wall,
             paths_per_second: st.paths as f64 / wall,
+            camera_paths: exp.camera_paths_per_batch() * out.batches,
             null_collisions: st.null_collisions,
             roulette_terminations: st.roulette_terminations,
             truncated_paths: st.truncated_paths,
@@ -285,6 +296,7 @@ pub fn write_run(
         media,
         estimates,
         detectors: det_info,
+        pixel_errors,
         files,
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");

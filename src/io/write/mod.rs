@@ -16,7 +16,8 @@ use serde::Serialize;
 
 use super::formats::{exr::exr_bytes, npy};
 use crate::error::{Error, Result};
-use crate::output::{Kind, Output, Registry};
+use crate::io::figures::raster::{Colormap, image_png};
+use crate::output::{Kind, Output, PixelErrors, Registry};
 
 /// A value and its standard error (`null` in JSON when not finite).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -60,11 +61,24 @@ pub struct Writer<'a, 'p> {
     pub stderr: &'a [f64],
     /// The outputs written so far, by name ([`Writer::rest`] writes the others).
     pub written: BTreeSet<String>,
+    /// The per-pixel relative errors of the images written, by output name (for the manifest).
+    pub pixel_errors: BTreeMap<String, PixelErrorEntry>,
+}
+
+/// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PixelErrorEntry {
+    /// The map's file: `σ/|value|` per pixel, NaN where the value is 0.
+    pub file: String,
+    pub median: Option<f64>,
+    pub p90: Option<f64>,
+    /// Pixels with a zero value (no relative error).
+    pub pixels_without_signal: usize,
 }
 
 impl<'a, 'p> Writer<'a, 'p> {
     pub fn new(put: &'a mut Put<'p>, registry: &'a Registry, mean: &'a [f64], stderr: &'a [f64]) -> Self {
-        Writer { put, registry, mean, stderr, written: BTreeSet::new() }
+        Writer { put, registry, mean, stderr, written: BTreeSet::new(), pixel_errors: BTreeMap::new() }
     }
 
     /// Write a file.
@@ -105,7 +119,35 @@ impl<'a, 'p> Writer<'a, 'p> {
         let exr = exr_bytes(nx, ny, &[(channel, &v), ("stderr", &e)])
             .map_err(|m| Error::Write { path: name.clone().into(), source: std::io::Error::other(m) })?;
         self.put(name, exr)?;
+        if o.primary {
+            self.pixel_error_map(o, nx, ny, &v, &e)?;
+        }
         Ok((v, e))
+    }
+
+    /// A main image's per-pixel relative errors: a map (`.npy`, NaN where the value is 0, and a
+    /// PNG on a fixed 0–100 % scale) and its summary for the manifest.
+    fn pixel_error_map(&mut self, o: &Output, nx: usize, ny: usize, v: &[f64], e: &[f64]) -> Result<()> {
+        let pe = PixelErrors::of(v, e);
+        let stem = o.file.trim_end_matches(".npy");
+        let file = format!("{stem}_relative_error.npy");
+        self.put(file.clone(), npy::to_bytes(&[ny, nx], &pe.map))?;
+        // Pixels without signal drawn as 100 %; the scale is fixed so that maps compare.
+        let shown: Vec<f64> = pe.map.iter().map(|&r| if r.is_nan() { 1.0 } else { r.min(1.0) }).collect();
+        let title = format!("{}: relative error (median {:.1} %)", o.name, 100.0 * pe.median);
+        self.put(
+            format!("{stem}_relative_error.png"),
+            image_png(&shown, nx, ny, Colormap::Grey, (0.0, 1.0), &title, "sigma / |value|"),
+        )?;
+        let finite = |v: f64| v.is_finite().then_some(v);
+        let entry = PixelErrorEntry {
+            file,
+            median: finite(pe.median),
+            p90: finite(pe.p90),
+            pixels_without_signal: pe.without_signal,
+        };
+        self.pixel_errors.insert(o.name.clone(), entry);
+        Ok(())
     }
 
     /// Detector `i`'s declared outputs that no writer of its kind has written: arrays as `.npy`
