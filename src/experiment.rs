@@ -380,8 +380,10 @@ impl Experiment {
             .filter_map(|(i, d)| {
                 let s = d.surface()?;
                 let im = s.image?;
-                (s.estimator == crate::detect::Estimator::Camera)
-                    .then(|| CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance))
+                (s.estimator == crate::detect::Estimator::Camera).then(|| CameraTarget {
+                    include_specular: s.include_specular,
+                    ..CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance)
+                })
             })
             .collect()
     }

@@ -133,8 +133,8 @@ pub struct Surface {
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
-    /// How its scattered light is estimated: by the forward paths, or by camera paths from its
-    /// pixels ([`crate::transport::camera`]; the specular reflection stays with the forward ones).
+    /// How its light is estimated: by the forward paths, or by camera paths from its pixels
+    /// ([`crate::transport::camera`]).
     pub estimator: Estimator,
 }
 
@@ -578,8 +578,8 @@ impl Recorder<'_> {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
             if d.side != side
+                || d.estimator == Estimator::Camera
                 || (e.specular && !d.include_specular)
-                || (d.estimator == Estimator::Camera && !e.specular)
                 || e.dir.dot(d.axis) < d.cos_acceptance
             {
                 continue;

@@ -66,12 +66,24 @@ pub struct CameraTarget {
     pub axis: DVec3,
     pub basis: (DVec3, DVec3),
     pub cos_acceptance: f64,
+    /// Whether the laser's specular reflection at the top surface is recorded.
+    pub include_specular: bool,
 }
 
 impl CameraTarget {
     pub fn new(detector: usize, image: ImageSpec, area: Area, distance: f64, axis: DVec3, cos_acceptance: f64) -> Self {
         let basis = crate::sampling::warp::orthonormal_basis(axis);
-        CameraTarget { detector, image, area, distance, axis, basis, cos_acceptance }
+        CameraTarget { detector, image, area, distance, axis, basis, cos_acceptance, include_specular: false }
+    }
+
+    /// Pixel `pixel`'s area, m², and a point drawn uniformly in it on the detector plane.
+    pub fn point(&self, pixel: usize, rng: &mut PathRng) -> (f64, f64, f64) {
+        let im = &self.image;
+        let (dx, dy) = ((im.max[0] - im.min[0]) / im.nx as f64, (im.max[1] - im.min[1]) / im.ny as f64);
+        let (ix, iy) = (pixel % im.nx, pixel / im.nx);
+        let x = im.min[0] + (ix as f64 + rng.uniform()) * dx;
+        let y = im.min[1] + (iy as f64 + rng.uniform()) * dy;
+        (dx * dy, x, y)
     }
 
     pub fn pixels(&self) -> usize {
@@ -100,27 +112,21 @@ pub struct Shot {
     pub scale: f64,
 }
 
-/// The start of a camera path for pixel `pixel` of `cam`: a point uniform in the pixel, a
-/// direction uniform in the acceptance cone, carried to the surface and refracted in. `None` if
-/// the point is off the detector's area or the direction cannot enter the stack. `batch_weight`
-/// is the tally weight of one of this pixel's paths in its batch. Returns the shot and the
-/// walk's starting position, direction, weight and path length.
+/// The start of a camera path from the point `(x, y)` of pixel `pixel` of `cam` (of area `area`):
+/// a direction uniform in the acceptance cone, carried to the surface and refracted in. `None`
+/// if the direction cannot enter the stack. `batch_weight` is the tally weight of one of this
+/// pixel's paths in its batch. Returns the shot and the walk's starting position, direction,
+/// weight and path length.
+#[allow(clippy::too_many_arguments)]
 pub fn start(
     cam: &CameraTarget,
     scene: &Scene,
     pixel: usize,
+    (area, x, y): (f64, f64, f64),
     batch_weight: f64,
-    rng: &mut PathRng,
+    u1: f64,
+    u2: f64,
 ) -> Option<(Shot, DVec3, DVec3, f64, f64)> {
-    let im = &cam.image;
-    let (dx, dy) = ((im.max[0] - im.min[0]) / im.nx as f64, (im.max[1] - im.min[1]) / im.ny as f64);
-    let (ix, iy) = (pixel % im.nx, pixel / im.nx);
-    let x = im.min[0] + (ix as f64 + rng.uniform()) * dx;
-    let y = im.min[1] + (iy as f64 + rng.uniform()) * dy;
-    let (u1, u2) = (rng.uniform(), rng.uniform());
-    if !cam.area.contains(x, y) {
-        return None;
-    }
     // The light's direction, uniform in the cone; the walk goes the other way.
     let out = super::nee::cone_direction(cam.axis, cam.basis, cam.cos_acceptance, u1, u2);
     if out.z >= 0.0 {
@@ -135,10 +141,108 @@ pub fn start(
         return None;
     }
     let solid_angle = crate::detect::cone_solid_angle(cam.cos_acceptance);
-    let scale = batch_weight * dx * dy * solid_angle * d.z;
+    let scale = batch_weight * area * solid_angle * d.z;
     let weight = (1.0 - r) * (n0 / n1) * (n0 / n1);
     let shot = Shot { detector: cam.detector, pixel, x, y, scale };
     Some((shot, pos, fresnel::refract(d, n0, n1, cos_t), weight, n0 * t0))
+}
+
+/// The laser's light that reaches the camera's point `(x, y)` without scattering: the specular
+/// reflection at the top surface (when the detector records it) and the reflections at every
+/// interface below, each a collimated beam leaving along the mirror image `(b_x, b_y, −b_z)` of
+/// the laser's direction `b`. For each one inside the acceptance cone, `emit` gets the power per
+/// unit area of the detector plane at the point (per watt emitted) and the optical path length:
+/// `E0·cos θ0·R_j·Π(1 − R_i)·exp(−τ)` over the way down to interface `j` and back up, the
+/// ray traced back from the point (so a beam shifted sideways by an oblique incidence, and
+/// shadowed by regions, lands where it does). A pixel's share is that times its area.
+///
+/// Directions are deltas, which no camera path can meet by chance, so these are scored from the
+/// point alone. Light reflected more than once between interfaces (`R_i R_j ≲ 10⁻⁶` of this)
+/// is left out.
+pub fn unscattered(
+    cam: &CameraTarget,
+    scene: &Scene,
+    source: &Source,
+    (x, y): (f64, f64),
+    rng: &mut PathRng,
+    mut emit: impl FnMut(f64, f64),
+) {
+    let b = source.emit_direction(rng);
+    let mirror = DVec3::new(b.x, b.y, -b.z);
+    if mirror.dot(cam.axis) < cam.cos_acceptance {
+        return;
+    }
+    let n0 = scene.n_above;
+    // Back from the point to the surface.
+    let t0 = cam.distance / b.z;
+    let top = DVec3::new(x - t0 * mirror.x, y - t0 * mirror.y, 0.0);
+    let l0 = n0 * t0;
+    // Power per horizontal area of the beam at the surface point `s`, and its path length there.
+    let at_top = |s: DVec3| {
+        let back = (s - source.position).dot(source.direction) / b.dot(source.direction);
+        (source.irradiance_along(s, b) * b.z, n0 * back)
+    };
+    if cam.include_specular {
+        let (r, _) = fresnel::reflectance(n0, scene.layers[0].n, b.z);
+        let (e, l) = at_top(top);
+        if r > 0.0 && e > 0.0 {
+            emit(e * r, l + l0);
+        }
+    }
+    let tangential = DVec3::new(b.x, b.y, 0.0) * n0;
+    let down_in = |n: f64| -> Option<DVec3> {
+        let t = tangential / n;
+        let sin2 = t.length_squared();
+        (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
+    };
+    // The way up from interface j to the point, traced back down from the surface: the reflected
+    // beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along `−that`.
+    let (mut p, mut tau_up, mut transmit_up, mut l_up) = (top, 0.0, 1.0, l0);
+    for j in 0..scene.layers.len() {
+        let layer = &scene.layers[j];
+        if !layer.z_bottom.is_finite() {
+            break;
+        }
+        let Some(d) = down_in(layer.n) else { return };
+        let n_above = if j == 0 { n0 } else { scene.layers[j - 1].n };
+        transmit_up *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
+        let back = DVec3::new(-d.x, -d.y, d.z);
+        let t = (layer.z_bottom - p.z) / d.z;
+        if layer.heterogeneous {
+            transmit_up *= super::tracking::ratio_transmittance(scene, layer, p, back, t, rng);
+        } else {
+            tau_up += segment_optical_depth(scene, layer, p, back, t);
+        }
+        l_up += layer.n * t;
+        p += t * back;
+        p.z = layer.z_bottom;
+        let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
+        let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
+        if r <= 0.0 || transmit_up <= 0.0 {
+            continue;
+        }
+        // The way down to the interface, traced back up to the surface.
+        let (mut q, mut tau, mut transmit, mut l) = (p, tau_up, transmit_up * r, l_up);
+        for k in (0..=j).rev() {
+            let layer = &scene.layers[k];
+            let Some(dk) = down_in(layer.n) else { return };
+            let t = (q.z - layer.z_top) / dk.z;
+            if layer.heterogeneous {
+                transmit *= super::tracking::ratio_transmittance(scene, layer, q, -dk, t, rng);
+            } else {
+                tau += segment_optical_depth(scene, layer, q, -dk, t);
+            }
+            l += layer.n * t;
+            q -= t * dk;
+            q.z = layer.z_top;
+            let n_above = if k == 0 { n0 } else { scene.layers[k - 1].n };
+            transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, dk.z).0;
+        }
+        let (e, l_top) = at_top(q);
+        if e > 0.0 && transmit > 0.0 {
+            emit(e * transmit * (-tau).exp(), l + l_top);
+        }
+    }
 }
 
 /// The laser's light at a vertex: the direction it arrives along, its irradiance there across

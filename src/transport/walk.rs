@@ -253,7 +253,31 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     rng: &mut PathRng,
 ) {
     let mut local = rng.clone();
-    let Some((shot, pos, dir, weight, l)) = super::camera::start(cam, ctx.scene, pixel, batch_weight, &mut local)
+    let (area, x, y) = cam.point(pixel, &mut local);
+    let (u1, u2) = (local.uniform(), local.uniform());
+    if !cam.area.contains(x, y) {
+        *rng = local;
+        return;
+    }
+    // The laser's unscattered reflections, scored from the point.
+    let reflected = Shot { detector: cam.detector, pixel, x, y, scale: 0.0 };
+    super::camera::unscattered(cam, ctx.scene, ctx.source, (x, y), &mut local, |e, l| {
+        let e = Escape {
+            pos: DVec3::new(x, y, 0.0),
+            dir: cam.axis,
+            weight: e * area * batch_weight,
+            l: if LENGTH { l } else { 0.0 },
+            dldt: 0.0,
+            order: 0,
+            doppler_events: 0,
+            brownian: 0.0,
+            mis: -1.0,
+            specular: true,
+        };
+        rec.camera(&reflected, &e);
+    });
+    let Some((shot, pos, dir, weight, l)) =
+        super::camera::start(cam, ctx.scene, pixel, (area, x, y), batch_weight, u1, u2)
     else {
         *rng = local;
         return;
