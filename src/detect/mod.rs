@@ -491,6 +491,20 @@ pub struct Escape {
     pub specular: bool,
 }
 
+/// Which pixel a camera path scores into, where it starts, and the factor turning its
+/// contributions into the batch's tally (see `transport::camera::start`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shot {
+    pub detector: usize,
+    pub pixel: usize,
+    /// Its point on the detector plane, m.
+    pub x: f64,
+    pub y: f64,
+    /// `A_pixel · Ω_cone · |cos θ0|` (the inverse density of the start, times the flux cosine)
+    /// times the batch's weight of one path of this pixel.
+    pub scale: f64,
+}
+
 /// Records paths into one batch's tally.
 pub struct Recorder<'a> {
     pub detectors: &'a [Detector],
@@ -564,7 +578,7 @@ impl Recorder<'_> {
     /// A camera path's connection `e` to the laser, scored into its pixel (`e.l` is the whole
     /// optical path length).
     #[inline(never)]
-    pub fn camera(&mut self, shot: &crate::transport::camera::Shot, e: &Escape) {
+    pub fn camera(&mut self, shot: &Shot, e: &Escape) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;

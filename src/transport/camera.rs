@@ -44,7 +44,7 @@
 
 use glam::DVec3;
 
-use crate::detect::{Area, ImageSpec};
+use crate::detect::{Area, ImageSpec, Shot};
 use crate::medium::Scene;
 use crate::sampling::PathRng;
 use crate::source::Source;
@@ -96,20 +96,6 @@ impl CameraTarget {
     pub fn paths_per_pixel(&self, paths_per_batch: u64) -> u64 {
         paths_per_batch.div_ceil(self.pixels() as u64).max(1)
     }
-}
-
-/// Which pixel a camera path scores into, where it starts, and the factor turning its
-/// contributions into the batch's tally (see [`start`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Shot {
-    pub detector: usize,
-    pub pixel: usize,
-    /// Its point on the detector plane, m.
-    pub x: f64,
-    pub y: f64,
-    /// `A_pixel · Ω_cone · |cos θ0|` (the inverse density of the start, times the flux cosine)
-    /// times the batch's weight of one path of this pixel.
-    pub scale: f64,
 }
 
 /// The start of a camera path from the point `(x, y)` of pixel `pixel` of `cam` (of area `area`):

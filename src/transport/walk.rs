@@ -12,13 +12,13 @@
 
 use glam::DVec3;
 
-use crate::detect::{Escape, Recorder, Scalar, Side};
+use crate::detect::{Escape, Recorder, Scalar, Shot, Side};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
 use crate::source::Source;
 
-use super::camera::{CameraTarget, Shot};
+use super::camera::CameraTarget;
 use super::fresnel;
 use super::nee::NeeTarget;
 use super::tracking::{Flight, LayerRay, Tracking, free_flight};
