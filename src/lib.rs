@@ -27,6 +27,9 @@
 //!   (Eq. 32 with `u = −dl/dt`). Interfaces and the source and detectors are static; null
 //!   collisions are not vertices (their terms telescope away). Coaxial backscatter from a receding
 //!   particle at speed `v` gives `f = +2nv/λ0` (test `transport::tests::coaxial_backscatter_sign`).
+//!   A path traced from a camera pixel (`estimator = "camera"`, [`transport::camera`]) is the
+//!   light's path reversed: each vertex's `dir_in − dir_out` is the same vector both ways, so
+//!   `dl/dt`, `l` and the sign are the same whichever end a path is traced from.
 //! * **Path length.** `l = Σ n_k |x_{k+1} − x_k|` from the laser's emission point to the plane of
 //!   the detector that records the path.
 //! * **Beat frequency.** Single-frequency laser: `f = (dl/dt)/λ0`. FMCW with chirp slope
@@ -66,7 +69,7 @@
 //! | foundations | [`error`], [`numeric`], [`sampling`], [`stats`], [`spectrum`], [`phase`], [`mie`], [`output`], [`retrieval`] | errors; `ln Γ` and quadrature; random-number streams and warps; batch statistics; frequency axes, histograms, STFT and speckle synthesis; phase functions; Lorenz–Mie scattering and particle ensembles; the registry of a run's named outputs (kind, shape, units, tally slots, file, sign); estimators read off spectra (gate moments and fits, VAD wind, FMCW range and velocity) |
 //! | scene | [`medium`], [`flow`], [`source`], [`io::formats`] | media, density fields with their majorant grids, shapes and the layer stack; velocity fields; the laser; file formats read and written (`.npy`, EXR, PNG, phase tables, the OpenVDB reader) |
 //! | recording | [`detect`] | detectors ([`detect::DetectorKind`]) and the tally a finished path is recorded into; each detector declares its outputs in the registry as it lays out its tallies |
-//! | transport | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk |
+//! | transport | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk from the laser and from a camera's pixels |
 //! | runs | [`experiment`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
 //! | configuration | [`config`], [`describe`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types; the resolved experiment printed in human units |
 //! | outputs | [`io`] ([`io::write`], [`io::persist`], [`io::figures`]) | a finished run's files and manifest, read off the registry; shard and checkpoint files; figures |

@@ -148,9 +148,20 @@ def read(path, names):
     return data
 
 
-def differing(a, b, names_a, names_b):
+def without_additions(base, cand):
+    """`cand` without the dictionary keys (at any depth) that `base` does not have."""
+    if isinstance(base, dict) and isinstance(cand, dict):
+        return {k: without_additions(base[k], x) for k, x in cand.items() if k in base}
+    if isinstance(base, list) and isinstance(cand, list) and len(base) == len(cand):
+        return [without_additions(x, y) for x, y in zip(base, cand)]
+    return cand
+
+
+def differing(a, b, names_a, names_b, additions=False):
     """Relative paths of files that differ between trees `a` and `b` (or exist in one only);
-    `names_a`, `names_b`: strings (binary, directory) that may appear in the files and differ."""
+    `names_a`, `names_b`: strings (binary, directory) that may appear in the files and differ.
+    With `additions`, files only in `b` and JSON keys only in `b` are allowed (new outputs); a
+    manifest's `files` list is then compared without them."""
     bad = []
     fa, fb = set(), set()
     for base, acc in ((a, fa), (b, fb)):
@@ -160,6 +171,8 @@ def differing(a, b, names_a, names_b):
                     continue
                 acc.add(os.path.relpath(os.path.join(d, f), base))
     for rel in sorted(fa ^ fb):
+        if additions and rel in fb:
+            continue
         bad.append(rel + " (only in " + ("baseline" if rel in fa else "candidate") + ")")
     for rel in sorted(fa & fb):
         pa, pb = os.path.join(a, rel), os.path.join(b, rel)
@@ -167,7 +180,12 @@ def differing(a, b, names_a, names_b):
             continue
         da, db = read(pa, names_a), read(pb, names_b)
         if rel.endswith(".json"):
-            if mask(json.loads(da)) != mask(json.loads(db)):
+            ja, jb = json.loads(da), json.loads(db)
+            if additions:
+                jb = without_additions(ja, jb)
+                if isinstance(jb, dict) and isinstance(jb.get("files"), list):
+                    jb["files"] = [f for f in jb["files"] if f in ja.get("files", [])]
+            if mask(ja) != mask(jb):
                 bad.append(rel)
         elif da != db:
             bad.append(rel)
@@ -182,6 +200,8 @@ def main():
     ap.add_argument("--work", default="/tmp/ohd_identity")
     ap.add_argument("--only", help="regular expression on case names")
     ap.add_argument("--fresh", action="store_true", help="re-run the baseline even if cached")
+    ap.add_argument("--additions", action="store_true",
+                    help="allow files and JSON keys that only the candidate writes (new outputs)")
     a = ap.parse_args()
     failed = 0
     all_cases = [c for c in cases(a.samples) if not a.only or re.search(a.only, c[0])]
@@ -204,7 +224,8 @@ def main():
             problems.append(f"exit codes {codes} (baseline {base['codes']})")
         if stdout != base["stdout"]:
             problems.append("stdout differs")
-        problems += differing(bdir, cdir, [os.path.abspath(a.baseline), bdir], [os.path.abspath(a.candidate), cdir])
+        problems += differing(bdir, cdir, [os.path.abspath(a.baseline), bdir], [os.path.abspath(a.candidate), cdir],
+                              a.additions)
         nfiles = sum(len(f) for _, _, f in os.walk(cdir))
         if problems:
             failed += 1
