@@ -215,16 +215,23 @@ fn files_are_identical_for_one_and_two_threads() {
     assert_ne!(frame, std::fs::read(dirs[2].path().join("m0_plus_speckle.npy")).unwrap());
 }
 
+fn config_error(sets: &[String]) -> String {
+    match ohd::config::load(VESSEL, "vessel", sets) {
+        Ok(_) => panic!("{sets:?}: expected a config error"),
+        Err(e) => e.to_string(),
+    }
+}
+
 #[test]
 fn pixels_without_pixel_spectra_is_a_config_error_naming_the_key() {
     let sets = vec!["detectors.0.ldh.pixel_spectra=false".to_string()];
-    let e = ohd::config::load(VESSEL, "vessel", &sets).err().expect("a config error").to_string();
+    let e = config_error(&sets);
     assert!(
         e.contains("detectors[0].ldh.speckle.pixels") && e.contains("detectors[0].ldh.pixel_spectra = true"),
         "{e}"
     );
     // Without ROIs, speckle needs pixels = true.
     let sets = vec!["detectors.0.ldh.speckle.pixels=false".to_string()];
-    let e = ohd::config::load(VESSEL, "vessel", &sets).err().expect("a config error").to_string();
+    let e = config_error(&sets);
     assert!(e.contains("speckle.pixels = true"), "{e}");
 }

@@ -76,7 +76,10 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     }
     let bin = stft.bin_width();
     let axis = match &l.spectrum {
-        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w.
+        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w. Also the
+        // per-pixel speckle's: each bin centre is an STFT frequency, so counting a path at its
+        // bin centre moves it by at most half an STFT bin, and the expected periodogram of a
+        // pixel is two FFTs (the +f_s/2 bin folds onto −f_s/2).
         None => FrequencyAxis::new(-(0.5 * n as f64 + 0.5) * bin, (0.5 * n as f64 + 0.5) * bin, n as usize + 1)
             .expect("a valid default axis"),
         Some(s) => {

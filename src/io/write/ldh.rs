@@ -249,7 +249,8 @@ fn write_pixel_speckle(
     )?;
     // The binning approximation: E M0± = band sums of S against the exact images.
     let total = |v: &[f64]| v.iter().sum::<f64>();
-    let relative = |a: f64, b: f64| if b != 0.0 { a / b - 1.0 } else { f64::NAN };
+    let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
+    let relative = |a: f64, b: f64| ratio(a, b) - 1.0;
     let mean_plus: Vec<f64> =
         (0..pixels).map(|p| (0..windows).map(|j| s.m0_plus[j * pixels + p]).sum::<f64>() / windows as f64).collect();
     let per_pixel = median((0..pixels).filter(|&p| m0p[p] > 0.0).map(|p| (s.expected_m0_plus[p] / m0p[p] - 1.0).abs()));
@@ -277,6 +278,8 @@ fn write_pixel_speckle(
             "expected_m0_minus_total_relative_difference":
                 relative(sign * total(&s.expected_m0_minus), total(m0m)),
             "expected_m0_plus_median_pixel_relative_difference": per_pixel,
+            "expected_m0_plus_pixel_absolute_difference_over_total":
+                ratio(s.expected_m0_plus.iter().zip(m0p).map(|(e, m)| (e - m).abs()).sum::<f64>(), total(m0p)),
             "mean_over_windows_m0_plus_total_relative_difference": relative(total(&mean_plus), total(m0p)),
             "out_of_axis_fraction": if power > 0.0 { s.out_of_range / power } else { f64::NAN },
         },
