@@ -659,6 +659,9 @@ impl Display for LdhSpec {
         }
         if let Some(s) = self.speckle {
             write!(f, ", speckle in {} windows", s.windows)?;
+            if s.pixels {
+                write!(f, " (and per pixel)")?;
+            }
         }
         Ok(())
     }

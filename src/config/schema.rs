@@ -663,12 +663,16 @@ pub struct RoiSection {
     pub size: Option<Quantity<Length, [f64; 2]>>,
 }
 
-/// `[detectors.ldh.speckle]`: single-window speckle of the ROI spectra, Algorithms 1 and 2.
+/// `[detectors.ldh.speckle]`: single-window speckle of the ROI spectra, Algorithms 1 and 2, and
+/// optionally of every pixel (Algorithm 1 from the per-pixel spectra).
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpeckleSection {
-    /// Independent windows (speckle realisations) per ROI; default 16.
+    /// Independent windows (speckle realisations) per ROI, and per pixel with `pixels`; default 16.
     pub windows: Option<u64>,
+    /// Also a single-window speckled M0± in every pixel (Algorithm 1, drawn from the per-pixel
+    /// spectra: needs `pixel_spectra = true`); default false.
+    pub pixels: Option<bool>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

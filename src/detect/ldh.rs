@@ -49,11 +49,14 @@ impl Roi {
     }
 }
 
-/// Single-measurement speckle for the ROIs (Kim et al. 2025 §5.2–5.3).
+/// Single-measurement speckle for the ROIs (Kim et al. 2025 §5.2–5.3), and per pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpeckleSpec {
-    /// Independent windows (speckle realisations) per ROI and algorithm.
+    /// Independent windows (speckle realisations) per ROI and algorithm, and per pixel.
     pub windows: u32,
+    /// Algorithm 1 in every pixel, from the per-pixel spectra ([`crate::post::speckle`]; the
+    /// camera then records `pixel_spectra`).
+    pub pixels: bool,
 }
 
 /// What an LDH camera records besides its M0± images, as configured ([`LdhSpec::new`]; the

@@ -2,11 +2,15 @@
 //! paths) after the transport, never inside it.
 //!
 //! * [`speckle`]: single-window speckle spectra of the LDH camera's regions of interest
-//!   synthesised from the recorded paths ([`speckle_of`]).
+//!   synthesised from the recorded paths ([`speckle_of`]), and single-window speckled M0± in
+//!   every pixel from the per-pixel spectra ([`pixel_speckle_of`]).
 //!
 //! The lidar's per-gate moments and fits, which read a finished run's spectra too, are
 //! estimators of [`crate::retrieval`] ([`crate::retrieval::retrieve_gate`]).
 
 pub mod speckle;
 
-pub use speckle::{RoiSpeckle, band_sums, speckle_of, synthesize_speckle};
+pub use speckle::{
+    PIXEL_STREAM, PixelSpeckle, RoiSpeckle, band_sums, pixel_speckle_of, speckle_of, synthesize_pixel_speckle,
+    synthesize_speckle,
+};

@@ -3,11 +3,28 @@
 //! ([`RecordedLine`]s, kept when `[detectors.ldh.speckle]` is set): Algorithm 1 draws the run's
 //! expected single-window periodogram times Exp(1) per bin, Algorithm 2 sums the recorded paths'
 //! fields with random phases ([`Synthesizer`]).
+//!
+//! With `[detectors.ldh.speckle] pixels = true` every pixel gets a single-window speckled M0±
+//! too ([`synthesize_pixel_speckle`]): Algorithm 1 from the pixel's spectrum, which the camera
+//! records with `pixel_spectra = true`. The expected single-window periodogram of a pixel is
+//! `S_k = Σ_j H_j K(ν_k − f_j)` over its histogram `H` ([`BinnedPeriodogram`]): the histogram
+//! keeps no frequency finer than its bin, so a path counts at its bin's centre `f_j` (the binning
+//! approximation; on the default axis, the STFT's own `f_s/N` bins, a line is moved by at most
+//! half an STFT bin), and power outside the axis (the out-of-range tallies) is not in `S`.
+//!
+//! Streams: window `j` of ROI `r` and algorithm `a` draws from `(seed, Speckle, r, 2j + a)`;
+//! window `j` of pixel `p` (image order, rows = y ascending) from
+//! `(seed, Speckle, PIXEL_STREAM | p, j)`. An ROI index is a `Vec` index, below 2⁶³, so the
+//! elements never coincide; each pixel's numbers depend on nothing but `(seed, p, j)`, so the
+//! result is the same for any thread count.
+
+use rayon::prelude::*;
 
 use crate::detect::ldh::{LdhSpec, RecordedLine};
 use crate::experiment::{Experiment, RunOutput};
+use crate::output::Kind;
 use crate::sampling::{PathRng, Purpose};
-use crate::spectrum::{BandPowers, Line, Stft, Synthesizer, speckle_draw};
+use crate::spectrum::{BandPowers, BinnedPeriodogram, Line, Stft, Synthesizer, speckle_draw};
 
 /// The speckle spectra of a finished run of `exp` (its first LDH camera's ROIs; empty without
 /// one or without `[detectors.ldh.speckle]`): [`synthesize_speckle`] of the lines `out` recorded
@@ -99,4 +116,135 @@ pub fn synthesize_speckle(spec: &LdhSpec, recorded: &[RecordedLine], paths: u64,
             }
         })
         .collect()
+}
+
+/// The stream element bit of the per-pixel speckle: pixel `p` draws from element
+/// `PIXEL_STREAM | p` (ROI `r` from element `r < 2⁶³`).
+pub const PIXEL_STREAM: u64 = 1 << 63;
+
+/// Single-window speckled M0± of every pixel (Algorithm 1 per pixel), with what they are drawn
+/// from. Pixels in image order (`ny` rows of `nx`, rows = y ascending), M0− with the library's
+/// sign (the writer applies `flip_sign`).
+#[derive(Debug, Clone)]
+pub struct PixelSpeckle {
+    pub nx: usize,
+    pub ny: usize,
+    pub windows: usize,
+    /// `[window][pixel]`: window `j`'s band sums of `S_k · Exp(1)`.
+    pub m0_plus: Vec<f64>,
+    pub m0_minus: Vec<f64>,
+    /// `[pixel]`: the band sums of `S` itself, the expectation of every window's M0±.
+    pub expected_m0_plus: Vec<f64>,
+    pub expected_m0_minus: Vec<f64>,
+    /// `[pixel]`: the closed-form single-window contrast of M0+ (σ/mean over windows),
+    /// `√(Σ_B S_k²)/Σ_B S_k` over the band's bins `B` (independent exponential bins); NaN where
+    /// `S` is zero in the band.
+    pub contrast: Vec<f64>,
+    /// Power of the pixel spectra on their axis and outside it (the tallies `S` leaves out),
+    /// summed over the pixels.
+    pub in_range: f64,
+    pub out_of_range: f64,
+    /// Whether the spectra's axis is on the STFT grid (the O(N log N) path of `S`).
+    pub on_stft_grid: bool,
+    /// Wall seconds of the synthesis (`S`, draws and band sums of all pixels and windows).
+    pub seconds: f64,
+    /// Bytes of one copy of the per-pixel spectra tally (`pixels × (bins + 2) × 8`).
+    pub spectra_bytes: usize,
+}
+
+/// The per-pixel speckle of a finished run of `exp` (its LDH camera with `speckle.pixels`;
+/// `None` otherwise), from the run's estimate of the per-pixel spectra, on the plan's threads.
+pub fn pixel_speckle_of(exp: &Experiment, out: &RunOutput) -> Option<PixelSpeckle> {
+    let d = exp.detectors.iter().find(|d| d.ldh().is_some())?;
+    let spec = d.ldh()?;
+    if !spec.speckle.is_some_and(|s| s.pixels) {
+        return None;
+    }
+    let o = out.layout.registry.expect(&format!("{}.pixel_spectra", d.name));
+    let Kind::PixelSpectra { nx, ny, .. } = o.kind else { unreachable!("{} is declared per-pixel spectra", o.name) };
+    let (start, stride) = (o.slots.start, o.slots.stride);
+    let spectra = &out.estimates.mean()[start..start + nx * ny * stride];
+    Some(synthesize_pixel_speckle(spec, nx, ny, spectra, stride, exp.plan.seed, exp.plan.effective_threads()))
+}
+
+/// Algorithm 1 in every pixel: `spectra` holds pixel `p`'s histogram (fraction of the emitted
+/// power per bin of `spec.spectrum_axis`, library sign) at `p·stride`, its below/above tallies
+/// right after. For each pixel, `S` ([`BinnedPeriodogram`]), then per window `S_k · Exp(1)`
+/// ([`speckle_draw`], stream `(seed, Speckle, PIXEL_STREAM | p, j)`) and its [`band_sums`].
+/// `spec.speckle.windows` windows (1 if `spec.speckle` is `None`), on a pool of `threads`
+/// threads; the result does not depend on `threads`.
+pub fn synthesize_pixel_speckle(
+    spec: &LdhSpec,
+    nx: usize,
+    ny: usize,
+    spectra: &[f64],
+    stride: usize,
+    seed: u64,
+    threads: usize,
+) -> PixelSpeckle {
+    let t = std::time::Instant::now();
+    let pixels = nx * ny;
+    let n = spec.stft.samples();
+    let bins = spec.spectrum_axis.bins;
+    assert!(stride >= bins + 2 && spectra.len() >= pixels * stride, "one histogram and two tallies per pixel");
+    let windows = spec.speckle.map_or(1, |s| s.windows as usize);
+    let band: Vec<usize> = (1..n)
+        .filter(|&k| {
+            let a = spec.stft.bin_frequency(k).abs();
+            spec.band.0 <= a && a <= spec.band.1
+        })
+        .collect();
+    // Per pixel: [M0+ of each window, M0− of each window, E M0+, E M0−, contrast, in, out].
+    let record = 2 * windows + 5;
+    let mut records = vec![0.0; pixels * record];
+    let on_stft_grid = BinnedPeriodogram::new(&spec.stft, &spec.spectrum_axis).on_stft_grid();
+    let work = |records: &mut [f64]| {
+        records.par_chunks_mut(record).enumerate().with_min_len(64).for_each_init(
+            || (BinnedPeriodogram::new(&spec.stft, &spec.spectrum_axis), vec![0.0; n], vec![0.0; n]),
+            |(bp, s, row), (p, rec)| {
+                let h = &spectra[p * stride..p * stride + bins + 2];
+                rec[2 * windows + 3] = h[..bins].iter().sum();
+                rec[2 * windows + 4] = h[bins] + h[bins + 1];
+                if !bp.expected(&h[..bins], s) {
+                    rec[2 * windows + 2] = f64::NAN;
+                    return;
+                }
+                let e = band_sums(&spec.stft, spec.band, s);
+                rec[2 * windows] = e.m0_plus;
+                rec[2 * windows + 1] = e.m0_minus;
+                let (sum, sq) = band.iter().fold((0.0, 0.0), |(a, b), &k| (a + s[k], b + s[k] * s[k]));
+                rec[2 * windows + 2] = if sum > 0.0 { sq.sqrt() / sum } else { f64::NAN };
+                for j in 0..windows {
+                    let mut rng = PathRng::new(seed, Purpose::Speckle, PIXEL_STREAM | p as u64, j as u64);
+                    speckle_draw(s, &mut rng, row);
+                    let b = band_sums(&spec.stft, spec.band, row);
+                    rec[j] = b.m0_plus;
+                    rec[windows + j] = b.m0_minus;
+                }
+            },
+        )
+    };
+    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(|| work(&mut records)),
+        Err(_) => work(&mut records),
+    }
+    let column = |c: usize| -> Vec<f64> { records.chunks_exact(record).map(|r| r[c]).collect() };
+    let stack = |first: usize| -> Vec<f64> {
+        (0..windows).flat_map(|j| records.chunks_exact(record).map(move |r| r[first + j])).collect()
+    };
+    PixelSpeckle {
+        nx,
+        ny,
+        windows,
+        m0_plus: stack(0),
+        m0_minus: stack(windows),
+        expected_m0_plus: column(2 * windows),
+        expected_m0_minus: column(2 * windows + 1),
+        contrast: column(2 * windows + 2),
+        in_range: column(2 * windows + 3).iter().sum(),
+        out_of_range: column(2 * windows + 4).iter().sum(),
+        on_stft_grid,
+        seconds: t.elapsed().as_secs_f64(),
+        spectra_bytes: pixels * stride * std::mem::size_of::<f64>(),
+    }
 }

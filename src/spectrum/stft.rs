@@ -30,6 +30,7 @@
 
 use std::f64::consts::PI;
 
+use super::FrequencyAxis;
 use num_complex::Complex;
 use rustfft::FftPlanner;
 
@@ -303,6 +304,121 @@ impl BandKernel {
     }
 }
 
+/// The expected single-window periodogram of a power histogram on a [`FrequencyAxis`] (fftshift
+/// order, `N` values): `S_k = Σ_j H_j K(ν_k − f_j, 0)` with `f_j` the centre of axis bin `j`,
+/// i.e. [`Stft::expected_periodogram`] of one pure tone per bin. This is the per-pixel speckle's
+/// expectation ([`crate::post::speckle`]): the histogram does not keep where in its bin a path
+/// fell, so every path counts at its bin's centre (a Brownian path's Lorentzian, already spread
+/// over the bins by [`FrequencyAxis::add_line`], likewise). The out-of-range tallies are not used.
+///
+/// Cost per histogram: on the STFT's own grid (bins `f_s/N` wide, centres at integer multiples of
+/// `f_s/N`, as the default LDH axis) the bins fold modulo `f_s` onto the `N` STFT frequencies
+/// (aliasing, as `K` is `f_s`-periodic) and the lag sums are one `N`-point FFT: two FFTs in all,
+/// O(N log N). On any other axis the lag sums are accumulated per non-empty bin:
+/// O(non-empty bins × N). Plans and buffers are built once; reuse one per thread.
+pub struct BinnedPeriodogram {
+    n: usize,
+    /// The STFT bin (`0..N`, unshifted: `m` is the frequency `m f_s/N` modulo `f_s`) each axis bin
+    /// folds onto, when the axis is on the STFT grid.
+    folded: Option<Vec<usize>>,
+    /// `e^{−2πi f_j/f_s}` per axis bin (the general path).
+    steps: Vec<Complex<f64>>,
+    /// `(−1)^d c_d R_w(d)/(N Σw²)`, `c_0 = 1`, `c_d = 2`.
+    weights: Vec<f64>,
+    forward: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    inverse: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    lag: Vec<Complex<f64>>,
+    scratch: Vec<Complex<f64>>,
+}
+
+impl BinnedPeriodogram {
+    pub fn new(stft: &Stft, axis: &FrequencyAxis) -> Self {
+        let n = stft.samples;
+        let delta = stft.bin_width();
+        let first = axis.center(0) / delta;
+        let on_grid = ((axis.bin_width() - delta).abs() <= 1e-9 * delta) && (first - first.round()).abs() <= 1e-6;
+        let folded = on_grid.then(|| {
+            let i0 = first.round() as i64;
+            (0..axis.bins).map(|j| (i0 + j as i64).rem_euclid(n as i64) as usize).collect()
+        });
+        let steps = (0..axis.bins)
+            .map(|j| Complex::from_polar(1.0, -2.0 * PI * cycles(axis.center(j), stft.sample_rate)))
+            .collect();
+        let weights = (0..n)
+            .map(|d| {
+                let sign = if d % 2 == 0 { 1.0 } else { -1.0 };
+                let c = if d == 0 { 1.0 } else { 2.0 };
+                sign * c * stft.autocorrelation[d] / stft.norm
+            })
+            .collect();
+        let mut planner = FftPlanner::new();
+        let forward = planner.plan_fft_forward(n);
+        let inverse = planner.plan_fft_inverse(n);
+        let scratch_len = forward.get_inplace_scratch_len().max(inverse.get_inplace_scratch_len());
+        let zero = Complex::new(0.0, 0.0);
+        BinnedPeriodogram {
+            n,
+            folded,
+            steps,
+            weights,
+            forward,
+            inverse,
+            lag: vec![zero; n],
+            scratch: vec![zero; scratch_len],
+        }
+    }
+
+    /// Whether the axis is on the STFT grid (the O(N log N) path).
+    pub fn on_stft_grid(&self) -> bool {
+        self.folded.is_some()
+    }
+
+    /// `S_k` of the histogram `hist` (the axis's bins, without the out-of-range tallies) into
+    /// `out` (`N` values, fftshift order as [`Stft::bin_frequency`]). `S_k ≥ 0` exactly; the
+    /// rounding of the FFTs (≲ 1e-16 of `Σ H`) is clamped at 0. Returns `false` (and zeros) if the
+    /// histogram is empty.
+    pub fn expected(&mut self, hist: &[f64], out: &mut [f64]) -> bool {
+        assert_eq!(hist.len(), self.steps.len(), "one value per axis bin");
+        assert_eq!(out.len(), self.n, "output length must be N");
+        if hist.iter().all(|&h| h == 0.0) {
+            out.fill(0.0);
+            return false;
+        }
+        let zero = Complex::new(0.0, 0.0);
+        self.lag.fill(zero);
+        match &self.folded {
+            Some(folded) => {
+                // C_d = Σ_m h_m e^{−2πi m d/N}: the forward DFT of the folded histogram.
+                for (&m, &h) in folded.iter().zip(hist) {
+                    self.lag[m].re += h;
+                }
+                self.forward.process_with_scratch(&mut self.lag, &mut self.scratch);
+            }
+            None => {
+                for (&step, &h) in self.steps.iter().zip(hist) {
+                    if h == 0.0 {
+                        continue;
+                    }
+                    let mut z = Complex::new(h, 0.0);
+                    for c in self.lag.iter_mut() {
+                        *c += z;
+                        z *= step;
+                    }
+                }
+            }
+        }
+        // As in Stft::expected_periodogram: an inverse DFT over the lags gives the bins.
+        for (c, &w) in self.lag.iter_mut().zip(&self.weights) {
+            *c *= w;
+        }
+        self.inverse.process_with_scratch(&mut self.lag, &mut self.scratch);
+        for (o, c) in out.iter_mut().zip(&self.lag) {
+            *o = c.re.max(0.0);
+        }
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -516,5 +632,40 @@ mod tests {
         assert!(BandKernel::new(&s, 100.0, f64::INFINITY).is_none());
         // A band reaching past Nyquist stops at the last paired bin.
         assert_eq!(BandKernel::new(&s, 18_000.0, 50_000.0).unwrap().bins(), 2);
+    }
+    #[test]
+    fn binned_periodogram_is_the_expected_periodogram_of_bin_centres() {
+        // On the STFT grid (the default LDH axis: N + 1 bins odd-centred on DC) and off it (a
+        // finer, shifted axis wider than f_s: aliasing), S equals the expected periodogram of one
+        // tone per bin at its centre.
+        for window in [Window::Rect, Window::Hann] {
+            let stft = Stft::new(FS, 64, window).unwrap();
+            let d = stft.bin_width();
+            let axes = [
+                crate::spectrum::FrequencyAxis::new(-32.5 * d, 32.5 * d, 65).unwrap(),
+                crate::spectrum::FrequencyAxis::new(-1.3 * FS, 0.9 * FS, 301).unwrap(),
+                crate::spectrum::FrequencyAxis::new(-64.5 * d, 95.5 * d, 160).unwrap(),
+            ];
+            for (a, axis) in axes.iter().enumerate() {
+                let mut bp = BinnedPeriodogram::new(&stft, axis);
+                assert_eq!(bp.on_stft_grid(), a != 1, "axis {a}");
+                let hist: Vec<f64> =
+                    (0..axis.bins).map(|j| if j % 7 == 3 { 0.0 } else { 1.0 + ((j * 37) % 11) as f64 }).collect();
+                let lines: Vec<Line> = hist
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &h)| Line { power: h, frequency: axis.center(j), gamma: 0.0 })
+                    .collect();
+                let reference = stft.expected_periodogram(&lines);
+                let mut s = vec![0.0; 64];
+                assert!(bp.expected(&hist, &mut s));
+                let total: f64 = hist.iter().sum();
+                for (k, (x, r)) in s.iter().zip(&reference).enumerate() {
+                    assert!((x - r).abs() < 1e-12 * total, "axis {a}, bin {k}: {x} vs {r}");
+                }
+                assert!((s.iter().sum::<f64>() / total - 1.0).abs() < 1e-12);
+                assert!(!bp.expected(&vec![0.0; axis.bins], &mut s) && s.iter().all(|&v| v == 0.0));
+            }
+        }
     }
 }

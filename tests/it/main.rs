@@ -18,6 +18,7 @@ mod ldh;
 mod lidar;
 mod mie;
 mod phase_table;
+mod pixel_speckle;
 mod precision;
 mod presets;
 mod retrieval;

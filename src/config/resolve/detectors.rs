@@ -76,7 +76,10 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     }
     let bin = stft.bin_width();
     let axis = match &l.spectrum {
-        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w.
+        // The STFT's own frequencies, odd-centred on DC: N_w + 1 bins of f_s/N_w. Also the
+        // per-pixel speckle's: each bin centre is an STFT frequency, so counting a path at its
+        // bin centre moves it by at most half an STFT bin, and the expected periodogram of a
+        // pixel is two FFTs (the +f_s/2 bin folds onto −f_s/2).
         None => FrequencyAxis::new(-(0.5 * n as f64 + 0.5) * bin, (0.5 * n as f64 + 0.5) * bin, n as usize + 1)
             .expect("a valid default axis"),
         Some(s) => {
@@ -116,20 +119,32 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
         }
         rois.push(roi);
     }
+    let pixel_spectra = l.pixel_spectra.unwrap_or(false);
     let speckle = match &l.speckle {
         None => None,
         Some(sp) => {
-            if rois.is_empty() {
+            let pixels = sp.pixels.unwrap_or(false);
+            if pixels && !pixel_spectra {
+                return err(
+                    join(path, "speckle.pixels"),
+                    format!(
+                        "= true: per-pixel speckle is drawn from the per-pixel spectra: set {} = true",
+                        join(path, "pixel_spectra")
+                    ),
+                );
+            }
+            if rois.is_empty() && !pixels {
                 return err(
                     join(path, "speckle"),
-                    "speckle is synthesised for ROIs: add [[detectors.ldh.roi]] entries",
+                    "speckle is synthesised for ROIs: add [[detectors.ldh.roi]] entries (or set speckle.pixels = true \
+                     for every pixel)",
                 );
             }
             let w = sp.windows.unwrap_or(LDH_DEFAULT_SPECKLE_WINDOWS);
             if !(1..=1_000_000).contains(&w) {
                 return err(join(path, "speckle.windows"), format!("= {w}: expected 1 to 10^6 windows"));
             }
-            Some(SpeckleSpec { windows: w as u32 })
+            Some(SpeckleSpec { windows: w as u32, pixels })
         }
     };
     let options = LdhOptions {
@@ -138,7 +153,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
         by_class: l.by_class.unwrap_or(false),
         rois,
         spectrum_axis: axis,
-        pixel_spectra: l.pixel_spectra.unwrap_or(false),
+        pixel_spectra,
         speckle,
     };
     LdhSpec::new(stft, (band[0], band[1]), options).ok_or_else(|| {

@@ -171,6 +171,7 @@ pub fn write_run(
     // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
     let t = std::time::Instant::now();
     let speckle = crate::post::speckle_of(exp, out);
+    let pixel_speckle = crate::post::pixel_speckle_of(exp, out);
     let speckle_seconds = t.elapsed().as_secs_f64();
     let mut files: Vec<String> = Vec::new();
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> {
@@ -222,7 +223,15 @@ pub fn write_run(
                     });
                 }
                 if let (Some(spec), Some(im)) = (&s.ldh, &s.image) {
-                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, &speckle, &mut estimates)?);
+                    info.ldh = Some(super::ldh::write_ldh(
+                        &mut w,
+                        &d.name,
+                        im,
+                        spec,
+                        &speckle,
+                        pixel_speckle.as_ref(),
+                        &mut estimates,
+                    )?);
                 }
             }
             DetectorKind::Lidar(spec) => {
