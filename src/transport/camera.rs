@@ -175,12 +175,7 @@ pub fn unscattered(
             emit(e * r, l + l0);
         }
     }
-    let tangential = DVec3::new(b.x, b.y, 0.0) * n0;
-    let down_in = |n: f64| -> Option<DVec3> {
-        let t = tangential / n;
-        let sin2 = t.length_squared();
-        (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
-    };
+    let down_in = |n: f64| refracted_down(b, n0, n);
     // The way up from interface j to the point, traced back down from the surface: the reflected
     // beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along `−that`.
     let (mut p, mut tau_up, mut transmit_up, mut l_up) = (top, 0.0, 1.0, l0);
@@ -231,6 +226,15 @@ pub fn unscattered(
     }
 }
 
+/// The direction `beam` (travelling down, in the ambient medium of index `n0`) takes in a layer
+/// of index `n`: `n sin θ` and the azimuth are conserved through planar interfaces. `None` if it
+/// cannot exist there.
+fn refracted_down(beam: DVec3, n0: f64, n: f64) -> Option<DVec3> {
+    let t = DVec3::new(beam.x, beam.y, 0.0) * (n0 / n);
+    let sin2 = t.length_squared();
+    (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
+}
+
 /// The laser's light at a vertex: the direction it arrives along, its irradiance there across
 /// that direction, and its optical path length from the emission plane.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -248,12 +252,7 @@ pub struct BeamHit {
 pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rng: &mut PathRng) -> Option<BeamHit> {
     let beam = source.emit_direction(rng);
     let n0 = scene.n_above;
-    let tangential = DVec3::new(beam.x, beam.y, 0.0) * n0;
-    let direction_in = |n: f64| -> Option<DVec3> {
-        let t = tangential / n;
-        let sin2 = t.length_squared();
-        (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, (1.0 - sin2).sqrt()))
-    };
+    let direction_in = |n: f64| refracted_down(beam, n0, n);
     let dir = direction_in(scene.layers[li].n)?;
     let (mut p, mut tau, mut length, mut transmit) = (pos, 0.0, 0.0, 1.0);
     for j in (0..=li).rev() {
