@@ -598,12 +598,19 @@ impl Recorder<'_> {
             {
                 continue;
             }
-            if d.next_event && e.order > 0 && e.mis >= 0.0 {
-                // A direct escape into a next-event detector's cone: its expected value was
-                // scored at its last vertex (`walk::expected_escape`, weighted by the balance
-                // heuristic against the shadow rays). Escapes after an interface reflection are
-                // not direct connections, which neither covers: full weight.
-                continue;
+            if d.next_event && e.order > 0 {
+                // A direct escape into a next-event detector's cone: the balance heuristic
+                // against the shadow rays, which sample the same exit directions uniformly in
+                // the cone (pdfs in exit solid angle: the phase function's, p·n0² cos θ0 /
+                // (n_k² cos θ_k), and 1/Ω). Escapes after an interface reflection are not
+                // direct connections, which the shadow rays do not cover: full weight.
+                if e.mis >= 0.0 {
+                    let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
+                    let w = p / (p + 1.0 / d.solid_angle());
+                    let e = Escape { weight: e.weight * w, ..*e };
+                    self.detect_one(i, &e, n_ambient);
+                    continue;
+                }
             }
             self.detect_one(i, e, n_ambient);
         }

@@ -181,49 +181,6 @@ pub fn cone_direction(axis: DVec3, basis: (DVec3, DVec3), cos_acceptance: f64, u
     axis * c + (basis.0 * cos_phi + basis.1 * sin_phi) * s
 }
 
-/// The straight way up from `pos` in layer `li`, leaving it along `dir_vertex` (`z < 0`), through
-/// the planar interfaces to `z = 0`, the tangential part `n·(d_x, d_y)` (= `tangential`) being
-/// conserved: where it leaves, the product of the Fresnel transmittances (and of the ratio
-/// tracking's in density layers), the optical depth of the other segments and the optical path
-/// length. `None` if the direction cannot exist in some layer (total internal reflection) or
-/// nothing gets through.
-pub fn trace_up(
-    scene: &Scene,
-    li: usize,
-    pos: DVec3,
-    dir_vertex: DVec3,
-    tangential: DVec3,
-    rng: &mut PathRng,
-) -> Option<(DVec3, f64, f64, f64)> {
-    let n0 = scene.n_above;
-    let direction_in = |n: f64| -> Option<DVec3> {
-        let t = tangential / n;
-        let sin2 = t.length_squared();
-        (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, -(1.0 - sin2).sqrt()))
-    };
-    let mut p = pos;
-    let mut tau = 0.0;
-    let mut length = 0.0;
-    let mut transmit = 1.0;
-    for j in (0..=li).rev() {
-        let layer = &scene.layers[j];
-        let d = if j == li { dir_vertex } else { direction_in(layer.n)? };
-        let t = (p.z - layer.z_top) / -d.z;
-        if layer.heterogeneous {
-            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
-        } else {
-            tau += segment_optical_depth(scene, layer, p, d, t);
-        }
-        length += layer.n * t;
-        p += t * d;
-        p.z = layer.z_top;
-        let n_next = if j == 0 { n0 } else { scene.layers[j - 1].n };
-        let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
-        transmit *= 1.0 - r;
-    }
-    (transmit > 0.0).then_some((p, transmit, tau, length))
-}
-
 /// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
 /// function `phase`, reached along `dir_in`, for the exit direction drawn from the uniforms
 /// `(u1, u2)`. `None` when nothing can come out that way (the direction cannot exist in some
@@ -255,7 +212,29 @@ pub fn shadow_ray(
     };
     let n_k = scene.layers[li].n;
     let dir_vertex = direction_in(n_k)?;
-    let (p, transmit, tau, length) = trace_up(scene, li, pos, dir_vertex, tangential, rng)?;
+    let mut p = pos;
+    let mut tau = 0.0;
+    let mut length = 0.0;
+    let mut transmit = 1.0;
+    for j in (0..=li).rev() {
+        let layer = &scene.layers[j];
+        let d = if j == li { dir_vertex } else { direction_in(layer.n)? };
+        let t = (p.z - layer.z_top) / -d.z;
+        if layer.heterogeneous {
+            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
+        } else {
+            tau += segment_optical_depth(scene, layer, p, d, t);
+        }
+        length += layer.n * t;
+        p += t * d;
+        p.z = layer.z_top;
+        let n_next = if j == 0 { n0 } else { scene.layers[j - 1].n };
+        let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
+        transmit *= 1.0 - r;
+    }
+    if transmit <= 0.0 {
+        return None;
+    }
     let cos0 = -dir.z;
     let cos_k = -dir_vertex.z;
     let etendue = (n0 * n0 * cos0) / (n_k * n_k * cos_k);

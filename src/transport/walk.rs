@@ -567,61 +567,9 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     if dynamic {
         doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
-    if out.z < 0.0 {
-        expected_escape::<LENGTH>(scene, nee, li, s, out, rng, rec);
-    }
     s.dir = out;
     s.order += 1;
     end_of_event(s, settings, rng, checkpoint)
-}
-
-/// The expected value of the path's direct escape along its new direction `out` (going up) into
-/// the cone of every next-event detector: where `out` refracts out of the stack inside a cone,
-/// the escape the walk would score with probability `Π(1 − R_i)·exp(−τ)` (no collision, no
-/// reflection on the way) is scored now with that weight, and the walk's own direct escapes score
-/// nothing on these detectors ([`crate::detect::Recorder`]). The balance heuristic against the
-/// shadow rays is the escapes' (`s.mis` is the phase density of `out` over `n_k² cos θ_k`).
-/// Measured on `configs/retina_ldh.toml`: the direct escapes were 84 % of the intensity image's
-/// per-pixel variance, as rare full-weight hits (validation/README.md, issue 20).
-#[inline(never)]
-fn expected_escape<const LENGTH: bool>(
-    scene: &Scene,
-    nee: &[NeeTarget],
-    li: usize,
-    s: &PathState,
-    out: DVec3,
-    rng: &mut PathRng,
-    rec: &mut Recorder,
-) {
-    let n0 = scene.n_above;
-    let tangential = DVec3::new(out.x, out.y, 0.0) * scene.layers[li].n;
-    let sin2 = (tangential / n0).length_squared();
-    if sin2 >= 1.0 {
-        return;
-    }
-    let exit = DVec3::new(tangential.x / n0, tangential.y / n0, -(1.0 - sin2).sqrt());
-    if !nee.iter().any(|t| t.aperture.is_none() && exit.dot(t.axis) >= t.cos_acceptance) {
-        return;
-    }
-    let Some((pos, transmit, tau, length)) = super::nee::trace_up(scene, li, s.pos, out, tangential, rng) else {
-        return;
-    };
-    let pe = s.mis * n0 * n0 * exit.z.abs();
-    for t in nee.iter().filter(|t| t.aperture.is_none() && exit.dot(t.axis) >= t.cos_acceptance) {
-        let e = Escape {
-            pos,
-            dir: exit,
-            weight: s.weight * pe / (pe + 1.0 / t.solid_angle()) * transmit * (-tau).exp(),
-            l: if LENGTH { s.l + length } else { 0.0 },
-            dldt: s.dldt,
-            order: s.order + 1,
-            doppler_events: s.doppler_events,
-            brownian: s.brownian,
-            mis: -1.0,
-            specular: false,
-        };
-        rec.next_event(t.detector, &e, n0);
-    }
 }
 
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
