@@ -26,7 +26,8 @@ impl FileCheckpoint {
         Ok(FileCheckpoint {
             path: part.checkpoint(),
             fingerprint: part.fingerprint,
-            every: Duration::from_secs_f64(seconds),
+            // An interval beyond `Duration`'s range (≈ 5.8·10¹¹ years) never comes due.
+            every: Duration::try_from_secs_f64(seconds).unwrap_or(Duration::MAX),
             last: Mutex::new(Instant::now()),
         })
     }

@@ -680,3 +680,15 @@ fn scans_shard_merge_and_resume_like_a_single_scan() {
         );
     }
 }
+
+/// A checkpoint interval beyond `Duration`'s range (issue 21: `--checkpoint-seconds 1e300`
+/// panicked converting it) means no checkpoint is ever due: the run finishes and writes its outputs.
+#[test]
+fn a_checkpoint_interval_too_long_to_represent_never_comes_due() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let o =
+        ohd(tmp.path(), &["run", "--samples", "20000", "-q", "--checkpoint-seconds", "1e300", "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(out.join("manifest.json").exists() && !out.join("checkpoint.ohd").exists());
+}
