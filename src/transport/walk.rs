@@ -136,6 +136,13 @@ pub fn scatter_direction(dir: DVec3, d: Deflection, cos_phi: f64, sin_phi: f64) 
     (dir * d.cos + perp_sin, dir * d.one_minus_cos - perp_sin)
 }
 
+/// Reflections at interfaces without a real collision in between after which a path is
+/// truncated (counted in `truncated_paths`). Only total internal reflection repeats: a scattering
+/// region in a clear layer of higher index than both neighbours sends some packets along the
+/// layer at grazing angles, reflected between its faces for ever (issue 21: a run that never
+/// ended). A partial reflection (R < 1) repeats 10⁴ times with probability `R^10⁴`.
+pub const MAX_REFLECTIONS_WITHOUT_COLLISION: u32 = 10_000;
+
 /// How many scattering events the walk lets pass between renormalisations of the direction.
 ///
 /// Renormalising after every event cost 14 instructions per collision (callgrind, 4% of a van
@@ -169,7 +176,8 @@ enum End {
     Absorbed,
     /// Lost the Russian roulette.
     Roulette,
-    /// Hit the event cap, or runs parallel to the layers in a transparent semi-infinite layer.
+    /// Hit the event cap, runs parallel to the layers in a transparent semi-infinite layer, or
+    /// is trapped by total internal reflection ([`MAX_REFLECTIONS_WITHOUT_COLLISION`]).
     Truncated,
 }
 
@@ -322,6 +330,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
 ) -> End {
     let WalkContext { scene, settings, .. } = *ctx;
     let mut li = 0usize;
+    let (mut reflected_at, mut reflections) = (u32::MAX, 0u32);
     // The next event count at which `collide` looks at the event cap and renormalises.
     let mut checkpoint = RENORMALISE_EVERY.min(settings.max_events);
     loop {
@@ -436,6 +445,15 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
         };
         let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
         if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
+            // Reflections since the last real collision (counted here, so that a collision
+            // costs nothing): only total internal reflection keeps a path bouncing that long.
+            if s.order != reflected_at {
+                (reflected_at, reflections) = (s.order, 0);
+            }
+            reflections += 1;
+            if reflections > MAX_REFLECTIONS_WITHOUT_COLLISION {
+                return End::Truncated;
+            }
             s.dir.z = -s.dir.z;
             if NEE {
                 s.mis = -1.0;

@@ -978,3 +978,53 @@ medium = "m"
         assert!(z.abs() < 4.0, "{}: z = {z:.2}", s.name());
     }
 }
+
+/// A scattering sphere inside a clear layer of index 1.33 between air: packets leaving the sphere
+/// at grazing angles are totally internally reflected between the layer's faces for ever (issue
+/// 21: a 1 000-path run did not end). The walk truncates a path after
+/// `MAX_REFLECTIONS_WITHOUT_COLLISION` reflections without a collision and counts it; the run ends,
+/// the trapped share is counted, and what is not trapped still balances (R + T + A + trapped
+/// ≤ 1 with the trapped paths' weight the only loss).
+#[test]
+fn light_trapped_by_total_internal_reflection_is_truncated_and_counted() {
+    let text = r#"
+schema_version = 1
+[run]
+samples = 20000
+batches = 16
+[source]
+wavelength_nm = 800
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[media.cloud]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 20
+phase = { type = "hg", g = 0.0 }
+[[layers]]
+name = "slab"
+thickness_mm = 1
+n = 1.33
+medium = "clear"
+[[regions]]
+layer = "slab"
+medium = "cloud"
+shape = { type = "sphere", center_mm = [0, 0, 0.5], radius_mm = 0.3 }
+"#;
+    let r = crate::support::run::run(text, &[]);
+    let st = &r.out.stats;
+    // Isotropic scattering in a sphere: a fair share of the directions lie beyond the critical
+    // angle (48.8°) of both faces, and half of those never meet the sphere again.
+    assert!(st.truncated_paths > 100, "only {} paths truncated", st.truncated_paths);
+    use ohd::detect::Scalar;
+    let total = [Scalar::ReflectanceSpecular, Scalar::ReflectanceDiffuse, Scalar::TransmittanceTotal]
+        .iter()
+        .map(|&s| r.scalar(s).0)
+        .sum::<f64>();
+    let trapped = st.truncated_paths as f64 / st.paths as f64;
+    // No absorption: the weight of a packet is 1 − R_specular until it leaves or is truncated.
+    assert!(
+        (total + trapped * (1.0 - r.scalar(Scalar::ReflectanceSpecular).0) - 1.0).abs() < 0.01,
+        "R + T = {total}, trapped {trapped}"
+    );
+}
