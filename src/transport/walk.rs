@@ -455,7 +455,7 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
                 return End::Truncated;
             }
             s.dir.z = -s.dir.z;
-            if NEE {
+            if NEE || CAMERA {
                 s.mis = -1.0;
             }
             continue;
@@ -465,8 +465,12 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
             return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 };
         }
         if CAMERA {
-            // Radiance across the interface: `L/n²` is invariant.
+            // Radiance across the interface: `L/n²` is invariant. The beam-lobe connection
+            // crosses it deterministically: its density ratio takes the transmittance.
             s.weight *= (n / n2) * (n / n2);
+            if s.mis >= 0.0 {
+                s.mis *= 1.0 - r;
+            }
         }
         li = next;
     }
@@ -591,10 +595,11 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
 }
 
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
-/// laser scored into the path's pixel (see [`super::camera`]), then a new direction as
-/// [`collide`]. One particle velocity serves the connection and the continuation.
+/// laser scored into the path's pixel, the beam-lobe connection through a vertex further up, then
+/// a new direction as [`collide`] (see [`super::camera`], "Two ways to the last vertex"). One
+/// particle velocity serves the connections and the continuation.
 //
-// Outlined, as `collide_nee`: the connection is a trace through every layer above.
+// Outlined, as `collide_nee`: the connections are traces through every layer above.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
@@ -612,6 +617,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     if s.weight <= 0.0 {
         return Some(End::Absorbed);
     }
+    let scene = ctx.scene;
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
@@ -619,7 +625,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     // least the optical depth `τ_min` straight up, so connections that cannot carry more than
     // `weight·exp(−τ_min)` are traced with probability `bound/threshold` and weighted by its
     // inverse (unbiased). Vertices under a pigmented layer then cost little.
-    let q = s.weight * (-ctx.scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
     let boost = if q >= 1.0 {
         1.0
     } else if rng.uniform() < q {
@@ -627,38 +633,115 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     } else {
         0.0
     };
-    let connect = if boost > 0.0 { ctx.shot } else { None };
-    if let Some(shot) = connect
-        && let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, s.pos, rng)
-    {
-        // The light arrives along `b.dir` and leaves towards the camera along `−s.dir`.
-        let p = pop.phase.eval(-b.dir.dot(s.dir));
-        let mut e = Escape {
-            pos: s.pos,
-            dir: -s.dir,
-            weight: s.weight * p * b.irradiance * shot.scale * boost,
-            l: if LENGTH { s.l + b.length } else { 0.0 },
-            dldt: s.dldt,
-            order: s.order + 1,
-            doppler_events: s.doppler_events,
-            brownian: s.brownian,
-            mis: -1.0,
-            specular: false,
-        };
-        if dynamic {
-            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, pop, n, v, b.dir + s.dir);
+    // The guide lobe about the beam's reversed direction in this layer.
+    let guide = super::camera::guide();
+    let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
+    if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
+        // This vertex as the walk's last: weighted against the lobe connection from the vertex
+        // before, `s.mis` = (walk density · Fresnel transmittances)/(guide density) of the way
+        // here (−1 when the lobe connection cannot make it).
+        let w = if s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
+        let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
+        let tail = Tail { l: s.l, dldt: s.dldt, brownian: s.brownian, events: s.doppler_events, order: s.order };
+        connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
+        // The beam-lobe connection: a direction from the guide lobe, the straight refracted way
+        // through the layers to a real collision there, and its connection.
+        if let Some(up) = up {
+            let dd = guide.sample(rng.uniform());
+            let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+            let (dir, _) = scatter_direction(up, dd, cos_phi, sin_phi);
+            let (p_walk, p_guide) = (pop.phase.eval(s.dir.dot(dir)), guide.eval(dd.cos));
+            if let Some(h) = super::camera::lobe_flight(scene, li, s.pos, dir, ctx.settings.tracking, rng) {
+                let m2 = &scene.media[h.medium];
+                let albedo2 = if scene.layers[h.layer].heterogeneous { m2.albedo_at(h.pos) } else { m2.albedo() };
+                let (pop2, dynamic2) = m2.pick_dynamic(rng);
+                let dynamic2 = DOPPLER && dynamic2;
+                let v2 = if dynamic2 { particle_velocity(pop2, h.pos, rng) } else { DVec3::ZERO };
+                let mut tail = tail;
+                if dynamic {
+                    doppler_event(&mut tail.dldt, &mut tail.brownian, &mut tail.events, pop, n, v, s.dir - dir);
+                }
+                tail.order += 1;
+                tail.l += if LENGTH { h.length } else { 0.0 };
+                let n2 = scene.layers[h.layer].n;
+                let there = Link { pos: h.pos, dir_in: h.dir, pop: pop2, v: v2, dynamic: dynamic2, n: n2 };
+                let pt = p_walk * h.transmit;
+                let w = s.weight * boost * pt / (pt + p_guide) * h.radiance * albedo2;
+                connect::<LENGTH>(ctx, h.layer, &shot, there, tail, w, rng, rec);
+            }
         }
-        rec.camera(&shot, &e);
     }
     let d = pop.phase.sample(rng.uniform());
     let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
     let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    s.mis = match up {
+        Some(up) => pop.phase.eval(d.cos) / guide.eval(up.dot(out)),
+        None => -1.0,
+    };
     if dynamic {
         doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
     }
     s.dir = out;
     s.order += 1;
     end_of_event(s, ctx.settings, rng, checkpoint)
+}
+
+/// A vertex a camera path connects to the laser from: where, the walk's direction into it, the
+/// particle scattering there (and its velocity), and the layer's index.
+#[derive(Clone, Copy)]
+struct Link<'a> {
+    pos: DVec3,
+    dir_in: DVec3,
+    pop: &'a Population,
+    v: DVec3,
+    dynamic: bool,
+    n: f64,
+}
+
+/// What a camera path carries up to a [`Link`]: its optical path length, `dl/dt`, Brownian sum,
+/// Doppler events and scattering order before the link's own event.
+#[derive(Clone, Copy)]
+struct Tail {
+    l: f64,
+    dldt: f64,
+    brownian: f64,
+    events: u32,
+    order: u32,
+}
+
+/// Connect `at` (in layer `li`) to the laser and score the path into `shot`'s pixel with the
+/// weight `w` (the walk's weight, with every factor but the phase function and the irradiance).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn connect<const LENGTH: bool>(
+    ctx: &WalkContext,
+    li: usize,
+    shot: &Shot,
+    at: Link,
+    tail: Tail,
+    w: f64,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
+    // The light arrives along `b.dir` and leaves towards the camera along `−dir_in`.
+    let p = at.pop.phase.eval(-b.dir.dot(at.dir_in));
+    let mut e = Escape {
+        pos: at.pos,
+        dir: -at.dir_in,
+        weight: w * p * b.irradiance * shot.scale,
+        l: if LENGTH { tail.l + b.length } else { 0.0 },
+        dldt: tail.dldt,
+        order: tail.order + 1,
+        doppler_events: tail.events,
+        brownian: tail.brownian,
+        mis: -1.0,
+        specular: false,
+    };
+    if at.dynamic {
+        doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, at.pop, at.n, at.v, b.dir + at.dir_in);
+    }
+    rec.camera(shot, &e);
 }
 
 /// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if
