@@ -37,10 +37,29 @@
 //! Doppler bookkeeping gives the light's `dl/dt` with the library's sign (DESIGN.md: reciprocal
 //! paths, same sign); the connection adds its vertex's term with `ω_k − (−dir)`.
 //!
+//! Two ways to the last vertex. Tissue and blood scatter strongly forward (Henyey–Greenstein
+//! g = 0.95–0.97: half of each deflection within ~(1 − g) rad), so the light under the beam stays
+//! within a degree or two of the beam's direction, and a connection's phase factor
+//! `p(ω_k · ω_out)` is large (up to `(1 + g)/(4π(1 − g)²)` ≈ 170 sr⁻¹) only where the walk
+//! happens to travel back up the beam within that cone. Measured on `configs/retina_ldh.toml`
+//! (one pixel, 64 000 paths, 6.4·10⁶ connections): the largest 1 % of connections carried 95 % of
+//! the signal and all but 2·10⁻⁶ of its variance, all in the retina with `ω_out` within 2° of the
+//! beam. So from every vertex `x` (reached along `d`) the path is also extended by one vertex
+//! the way the beam's lobe favours: a direction `u` drawn from a guide lobe about the reversed
+//! beam (Henyey–Greenstein [`GUIDE_G`], density `q(u)`), the straight refracted way through the
+//! layers to a real collision `y` ([`lobe_flight`], crossing interfaces by transmission), and a
+//! connection at `y`. The walk reaches the same `y` by drawing `u` from `p(d · u)` and crossing the
+//! same interfaces by the Fresnel coin, so the two are weighted by the balance heuristic (Veach
+//! 1997, ch. 9) with the densities `p(d·u)·ΠT_i` and `q(u)` (the flights' densities are common):
+//! the walk's connection at `y` by `r/(r + 1)` with `r = p(d·u)·ΠT_i/q(u)` carried in
+//! `PathState::mis` (weight 1 when an interface reflected it on the way: no lobe path has
+//! that), the lobe's by `p(d·u)·ΠT_i/(p(d·u)·ΠT_i + q(u))`. Where `x` lies in a layer of broad
+//! scattering (the RPE, the choroid), `p(d·u)` is smooth and the spike of the retina's phase
+//! function at `y` is sampled by `q` instead of met by chance.
+//!
 //! A collimated beam is a delta in direction, so no walk can hit it by chance: the connections
-//! are the whole estimate and need no multiple importance sampling. A pencil beam lights a line,
-//! which a connection reaches with probability zero: the camera estimator needs a disk or
-//! Gaussian footprint.
+//! are the whole estimate. A pencil beam lights a line, which a connection reaches with
+//! probability zero: the camera estimator needs a disk or Gaussian footprint.
 
 use glam::DVec3;
 

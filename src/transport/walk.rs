@@ -88,7 +88,9 @@ pub struct PathState {
     /// For next-event estimation: the phase-function density of the last scattering direction
     /// divided by `n_k² cos θ_k` at the vertex (see [`super::nee`]), or −1 when the path has not
     /// scattered or was reflected at an interface since (its escape is then not a direct
-    /// connection, which the shadow rays do not cover).
+    /// connection, which the shadow rays do not cover). On a camera path: the ratio of the walk's
+    /// density of its last direction (times the Fresnel transmittances crossed since) to the
+    /// guide lobe's ([`super::camera`], "Two ways to the last vertex"), or −1.
     pub mis: f64,
 }
 
