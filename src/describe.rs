@@ -728,7 +728,9 @@ impl Display for Detector {
                 format!("{} from the surface", length(d.distance))
             }
         )?;
-        if d.next_event {
+        if d.estimator == crate::detect::Estimator::Camera {
+            write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
+        } else if d.next_event {
             write!(f, ", next-event estimation")?;
         }
         if d.include_specular {
