@@ -589,11 +589,18 @@ fn shards_merge_into_a_single_run() {
     std::fs::create_dir(&cut).unwrap();
     let bytes = std::fs::read(d1.join("shard.ohd")).unwrap();
     std::fs::write(cut.join("shard.ohd"), &bytes[..bytes.len() / 2]).unwrap();
+    // One flipped bit in the middle of the batch sums (issue 21: such a shard was merged).
+    let flip = tmp.path().join("flip");
+    std::fs::create_dir(&flip).unwrap();
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 0x10;
+    std::fs::write(flip.join("shard.ohd"), &flipped).unwrap();
     for (dirs, expect) in [
         (vec![&d0, &d1], "2 of 3 missing"),
         (vec![&d0, &d1, &d1, &d2], "given twice"),
         (vec![&d0, &other, &d2], "different run"),
         (vec![&d0, &cut, &d2], "truncated"),
+        (vec![&d0, &flip, &d2], "checksum mismatch"),
         (vec![&d0, &bad, &d2], "bad/shard.ohd"),
     ] {
         let mut a = vec!["merge"];

@@ -6,7 +6,8 @@
 //! Layout: `OHDCKPT` and a format byte; the fingerprint (u64); `next`, `end` (u64); `err`,
 //! `elapsed` (f64); the six run counters (u64); the accumulator's batch count and length (u64)
 //! and its `mean` and `m2` (f64 each); the number of recorded lines (u64) and each line's `roi`
-//! (u32), `class` (u8), `weight`, `frequency`, `gamma` (f64).
+//! (u32), `class` (u8), `weight`, `frequency`, `gamma` (f64); the CRC-32 of everything before it
+//! (u32), so that a flipped byte is refused rather than resumed from.
 
 use std::path::Path;
 
@@ -15,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::experiment::RunState;
 use crate::stats::BatchAccumulator;
 
-const MAGIC: &[u8; 8] = b"OHDCKPT\x01";
+const MAGIC: &[u8; 8] = b"OHDCKPT\x02";
 
 /// The bytes of a checkpoint of `s` for the configuration with fingerprint `fp`.
 pub fn to_bytes(fp: u64, s: &RunState) -> Vec<u8> {
@@ -29,12 +30,18 @@ pub fn to_bytes(fp: u64, s: &RunState) -> Vec<u8> {
     w.f64s(mean);
     w.f64s(m2);
     w.lines(&s.lines);
+    let crc = crc32fast::hash(&w.0);
+    w.0.extend_from_slice(&crc.to_le_bytes());
     w.0
 }
 
 /// Parse a checkpoint: `(fingerprint, state)`, `None` if it is not a whole checkpoint.
 pub fn from_bytes(bytes: &[u8]) -> Option<(u64, RunState)> {
-    let mut r = Reader(bytes.strip_prefix(MAGIC.as_slice())?);
+    let (body, crc) = bytes.split_at_checked(bytes.len().checked_sub(4)?)?;
+    if crc32fast::hash(body).to_le_bytes() != crc {
+        return None;
+    }
+    let mut r = Reader(body.strip_prefix(MAGIC.as_slice())?);
     let (fp, next, end) = (r.u64()?, r.u64()?, r.u64()?);
     let (err, elapsed) = (r.f64()?, r.f64()?);
     let stats = r.stats()?;
@@ -97,5 +104,11 @@ mod tests {
         let mut longer = b.clone();
         longer.push(0);
         assert!(from_bytes(&longer).is_none());
+        // Any one flipped bit is caught (issue 21: a flipped data byte was resumed from).
+        for i in 0..b.len() {
+            let mut flipped = b.clone();
+            flipped[i] ^= 1 << (i % 8);
+            assert!(from_bytes(&flipped).is_none(), "a checkpoint with byte {i} flipped parsed");
+        }
     }
 }

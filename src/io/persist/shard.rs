@@ -5,8 +5,9 @@
 //! then: fingerprint, index, count, first and last batch, the run's batches, paths per batch,
 //! tallies (u64 each); the configuration's text, where it came from and the `--set` list (strings
 //! as length + UTF-8)); `(last − first) × tallies` f64 sums, batch by batch; the trailer as a
-//! block (the six run counters (u64), wall seconds (f64), threads (u64), the recorded LDH lines).
-//! The file is written to a temporary name and renamed when whole.
+//! block (the six run counters (u64), wall seconds (f64), threads (u64), the recorded LDH lines);
+//! the CRC-32 of everything before it (u32): a flipped byte is refused, not merged. The file is
+//! written to a temporary name and renamed when whole.
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -17,7 +18,7 @@ use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
 use crate::stats::RunStats;
 
-const MAGIC: &[u8; 8] = b"OHDSHRD\x01";
+const MAGIC: &[u8; 8] = b"OHDSHRD\x02";
 
 /// The file a shard writes into its directory.
 pub const FILE_NAME: &str = "shard.ohd";
@@ -118,6 +119,7 @@ fn parse_trailer(bytes: &[u8]) -> Option<ShardTrailer> {
 /// temporary file is removed.
 pub struct ShardWriter {
     file: BufWriter<File>,
+    crc: crc32fast::Hasher,
     tmp: PathBuf,
     path: PathBuf,
     finished: bool,
@@ -128,13 +130,20 @@ impl ShardWriter {
         let tmp = crate::io::temporary_path(path);
         let werr = |source| Error::Write { path: path.to_path_buf(), source };
         let file = File::create(&tmp).map_err(werr)?;
-        let mut w = ShardWriter { file: BufWriter::new(file), tmp, path: path.to_path_buf(), finished: false };
+        let mut w = ShardWriter {
+            file: BufWriter::new(file),
+            crc: crc32fast::Hasher::new(),
+            tmp,
+            path: path.to_path_buf(),
+            finished: false,
+        };
         w.put(MAGIC)?;
         w.put(&header_bytes(header))?;
         Ok(w)
     }
 
     fn put(&mut self, bytes: &[u8]) -> Result<()> {
+        self.crc.update(bytes);
         self.file.write_all(bytes).map_err(|source| Error::Write { path: self.path.clone(), source })
     }
 
@@ -147,6 +156,8 @@ impl ShardWriter {
     /// Append the trailer and move the whole file into place.
     pub fn finish(mut self, trailer: &ShardTrailer) -> Result<()> {
         self.put(&trailer_bytes(trailer))?;
+        let crc = self.crc.clone().finalize();
+        self.put(&crc.to_le_bytes())?;
         let werr = |source| Error::Write { path: self.path.clone(), source };
         self.file.flush().map_err(werr)?;
         self.file.get_ref().sync_all().map_err(werr)?;
@@ -168,6 +179,7 @@ impl Drop for ShardWriter {
 /// the trailer. Every read is checked: a truncated, extended or corrupt file is an error naming it.
 pub struct ShardReader {
     file: BufReader<File>,
+    crc: crc32fast::Hasher,
     pub path: PathBuf,
     pub header: ShardHeader,
     batches_read: u64,
@@ -183,8 +195,11 @@ impl ShardReader {
         let mut file = BufReader::new(file);
         let bad = |why: &str| Error::invalid_file(path, why);
         let mut head = [0u8; 16];
-        if size < 16 || file.read_exact(&mut head).is_err() || &head[..8] != MAGIC {
+        if size < 16 || file.read_exact(&mut head).is_err() || head[..7] != MAGIC[..7] {
             return Err(bad("not an ohd shard file (written by `ohd run --shard I/N`)"));
+        }
+        if head[7] != MAGIC[7] {
+            return Err(bad("written by another version of ohd (shard format differs): rerun the shard"));
         }
         let len = u64::from_le_bytes(head[8..].try_into().unwrap_or_default());
         if len > MAX_HEADER.min(size - 16) {
@@ -193,12 +208,16 @@ impl ShardReader {
         let mut bytes = vec![0; len as usize];
         file.read_exact(&mut bytes).map_err(rerr)?;
         let header = parse_header(&bytes).ok_or_else(|| bad("corrupt shard file (header)"))?;
-        let left = size - 16 - len;
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&head);
+        crc.update(&bytes);
+        // The sums and the trailer; the checksum's 4 bytes are not part of it.
+        let left = (size - 16 - len).checked_sub(4).ok_or_else(|| bad("truncated shard file (no checksum)"))?;
         let sums = (header.last - header.first).checked_mul(header.tallies).and_then(|n| n.checked_mul(8));
         if sums.is_none_or(|n| n.saturating_add(8) > left) {
             return Err(bad("truncated shard file: fewer batches than its header names (was the shard killed?)"));
         }
-        Ok(ShardReader { file, path: path.to_path_buf(), header, batches_read: 0, left })
+        Ok(ShardReader { file, crc, path: path.to_path_buf(), header, batches_read: 0, left })
     }
 
     /// Read the next batch's sums into `sums` (`header.tallies` long).
@@ -209,6 +228,7 @@ impl ShardReader {
         }
         let mut bytes = vec![0u8; 8 * sums.len()];
         self.file.read_exact(&mut bytes).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        self.crc.update(&bytes);
         for (v, b) in sums.iter_mut().zip(bytes.chunks_exact(8)) {
             *v = f64::from_le_bytes(b.try_into().unwrap_or_default());
         }
@@ -217,7 +237,8 @@ impl ShardReader {
         Ok(())
     }
 
-    /// The trailer, after every batch was read; the file must end there.
+    /// The trailer, after every batch was read; the file must end there, with the checksum of
+    /// everything read (an error naming the file if it differs: a corrupt shard is never merged).
     pub fn trailer(mut self) -> Result<ShardTrailer> {
         let bad = |why: &str| Error::invalid_file(&self.path, why);
         if self.batches_read != self.header.last - self.header.first {
@@ -231,6 +252,14 @@ impl ShardReader {
         }
         let mut bytes = vec![0; len as usize];
         self.file.read_exact(&mut bytes).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        let mut stored = [0u8; 4];
+        self.file.read_exact(&mut stored).map_err(|source| Error::Read { path: self.path.clone(), source })?;
+        let mut crc = self.crc.clone();
+        crc.update(&len.to_le_bytes());
+        crc.update(&bytes);
+        if crc.finalize().to_le_bytes() != stored {
+            return Err(bad("corrupt shard file (checksum mismatch): rerun the shard"));
+        }
         parse_trailer(&bytes).ok_or_else(|| bad("corrupt shard file (trailer)"))
     }
 }
@@ -293,6 +322,13 @@ mod tests {
         longer.push(0);
         std::fs::write(&cut, &longer).unwrap();
         assert!(read_all(&cut).is_err(), "a shard with a trailing byte was read");
+        // Any one flipped bit is caught (issue 21: a flipped data byte was merged).
+        for i in 0..bytes.len() {
+            let mut flipped = bytes.clone();
+            flipped[i] ^= 1 << (i % 8);
+            std::fs::write(&cut, &flipped).unwrap();
+            assert!(read_all(&cut).is_err(), "a shard with byte {i} flipped was read");
+        }
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file is left");
     }
 }
