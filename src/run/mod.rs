@@ -175,6 +175,26 @@ impl RunOptions {
     }
 }
 
+/// Whether outputs can be written into `dir`, found before any path is traced (issue 21: an
+/// unwritable `--out` was found after the whole simulation): a probe file is created and removed
+/// in `dir`, or, if `dir` does not exist yet, in its nearest existing ancestor (where it would be
+/// created). Nothing is left behind.
+pub fn check_writable(dir: &std::path::Path) -> Result<()> {
+    let mut at = dir;
+    while !at.as_os_str().is_empty() && !at.exists() {
+        at = at.parent().unwrap_or(std::path::Path::new(""));
+    }
+    let at = if at.as_os_str().is_empty() { std::path::Path::new(".") } else { at };
+    let unwritable = |source| Error::Write { path: dir.to_path_buf(), source };
+    if !at.is_dir() {
+        return Err(unwritable(std::io::Error::other(format!("{} is not a directory", at.display()))));
+    }
+    let probe = at.join(format!(".ohd-write-probe-{}", std::process::id()));
+    std::fs::File::create(&probe).map_err(unwritable)?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
 /// Run `loaded` as `req` asks: one run, or every pointing of a scan and then its VAD wind, or
 /// one shard of each. Outputs are written into `req.dir`.
 pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Finished> {
@@ -183,6 +203,7 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     if let Some(s) = req.checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         return Err(Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
     }
+    check_writable(&req.dir)?;
     let parts = parts(exp, &loaded.table, &req.dir);
     if let Some((index, count)) = req.shard {
         let shards = parts.iter().map(|part| run_shard(loaded, part, index, count, obs)).collect::<Result<_>>()?;

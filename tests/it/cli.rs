@@ -699,3 +699,30 @@ fn a_checkpoint_interval_too_long_to_represent_never_comes_due() {
     assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
     assert!(out.join("manifest.json").exists() && !out.join("checkpoint.ohd").exists());
 }
+
+/// Problems with where outputs go are found before a single path is traced (issue 21): a
+/// detector name too long for its file names is a configuration error naming the key (`ohd
+/// check` finds it too), and an `--out` that cannot be written ends the run at once (exit 1)
+/// instead of after the simulation (10¹² paths here: without the check this would not end).
+#[test]
+fn output_names_and_directories_are_checked_before_the_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let long = "d".repeat(300);
+    let set = format!("detectors.0.name=\"{long}\"");
+    let x = tmp.path().join("x");
+    for args in [vec!["check", "--set", &set], vec!["run", "--set", &set, "--out", path_str(&x)]] {
+        let cmd = args[0];
+        let o = ohd(tmp.path(), &args);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {}", describe(&o));
+        let err = text(&o.stderr);
+        assert!(err.contains("detectors[0].name") && err.contains("at most 64"), "{cmd}: {err}");
+        assert!(err.len() < 400, "the message echoes the whole name: {err}");
+    }
+    let file = tmp.path().join("a_file");
+    std::fs::write(&file, b"not a directory").unwrap();
+    let out = file.join("run");
+    let o = ohd(tmp.path(), &["run", "--samples", "1000000000000", "-q", "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(1), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("cannot write"), "{}", describe(&o));
+    assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1, "nothing is written beside the file");
+}

@@ -15,12 +15,28 @@ use crate::medium::Scene;
 use crate::source::Source;
 use crate::spectrum::{FrequencyAxis, Stft, Window};
 
-/// `name` names output files: a non-empty word of letters, digits, `_` and `-`.
+/// Longest detector or ROI name: the files it names add up to ~45 characters
+/// (`NAME_up_spectrum_by_doppler_events_stderr.npy`, and a temporary `.NAME….tmp-PID` while
+/// written), within the 255 bytes a file name may have on common file systems.
+pub const MAX_NAME: usize = 64;
+
+/// `name` names output files: a non-empty word of letters, digits, `_` and `-`, at most
+/// [`MAX_NAME`] long (checked here, before a run, not when its files are written).
 fn file_name(path: &str, name: &str) -> R<()> {
     if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
         return err(
             join(path, "name"),
             format!("= \"{name}\": expected a non-empty name of letters, digits, _ and - (it names output files)"),
+        );
+    }
+    if name.len() > MAX_NAME {
+        return err(
+            join(path, "name"),
+            format!(
+                "= \"{}…\" ({} characters): expected at most {MAX_NAME} (it names output files)",
+                &name[..16],
+                name.len()
+            ),
         );
     }
     Ok(())
