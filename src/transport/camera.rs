@@ -69,7 +69,7 @@ use crate::sampling::PathRng;
 use crate::source::Source;
 
 use super::fresnel;
-use super::nee::segment_optical_depth;
+use super::nee::{Crossing, segment_optical_depth, trace_up};
 use super::tracking::ratio_transmittance;
 
 /// A surface detector scored by the camera-side estimator.
@@ -195,6 +195,7 @@ pub fn unscattered(
         }
     }
     let down_in = |n: f64| refracted_down(b, n0, n);
+    let up_in = |n: f64| down_in(n).map(|d| -d);
     // The way up from interface j to the point, traced back down from the surface: the reflected
     // beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along `−that`.
     let (mut p, mut tau_up, mut transmit_up, mut l_up) = (top, 0.0, 1.0, l0);
@@ -209,7 +210,7 @@ pub fn unscattered(
         let back = DVec3::new(-d.x, -d.y, d.z);
         let t = (layer.z_bottom - p.z) / d.z;
         if layer.heterogeneous {
-            transmit_up *= super::tracking::ratio_transmittance(scene, layer, p, back, t, rng);
+            transmit_up *= ratio_transmittance(scene, layer, p, back, t, rng);
         } else {
             tau_up += segment_optical_depth(scene, layer, p, back, t);
         }
@@ -222,22 +223,10 @@ pub fn unscattered(
             continue;
         }
         // The way down to the interface, traced back up to the surface.
-        let (mut q, mut tau, mut transmit, mut l) = (p, tau_up, transmit_up * r, l_up);
-        for k in (0..=j).rev() {
-            let layer = &scene.layers[k];
-            let Some(dk) = down_in(layer.n) else { return };
-            let t = (q.z - layer.z_top) / dk.z;
-            if layer.heterogeneous {
-                transmit *= super::tracking::ratio_transmittance(scene, layer, q, -dk, t, rng);
-            } else {
-                tau += segment_optical_depth(scene, layer, q, -dk, t);
-            }
-            l += layer.n * t;
-            q -= t * dk;
-            q.z = layer.z_top;
-            let n_above = if k == 0 { n0 } else { scene.layers[k - 1].n };
-            transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, dk.z).0;
-        }
+        let acc = Crossing { pos: p, tau: tau_up, transmit: transmit_up * r, length: l_up };
+        let Some(Crossing { pos: q, tau, transmit, length: l }) = trace_up(scene, j, p, -d, up_in, acc, rng) else {
+            return;
+        };
         let (e, l_top) = at_top(q);
         if e > 0.0 && transmit > 0.0 {
             emit(e * transmit * (-tau).exp(), l + l_top);
@@ -339,26 +328,10 @@ pub struct BeamHit {
 pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rng: &mut PathRng) -> Option<BeamHit> {
     let beam = source.emit_direction(rng);
     let n0 = scene.n_above;
-    let direction_in = |n: f64| refracted_down(beam, n0, n);
-    let dir = direction_in(scene.layers[li].n)?;
-    let (mut p, mut tau, mut length, mut transmit) = (pos, 0.0, 0.0, 1.0);
-    for j in (0..=li).rev() {
-        let layer = &scene.layers[j];
-        let d = if j == li { dir } else { direction_in(layer.n)? };
-        // Back up the beam to the layer's top.
-        let t = (p.z - layer.z_top) / d.z;
-        if layer.heterogeneous {
-            transmit *= ratio_transmittance(scene, layer, p, -d, t, rng);
-        } else {
-            tau += segment_optical_depth(scene, layer, p, -d, t);
-        }
-        length += layer.n * t;
-        p -= t * d;
-        p.z = layer.z_top;
-        let n_above = if j == 0 { n0 } else { scene.layers[j - 1].n };
-        let (r, _) = fresnel::reflectance(layer.n, n_above, d.z);
-        transmit *= 1.0 - r;
-    }
+    let dir = refracted_down(beam, n0, scene.layers[li].n)?;
+    // Back up the beam, layer by layer, to the surface.
+    let up_in = |n: f64| refracted_down(beam, n0, n).map(|d| -d);
+    let Crossing { pos: p, tau, transmit, length } = trace_up(scene, li, pos, -dir, up_in, Crossing::START, rng)?;
     if transmit <= 0.0 {
         return None;
     }

@@ -181,6 +181,59 @@ pub fn cone_direction(axis: DVec3, basis: (DVec3, DVec3), cos_acceptance: f64, u
     axis * c + (basis.0 * cos_phi + basis.1 * sin_phi) * s
 }
 
+/// What a straight way up to the surface went through ([`trace_up`]): where it ended, the optical
+/// depth of its analytic segments, the product of its Fresnel transmittances (and ratio-tracking
+/// factors) and its optical path length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Crossing {
+    pub pos: DVec3,
+    pub tau: f64,
+    pub transmit: f64,
+    pub length: f64,
+}
+
+impl Crossing {
+    /// Nothing crossed yet (`pos` is set by [`trace_up`]).
+    pub const START: Crossing = Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0 };
+}
+
+/// Trace from `pos` in layer `li` straight up through the planar interfaces to `z = 0`, along
+/// `first` in layer `li` and `up_in(n)` in each layer of index `n` above it (upward directions,
+/// `z < 0`; `None` where the direction cannot exist: total internal reflection), continuing the
+/// sums of `acc`: each segment's optical depth (ratio tracking in density layers, a factor of
+/// `transmit`), the Fresnel transmittance of each top face, the optical path length. The shadow
+/// rays, and a camera path's connections to the laser traced back from their vertex, go this way.
+#[inline(always)]
+pub(super) fn trace_up(
+    scene: &Scene,
+    li: usize,
+    pos: DVec3,
+    first: DVec3,
+    up_in: impl Fn(f64) -> Option<DVec3>,
+    acc: Crossing,
+    rng: &mut PathRng,
+) -> Option<Crossing> {
+    let Crossing { mut tau, mut transmit, mut length, .. } = acc;
+    let mut p = pos;
+    for j in (0..=li).rev() {
+        let layer = &scene.layers[j];
+        let d = if j == li { first } else { up_in(layer.n)? };
+        let t = (p.z - layer.z_top) / -d.z;
+        if layer.heterogeneous {
+            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
+        } else {
+            tau += segment_optical_depth(scene, layer, p, d, t);
+        }
+        length += layer.n * t;
+        p += t * d;
+        p.z = layer.z_top;
+        let n_next = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
+        let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
+        transmit *= 1.0 - r;
+    }
+    Some(Crossing { pos: p, tau, transmit, length })
+}
+
 /// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
 /// function `phase`, reached along `dir_in`, for the exit direction drawn from the uniforms
 /// `(u1, u2)`. `None` when nothing can come out that way (the direction cannot exist in some
@@ -212,26 +265,8 @@ pub fn shadow_ray(
     };
     let n_k = scene.layers[li].n;
     let dir_vertex = direction_in(n_k)?;
-    let mut p = pos;
-    let mut tau = 0.0;
-    let mut length = 0.0;
-    let mut transmit = 1.0;
-    for j in (0..=li).rev() {
-        let layer = &scene.layers[j];
-        let d = if j == li { dir_vertex } else { direction_in(layer.n)? };
-        let t = (p.z - layer.z_top) / -d.z;
-        if layer.heterogeneous {
-            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
-        } else {
-            tau += segment_optical_depth(scene, layer, p, d, t);
-        }
-        length += layer.n * t;
-        p += t * d;
-        p.z = layer.z_top;
-        let n_next = if j == 0 { n0 } else { scene.layers[j - 1].n };
-        let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
-        transmit *= 1.0 - r;
-    }
+    let Crossing { pos: p, tau, transmit, length } =
+        trace_up(scene, li, pos, dir_vertex, direction_in, Crossing::START, rng)?;
     if transmit <= 0.0 {
         return None;
     }

@@ -545,20 +545,8 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
-    // Shadow-ray roulette: no shadow ray carries more than `weight·exp(−τ_min)`, where `τ_min`
-    // is the optical depth straight up through the least dense media. Below
-    // `SHADOW_ROULETTE_WEIGHT`, the shadow rays are traced with probability `bound/threshold`
-    // and weighted by its inverse (unbiased). Deep vertices (under a pigmented layer) cost a
-    // free flight and a phase sample, not a shadow ray through every layer above.
-    // (This walk runs only with next-event targets, so the draw is never wasted.)
-    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
-    let boost = if q >= 1.0 {
-        1.0
-    } else if rng.uniform() < q {
-        1.0 / q
-    } else {
-        0.0
-    };
+    // (This walk runs only with next-event targets, so the roulette's draw is never wasted.)
+    let boost = connection_roulette(scene, li, s, rng);
     let targets = if boost > 0.0 { nee } else { &[] };
     for target in targets {
         let (u1, u2) = (rng.uniform(), rng.uniform());
@@ -623,18 +611,8 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
-    // Connection roulette, as the forward shadow rays': the beam reaches the vertex through at
-    // least the optical depth `τ_min` straight up, so connections that cannot carry more than
-    // `weight·exp(−τ_min)` are traced with probability `bound/threshold` and weighted by its
-    // inverse (unbiased). Vertices under a pigmented layer then cost little.
-    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
-    let boost = if q >= 1.0 {
-        1.0
-    } else if rng.uniform() < q {
-        1.0 / q
-    } else {
-        0.0
-    };
+    // The beam reaches the vertex through at least the same optical depth as a shadow ray.
+    let boost = connection_roulette(scene, li, s, rng);
     // The guide lobe about the beam's reversed direction in this layer.
     let guide = super::camera::guide();
     let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
@@ -744,6 +722,24 @@ fn connect<const LENGTH: bool>(
         doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, at.pop, at.n, at.v, b.dir + at.dir_in);
     }
     rec.camera(shot, &e);
+}
+
+/// The roulette of a vertex's connections (shadow rays to a detector, or a camera path's to the
+/// laser): none carries more than `weight·exp(−τ_min)`, `τ_min` being the optical depth straight
+/// up through the least dense media. Below `SHADOW_ROULETTE_WEIGHT` they are traced with
+/// probability `bound/threshold`; returns the factor they are weighted by (its inverse, or 1;
+/// 0: not traced), which keeps them unbiased. Deep vertices (under a pigmented layer) then cost a
+/// free flight and a phase sample, not a connection through every layer above.
+#[inline(always)]
+fn connection_roulette(scene: &Scene, li: usize, s: &PathState, rng: &mut PathRng) -> f64 {
+    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    if q >= 1.0 {
+        1.0
+    } else if rng.uniform() < q {
+        1.0 / q
+    } else {
+        0.0
+    }
 }
 
 /// Absorption weighting: deposit `(1 − albedo)` of the weight, carry on with the rest. `true` if
