@@ -446,6 +446,16 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
     eprintln!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
+    for d in &exp.detectors {
+        if let Some(a) = d.surface().and_then(|s| s.auto) {
+            eprintln!(
+                "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
+                d.name,
+                d.surface().map_or("forward", |s| s.estimator.name()),
+                a.forward / a.camera
+            );
+        }
+    }
     // Images are read pixel by pixel: each main image's per-pixel relative errors.
     let (mean, stderr) = (output.estimates.mean(), output.estimates.stderr());
     for o in output.layout.registry.outputs.iter().filter(|o| o.primary) {

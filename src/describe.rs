@@ -730,6 +730,8 @@ impl Display for Detector {
         )?;
         if d.estimator == crate::detect::Estimator::Camera {
             write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
+        } else if d.estimator == crate::detect::Estimator::Auto {
+            write!(f, ", estimator auto (a pilot before the run chooses camera-side or forward estimation)")?;
         } else if d.next_event {
             write!(f, ", next-event estimation")?;
         }

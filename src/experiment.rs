@@ -27,6 +27,9 @@ pub struct RunPlan {
     pub walk: WalkSettings,
     /// Largest [`Experiment::memory_estimate`] accepted, bytes (`run.memory_budget_gib`).
     pub memory_budget: u64,
+    /// Camera paths are traced from every `camera_pixel_stride`-th pixel only: 1, but in the
+    /// pilot of `estimator = "auto"` ([`crate::pilot`]).
+    pub camera_pixel_stride: usize,
 }
 
 impl RunPlan {
@@ -382,6 +385,7 @@ impl Experiment {
                 let im = s.image?;
                 (s.estimator == crate::detect::Estimator::Camera).then(|| CameraTarget {
                     include_specular: s.include_specular,
+                    stride: self.plan.camera_pixel_stride.max(1),
                     ..CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance)
                 })
             })
@@ -391,7 +395,7 @@ impl Experiment {
     /// Camera paths traced per batch (all camera-estimated detectors together).
     pub fn camera_paths_per_batch(&self) -> u64 {
         let ppb = self.plan.paths_per_batch;
-        self.camera_targets().iter().map(|c| c.paths_per_pixel(ppb) * c.pixels() as u64).sum()
+        self.camera_targets().iter().map(|c| c.paths_per_pixel(ppb) * c.traced_pixels() as u64).sum()
     }
 
     /// FMCW range and radial velocity of detector `i` from its total up- and down-chirp spectra
@@ -616,7 +620,7 @@ impl Experiment {
             let spp = cam.paths_per_pixel(ppb);
             let batch_weight = ppb as f64 / spp as f64;
             let key = StreamKey::new(self.plan.seed, Purpose::Camera, batch | (cam.detector as u64) << 48);
-            for pixel in 0..cam.pixels() {
+            for pixel in (0..cam.pixels()).step_by(cam.stride) {
                 for k in 0..spp {
                     let mut rng = key.path(pixel as u64 * spp + k);
                     trace_camera_path::<DOPPLER, LENGTH>(&walk, cam, pixel, batch_weight, &mut rec, &mut rng);

@@ -19,6 +19,23 @@ pub struct RunStats {
     pub truncated_paths: u64,
     /// Detections with a non-finite weight, path length or frequency (never binned).
     pub non_finite: u64,
+    /// The work of the paths, in counted steps (transient: neither persisted nor written; the
+    /// pilot of `estimator = "auto"` weighs estimators by it, [`crate::pilot`]).
+    #[serde(skip)]
+    pub work: Work,
+}
+
+/// Counted steps of the paths traced, deterministic (unlike their time): the cost measure of the
+/// pilot of `estimator = "auto"` ([`crate::pilot`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Work {
+    /// Real and null collisions of camera paths (those of forward paths are
+    /// [`RunStats::scattering_events`] and [`RunStats::null_collisions`]).
+    pub camera_events: u64,
+    /// Shadow rays traced by forward paths (to next-event detectors).
+    pub shadow_rays: u64,
+    /// Connections traced by camera paths (to the laser, and the beam-lobe flights).
+    pub camera_connections: u64,
 }
 
 impl RunStats {
@@ -29,6 +46,9 @@ impl RunStats {
         self.roulette_terminations += o.roulette_terminations;
         self.truncated_paths += o.truncated_paths;
         self.non_finite += o.non_finite;
+        self.work.camera_events += o.work.camera_events;
+        self.work.shadow_rays += o.work.shadow_rays;
+        self.work.camera_connections += o.work.camera_connections;
     }
 }
 

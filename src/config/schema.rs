@@ -557,8 +557,10 @@ pub struct DetectorSection {
     /// LDH cameras and lidar receivers.
     pub next_event: Option<bool>,
     /// How the detector's scattered light is estimated: `"forward"` (paths from the laser, the
-    /// default) or `"camera"` (paths from its pixels, connected to the laser at every
-    /// scattering vertex; a top detector with an image, under a disk or Gaussian beam).
+    /// default), `"camera"` (paths from its pixels, connected to the laser at every
+    /// scattering vertex; a top detector with an image, under a disk or Gaussian beam) or
+    /// `"auto"` (where `"camera"` could run: whichever a pilot before the run finds lower in
+    /// variance × work).
     pub estimator: Option<EstimatorKind>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
@@ -574,6 +576,7 @@ pub struct DetectorSection {
 pub enum EstimatorKind {
     Forward,
     Camera,
+    Auto,
 }
 
 /// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,

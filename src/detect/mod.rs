@@ -134,8 +134,19 @@ pub struct Surface {
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
     /// How its light is estimated: by the forward paths, or by camera paths from its pixels
-    /// ([`crate::transport::camera`]).
+    /// ([`crate::transport::camera`]); `Auto` until a pilot decides ([`crate::pilot`]).
     pub estimator: Estimator,
+    /// What the pilot of `estimator = "auto"` measured, once it has decided.
+    pub auto: Option<AutoChoice>,
+}
+
+/// The pilot's figures for `estimator = "auto"` ([`crate::pilot`]): the mean per-pixel relative
+/// variance of the detector's main image × the work (collision steps) of a run by each estimator;
+/// the lower is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct AutoChoice {
+    pub forward: f64,
+    pub camera: f64,
 }
 
 /// The estimator of a surface detector's scattered light.
@@ -146,6 +157,9 @@ pub enum Estimator {
     Forward,
     /// Paths from the camera's pixels, connected to the laser at every scattering vertex.
     Camera,
+    /// Either, whichever a pilot finds lower in variance × work ([`crate::pilot`]); traced as
+    /// `Forward` if it is never decided.
+    Auto,
 }
 
 impl Estimator {
@@ -154,6 +168,7 @@ impl Estimator {
         match self {
             Estimator::Forward => "forward",
             Estimator::Camera => "camera",
+            Estimator::Auto => "auto",
         }
     }
 }

@@ -68,6 +68,7 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
         rungs: req.rungs,
         ..Default::default()
     };
+    let exp = crate::pilot::decide(&exp);
     let study = crate::converge::study(&exp, refs, &opts, log);
     crate::io::write::converge::write_study(&dir, &study, &origin)?;
     Ok(StudyWritten { study, dir })

@@ -40,18 +40,19 @@ pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
 }
 
 /// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
-/// pointing into `dir/pointing_NN`.
+/// pointing into `dir/pointing_NN`; each with its `estimator = "auto"` decided by a pilot
+/// ([`crate::pilot`], deterministic: every shard and every resume decides the same).
 pub fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
     let fp = config_fingerprint(table);
     if exp.source.pointings.len() <= 1 {
-        return vec![Part { exp: exp.clone(), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
+        return vec![Part { exp: crate::pilot::decide(exp), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
     }
     exp.source
         .pointings
         .iter()
         .enumerate()
         .map(|(i, p)| Part {
-            exp: exp.pointed(p),
+            exp: crate::pilot::decide(&exp.pointed(p)),
             dir: pointing_dir(dir, i),
             fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
             pointing: Some(i),

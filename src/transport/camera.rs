@@ -87,12 +87,24 @@ pub struct CameraTarget {
     pub cos_acceptance: f64,
     /// Whether the laser's specular reflection at the top surface is recorded.
     pub include_specular: bool,
+    /// Paths leave from every `stride`-th pixel only (1 but in a pilot, [`crate::pilot`]).
+    pub stride: usize,
 }
 
 impl CameraTarget {
     pub fn new(detector: usize, image: ImageSpec, area: Area, distance: f64, axis: DVec3, cos_acceptance: f64) -> Self {
         let basis = crate::sampling::warp::orthonormal_basis(axis);
-        CameraTarget { detector, image, area, distance, axis, basis, cos_acceptance, include_specular: false }
+        CameraTarget {
+            detector,
+            image,
+            area,
+            distance,
+            axis,
+            basis,
+            cos_acceptance,
+            include_specular: false,
+            stride: 1,
+        }
     }
 
     /// Pixel `pixel`'s area, m², and a point drawn uniformly in it on the detector plane.
@@ -107,6 +119,11 @@ impl CameraTarget {
 
     pub fn pixels(&self) -> usize {
         self.image.nx * self.image.ny
+    }
+
+    /// Pixels camera paths leave from: every `stride`-th.
+    pub fn traced_pixels(&self) -> usize {
+        self.pixels().div_ceil(self.stride)
     }
 
     /// Camera paths per pixel in a batch of `paths_per_batch` forward paths: as many camera paths

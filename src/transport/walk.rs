@@ -307,6 +307,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     let (mut absorbed, mut null_collisions) = (0.0, 0);
     let end = walk::<DOPPLER, LENGTH, false, true>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
     *rng = local;
+    rec.stats.work.camera_events += u64::from(s.order) + u64::from(end == End::Absorbed) + null_collisions;
     if end == End::Truncated {
         rec.stats.truncated_paths += 1;
     }
@@ -548,6 +549,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     // (This walk runs only with next-event targets, so the roulette's draw is never wasted.)
     let boost = connection_roulette(scene, li, s, rng);
     let targets = if boost > 0.0 { nee } else { &[] };
+    rec.stats.work.shadow_rays += targets.len() as u64;
     for target in targets {
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let hit = match &target.aperture {
@@ -623,6 +625,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         let w = if s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
         let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
         let tail = Tail { l: s.l, dldt: s.dldt, brownian: s.brownian, events: s.doppler_events, order: s.order };
+        rec.stats.work.camera_connections += 1;
         connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
         // The beam-lobe connection: a direction from the guide lobe, the straight refracted way
         // through the layers to a real collision there, and its connection.
@@ -631,6 +634,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
             let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
             let (dir, _) = scatter_direction(up, dd, cos_phi, sin_phi);
             let (p_walk, p_guide) = (pop.phase.eval(s.dir.dot(dir)), guide.eval(dd.cos));
+            rec.stats.work.camera_connections += 1;
             if let Some(h) = super::camera::lobe_flight(scene, li, s.pos, dir, ctx.settings.tracking, rng) {
                 let m2 = &scene.media[h.medium];
                 let albedo2 = if scene.layers[h.layer].heterogeneous { m2.albedo_at(h.pos) } else { m2.albedo() };
@@ -647,6 +651,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
                 let there = Link { pos: h.pos, dir_in: h.dir, pop: pop2, v: v2, dynamic: dynamic2, n: n2 };
                 let pt = p_walk * h.transmit;
                 let w = s.weight * boost * pt / (pt + p_guide) * h.radiance * albedo2;
+                rec.stats.work.camera_connections += 1;
                 connect::<LENGTH>(ctx, h.layer, &shot, there, tail, w, rng, rec);
             }
         }

@@ -541,15 +541,18 @@ fn shards_merge_into_a_single_run() {
     let tmp = tempfile::tempdir().unwrap();
     let retina = repo().join("configs/retina_ldh.toml");
     let camera = repo().join("tests/configs/good/camera_estimator.toml");
-    for (case, config, samples, count) in [
-        ("vessel", None, "400000", 3u64),
-        ("retina", Some(&retina), "200000", 5),
-        ("camera", Some(&camera), "64000", 3),
+    for (case, config, samples, count, set) in [
+        ("vessel", None, "400000", 3u64, None),
+        ("retina", Some(&retina), "200000", 5, None),
+        ("camera", Some(&camera), "64000", 3, None),
+        // Each shard and the merge decide `auto` by the same pilot.
+        ("auto", Some(&camera), "64000", 2, Some("detectors.0.estimator=\"auto\"")),
     ] {
         let base = |dir: &Path| -> Vec<String> {
             let mut a: Vec<String> = vec!["run".into()];
             a.extend(config.map(|c| path_str(c).to_string()));
             a.extend(["--samples", samples, "--seed", "21", "-q", "--out", path_str(dir)].map(String::from));
+            a.extend(set.into_iter().flat_map(|s| ["--set".to_string(), s.to_string()]));
             a
         };
         let run = |args: &[String]| ohd(tmp.path(), &args.iter().map(String::as_str).collect::<Vec<_>>());

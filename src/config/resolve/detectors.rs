@@ -259,8 +259,8 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
 }
 
 /// The estimator of a surface detector (`estimator`, default `"forward"`): the camera-side one
-/// ([`crate::transport::camera`]) needs a top detector, an image (its paths are spread over the
-/// pixels) and a beam with a footprint.
+/// ([`crate::transport::camera`]), and `"auto"` which may choose it, need a top detector, an
+/// image (its paths are spread over the pixels) and a beam with a footprint.
 fn resolve_estimator(
     path: &str,
     kind: Option<EstimatorKind>,
@@ -268,9 +268,11 @@ fn resolve_estimator(
     image: bool,
     source: &Source,
 ) -> R<Estimator> {
-    if kind != Some(EstimatorKind::Camera) {
-        return Ok(Estimator::Forward);
-    }
+    let (estimator, name) = match kind {
+        None | Some(EstimatorKind::Forward) => return Ok(Estimator::Forward),
+        Some(EstimatorKind::Camera) => (Estimator::Camera, "camera"),
+        Some(EstimatorKind::Auto) => (Estimator::Auto, "auto"),
+    };
     let why_not = if side != Side::Top {
         "camera paths leave from a top detector (they enter the stack through z = 0)"
     } else if !image {
@@ -278,9 +280,9 @@ fn resolve_estimator(
     } else if !source.has_footprint() {
         "a pencil beam lights a line, which a camera path's connections reach with probability zero: use source.profile = \"disk\" or \"gaussian\""
     } else {
-        return Ok(Estimator::Camera);
+        return Ok(estimator);
     };
-    err(join(path, "estimator"), format!("= \"camera\": {why_not}"))
+    err(join(path, "estimator"), format!("= \"{name}\": {why_not}"))
 }
 
 pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &Source) -> R<Vec<Detector>> {
@@ -418,6 +420,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             ldh: None,
             next_event,
             estimator,
+            auto: None,
         };
         if let Some(l) = &d.ldh {
             let p = join(&path, "ldh");

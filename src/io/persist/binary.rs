@@ -97,6 +97,7 @@ impl Reader<'_> {
             roulette_terminations: self.u64()?,
             truncated_paths: self.u64()?,
             non_finite: self.u64()?,
+            work: Default::default(),
         })
     }
 

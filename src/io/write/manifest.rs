@@ -123,6 +123,10 @@ pub struct DetectorEntry {
     /// How its scattered light was estimated (`"forward"` or `"camera"`; absent for a lidar).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator: Option<&'static str>,
+    /// With `estimator = "auto"`: the pilot's relative variance × work of each estimator (the
+    /// lower was chosen).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator_pilot: Option<crate::detect::AutoChoice>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub spectrum: Option<SpectrumEntry>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -194,6 +198,7 @@ pub fn write_run(
         let mut info = DetectorEntry {
             side: if d.side() == Side::Top { "top" } else { "bottom" },
             estimator: d.surface().map(|s| s.estimator.name()),
+            estimator_pilot: d.surface().and_then(|s| s.auto),
             spectrum: None,
             fmcw: None,
             image: None,

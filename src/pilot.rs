@@ -1,0 +1,149 @@
+//! The pilot that decides `estimator = "auto"`: before a run, a short run of each estimator on
+//! its own random numbers, and the one with the lower per-pixel variance × work is kept.
+//!
+//! **What is compared.** For a camera detector, the figure of each estimator is the squared
+//! relative error of the image its users read — M0+ for an LDH camera, the intensity image
+//! otherwise — as the project states an image's error (`src/lib.rs`, "Estimates"): `V = Σ_p σ_p²
+//! / Σ_p m_p²` (σ_p the standard error of pixel `p` from the pilot's batches, `m_p` the mean of
+//! the two estimators' values, one reference for both), times the work of the run that gave it,
+//! both scaled to the full run. `V · work` is what a run of either estimator pays for a given
+//! error: variance falls as 1/paths and work grows with them, so the figure does not depend on
+//! the pilot's size. Pooled over pixels, not a median of per-pixel ratios: a batch variance is
+//! unbiased however heavy-tailed the contributions are, but a pixel's ratio to its own noisy
+//! value is not, and in a short pilot most pixels have seen none of the rare large
+//! contributions (a pixel the forward pilot missed would count as error-free). The pooled figure
+//! weighs pixels by their value²: it can disagree with the per-pixel median, measured on the
+//! shipped LDH scenes (validation/README.md).
+//!
+//! **Work, not time.** The choice must be the same on any number of threads, in every shard and
+//! on resuming, so it is made from counted steps ([`crate::stats::Work`]), never from a clock:
+//! real and null collisions of every path plus [`CONNECTION_STEPS`] per connection traced
+//! (a shadow ray, a camera path's connection to the laser). The weight was measured on the
+//! shipped LDH scenes (validation/README.md, "Camera-side estimation"): time per step
+//! agrees within the stated spread across forward and camera runs.
+//!
+//! **Its size.** The forward pilot traces `1/PILOT_SHARE` of the run's paths in
+//! [`PILOT_BATCHES`] batches (at least [`PILOT_MIN_PATHS`] per batch); the camera pilot traces
+//! about a quarter as many camera paths (each costs ~2.5 forward paths), from every `stride`-th
+//! pixel
+//! ([`crate::experiment::RunPlan::camera_pixel_stride`]), and its cost is scaled to every pixel.
+//! Both compare over the camera pilot's pixels. The pilot's paths are not part of the run's
+//! estimate (they would make its batches unequal); its time is reported.
+
+use crate::detect::{AutoChoice, DetectorKind, Estimator};
+use crate::experiment::{Experiment, RunOutput, Silent};
+use crate::sampling::rng::mix64;
+use crate::stats::RunStats;
+
+/// The forward pilot traces `1/PILOT_SHARE` of the run's paths.
+pub const PILOT_SHARE: u64 = 64;
+/// Batches of each pilot (a standard error per pixel needs several).
+pub const PILOT_BATCHES: u64 = 8;
+/// Fewest paths per pilot batch.
+pub const PILOT_MIN_PATHS: u64 = 2_000;
+/// Work of one connection in collision steps. A connection crosses the layers above its vertex
+/// (Fresnel, phase function, optical depth of each) — measured on the shipped LDH scenes
+/// (validation/README.md).
+pub const CONNECTION_STEPS: f64 = 3.0;
+/// Mixed into the seed for the pilot's streams, which the run's never share.
+const PILOT_SEED: u64 = 0x0050_494c_4f54;
+
+/// `exp` with every `estimator = "auto"` decided by a pilot (itself, cloned, when there is none).
+pub fn decide(exp: &Experiment) -> Experiment {
+    let autos: Vec<usize> = (0..exp.detectors.len()).filter(|&i| estimator(exp, i) == Some(Estimator::Auto)).collect();
+    let mut out = exp.clone();
+    if autos.is_empty() {
+        return out;
+    }
+    let ppb = (exp.plan.samples() / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS);
+    // The camera pilot traces about a quarter as many camera paths as the forward pilot traces
+    // paths, one per traced pixel and batch.
+    let pixels = autos.iter().map(|&i| pixels_of(exp, i)).sum::<usize>() as u64;
+    let stride = (4 * pixels).div_ceil(ppb).max(1) as usize;
+    let variant = |e: Estimator| {
+        let mut v = exp.clone();
+        v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED);
+        v.plan.batches = PILOT_BATCHES;
+        v.plan.paths_per_batch = ppb;
+        v.plan.requested_samples = ppb * PILOT_BATCHES;
+        v.plan.camera_pixel_stride = stride;
+        autos.iter().for_each(|&i| set_estimator(&mut v, i, e));
+        v
+    };
+    let (forward_exp, camera_exp) = (variant(Estimator::Forward), variant(Estimator::Camera));
+    let (forward, camera) = (forward_exp.run(&Silent), camera_exp.run(&Silent));
+    // Work per path of each kind (forward paths of each pilot, camera paths), in steps.
+    let forward_paths = (ppb * PILOT_BATCHES) as f64;
+    let camera_paths = (camera_exp.camera_paths_per_batch() * PILOT_BATCHES) as f64;
+    let per_forward = forward_work(&forward.stats) / forward_paths;
+    let per_forward_beside = forward_work(&camera.stats) / forward_paths;
+    let per_camera = camera_work(&camera.stats) / camera_paths;
+    let run_ppb = exp.plan.paths_per_batch;
+    for &i in &autos {
+        let (vf, vc) = relative_variances(exp, i, stride, &forward, &camera);
+        // Relative variance × work of a run of either estimator, at any number of paths: per
+        // forward path (forward); per camera path per pixel, with the forward paths traced
+        // beside the camera paths in the run's proportion (camera).
+        let (pilot_spp, run_spp) = (per_pixel(exp, i, ppb), per_pixel(exp, i, run_ppb));
+        let forward_figure = vf * forward_paths * per_forward;
+        let camera_figure = vc
+            * (pilot_spp * PILOT_BATCHES) as f64
+            * (per_forward_beside * run_ppb as f64 / run_spp as f64 + per_camera * pixels_of(exp, i) as f64);
+        let choice = AutoChoice { forward: forward_figure, camera: camera_figure };
+        let chosen = if choice.camera < choice.forward { Estimator::Camera } else { Estimator::Forward };
+        set_estimator(&mut out, i, chosen);
+        if let DetectorKind::Surface(s) = &mut out.detectors[i].kind {
+            s.auto = Some(choice);
+        }
+    }
+    out
+}
+
+/// Detector `i`'s estimator, if it is a surface detector.
+fn estimator(exp: &Experiment, i: usize) -> Option<Estimator> {
+    exp.detectors[i].surface().map(|s| s.estimator)
+}
+
+fn set_estimator(exp: &mut Experiment, i: usize, e: Estimator) {
+    if let DetectorKind::Surface(s) = &mut exp.detectors[i].kind {
+        s.estimator = e;
+    }
+}
+
+fn pixels_of(exp: &Experiment, i: usize) -> usize {
+    exp.detectors[i].surface().and_then(|s| s.image).map_or(0, |im| im.nx * im.ny)
+}
+
+/// Camera paths per pixel of detector `i` in a batch of `ppb` paths (as
+/// [`crate::transport::CameraTarget::paths_per_pixel`]).
+fn per_pixel(exp: &Experiment, i: usize, ppb: u64) -> u64 {
+    ppb.div_ceil(pixels_of(exp, i).max(1) as u64).max(1)
+}
+
+/// Work of the forward paths, in collision steps.
+fn forward_work(st: &RunStats) -> f64 {
+    (st.scattering_events + st.null_collisions) as f64 + CONNECTION_STEPS * st.work.shadow_rays as f64
+}
+
+/// Work of the camera paths, in collision steps.
+fn camera_work(st: &RunStats) -> f64 {
+    st.work.camera_events as f64 + CONNECTION_STEPS * st.work.camera_connections as f64
+}
+
+/// The squared relative errors `Σσ²/Σm²` of detector `i`'s main image (M0+ of an LDH camera,
+/// else the intensity image) by the forward and the camera pilot, over the pixels the camera
+/// pilot traced (every `stride`-th); infinite (neither chosen for it) when neither reached any.
+fn relative_variances(exp: &Experiment, i: usize, stride: usize, f: &RunOutput, c: &RunOutput) -> (f64, f64) {
+    let d = &exp.detectors[i];
+    let name = format!("{}.{}", d.name, if d.ldh().is_some() { "m0_plus" } else { "image" });
+    let image =
+        |o: &RunOutput| o.layout.registry.get(&name).map(|out| out.values(o.estimates.mean(), &o.estimates.stderr()));
+    let (Some((mf, sf)), Some((mc, sc))) = (image(f), image(c)) else { return (f64::INFINITY, f64::INFINITY) };
+    let (mut m2, mut vf, mut vc) = (0.0, 0.0, 0.0);
+    for p in (0..mf.len()).step_by(stride) {
+        m2 += (0.5 * (mf[p] + mc[p])).powi(2);
+        vf += sf[p] * sf[p];
+        vc += sc[p] * sc[p];
+    }
+    if m2 > 0.0 { (vf / m2, vc / m2) } else { (f64::INFINITY, f64::INFINITY) }
+}
