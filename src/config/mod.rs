@@ -16,6 +16,10 @@ use crate::experiment::Experiment;
 
 pub use resolve::resolve;
 
+/// Largest configuration file read, bytes: far above any experiment (a `[reference]` array of a
+/// million values is ~20 MiB of TOML), far below what would exhaust memory.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
 /// Parse TOML text into a table; `origin` (a file name) prefixes syntax errors.
 pub fn parse(text: &str, origin: &str) -> Result<toml::Table, ConfigError> {
     text.parse::<toml::Table>()

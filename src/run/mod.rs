@@ -53,8 +53,7 @@ impl Loaded {
                 (crate::DEFAULT_CONFIG.to_string(), "built-in default (configs/default.toml)".into(), "default".into())
             }
             Some(p) => {
-                let text =
-                    std::fs::read_to_string(p).map_err(|source| Error::Read { path: p.to_path_buf(), source })?;
+                let text = crate::io::read_text_limited(p, crate::config::MAX_FILE_BYTES, "a configuration file")?;
                 let stem = p.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
                 (text, p.display().to_string(), stem)
             }
@@ -249,7 +248,9 @@ pub fn run_part(
     }
     // A scan resumes the pointings it has a checkpoint of and starts the others.
     let resume = if opts.resume && (!keep || path.exists()) {
-        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, exp.tally_layout().tallies())?;
+        let tallies = exp.tally_layout().tallies();
+        let limit = crate::io::persist::checkpoint::max_bytes(tallies, exp.plan.memory_budget);
+        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, tallies, limit)?;
         obs.event(Event::Resuming { state: &state, path: &path });
         Some(state)
     } else {

@@ -726,3 +726,85 @@ fn output_names_and_directories_are_checked_before_the_run() {
     assert!(text(&o.stderr).contains("cannot write"), "{}", describe(&o));
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1, "nothing is written beside the file");
 }
+
+/// Every file ohd reads is read within a limit (issue 21: a path to `/dev/zero` read ~4 GB
+/// before failing): a configuration, a phase table, a VDB file, a checkpoint, a shard and a
+/// reference run's manifest that are devices, or regular files above their limits (sparse, so
+/// nothing is written to disk), are refused at once, naming the file and the limit (exit 2,
+/// nothing written).
+#[test]
+fn input_files_are_read_within_a_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let sparse = |name: &str, size: u64| {
+        let p = t.join(name);
+        std::fs::File::create(&p).unwrap().set_len(size).unwrap();
+        p
+    };
+    let zero = Path::new("/dev/zero");
+    let big_config = sparse("big.toml", (64 << 20) + 1);
+    let out = t.join("out");
+    let refused = |args: &[&str], expect: &[&str]| {
+        let start = std::time::Instant::now();
+        let o = ohd(t, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        let err = text(&o.stderr);
+        for e in expect {
+            assert!(err.contains(e), "{args:?}: expected {e:?} in {err}");
+        }
+        assert!(start.elapsed().as_secs() < 20, "{args:?} took {:?}", start.elapsed());
+        assert!(!out.exists(), "{args:?} wrote output");
+    };
+    refused(&["check", "/dev/zero"], &["/dev/zero", "not a regular file (a character device)", "configuration file"]);
+    refused(&["run", "/dev/zero", "--out", path_str(&out)], &["/dev/zero", "not a regular file"]);
+    refused(&["check", path_str(&big_config)], &["big.toml", "67108865 bytes, above the limit of 67108864 bytes"]);
+    refused(&["check", path_str(t)], &["not a regular file (a directory)"]);
+
+    // A phase table and a VDB file named by a configuration.
+    let table = std::fs::read_to_string(repo().join("tests/configs/bad/table_missing_file.toml")).unwrap();
+    let config = t.join("table.toml");
+    std::fs::write(&config, table.replace("no_such_table.phase.toml", "/dev/zero")).unwrap();
+    refused(&["check", path_str(&config)], &["media.m.phase.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, table.replace("no_such_table.phase.toml", "big.phase.toml")).unwrap();
+    sparse("big.phase.toml", (64 << 20) + 1);
+    refused(
+        &["check", path_str(&config)],
+        &["media.m.phase.file", "above the limit of 67108864 bytes for a phase table"],
+    );
+    let vdb = std::fs::read_to_string(repo().join("tests/configs/bad/vdb_missing_file.toml")).unwrap();
+    let config = t.join("vdb.toml");
+    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "/dev/zero")).unwrap();
+    refused(&["check", path_str(&config)], &["media.tissue.density.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "big.vdb")).unwrap();
+    sparse("big.vdb", (4 << 30) + 1);
+    refused(
+        &["check", path_str(&config)],
+        &["big.vdb", "4294967297 bytes, above the limit of 4294967296 bytes for an OpenVDB file"],
+    );
+
+    // A checkpoint to resume from: a device, or above its limit (tied to the memory budget).
+    let runs = t.join("runs");
+    std::fs::create_dir(&runs).unwrap();
+    let ckpt = runs.join("checkpoint.ohd");
+    std::os::unix::fs::symlink(zero, &ckpt).unwrap();
+    let o = ohd(t, &["run", "-q", "--resume", "--out", path_str(&runs)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("checkpoint.ohd: not a regular file"), "{}", describe(&o));
+    std::fs::remove_file(&ckpt).unwrap();
+    std::fs::File::create(&ckpt).unwrap().set_len(64 << 20).unwrap();
+    let o = ohd(t, &["run", "-q", "--resume", "--set", "run.memory_budget_gib=0.01", "--out", path_str(&runs)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("above the limit of"), "{}", describe(&o));
+    assert_eq!(std::fs::read_dir(&runs).unwrap().count(), 1, "only the checkpoint is there");
+
+    // A shard to merge and a reference run's manifest.
+    let shard = t.join("shard");
+    std::fs::create_dir(&shard).unwrap();
+    std::os::unix::fs::symlink(zero, shard.join("shard.ohd")).unwrap();
+    refused(&["merge", path_str(&shard), "--out", path_str(&out)], &["shard.ohd", "not a regular file"]);
+    std::os::unix::fs::symlink(zero, shard.join("manifest.json")).unwrap();
+    refused(
+        &["converge", "--reference", path_str(&shard), "--rungs", "2", "--out", path_str(&out)],
+        &["manifest.json", "not a regular file"],
+    );
+}

@@ -18,6 +18,13 @@ use crate::io::write_atomic;
 /// The agreement band of measured to self-reported error (issue 7).
 pub const SIGMA_RATIO_BAND: (f64, f64) = (0.5, 2.0);
 
+/// Largest `manifest.json` read as a reference, bytes (it holds the configuration twice, at most
+/// [`crate::config::MAX_FILE_BYTES`] each, and the scalar estimates).
+pub const MAX_MANIFEST_BYTES: u64 = 256 << 20;
+
+/// Room for an `.npy` file's header besides its values, bytes (a version 1 header is < 64 KiB).
+const NPY_HEADER_BYTES: u64 = 1 << 16;
+
 fn num(v: f64) -> Value {
     if v.is_finite() { json!(v) } else { Value::Null }
 }
@@ -27,13 +34,10 @@ fn num(v: f64) -> Value {
 /// `manifest.json`. A missing file, a malformed file or an array of the wrong size is an error
 /// naming the file.
 pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<Reference>>> {
-    let read = |name: &str| -> Result<Vec<u8>> {
-        let path = dir.join(name);
-        std::fs::read(&path).map_err(|source| Error::Read { path, source })
-    };
+    let read = |name: &str, limit: u64, what: &str| crate::io::read_limited(&dir.join(name), limit, what);
     let bad = |name: &str, why: String| Error::invalid_file(dir.join(name), why);
-    let manifest: Value =
-        serde_json::from_slice(&read("manifest.json")?).map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
+    let manifest: Value = serde_json::from_slice(&read("manifest.json", MAX_MANIFEST_BYTES, "a run's manifest")?)
+        .map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
     let mut refs = Vec::with_capacity(outputs.len());
     for o in outputs {
         let (values, stderr) = if o.is_scalar() {
@@ -47,8 +51,9 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
             }
         } else {
             let se_name = o.file.replace(".npy", "_stderr.npy");
+            let limit = NPY_HEADER_BYTES + 8 * o.range().len() as u64;
             let load = |name: &str| -> Result<Vec<f64>> {
-                let (_, data) = npy::from_bytes(&read(name)?)
+                let (_, data) = npy::from_bytes(&read(name, limit, &format!("the .npy file of {}", o.name))?)
                     .ok_or_else(|| bad(name, "not an ohd .npy file (little-endian f64)".into()))?;
                 if data.len() != o.range().len() {
                     return Err(bad(
