@@ -151,11 +151,11 @@ pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
         }
     }
     let have: Vec<u64> = shards.iter().map(|s| s.header.index).collect();
-    let missing: Vec<String> = (0..count).filter(|i| !have.contains(i)).map(|i| i.to_string()).collect();
+    let missing: Vec<u64> = (0..count).filter(|i| !have.contains(i)).collect();
     if !missing.is_empty() {
         return Err(Error::Input(format!(
             "shard(s) {} of {count} missing (give the directory of every part of the run)",
-            missing.join(", ")
+            crate::error::list(missing)
         )));
     }
     Ok(shards)

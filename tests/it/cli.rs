@@ -808,3 +808,52 @@ fn input_files_are_read_within_a_limit() {
         &["manifest.json", "not a regular file"],
     );
 }
+
+/// Error messages stay short whatever the input (issue 21): a 1 MB key is shown cut with its
+/// length, a 1 MB TOML line as a window around the error, 1e300 as `1e300` (not 301 digits, also
+/// in serde's type errors), and a list of 10 000 names as its first few and how many more.
+#[test]
+fn error_messages_are_bounded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let refused = |args: &[&str], expect: &[&str], max_len: usize| {
+        let o = ohd(t, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        let err = text(&o.stderr);
+        assert!(err.len() <= max_len, "{} bytes of stderr: {}", err.len(), &err[..err.len().min(2000)]);
+        for e in expect {
+            assert!(err.contains(e), "expected {e:?} in {err}");
+        }
+    };
+    let write = |name: &str, text: &str| {
+        let p = t.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let key = write("key.toml", &format!("schema_version = 1\n{} = 3\n", "k".repeat(1 << 20)));
+    refused(&["check", path_str(&key)], &["kkk…kkk", "(1048576 characters)", "unknown field", "expected one of"], 1000);
+    let line = write("line.toml", &format!("schema_version = 1\nx = {}\n", "v".repeat(1 << 20)));
+    refused(&["check", path_str(&line)], &["line 2, column 5", "x = vvv", "vvv…\n", "    ^^^", "must be quoted"], 1000);
+    let big = "1e300";
+    for (set, expect) in [
+        (format!("media.tissue.phase.g={big}"), "media.tissue.phase.g: = 1e300: expected"),
+        (format!("layers.0.thickness_mm=-{big}"), "= -1e300: expected a thickness"),
+        ("source.wavelength_nm=1e-320".into(), "= 1e-320: expected a vacuum wavelength"),
+        (format!("run.samples={big}"), "invalid type: floating point `1e300`, expected u64"),
+    ] {
+        refused(&["check", "--set", &set], &[expect], 300);
+    }
+    refused(&["run", "--target-error", big], &["--target-error 1e300: expected"], 300);
+    let mut many = String::from("schema_version = 1\n[source]\nwavelength_nm = 785\n");
+    for i in 0..10_000 {
+        many.push_str(&format!("[media.m{i}]\nsigma_a_per_mm = 0.1\nsigma_s_per_mm = 1\n"));
+    }
+    for i in 0..10_000 {
+        many.push_str(&format!("[[layers]]\nname = \"l{i}\"\nthickness_mm = 1\nn = 1.4\nmedium = \"m{}\"\n", i % 3));
+    }
+    let region = "[[regions]]\nlayer = \"nope\"\nmedium = \"m1\"\nshape = { type = \"sphere\", center_mm = [0, 0, 0.5], radius_mm = 0.1 }\n";
+    let path = write("many_layers.toml", &format!("{many}{region}"));
+    refused(&["check", path_str(&path)], &["unknown layer; layers are l0, l1, l10, l100,", "… and 9990 more"], 300);
+    let path = write("many_media.toml", &many.replacen("medium = \"m0\"", "medium = \"nope\"", 1));
+    refused(&["check", path_str(&path)], &["unknown medium; defined media: m0, m1, m10,", "… and 9990 more"], 300);
+}

@@ -1108,12 +1108,12 @@ pub fn read_tree<T: VdbValue>(path: impl AsRef<Path>, name: Option<&str>, option
     };
     let by_name = |d: &&Descriptor| name.is_some_and(|n| d.unique_name.split('\u{1e}').next() == Some(n));
     let Some(d) = descriptors.iter().find(wanted).or_else(|| descriptors.iter().find(by_name)) else {
-        let names: Vec<String> = descriptors.iter().map(|d| format!("{} ({})", d.unique_name, d.tree_type)).collect();
+        let names = crate::error::list(descriptors.iter().map(|d| format!("{} ({})", d.unique_name, d.tree_type)));
         let what = match name {
             Some(n) => format!("no grid named \"{n}\""),
             None => format!("no grid of type {}", T::TREE_TYPE),
         };
-        return Err(vdb_err(path, name, format!("{what}; the file has: {}", names.join(", "))));
+        return Err(vdb_err(path, name, format!("{what}; the file has: {names}")));
     };
     let gname = d.unique_name.as_str();
     let mut inner = || -> R<VdbTree<T>> {
