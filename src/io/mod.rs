@@ -5,7 +5,8 @@
 //! * [`write`](mod@write): a finished run's outputs, as its output registry declares them, and the manifest;
 //! * [`figures`]: PNG previews and plots;
 //! * [`persist`]: runs in progress, as shard and checkpoint files (one binary codec);
-//! * [`write_atomic`]: every output file is written to a temporary name and renamed into place;
+//! * [`write_atomic`]: every output file is written to a temporary name and renamed into place
+//!   (and [`remove_stale_temporaries`] removes those a killed ohd left);
 //! * [`read_limited`]: every input file is read with a size limit (issue 21: a path to
 //!   `/dev/zero` read gigabytes before failing).
 
@@ -25,6 +26,55 @@ pub(crate) fn temporary_path(path: &Path) -> PathBuf {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     dir.join(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+/// The name `.NAME.tmp-PID` of a temporary file ([`temporary_path`]) as `(NAME, PID)`.
+fn temporary_of(file: &str) -> Option<(&str, u32)> {
+    let (name, pid) = file.strip_prefix('.')?.rsplit_once(".tmp-")?;
+    let digits = !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());
+    Some((name, pid.parse().ok().filter(|_| digits)?))
+}
+
+/// Remove the temporary files `.NAME.tmp-PID` in `dir` of the names `NAME` that `ours` accepts,
+/// which a killed ohd left (another process's: this one's are being written). A missing `dir` is
+/// no error.
+pub fn remove_stale_temporaries(dir: &Path, ours: impl Fn(&str) -> bool) -> Result<()> {
+    remove_matching(dir, |file| temporary_of(file).is_some_and(|(name, pid)| pid != std::process::id() && ours(name)))
+}
+
+/// The probe file [`crate::run::check_writable`] creates (and removes) in `dir`.
+pub(crate) fn probe_path(dir: &Path) -> PathBuf {
+    dir.join(format!("{PROBE}{}", std::process::id()))
+}
+
+const PROBE: &str = ".ohd-write-probe-";
+
+/// Remove the probe files another (killed) ohd left in `dir`.
+pub(crate) fn remove_stale_probes(dir: &Path) -> Result<()> {
+    let own = format!("{}", std::process::id());
+    remove_matching(dir, |file| {
+        file.strip_prefix(PROBE).is_some_and(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()) && p != own)
+    })
+}
+
+/// Remove the files of `dir` whose names `matches` accepts.
+fn remove_matching(dir: &Path, matches: impl Fn(&str) -> bool) -> Result<()> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(source) => return Err(Error::Write { path: dir.to_path_buf(), source }),
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        if name.to_str().is_some_and(&matches) && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let path = entry.path();
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::Write { path, source: e }),
+                _ => {}
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Write `bytes` to `path` atomically: readers see the old file or the complete new one.

@@ -857,3 +857,115 @@ fn error_messages_are_bounded() {
     let path = write("many_media.toml", &many.replacen("medium = \"m0\"", "medium = \"nope\"", 1));
     refused(&["check", path_str(&path)], &["unknown medium; defined media: m0, m1, m10,", "… and 9990 more"], 300);
 }
+
+/// The names in directory `d`, sorted.
+fn listing(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    v.sort();
+    v
+}
+
+/// An output directory holds one complete output or is marked incomplete (issue 21): a run
+/// replaces the files of an earlier run (other options, other names) and of an interrupted one,
+/// and ohd's stale temporary files, but never the files of others; a write that fails half-way
+/// leaves `ohd_incomplete.txt` listing its files and no manifest, and a reference run in that state
+/// is refused; a scan replaces an earlier scan's pointing directories, and a run a scan's.
+#[test]
+fn output_directories_hold_one_complete_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let out = t.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let user = ["notes.txt", "mine.npy", ".mine.npy.tmp-7"];
+    for f in user {
+        std::fs::write(out.join(f), "the user's").unwrap();
+    }
+    // Temporary files a killed ohd left: of a checkpoint and of a file this run writes.
+    for f in [".checkpoint.ohd.tmp-4194305", ".camera_spectrum.npy.tmp-4194305"] {
+        std::fs::write(out.join(f), "killed").unwrap();
+    }
+    let run = |sets: &[&str]| {
+        let mut a = vec!["run", "--samples", "20000", "-q", "--out", path_str(&out)];
+        sets.iter().for_each(|s| a.extend(["--set", s]));
+        ohd(t, &a)
+    };
+    // The directory holds the user's files, and exactly the manifest's.
+    let complete = |what: &str| {
+        let m = read_manifest(&out);
+        let mut expect: Vec<String> =
+            m["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().into()).collect();
+        expect.extend(user.iter().map(|f| f.to_string()));
+        expect.push("manifest.json".into());
+        expect.sort();
+        assert_eq!(listing(&out), expect, "{what}");
+    };
+    let o = run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("the first run");
+    assert!(out.join("camera_spectrum_by_order.npy").exists());
+    let o = run(&["detectors.0.name=cam", "detectors.0.spectrum.by_doppler_events=1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("a run with other options");
+    assert!(out.join("cam_spectrum.npy").exists() && !out.join("camera_spectrum.npy").exists());
+
+    // A write that fails half-way (a directory where its image goes): marked incomplete.
+    std::fs::create_dir(out.join("cam2_image.exr")).unwrap();
+    let o = run(&["detectors.0.name=cam2"]);
+    assert_eq!(o.status.code(), Some(1), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("cam2_image.exr"), "{}", describe(&o));
+    let names = listing(&out);
+    assert!(!names.contains(&"manifest.json".to_string()), "the earlier manifest outlives its run: {names:?}");
+    assert!(names.iter().all(|n| !n.starts_with("cam_")), "files of the earlier run stay: {names:?}");
+    assert!(names.contains(&"cam2_spectrum.npy".to_string()), "{names:?}");
+    assert!(!names.iter().any(|n| n.contains(".tmp-") && !user.contains(&n.as_str())), "{names:?}");
+    let marker = std::fs::read_to_string(out.join("ohd_incomplete.txt")).expect("marked incomplete");
+    assert!(marker.contains("\ncam2_spectrum.npy\n") && marker.contains("\ncam2_image.exr\n"), "{marker}");
+    let o = ohd(t, &["converge", "--reference", path_str(&out), "--rungs", "2", "--out", path_str(&t.join("c"))]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("incomplete"), "{}", describe(&o));
+    // The next run replaces what the interrupted one wrote.
+    std::fs::remove_dir(out.join("cam2_image.exr")).unwrap();
+    let o = run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("a run after an interrupted one");
+
+    // A study beside the run leaves it; a shard removes a killed shard's temporary file.
+    let o = ohd(t, &["converge", "--rungs", "2", "--samples", "64", "--budget-seconds", "5", "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(out.join("converge.json").exists() && out.join("manifest.json").exists());
+    let shard = t.join("shard");
+    std::fs::create_dir(&shard).unwrap();
+    std::fs::write(shard.join(".shard.ohd.tmp-4194305"), "killed").unwrap();
+    let o = ohd(t, &["run", "--samples", "20000", "-q", "--shard", "0/2", "--out", path_str(&shard)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert_eq!(listing(&shard), ["shard.ohd"]);
+
+    // Scans: four pointings, then three, then a plain run.
+    let scan = t.join("scan");
+    let config = repo().join("configs/wind_sunny.toml");
+    let scan_run = |sets: &[&str]| {
+        let mut a = vec!["run", path_str(&config), "--samples", "8000", "-q", "--out", path_str(&scan)];
+        let small = ["detectors.0.lidar.gates=6", "detectors.0.lidar.fft_points=256"];
+        small.iter().chain(sets).for_each(|s| a.extend(["--set", s]));
+        ohd(t, &a)
+    };
+    let o = scan_run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    std::fs::write(scan.join("pointing_03/mine.txt"), "the user's").unwrap();
+    let o = scan_run(&["source.pointings_deg=[[0, 60], [120, 60], [240, 60]]"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let pointings = ["pointing_00", "pointing_01", "pointing_02", "pointing_03"];
+    assert_eq!(listing(&scan), [&pointings[..], &["scan.json", "vad.csv"]].concat());
+    assert_eq!(listing(&scan.join("pointing_03")), ["mine.txt"], "the earlier 4th pointing's files stay");
+    let o = ohd(t, &["run", "--samples", "20000", "-q", "--out", path_str(&scan)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let names = listing(&scan);
+    assert!(names.contains(&"manifest.json".to_string()) && names.contains(&"pointing_03".to_string()), "{names:?}");
+    assert!(
+        !names
+            .iter()
+            .any(|n| ["pointing_00", "pointing_01", "pointing_02", "scan.json", "vad.csv"].contains(&n.as_str())),
+        "{names:?}"
+    );
+}
