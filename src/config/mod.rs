@@ -16,10 +16,50 @@ use crate::experiment::Experiment;
 
 pub use resolve::resolve;
 
+/// Largest configuration file read, bytes: far above any experiment (a `[reference]` array of a
+/// million values is ~20 MiB of TOML), far below what would exhaust memory.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
 /// Parse TOML text into a table; `origin` (a file name) prefixes syntax errors.
 pub fn parse(text: &str, origin: &str) -> Result<toml::Table, ConfigError> {
     text.parse::<toml::Table>()
-        .map_err(|e| ConfigError::new(origin, format!("invalid TOML: {}", e.to_string().trim_end())))
+        .map_err(|e| ConfigError::new(origin, format!("invalid TOML: {}", syntax_error(text, &e))))
+}
+
+/// Characters of a TOML line shown around a syntax error.
+const EXCERPT: usize = 100;
+
+/// The TOML parser's report of a syntax error in `text` (where, the line, a caret under the
+/// spot, what), with a line longer than [`EXCERPT`] characters shown as a window around the spot
+/// (issue 21: a 1 MB line was echoed whole, twice with the carets).
+fn syntax_error(text: &str, e: &toml::de::Error) -> String {
+    let report = e.to_string();
+    let report = report.trim_end();
+    let Some(span) = e.span().filter(|_| report.lines().any(|l| l.chars().count() > EXCERPT + 10)) else {
+        return report.to_string();
+    };
+    let mut at = span.start.min(text.len());
+    while !text.is_char_boundary(at) {
+        at -= 1;
+    }
+    let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text[at..].find('\n').map_or(text.len(), |i| at + i);
+    let line = text[line_start..line_end].trim_end_matches('\r');
+    let number = text[..line_start].matches('\n').count() + 1;
+    let column = text[line_start..at].chars().count();
+    let from = column.saturating_sub(EXCERPT / 2);
+    let chars = line.chars().count();
+    let (before, after) = (if from > 0 { "…" } else { "" }, if from + EXCERPT < chars { "…" } else { "" });
+    let shown: String = line.chars().skip(from).take(EXCERPT).collect();
+    let carets = span.len().clamp(1, (EXCERPT - (column - from)).max(1));
+    let pad = " ".repeat(number.to_string().len());
+    let indent = " ".repeat(column - from + before.chars().count());
+    format!(
+        "TOML parse error at line {number}, column {}\n{pad} |\n{number} | {before}{shown}{after}\n{pad} | {indent}{}\n{}",
+        column + 1,
+        "^".repeat(carets),
+        e.message()
+    )
 }
 
 /// Apply one `KEY=VALUE` override: `KEY` is a dotted path (array elements by index, e.g.

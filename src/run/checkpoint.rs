@@ -20,9 +20,12 @@ pub struct FileCheckpoint {
 }
 
 impl FileCheckpoint {
-    /// Checkpoints of `part` every `seconds` (≥ 0), its directory created.
+    /// Checkpoints of `part` every `seconds` (≥ 0), its directory created (and the temporary
+    /// checkpoint files a killed ohd left there removed).
     pub fn new(part: &Part, seconds: f64) -> Result<Self> {
         create_dir(part)?;
+        let name = part.checkpoint().file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        crate::io::remove_stale_temporaries(&part.dir, |n| n == name)?;
         Ok(FileCheckpoint {
             path: part.checkpoint(),
             fingerprint: part.fingerprint,

@@ -53,8 +53,7 @@ impl Loaded {
                 (crate::DEFAULT_CONFIG.to_string(), "built-in default (configs/default.toml)".into(), "default".into())
             }
             Some(p) => {
-                let text =
-                    std::fs::read_to_string(p).map_err(|source| Error::Read { path: p.to_path_buf(), source })?;
+                let text = crate::io::read_text_limited(p, crate::config::MAX_FILE_BYTES, "a configuration file")?;
                 let stem = p.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
                 (text, p.display().to_string(), stem)
             }
@@ -189,7 +188,7 @@ pub fn check_writable(dir: &std::path::Path) -> Result<()> {
     if !at.is_dir() {
         return Err(unwritable(std::io::Error::other(format!("{} is not a directory", at.display()))));
     }
-    let probe = at.join(format!(".ohd-write-probe-{}", std::process::id()));
+    let probe = crate::io::probe_path(at);
     std::fs::File::create(&probe).map_err(unwritable)?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
@@ -219,10 +218,12 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     }
     let mut scan = scan::Scan::default();
     for part in &parts {
-        let output = run_part(part, &loaded.table, &inv, &opts, true, obs)?;
+        let output = simulate_part(part, &opts, true, obs)?;
+        scan.writing(&req.dir, &parts, part)?;
+        write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
         scan.add(part, &output);
     }
-    let vad = scan.finish(exp, &req.dir, obs)?;
+    let vad = scan.finish(exp, obs)?;
     if opts.saving() {
         // The whole scan is written: the pointings' checkpoints have served.
         parts.iter().for_each(|p| drop(std::fs::remove_file(p.checkpoint())));
@@ -242,14 +243,24 @@ pub fn run_part(
     keep: bool,
     obs: &dyn Observer,
 ) -> Result<RunOutput> {
-    let (exp, dir) = (&part.exp, part.dir.as_path());
+    let output = simulate_part(part, opts, keep, obs)?;
+    write_part(part, &output, config, inv, opts, keep, obs)?;
+    Ok(output)
+}
+
+/// Run `part` (to a target error, with checkpoints, resumed: `opts`; a pointing of a scan,
+/// `keep`, resumed only if it has a checkpoint), writing only its checkpoints.
+fn simulate_part(part: &Part, opts: &RunOptions, keep: bool, obs: &dyn Observer) -> Result<RunOutput> {
+    let exp = &part.exp;
     let path = part.checkpoint();
     if let Some(index) = part.pointing {
         obs.event(Event::Pointing { index, pointing: &exp.source.pointings[index] });
     }
     // A scan resumes the pointings it has a checkpoint of and starts the others.
     let resume = if opts.resume && (!keep || path.exists()) {
-        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, exp.tally_layout().tallies())?;
+        let tallies = exp.tally_layout().tallies();
+        let limit = crate::io::persist::checkpoint::max_bytes(tallies, exp.plan.memory_budget);
+        let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, tallies, limit)?;
         obs.event(Event::Resuming { state: &state, path: &path });
         Some(state)
     } else {
@@ -258,17 +269,29 @@ pub fn run_part(
     let checkpoint = opts.checkpoint_seconds.map(|s| FileCheckpoint::new(part, s)).transpose()?;
     let checkpoint = checkpoint.as_ref().map(|c| c as &dyn crate::experiment::Checkpoint);
     let target = opts.target.as_ref();
-    let output = {
-        let progress = obs.progress(exp.plan.samples(), target.map(|t| t.relative_error));
-        exp.run_resumable(&*progress, target, resume, checkpoint)?
-    };
-    write_run(dir, exp, &output, config, inv)?;
+    let progress = obs.progress(exp.plan.samples(), target.map(|t| t.relative_error));
+    exp.run_resumable(&*progress, target, resume, checkpoint)
+}
+
+/// Write the outputs of `part` (run as `opts` asked) into its directory and keep (a pointing of
+/// a scan) or remove its checkpoint, as [`run_part`] says.
+fn write_part(
+    part: &Part,
+    output: &RunOutput,
+    config: &toml::Table,
+    inv: &Invocation,
+    opts: &RunOptions,
+    keep: bool,
+    obs: &dyn Observer,
+) -> Result<()> {
+    let (exp, dir, path) = (&part.exp, part.dir.as_path(), part.checkpoint());
+    write_run(dir, exp, output, config, inv)?;
     if opts.saving() && keep {
-        checkpoint::save_final(part, &output)?;
+        checkpoint::save_final(part, output)?;
     } else if opts.saving() {
         // The run is complete and written: its checkpoint has served.
         let _ = std::fs::remove_file(&path);
     }
-    obs.event(Event::Written { exp, output: &output, dir });
-    Ok(output)
+    obs.event(Event::Written { exp, output, dir });
+    Ok(())
 }

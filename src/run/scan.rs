@@ -8,6 +8,7 @@ use super::{Event, Observer};
 use crate::error::Result;
 use crate::experiment::{Experiment, RunOutput};
 use crate::io::persist::{config_fingerprint, fingerprint};
+use crate::io::write::dir::{DirWriter, Output, VAD};
 use crate::scan::GateWind;
 
 /// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
@@ -60,15 +61,35 @@ pub fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
         .collect()
 }
 
-/// A scan's per-pointing results, gathered for the VAD wind per range gate.
+/// A scan's per-pointing results, gathered for the VAD wind per range gate, and its directory
+/// being written.
 #[derive(Debug, Default)]
 pub(super) struct Scan {
     runs: Vec<String>,
     velocities: Vec<Vec<Option<f64>>>,
     ranges: Vec<f64>,
+    /// The scan's directory, written from its first pointing's outputs on (marked incomplete
+    /// until [`Scan::finish`]).
+    out: Option<DirWriter>,
 }
 
 impl Scan {
+    /// Before `part`'s outputs are written, if it is a pointing of the scan of `parts` into `dir`:
+    /// at the first, begin writing the scan's directory (marked incomplete; what an earlier output
+    /// left there removed, but this scan's pointing directories, which each pointing's writer
+    /// cleans), and note the pointing's directory in it. Nothing for a plain run.
+    pub(super) fn writing(&mut self, dir: &Path, parts: &[Part], part: &Part) -> Result<()> {
+        let Some(i) = part.pointing else { return Ok(()) };
+        if self.out.is_none() {
+            let keep: Vec<String> = parts.iter().filter_map(|p| p.pointing).map(pointing_name).collect();
+            self.out = Some(DirWriter::begin(dir, Output::Run, &keep)?);
+        }
+        if let Some(out) = self.out.as_mut() {
+            out.subdir(&pointing_name(i))?;
+        }
+        Ok(())
+    }
+
     /// Gather what the VAD needs of `part`'s output (nothing of a plain run).
     pub(super) fn add(&mut self, part: &Part, output: &RunOutput) {
         let Some(i) = part.pointing else { return };
@@ -81,16 +102,19 @@ impl Scan {
         self.runs.push(pointing_name(i));
     }
 
-    /// Write the VAD wind of a scan of `exp` into `dir` when every pointing has gate velocities
-    /// (nothing otherwise), and return it.
-    pub(super) fn finish(&self, exp: &Experiment, dir: &Path, obs: &dyn Observer) -> Result<Option<Vec<GateWind>>> {
+    /// Once every pointing is written: the VAD wind of a scan of `exp` into the scan's directory
+    /// when every pointing has gate velocities, returned; then the directory is complete.
+    pub(super) fn finish(&mut self, exp: &Experiment, obs: &dyn Observer) -> Result<Option<Vec<GateWind>>> {
         let pointings = &exp.source.pointings;
+        let Some(out) = self.out.take() else { return Ok(None) };
         if pointings.len() > 1 && self.velocities.len() == pointings.len() {
             let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
-            crate::io::write::scan::write_scan(dir, pointings, &self.runs, &gates)?;
-            obs.event(Event::VadWritten { path: &dir.join("vad.csv") });
+            let path = out.dir().join(VAD);
+            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates)?;
+            obs.event(Event::VadWritten { path: &path });
             return Ok(Some(gates));
         }
+        out.finish(None)?;
         Ok(None)
     }
 }

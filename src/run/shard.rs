@@ -55,6 +55,8 @@ pub fn run_shard(loaded: &Loaded, part: &Part, index: u64, count: u64, obs: &dyn
         overrides: loaded.overrides.iter().filter(|s| !s.starts_with("run.threads=")).cloned().collect(),
     };
     std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+    // The temporary shard file of a killed `ohd run --shard` is its own.
+    crate::io::remove_stale_temporaries(dir, |n| n == FILE_NAME)?;
     let path = dir.join(FILE_NAME);
     let start = std::time::Instant::now();
     let mut writer = ShardWriter::create(&path, &header)?;
@@ -107,6 +109,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finishe
         }
         let count = shards.len();
         let output = fold(&part.exp, shards)?;
+        scan.writing(out, &parts, part)?;
         write_run(&part.dir, &part.exp, &output, &table, &inv)?;
         obs.event(Event::Merged { exp: &part.exp, output: &output, dir: &part.dir, shards: count });
         scan.add(part, &output);
@@ -114,7 +117,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finishe
             last = Some(output);
         }
     }
-    let vad = scan.finish(&exp, out, obs)?;
+    let vad = scan.finish(&exp, obs)?;
     match (parts.len(), last) {
         (1, Some(output)) => Ok(Finished::Run(Box::new(output))),
         (n, _) => Ok(Finished::Scan { pointings: n, vad }),
@@ -151,11 +154,11 @@ pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
         }
     }
     let have: Vec<u64> = shards.iter().map(|s| s.header.index).collect();
-    let missing: Vec<String> = (0..count).filter(|i| !have.contains(i)).map(|i| i.to_string()).collect();
+    let missing: Vec<u64> = (0..count).filter(|i| !have.contains(i)).collect();
     if !missing.is_empty() {
         return Err(Error::Input(format!(
             "shard(s) {} of {count} missing (give the directory of every part of the run)",
-            missing.join(", ")
+            crate::error::list(missing)
         )));
     }
     Ok(shards)

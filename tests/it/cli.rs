@@ -729,3 +729,246 @@ fn output_names_and_directories_are_checked_before_the_run() {
     assert!(text(&o.stderr).contains("cannot write"), "{}", describe(&o));
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1, "nothing is written beside the file");
 }
+
+/// Every file ohd reads is read within a limit (issue 21: a path to `/dev/zero` read ~4 GB
+/// before failing): a configuration, a phase table, a VDB file, a checkpoint, a shard and a
+/// reference run's manifest that are devices, or regular files above their limits (sparse, so
+/// nothing is written to disk), are refused at once, naming the file and the limit (exit 2,
+/// nothing written).
+#[test]
+fn input_files_are_read_within_a_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let sparse = |name: &str, size: u64| {
+        let p = t.join(name);
+        std::fs::File::create(&p).unwrap().set_len(size).unwrap();
+        p
+    };
+    let zero = Path::new("/dev/zero");
+    let big_config = sparse("big.toml", (64 << 20) + 1);
+    let out = t.join("out");
+    let refused = |args: &[&str], expect: &[&str]| {
+        let start = std::time::Instant::now();
+        let o = ohd(t, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        let err = text(&o.stderr);
+        for e in expect {
+            assert!(err.contains(e), "{args:?}: expected {e:?} in {err}");
+        }
+        assert!(start.elapsed().as_secs() < 20, "{args:?} took {:?}", start.elapsed());
+        assert!(!out.exists(), "{args:?} wrote output");
+    };
+    refused(&["check", "/dev/zero"], &["/dev/zero", "not a regular file (a character device)", "configuration file"]);
+    refused(&["run", "/dev/zero", "--out", path_str(&out)], &["/dev/zero", "not a regular file"]);
+    refused(&["check", path_str(&big_config)], &["big.toml", "67108865 bytes, above the limit of 67108864 bytes"]);
+    refused(&["check", path_str(t)], &["not a regular file (a directory)"]);
+
+    // A phase table and a VDB file named by a configuration.
+    let table = std::fs::read_to_string(repo().join("tests/configs/bad/table_missing_file.toml")).unwrap();
+    let config = t.join("table.toml");
+    std::fs::write(&config, table.replace("no_such_table.phase.toml", "/dev/zero")).unwrap();
+    refused(&["check", path_str(&config)], &["media.m.phase.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, table.replace("no_such_table.phase.toml", "big.phase.toml")).unwrap();
+    sparse("big.phase.toml", (64 << 20) + 1);
+    refused(
+        &["check", path_str(&config)],
+        &["media.m.phase.file", "above the limit of 67108864 bytes for a phase table"],
+    );
+    let vdb = std::fs::read_to_string(repo().join("tests/configs/bad/vdb_missing_file.toml")).unwrap();
+    let config = t.join("vdb.toml");
+    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "/dev/zero")).unwrap();
+    refused(&["check", path_str(&config)], &["media.tissue.density.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "big.vdb")).unwrap();
+    sparse("big.vdb", (4 << 30) + 1);
+    refused(
+        &["check", path_str(&config)],
+        &["big.vdb", "4294967297 bytes, above the limit of 4294967296 bytes for an OpenVDB file"],
+    );
+
+    // A checkpoint to resume from: a device, or above its limit (tied to the memory budget).
+    let runs = t.join("runs");
+    std::fs::create_dir(&runs).unwrap();
+    let ckpt = runs.join("checkpoint.ohd");
+    std::os::unix::fs::symlink(zero, &ckpt).unwrap();
+    let o = ohd(t, &["run", "-q", "--resume", "--out", path_str(&runs)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("checkpoint.ohd: not a regular file"), "{}", describe(&o));
+    std::fs::remove_file(&ckpt).unwrap();
+    std::fs::File::create(&ckpt).unwrap().set_len(64 << 20).unwrap();
+    let o = ohd(t, &["run", "-q", "--resume", "--set", "run.memory_budget_gib=0.01", "--out", path_str(&runs)]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("above the limit of"), "{}", describe(&o));
+    assert_eq!(std::fs::read_dir(&runs).unwrap().count(), 1, "only the checkpoint is there");
+
+    // A shard to merge and a reference run's manifest.
+    let shard = t.join("shard");
+    std::fs::create_dir(&shard).unwrap();
+    std::os::unix::fs::symlink(zero, shard.join("shard.ohd")).unwrap();
+    refused(&["merge", path_str(&shard), "--out", path_str(&out)], &["shard.ohd", "not a regular file"]);
+    std::os::unix::fs::symlink(zero, shard.join("manifest.json")).unwrap();
+    refused(
+        &["converge", "--reference", path_str(&shard), "--rungs", "2", "--out", path_str(&out)],
+        &["manifest.json", "not a regular file"],
+    );
+}
+
+/// Error messages stay short whatever the input (issue 21): a 1 MB key is shown cut with its
+/// length, a 1 MB TOML line as a window around the error, 1e300 as `1e300` (not 301 digits, also
+/// in serde's type errors), and a list of 10 000 names as its first few and how many more.
+#[test]
+fn error_messages_are_bounded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let refused = |args: &[&str], expect: &[&str], max_len: usize| {
+        let o = ohd(t, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", describe(&o));
+        let err = text(&o.stderr);
+        assert!(err.len() <= max_len, "{} bytes of stderr: {}", err.len(), &err[..err.len().min(2000)]);
+        for e in expect {
+            assert!(err.contains(e), "expected {e:?} in {err}");
+        }
+    };
+    let write = |name: &str, text: &str| {
+        let p = t.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let key = write("key.toml", &format!("schema_version = 1\n{} = 3\n", "k".repeat(1 << 20)));
+    refused(&["check", path_str(&key)], &["kkk…kkk", "(1048576 characters)", "unknown field", "expected one of"], 1000);
+    let line = write("line.toml", &format!("schema_version = 1\nx = {}\n", "v".repeat(1 << 20)));
+    refused(&["check", path_str(&line)], &["line 2, column 5", "x = vvv", "vvv…\n", "    ^^^", "must be quoted"], 1000);
+    let big = "1e300";
+    for (set, expect) in [
+        (format!("media.tissue.phase.g={big}"), "media.tissue.phase.g: = 1e300: expected"),
+        (format!("layers.0.thickness_mm=-{big}"), "= -1e300: expected a thickness"),
+        ("source.wavelength_nm=1e-320".into(), "= 1e-320: expected a vacuum wavelength"),
+        (format!("run.samples={big}"), "invalid type: floating point `1e300`, expected u64"),
+    ] {
+        refused(&["check", "--set", &set], &[expect], 300);
+    }
+    refused(&["run", "--target-error", big], &["--target-error 1e300: expected"], 300);
+    let mut many = String::from("schema_version = 1\n[source]\nwavelength_nm = 785\n");
+    for i in 0..10_000 {
+        many.push_str(&format!("[media.m{i}]\nsigma_a_per_mm = 0.1\nsigma_s_per_mm = 1\n"));
+    }
+    for i in 0..10_000 {
+        many.push_str(&format!("[[layers]]\nname = \"l{i}\"\nthickness_mm = 1\nn = 1.4\nmedium = \"m{}\"\n", i % 3));
+    }
+    let region = "[[regions]]\nlayer = \"nope\"\nmedium = \"m1\"\nshape = { type = \"sphere\", center_mm = [0, 0, 0.5], radius_mm = 0.1 }\n";
+    let path = write("many_layers.toml", &format!("{many}{region}"));
+    refused(&["check", path_str(&path)], &["unknown layer; layers are l0, l1, l10, l100,", "… and 9990 more"], 300);
+    let path = write("many_media.toml", &many.replacen("medium = \"m0\"", "medium = \"nope\"", 1));
+    refused(&["check", path_str(&path)], &["unknown medium; defined media: m0, m1, m10,", "… and 9990 more"], 300);
+}
+
+/// The names in directory `d`, sorted.
+fn listing(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    v.sort();
+    v
+}
+
+/// An output directory holds one complete output or is marked incomplete (issue 21): a run
+/// replaces the files of an earlier run (other options, other names) and of an interrupted one,
+/// and ohd's stale temporary files, but never the files of others; a write that fails half-way
+/// leaves `ohd_incomplete.txt` listing its files and no manifest, and a reference run in that state
+/// is refused; a scan replaces an earlier scan's pointing directories, and a run a scan's.
+#[test]
+fn output_directories_hold_one_complete_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let out = t.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let user = ["notes.txt", "mine.npy", ".mine.npy.tmp-7"];
+    for f in user {
+        std::fs::write(out.join(f), "the user's").unwrap();
+    }
+    // Temporary files a killed ohd left: of a checkpoint and of a file this run writes.
+    for f in [".checkpoint.ohd.tmp-4194305", ".camera_spectrum.npy.tmp-4194305"] {
+        std::fs::write(out.join(f), "killed").unwrap();
+    }
+    let run = |sets: &[&str]| {
+        let mut a = vec!["run", "--samples", "20000", "-q", "--out", path_str(&out)];
+        sets.iter().for_each(|s| a.extend(["--set", s]));
+        ohd(t, &a)
+    };
+    // The directory holds the user's files, and exactly the manifest's.
+    let complete = |what: &str| {
+        let m = read_manifest(&out);
+        let mut expect: Vec<String> =
+            m["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().into()).collect();
+        expect.extend(user.iter().map(|f| f.to_string()));
+        expect.push("manifest.json".into());
+        expect.sort();
+        assert_eq!(listing(&out), expect, "{what}");
+    };
+    let o = run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("the first run");
+    assert!(out.join("camera_spectrum_by_order.npy").exists());
+    let o = run(&["detectors.0.name=cam", "detectors.0.spectrum.by_doppler_events=1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("a run with other options");
+    assert!(out.join("cam_spectrum.npy").exists() && !out.join("camera_spectrum.npy").exists());
+
+    // A write that fails half-way (a directory where its image goes): marked incomplete.
+    std::fs::create_dir(out.join("cam2_image.exr")).unwrap();
+    let o = run(&["detectors.0.name=cam2"]);
+    assert_eq!(o.status.code(), Some(1), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("cam2_image.exr"), "{}", describe(&o));
+    let names = listing(&out);
+    assert!(!names.contains(&"manifest.json".to_string()), "the earlier manifest outlives its run: {names:?}");
+    assert!(names.iter().all(|n| !n.starts_with("cam_")), "files of the earlier run stay: {names:?}");
+    assert!(names.contains(&"cam2_spectrum.npy".to_string()), "{names:?}");
+    assert!(!names.iter().any(|n| n.contains(".tmp-") && !user.contains(&n.as_str())), "{names:?}");
+    let marker = std::fs::read_to_string(out.join("ohd_incomplete.txt")).expect("marked incomplete");
+    assert!(marker.contains("\ncam2_spectrum.npy\n") && marker.contains("\ncam2_image.exr\n"), "{marker}");
+    let o = ohd(t, &["converge", "--reference", path_str(&out), "--rungs", "2", "--out", path_str(&t.join("c"))]);
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("incomplete"), "{}", describe(&o));
+    // The next run replaces what the interrupted one wrote.
+    std::fs::remove_dir(out.join("cam2_image.exr")).unwrap();
+    let o = run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    complete("a run after an interrupted one");
+
+    // A study beside the run leaves it; a shard removes a killed shard's temporary file.
+    let o = ohd(t, &["converge", "--rungs", "2", "--samples", "64", "--budget-seconds", "5", "--out", path_str(&out)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(out.join("converge.json").exists() && out.join("manifest.json").exists());
+    let shard = t.join("shard");
+    std::fs::create_dir(&shard).unwrap();
+    std::fs::write(shard.join(".shard.ohd.tmp-4194305"), "killed").unwrap();
+    let o = ohd(t, &["run", "--samples", "20000", "-q", "--shard", "0/2", "--out", path_str(&shard)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert_eq!(listing(&shard), ["shard.ohd"]);
+
+    // Scans: four pointings, then three, then a plain run.
+    let scan = t.join("scan");
+    let config = repo().join("configs/wind_sunny.toml");
+    let scan_run = |sets: &[&str]| {
+        let mut a = vec!["run", path_str(&config), "--samples", "8000", "-q", "--out", path_str(&scan)];
+        let small = ["detectors.0.lidar.gates=6", "detectors.0.lidar.fft_points=256"];
+        small.iter().chain(sets).for_each(|s| a.extend(["--set", s]));
+        ohd(t, &a)
+    };
+    let o = scan_run(&[]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    std::fs::write(scan.join("pointing_03/mine.txt"), "the user's").unwrap();
+    let o = scan_run(&["source.pointings_deg=[[0, 60], [120, 60], [240, 60]]"]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let pointings = ["pointing_00", "pointing_01", "pointing_02", "pointing_03"];
+    assert_eq!(listing(&scan), [&pointings[..], &["scan.json", "vad.csv"]].concat());
+    assert_eq!(listing(&scan.join("pointing_03")), ["mine.txt"], "the earlier 4th pointing's files stay");
+    let o = ohd(t, &["run", "--samples", "20000", "-q", "--out", path_str(&scan)]);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    let names = listing(&scan);
+    assert!(names.contains(&"manifest.json".to_string()) && names.contains(&"pointing_03".to_string()), "{names:?}");
+    assert!(
+        !names
+            .iter()
+            .any(|n| ["pointing_00", "pointing_01", "pointing_02", "scan.json", "vad.csv"].contains(&n.as_str())),
+        "{names:?}"
+    );
+}

@@ -200,8 +200,8 @@ fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment)
     for (name, value) in refs {
         let path = format!("reference.{name}");
         let Some(o) = outputs.iter().find(|o| &o.name == name) else {
-            let names: Vec<&str> = outputs.iter().map(|o| o.name.as_str()).collect();
-            return err(path, format!("is not an output of this experiment; expected one of {}", names.join(", ")));
+            let names = crate::error::list(outputs.iter().map(|o| &o.name));
+            return err(path, format!("is not an output of this experiment; expected one of {names}"));
         };
         let values = match value {
             ReferenceValue::Scalar(v) => vec![*v],

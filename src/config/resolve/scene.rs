@@ -50,11 +50,11 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
     if f.layers.is_empty() {
         return err("layers", "no layers: add at least one [[layers]] with thickness, n and medium");
     }
-    let known = f.media.keys().cloned().collect::<Vec<_>>().join(", ");
     let lookup = |path: String, name: &str| -> R<&MediumSection> {
-        f.media
-            .get(name)
-            .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
+        f.media.get(name).ok_or_else(|| {
+            let known = crate::error::list(f.media.keys());
+            ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}"))
+        })
     };
     let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
     // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
@@ -197,11 +197,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         let li = *layer_index.get(&r.layer).ok_or_else(|| {
             ConfigError::new(
                 join(&path, "layer"),
-                format!(
-                    "= \"{}\": unknown layer; layers are {}",
-                    r.layer,
-                    layer_index.keys().cloned().collect::<Vec<_>>().join(", ")
-                ),
+                format!("= \"{}\": unknown layer; layers are {}", r.layer, crate::error::list(layer_index.keys())),
             )
         })?;
         let shape = resolve_shape(&path, &r.shape)?;

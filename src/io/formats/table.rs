@@ -101,10 +101,16 @@ pub struct LoadedTable {
     pub file: PhaseTableFile,
 }
 
+/// Largest phase-table file read, bytes (`ohd mie --table` writes at most 100 000 angles, ~5 MiB).
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
 /// Read and validate a phase table. The error is a message naming the file.
 pub fn read_phase_table(path: &Path) -> Result<LoadedTable, String> {
     let shown = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read phase table `{shown}`: {e}"))?;
+    let text = crate::io::read_text_limited(path, MAX_FILE_BYTES, "a phase table").map_err(|e| match e {
+        crate::error::Error::Read { source, .. } => format!("cannot read phase table `{shown}`: {source}"),
+        e => e.to_string(),
+    })?;
     parse_phase_table(&text, &shown.to_string())
 }
 

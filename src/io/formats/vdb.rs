@@ -82,6 +82,10 @@ pub type IndexBox = ([i32; 3], [i32; 3]);
 /// Default memory budget for a dense block (and for the sparse tree), bytes.
 pub const DEFAULT_MAX_DENSE_BYTES: u64 = 1 << 30;
 
+/// Largest `.vdb` file read, bytes: the whole file is read into memory, and a grid's tree is held
+/// to [`DEFAULT_MAX_DENSE_BYTES`]; four such trees (uncompressed) fit.
+pub const MAX_FILE_BYTES: u64 = 4 * DEFAULT_MAX_DENSE_BYTES;
+
 const MAGIC: [u8; 8] = [0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0];
 const COMPRESS_ZIP: u32 = 0x1;
 const COMPRESS_ACTIVE_MASK: u32 = 0x2;
@@ -1077,7 +1081,7 @@ fn vdb_err(path: &Path, grid: Option<&str>, message: String) -> Error {
 }
 
 fn load(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })
+    crate::io::read_limited(path, MAX_FILE_BYTES, "an OpenVDB file")
 }
 
 /// The grids of a file, without reading their trees.
@@ -1104,12 +1108,12 @@ pub fn read_tree<T: VdbValue>(path: impl AsRef<Path>, name: Option<&str>, option
     };
     let by_name = |d: &&Descriptor| name.is_some_and(|n| d.unique_name.split('\u{1e}').next() == Some(n));
     let Some(d) = descriptors.iter().find(wanted).or_else(|| descriptors.iter().find(by_name)) else {
-        let names: Vec<String> = descriptors.iter().map(|d| format!("{} ({})", d.unique_name, d.tree_type)).collect();
+        let names = crate::error::list(descriptors.iter().map(|d| format!("{} ({})", d.unique_name, d.tree_type)));
         let what = match name {
             Some(n) => format!("no grid named \"{n}\""),
             None => format!("no grid of type {}", T::TREE_TYPE),
         };
-        return Err(vdb_err(path, name, format!("{what}; the file has: {}", names.join(", "))));
+        return Err(vdb_err(path, name, format!("{what}; the file has: {names}")));
     };
     let gname = d.unique_name.as_str();
     let mut inner = || -> R<VdbTree<T>> {

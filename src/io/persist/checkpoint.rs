@@ -61,10 +61,18 @@ pub fn write(path: &Path, fp: u64, s: &RunState) -> Result<()> {
     crate::io::write_atomic(path, &to_bytes(fp, s))
 }
 
+/// Largest checkpoint of an experiment with `tallies` tallies and the memory budget `budget`
+/// (bytes): its fixed part, the accumulator's mean and m² (16 bytes per tally) and the recorded
+/// lines, which a run holds in memory too, up to the budget.
+pub fn max_bytes(tallies: usize, budget: u64) -> u64 {
+    4096 + 16 * tallies as u64 + budget
+}
+
 /// Read the checkpoint at `path` for the configuration with fingerprint `fp`, checking that it
-/// is whole, of this experiment (`tallies` long) and not past its end.
-pub fn read(path: &Path, fp: u64, tallies: usize) -> Result<RunState> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Read { path: path.to_path_buf(), source })?;
+/// is whole, of this experiment (`tallies` long) and not past its end; a file above `limit`
+/// bytes ([`max_bytes`]) or not a regular file is refused unread.
+pub fn read(path: &Path, fp: u64, tallies: usize, limit: u64) -> Result<RunState> {
+    let bytes = crate::io::read_limited(path, limit, "an ohd checkpoint")?;
     let bad = |why: &str| Error::invalid_file(path, why);
     let (got, state) = from_bytes(&bytes).ok_or_else(|| bad("not a whole ohd checkpoint (truncated or corrupt)"))?;
     if got != fp || state.estimates.mean().len() != tallies {

@@ -190,10 +190,18 @@ pub struct ShardReader {
 impl ShardReader {
     pub fn open(path: &Path) -> Result<Self> {
         let rerr = |source| Error::Read { path: path.to_path_buf(), source };
-        let file = File::open(path).map_err(rerr)?;
-        let size = file.metadata().map_err(rerr)?.len();
-        let mut file = BufReader::new(file);
         let bad = |why: &str| Error::invalid_file(path, why);
+        // Not a device or a FIFO (whose open or reads would not end): read as its size says.
+        if !std::fs::metadata(path).map_err(rerr)?.is_file() {
+            return Err(bad("not a regular file: expected an ohd shard file (written by `ohd run --shard I/N`)"));
+        }
+        let file = File::open(path).map_err(rerr)?;
+        let meta = file.metadata().map_err(rerr)?;
+        if !meta.is_file() {
+            return Err(bad("not a regular file: expected an ohd shard file (written by `ohd run --shard I/N`)"));
+        }
+        let size = meta.len();
+        let mut file = BufReader::new(file);
         let mut head = [0u8; 16];
         if size < 16 || file.read_exact(&mut head).is_err() || head[..7] != MAGIC[..7] {
             return Err(bad("not an ohd shard file (written by `ohd run --shard I/N`)"));

@@ -11,12 +11,19 @@ use serde_json::{Value, json};
 use crate::converge::{NamedOutput, Reference, Study};
 use crate::error::{Error, Result};
 
+use super::dir::DirWriter;
 use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
 use crate::io::formats::npy;
-use crate::io::write_atomic;
 
 /// The agreement band of measured to self-reported error (issue 7).
 pub const SIGMA_RATIO_BAND: (f64, f64) = (0.5, 2.0);
+
+/// Largest `manifest.json` read as a reference, bytes (it holds the configuration twice, at most
+/// [`crate::config::MAX_FILE_BYTES`] each, and the scalar estimates).
+pub const MAX_MANIFEST_BYTES: u64 = 256 << 20;
+
+/// Room for an `.npy` file's header besides its values, bytes (a version 1 header is < 64 KiB).
+const NPY_HEADER_BYTES: u64 = 1 << 16;
 
 fn num(v: f64) -> Value {
     if v.is_finite() { json!(v) } else { Value::Null }
@@ -27,13 +34,16 @@ fn num(v: f64) -> Value {
 /// `manifest.json`. A missing file, a malformed file or an array of the wrong size is an error
 /// naming the file.
 pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<Reference>>> {
-    let read = |name: &str| -> Result<Vec<u8>> {
-        let path = dir.join(name);
-        std::fs::read(&path).map_err(|source| Error::Read { path, source })
-    };
+    let read = |name: &str, limit: u64, what: &str| crate::io::read_limited(&dir.join(name), limit, what);
     let bad = |name: &str, why: String| Error::invalid_file(dir.join(name), why);
-    let manifest: Value =
-        serde_json::from_slice(&read("manifest.json")?).map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
+    if super::dir::is_incomplete(dir) {
+        return Err(bad(
+            super::dir::MARKER,
+            "the run in this directory is incomplete (its writing was interrupted): rerun it".into(),
+        ));
+    }
+    let manifest: Value = serde_json::from_slice(&read("manifest.json", MAX_MANIFEST_BYTES, "a run's manifest")?)
+        .map_err(|e| bad("manifest.json", format!("not JSON: {e}")))?;
     let mut refs = Vec::with_capacity(outputs.len());
     for o in outputs {
         let (values, stderr) = if o.is_scalar() {
@@ -47,8 +57,9 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
             }
         } else {
             let se_name = o.file.replace(".npy", "_stderr.npy");
+            let limit = NPY_HEADER_BYTES + 8 * o.range().len() as u64;
             let load = |name: &str| -> Result<Vec<f64>> {
-                let (_, data) = npy::from_bytes(&read(name)?)
+                let (_, data) = npy::from_bytes(&read(name, limit, &format!("the .npy file of {}", o.name))?)
                     .ok_or_else(|| bad(name, "not an ohd .npy file (little-endian f64)".into()))?;
                 if data.len() != o.range().len() {
                     return Err(bad(
@@ -160,11 +171,13 @@ pub fn png(study: &Study) -> Vec<u8> {
     line_plot_png(&series, "Error against run time", "log10 wall time (s)", "log10 relative error", None)
 }
 
-/// Write `converge.csv`, `converge.png` and (last) `converge.json` into `dir`, atomically.
+/// Write `converge.csv`, `converge.png` and (last) `converge.json` into `dir`, atomically,
+/// through a [`DirWriter`] (an earlier study there is replaced; a run stays).
 pub fn write_study(dir: &Path, study: &Study, config_source: &str) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-    write_atomic(&dir.join("converge.csv"), csv(study).as_bytes())?;
-    write_atomic(&dir.join("converge.png"), &png(study))?;
+    let mut out = DirWriter::begin(dir, super::dir::Output::Study, &[])?;
+    let [csv_file, png_file] = super::dir::CONVERGE_FILES;
+    out.put(csv_file, csv(study).as_bytes())?;
+    out.put(png_file, &png(study))?;
     let text = serde_json::to_string_pretty(&json(study, config_source)).expect("a JSON value serialises");
-    write_atomic(&dir.join("converge.json"), text.as_bytes())
+    out.finish(Some((super::dir::CONVERGE, text.as_bytes())))
 }

@@ -4,7 +4,8 @@
 //! per-bin standard errors and the frequency axis), FMCW range and velocity estimates with a chirp
 //! (`fmcw_estimates.csv`, see [`super::fmcw`]), images (`.exr`, `.npy`), an LDH camera's maps and
 //! a lidar receiver's range–Doppler spectra. Data files are written first and the manifest last,
-//! each atomically.
+//! each atomically, through a [`DirWriter`]: the directory holds this run's files only, or is
+//! marked incomplete.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -12,12 +13,12 @@ use std::path::Path;
 use serde::Serialize;
 use serde_json::Value;
 
+use super::dir::DirWriter;
 use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
 use crate::detect::{DetectorKind, Scalar, Side};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::experiment::{Experiment, RunOutput};
 use crate::io::formats::npy;
-use crate::io::write_atomic;
 use crate::output::{Kind, Output};
 
 /// What the manifest records about how the run was invoked.
@@ -170,19 +171,14 @@ pub fn write_run(
     config: &toml::Table,
     inv: &Invocation,
 ) -> Result<Manifest> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     let stderr = out.estimates.stderr();
     // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
     let t = std::time::Instant::now();
     let speckle = crate::post::speckle_of(exp, out);
     let pixel_speckle = crate::post::pixel_speckle_of(exp, out);
     let speckle_seconds = t.elapsed().as_secs_f64();
-    let mut files: Vec<String> = Vec::new();
-    let mut put = |name: String, bytes: Vec<u8>| -> Result<()> {
-        write_atomic(&dir.join(&name), &bytes)?;
-        files.push(name);
-        Ok(())
-    };
+    let mut writer = DirWriter::begin(dir, super::dir::Output::Run, &[])?;
+    let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put(&name, &bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
@@ -251,6 +247,8 @@ pub fn write_run(
         w.put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
     }
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
+    drop(w);
+    let files = writer.written().to_vec();
     if !det_estimates.is_empty() {
         estimates.insert("detectors".into(), Entry::Group(det_estimates));
     }
@@ -314,7 +312,7 @@ pub fn write_run(
         files,
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
-    write_atomic(&dir.join("manifest.json"), text.as_bytes())?;
+    writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
     Ok(manifest)
 }
 

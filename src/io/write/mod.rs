@@ -1,9 +1,12 @@
 //! Writing a finished run's outputs, as the run's [`crate::output::Registry`]
 //! declares them: `manifest.json` and every detector's files ([`manifest::write_run`]), an LDH
 //! camera's ([`ldh`]) and a lidar receiver's ([`lidar`]) outputs, FMCW read-offs ([`fmcw`]), a
-//! scan's VAD wind ([`scan`]) and the convergence study ([`converge`]).
+//! scan's VAD wind ([`scan`]) and the convergence study ([`converge`]); each into its directory
+//! through a [`dir::DirWriter`], so that a directory holds one complete output or is marked
+//! incomplete.
 
 pub mod converge;
+pub mod dir;
 pub mod fmcw;
 pub mod ldh;
 pub mod lidar;

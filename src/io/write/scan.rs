@@ -2,18 +2,16 @@
 //! each pointing measured) and `scan.json` (the pointings, the run directory of each, and the same
 //! table). Each pointing's own outputs are a complete run directory of their own.
 
-use std::path::Path;
-
 use serde_json::{Value, json};
 
+use super::dir::{DirWriter, SCAN, VAD};
 use crate::error::Result;
-use crate::io::write_atomic;
 use crate::scan::GateWind;
 use crate::source::Pointing;
 
-/// Write `vad.csv` and `scan.json` into `dir`; `runs[i]` is the directory of pointing `i`
-/// (relative to `dir`). Returns the JSON as written.
-pub fn write_scan(dir: &Path, pointings: &[Pointing], runs: &[String], gates: &[GateWind]) -> Result<Value> {
+/// Write `vad.csv` and (last) `scan.json` into the scan's directory `out`; `runs[i]` is the
+/// directory of pointing `i` (relative to it). Returns the JSON as written.
+pub fn write_scan(mut out: DirWriter, pointings: &[Pointing], runs: &[String], gates: &[GateWind]) -> Result<Value> {
     let mut csv = String::from(
         "gate,range_m,height_m,u_east_m_per_s,v_north_m_per_s,w_up_m_per_s,u_stderr,v_stderr,w_stderr,\
          horizontal_speed_m_per_s,direction_from_deg,chi2,dof,pointings_used,error",
@@ -67,7 +65,7 @@ pub fn write_scan(dir: &Path, pointings: &[Pointing], runs: &[String], gates: &[
         csv.push('\n');
         table.push(row);
     }
-    write_atomic(&dir.join("vad.csv"), csv.as_bytes())?;
+    out.put(VAD, csv.as_bytes())?;
     let scan = json!({
         "pointings": pointings.iter().zip(runs).map(|(p, r)| json!({
             "azimuth_deg": p.azimuth_deg,
@@ -80,6 +78,6 @@ pub fn write_scan(dir: &Path, pointings: &[Pointing], runs: &[String], gates: &[
         "gates": table,
     });
     let text = serde_json::to_string_pretty(&scan).unwrap_or_default();
-    write_atomic(&dir.join("scan.json"), text.as_bytes())?;
+    out.finish(Some((SCAN, text.as_bytes())))?;
     Ok(scan)
 }
