@@ -813,6 +813,184 @@ fn odd_flag_cases(depth: Depth) {
     tally.finish(&category);
 }
 
+/// The findings of issue 21's campaign, one case each, judged as every hostile case is: the
+/// values that ran to NaN outputs, the ones accepted silently (now refused), the endless files
+/// (refused for their size, not after filling memory), stale outputs, the total internal
+/// reflection that never ended, and the checkpoint interval that panicked.
+#[test]
+fn issue_21_findings() {
+    let category = "issue-21";
+    let kept = inputs_root(category);
+    let scratch = tempfile::tempdir().unwrap();
+    let cwd = scratch.path().join("cwd");
+    std::fs::create_dir(&cwd).unwrap();
+    let config = |name: &str| repo().join("configs").join(name);
+    let out = scratch.path().join("out");
+    let tiny_sets = |name: &str, sets: &[&str]| -> Vec<String> {
+        let doc: toml::Table = std::fs::read_to_string(config(name)).unwrap().parse().unwrap();
+        let mut a = tiny_run(&config(name), &out);
+        for s in tiny(&doc).iter().map(String::as_str).chain(sets.iter().copied()) {
+            a.extend(["--set".to_string(), s.to_string()]);
+        }
+        a
+    };
+    let mut tally = Tally::default();
+    let judge = |tally: &mut Tally, what: &str, args: Vec<String>, names: Names, must_refuse: Option<&str>| {
+        let mut case = Case::new(format!("{category} {what}"), what.into(), args, &cwd, RUN_LIMIT, names);
+        case.out = Some(out.clone());
+        case.watched.push(out.clone());
+        case.must_refuse = must_refuse.map(String::from);
+        tally.run(case);
+        let _ = std::fs::remove_dir_all(&out);
+    };
+    // Non-finite outputs with exit 0.
+    for (name, set) in [
+        ("wind_turbulence.toml", "detectors.0.lidar.sample_rate_mhz=1e-200"),
+        ("wind_turbulence.toml", "detectors.0.lidar.first_gate_m=1e308"),
+        ("wind_sunny.toml", "media.aerosol.motion.dispersion_m_per_s=1e308"),
+    ] {
+        judge(&mut tally, &format!("{name} --set {set}"), tiny_sets(name, &[set]), Names::config(None, &[name]), None);
+    }
+    // Values accepted silently.
+    let refuse = [
+        (
+            "default.toml",
+            &["media.unused.sigma_a_per_mm=nan", "media.unused.sigma_s_per_mm=1"][..],
+            "NaN σa of a medium no layer uses",
+        ),
+        (
+            "default.toml",
+            &[
+                "media.unused.sigma_a_per_mm=0",
+                "media.unused.sigma_s_per_mm=1",
+                "media.unused.phase.type=\"hg\"",
+                "media.unused.phase.g=7",
+            ],
+            "HG g = 7 of a medium no layer uses",
+        ),
+        ("default.toml", &["media.blood.velocity.v_max_mm_per_s=1e12"], "blood flowing at 10⁹ m/s, faster than light"),
+        ("fmcw_target.toml", &["media.target.velocity.velocity_m_per_s=[0, 0, 3e8]"], "a target receding at c"),
+    ];
+    for (name, sets, why) in refuse {
+        judge(&mut tally, &format!("{name}: {why}"), tiny_sets(name, sets), Names::config(None, &[name]), Some(why));
+    }
+    // Endless files.
+    let dir = kept.join("inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let table = dir.join("table.toml");
+    std::fs::write(&table, table_experiment(Path::new("/dev/zero"))).unwrap();
+    let vdb = dir.join("vdb.toml");
+    std::fs::write(&vdb, vdb_experiment(Path::new("/dev/zero"), Some("density"), None)).unwrap();
+    for (what, config, names) in [
+        ("the experiment file is /dev/zero", Path::new("/dev/zero"), &["/dev/zero"][..]),
+        ("a phase table file = \"/dev/zero\"", table.as_path(), &["/dev/zero", "media.m.phase"]),
+        ("a VDB file = \"/dev/zero\"", vdb.as_path(), &["/dev/zero", "media.tissue.density"]),
+    ] {
+        judge(&mut tally, what, tiny_run(config, &out), Names::only(names), None);
+    }
+    for (what, file, args) in [
+        ("checkpoint.ohd is /dev/zero", "checkpoint.ohd", {
+            let mut a = small_run(&out);
+            a.push("--resume".into());
+            a
+        }),
+        ("shard.ohd is /dev/zero", "shard.ohd", s(&["merge", "SHARD", "--out", "OUT"])),
+    ] {
+        let holder = scratch.path().join("holder");
+        let _ = std::fs::remove_dir_all(&holder);
+        let at = if file == "checkpoint.ohd" { out.clone() } else { holder.clone() };
+        std::fs::create_dir_all(&at).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", at.join(file)).unwrap();
+        let args = args
+            .into_iter()
+            .map(|a| match a.as_str() {
+                "SHARD" => path_str(&holder),
+                "OUT" => path_str(&out),
+                _ => a,
+            })
+            .collect();
+        let mut case =
+            Case::new(format!("{category} {what}"), what.into(), args, &cwd, RUN_LIMIT, Names::only(&[file]));
+        case.watched.push(at.clone());
+        case.out = Some(out.clone());
+        tally.run(case);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+    // Stale outputs: a lidar run into the directory of a camera run.
+    let e = oracle::exec(&tiny_run(&config("default.toml"), &out), &cwd, RUN_LIMIT);
+    assert_eq!(e.status, oracle::Status::Exit(0), "{}", e.stderr);
+    let mut case = Case::new(
+        format!("{category} stale outputs"),
+        "configs/wind_turbulence.toml run into the output directory of configs/default.toml".into(),
+        tiny_sets("wind_turbulence.toml", &[]),
+        &cwd,
+        RUN_LIMIT,
+        Names::only(&[&path_str(&out)]),
+    );
+    case.out = Some(out.clone());
+    case.watched.push(out.clone());
+    case.listed_only = true;
+    tally.run(case);
+    let _ = std::fs::remove_dir_all(&out);
+    // Light trapped between the faces of a clear layer by total internal reflection.
+    let tir = dir.join("tir.toml");
+    std::fs::write(
+        &tir,
+        r#"schema_version = 1
+[source]
+wavelength_nm = 800
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[media.cloud]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 20
+[[layers]]
+name = "slab"
+thickness_mm = 1
+n = 1.33
+medium = "clear"
+[[regions]]
+layer = "slab"
+medium = "cloud"
+shape = { type = "sphere", center_mm = [0, 0, 0.5], radius_mm = 0.3 }
+"#,
+    )
+    .unwrap();
+    judge(
+        &mut tally,
+        "total internal reflection in a clear layer",
+        tiny_run(&tir, &out),
+        Names::only(&["tir.toml"]),
+        None,
+    );
+    judge(
+        &mut tally,
+        "--checkpoint-seconds 1e300",
+        [tiny_run(&config("default.toml"), &out), s(&["--checkpoint-seconds", "1e300"])].concat(),
+        Names::only(&["--checkpoint-seconds"]),
+        None,
+    );
+    // Four layers of 10⁵ sublayers each, through `ohd check`, which builds them (a run of 512
+    // paths through 4·10⁵ interfaces takes 20 s).
+    let layers = "[[layers]]\nthickness_mm = 1\nn = 1.4\nmedium = \"m\"\nsublayers = 100000\n".repeat(4);
+    let sub = dir.join("sublayers.toml");
+    std::fs::write(
+        &sub,
+        format!("schema_version = 1\n[source]\nwavelength_nm = 633\n[media.m]\nsigma_a_per_mm = 0.1\nsigma_s_per_mm = 1\n{layers}"),
+    )
+    .unwrap();
+    tally.run(Case::new(
+        format!("{category} sublayers"),
+        "4 layers × 100 000 sublayers, ohd check".into(),
+        vec!["check".into(), path_str(&sub)],
+        &cwd,
+        CHECK_LIMIT,
+        Names::config(None, &["sublayers.toml"]),
+    ));
+    tally.finish(category);
+}
+
 #[test]
 fn config_mutants_through_check() {
     config_mutants(Depth::Quick, Aim::Check, 24, 3);
