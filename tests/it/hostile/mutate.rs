@@ -4,7 +4,7 @@
 //!
 //! Every case draws from its own stream `(seed, Purpose::Test, stream, case)`, so case `k` of a
 //! category is the same mutant however many cases run before or after it: the quick tests run
-//! a prefix of the deep sweep's cases.
+//! the first cases of the deep sweep (which may add mutations after the first).
 
 use std::fmt;
 use std::path::Path;
@@ -375,7 +375,7 @@ pub fn draw_mutation(d: &mut Draw, doc: &toml::Table, text: &str, aim: Aim, text
     let roll = d.below(100);
     let (set, unknown, delete, duplicate, reverse, long) = match aim {
         Aim::Check => (52, 62, 74, 82, 85, 88),
-        Aim::Run => (72, 76, 86, 96, 98, 100),
+        Aim::Run => (70, 80, 88, 96, 98, 100),
     };
     if roll >= long && text_edits {
         return Mutation::Text(TextEdit::draw(d, text));
@@ -399,6 +399,34 @@ pub fn draw_mutation(d: &mut Draw, doc: &toml::Table, text: &str, aim: Aim, text
         }
         let parsed = format!("v = {value}").parse::<toml::Table>().ok().and_then(|mut t| t.remove("v"));
         return Mutation::Replace(path, parsed.unwrap_or(toml::Value::String(value.clone())), shorten(&value));
+    }
+    if roll < unknown && d.chance(0.5) {
+        // A copy of a named table beside it (an unused medium, most often) with one value made
+        // hostile: validation must reach what the run does not use.
+        let named: Vec<&(Vec<Seg>, toml::Value)> = all
+            .iter()
+            .filter(|(p, v)| v.is_table() && p.len() >= 2 && settable(p) && matches!(p.last(), Some(Seg::Key(_))))
+            .collect();
+        let media: Vec<&(Vec<Seg>, toml::Value)> =
+            named.iter().copied().filter(|(p, _)| p.len() == 2 && p[0] == Seg::Key("media".into())).collect();
+        let pool = if !media.is_empty() && (named.len() == media.len() || d.chance(0.7)) { media } else { named };
+        if !pool.is_empty() {
+            let (path, v) = (*d.pick(&pool)).clone();
+            let mut copy = v.as_table().cloned().unwrap_or_default();
+            let leaves: Vec<(Vec<Seg>, toml::Value)> =
+                nodes(&copy).into_iter().filter(|(p, v)| !v.is_table() && settable(p)).collect();
+            if !leaves.is_empty() {
+                let (leaf, lv) = d.pick(&leaves).clone();
+                let key = match leaf.last() {
+                    Some(Seg::Key(k)) => k.clone(),
+                    _ => String::new(),
+                };
+                let value = hostile_value(d, &key, &lv, aim == Aim::Run);
+                let _ = ohd::config::apply_set(&mut copy, &format!("{}={value}", dotted(&leaf)));
+            }
+            let parent = dotted(&path[..path.len() - 1]);
+            return Mutation::Set(format!("{parent}.zz_copy={}", toml::Value::Table(copy)));
+        }
     }
     if roll < unknown {
         let tables: Vec<&Vec<Seg>> = all.iter().filter(|(p, v)| v.is_table() && settable(p)).map(|(p, _)| p).collect();
@@ -493,7 +521,10 @@ impl fmt::Display for Corruption {
             Corruption::Truncate(n) => write!(f, "cut after byte {n}"),
             Corruption::Flip(at, bit) => write!(f, "bit {bit} of byte {at} flipped"),
             Corruption::Overwrite(at, b) => write!(f, "bytes {at}..{} overwritten with {b:02x?}", at + b.len()),
-            Corruption::Count(at, v, w) => write!(f, "{w}-byte value {v:#x} written at byte {at}"),
+            Corruption::Count(at, v, w) => {
+                let v = if *w < 8 { v & ((1u64 << (8 * w)) - 1) } else { *v };
+                write!(f, "{w}-byte value {v:#x} written at byte {at}")
+            }
             Corruption::Append(b) => write!(f, "{} bytes appended", b.len()),
         }
     }

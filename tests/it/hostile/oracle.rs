@@ -169,8 +169,8 @@ impl Names {
 /// Whether the first error line of `stderr` names a key, flag or file of `names`:
 ///
 /// - `ohd: config error: PATH: …` with PATH a key path whose first segment is one of
-///   `names.keys`, `(top level)`, a `--set …`, or one of `names.words` (the file, for syntax
-///   errors);
+///   `names.keys`, an unknown key the message names as such, `(top level)`, a `--set …`, or one
+///   of `names.words` (the file, for syntax errors);
 /// - `ohd: cannot read PATH: …` and `ohd: VDB file PATH…` with a path;
 /// - any other `ohd: …` line that contains one of `names.words`;
 /// - a command-line parser's (clap's) `error: …`, which quotes the argument it could not take
@@ -195,9 +195,11 @@ pub fn names_key_or_file(stderr: &str, names: &Names) -> bool {
     if let Some(rest) = line.strip_prefix("ohd: config error: ") {
         let path = rest.split(": ").next().unwrap_or("");
         let first = path.split(['.', '[']).next().unwrap_or("");
+        let last = path.rsplit(['.', ']']).next().unwrap_or("");
         return path == "(top level)"
             || path.starts_with("--set ")
-            || (!first.is_empty() && names.keys.iter().any(|k| k == first));
+            || (!first.is_empty() && names.keys.iter().any(|k| k == first))
+            || (!last.is_empty() && rest.contains(&format!("unknown field `{last}`")));
     }
     for prefix in ["ohd: cannot read ", "ohd: VDB file "] {
         if let Some(rest) = line.strip_prefix(prefix) {
@@ -368,8 +370,11 @@ pub struct Tally {
     pub accepted_with_non_finite: usize,
     pub failures: BTreeMap<&'static str, usize>,
     pub reproducers: Vec<String>,
+    /// The accepted runs that counted non-finite detections.
+    pub notes: Vec<String>,
     pub seconds: f64,
     pub slowest: f64,
+    pub slowest_case: String,
 }
 
 impl Tally {
@@ -379,7 +384,10 @@ impl Tally {
         let e = exec(&case.args, case.cwd, case.limit);
         self.cases += 1;
         self.seconds += e.seconds;
-        self.slowest = self.slowest.max(e.seconds);
+        if e.seconds > self.slowest {
+            self.slowest = e.seconds;
+            self.slowest_case = case.id.clone();
+        }
         let fail = |kind: &'static str, why: String, t: &mut Tally| {
             *t.failures.entry(kind).or_default() += 1;
             let mut r = String::new();
@@ -409,8 +417,10 @@ impl Tally {
                     fail("accepted, must be refused", why.clone(), self);
                 } else if problems.is_empty() {
                     self.accepted += 1;
-                    if case.out.as_deref().is_some_and(|d| non_finite_detections(d) > 0) {
+                    let n = case.out.as_deref().map_or(0, non_finite_detections);
+                    if n > 0 {
                         self.accepted_with_non_finite += 1;
+                        self.notes.push(format!("[{}] {n} non-finite detections: {}", case.id, case.what));
                     }
                 } else {
                     fail("exit 0 with bad outputs", problems.join("; "), self);
@@ -456,8 +466,8 @@ impl Tally {
     pub fn summary(&self, category: &str) -> String {
         let failed: usize = self.failures.values().sum();
         let mut s = format!(
-            "{category}: {} cases in {:.1} s (slowest {:.2} s): {} exit 0, {} exit 2, {failed} failed",
-            self.cases, self.seconds, self.slowest, self.accepted, self.refused
+            "{category}: {} cases in {:.1} s (slowest {:.2} s, {}): {} exit 0, {} exit 2, {failed} failed",
+            self.cases, self.seconds, self.slowest, self.slowest_case, self.accepted, self.refused
         );
         if self.refused_of_set > 0 {
             let _ = write!(
@@ -477,16 +487,32 @@ impl Tally {
 
     /// Print the summary and fail with the reproducers if any case failed.
     pub fn finish(self, category: &str) {
-        let summary = self.summary(category);
+        finish_all(vec![(category.to_string(), self)]);
+    }
+}
+
+/// Print the summaries (and notes) of several tallies, then fail with the reproducers of all
+/// their failing cases, if any.
+pub fn finish_all(tallies: Vec<(String, Tally)>) {
+    let mut summaries = Vec::new();
+    let mut reproducers = Vec::new();
+    for (category, t) in tallies {
+        let summary = t.summary(&category);
         eprintln!("{summary}");
-        if !self.reproducers.is_empty() {
-            let shown = self.reproducers.len().min(40);
-            panic!(
-                "{summary}\n{} failing cases{}:\n{}",
-                self.reproducers.len(),
-                if shown < self.reproducers.len() { format!(" (the first {shown})") } else { String::new() },
-                self.reproducers[..shown].join("")
-            );
+        for n in &t.notes {
+            eprintln!("    note: {n}");
         }
+        summaries.push(summary);
+        reproducers.extend(t.reproducers);
+    }
+    if !reproducers.is_empty() {
+        let shown = reproducers.len().min(40);
+        panic!(
+            "{}\n{} failing cases{}:\n{}",
+            summaries.join("\n"),
+            reproducers.len(),
+            if shown < reproducers.len() { format!(" (the first {shown})") } else { String::new() },
+            reproducers[..shown].join("")
+        );
     }
 }
