@@ -14,6 +14,7 @@ mod determinism;
 mod doppler;
 mod fmcw;
 mod grid;
+mod hostile;
 mod ldh;
 mod lidar;
 mod mie;
