@@ -92,7 +92,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finishe
         .find(|p| p.exists())
         .unwrap_or_else(|| first.join(FILE_NAME));
     let h = ShardReader::open(&head)?.header;
-    let (table, exp) = crate::config::load(&h.config_text, &h.config_source, &h.overrides)?;
+    // The configuration recorded in the shard: if it no longer loads, the shard is what is wrong.
+    let (table, exp) = crate::config::load(&h.config_text, &h.config_source, &h.overrides)
+        .map_err(|e| Error::invalid_file(&head, format!("the configuration it records does not load: {e}")))?;
     let inv = Invocation { config_source: h.config_source, overrides: h.overrides };
     let mut scan = Scan::default();
     let parts = parts(&exp, &table, out);
