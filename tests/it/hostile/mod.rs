@@ -166,7 +166,7 @@ fn mutant(d: &mut Draw, config: &Path, text: &str, base: &[String], aim: Aim, de
         }
         apply(&mut doc, &m);
         what.push(m);
-        if !depth.another(d, what.len()) {
+        if !depth.another(d, what.len()) || doc.values().map(mutate::size).sum::<usize>() > 2 * mutate::LONG_NODES {
             break;
         }
     }
@@ -247,7 +247,15 @@ fn config_mutants(depth: Depth, aim: Aim, per_config: usize, per_costly: usize) 
             if let [Mutation::Set(s)] = &m.what[..] {
                 case.key = s.split_once('=').map(|(k, _)| k.to_string());
             }
-            if m.doc.as_ref().is_some_and(has_nan) {
+            // The experiment as ohd resolves it: a run's --samples and --threads come after the
+            // --sets (and replace a NaN given to run.samples, say).
+            let mut resolved = m.doc.clone();
+            if let (Aim::Run, Some(doc)) = (aim, resolved.as_mut()) {
+                for set in [format!("run.samples={RUN_SAMPLES}"), "run.threads=1".to_string()] {
+                    let _ = ohd::config::apply_set(doc, &set);
+                }
+            }
+            if resolved.as_ref().is_some_and(has_nan) {
                 case.must_refuse = Some("the experiment holds a NaN".into());
             }
             case.inputs = m.file.is_some().then_some(inputs);
@@ -424,7 +432,9 @@ fn corrupted_phase_tables(depth: Depth, per_table: usize) {
                         break;
                     }
                     apply(&mut m, &x);
-                    if !depth.another(&mut d, what.len()) {
+                    if !depth.another(&mut d, what.len())
+                        || m.values().map(mutate::size).sum::<usize>() > 2 * mutate::LONG_NODES
+                    {
                         break;
                     }
                 }

@@ -148,6 +148,19 @@ pub fn absolute_files(doc: &mut toml::Table, dir: &Path) {
     }
 }
 
+/// The most nodes a long array is given (a hundred thousand numbers, or a thousand tables of up
+/// to a hundred nodes each): mutations on top of mutations must not grow a document without bound.
+pub const LONG_NODES: usize = 100_000;
+
+/// The number of nodes of a value (itself and everything below it).
+pub fn size(v: &toml::Value) -> usize {
+    1 + match v {
+        toml::Value::Table(t) => t.values().map(size).sum(),
+        toml::Value::Array(a) => a.iter().map(size).sum(),
+        _ => 0,
+    }
+}
+
 /// One mutation of an experiment file.
 #[derive(Debug, Clone)]
 pub enum Mutation {
@@ -464,6 +477,9 @@ pub fn draw_mutation(d: &mut Draw, doc: &toml::Table, text: &str, aim: Aim, text
     };
     let scalars = a.iter().all(|v| !v.is_table() && !v.is_array());
     let n = if scalars && d.chance(0.5) { 100_000 } else { 1000 };
+    // At most LONG_NODES nodes (an array of tables already made long stays in bounds).
+    let per = a.iter().map(size).sum::<usize>().div_ceil(a.len().max(1)).max(1);
+    let n = n.min(LONG_NODES / per).max(a.len() + 1);
     let long: Vec<toml::Value> = a.iter().cycle().take(n).cloned().collect();
     Mutation::Replace(p.clone(), toml::Value::Array(long), format!("its elements repeated to {n}"))
 }
