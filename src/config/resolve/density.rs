@@ -65,6 +65,18 @@ pub(super) fn attach_density(
     Ok(())
 }
 
+/// The keys of a density that no layer or region uses: a ramp is resolved (it is only numbers), a
+/// VDB density's placement and majorant keys are checked without reading its file.
+pub(super) fn check_density_keys(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<()> {
+    match d {
+        DensitySection::Ramp { .. } => resolve_density(path, d, sigma_t, ctx).map(drop),
+        DensitySection::Vdb { scale, translate, majorant, majorant_cell_voxels, .. } => {
+            resolve_placement(path, *scale, translate)?;
+            resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t).map(drop)
+        }
+    }
+}
+
 fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
     match m {
         None | Some(MajorantSection::Grid) => MajorantKind::Grid,

@@ -47,6 +47,12 @@ fn join(prefix: &str, key: &str) -> String {
     if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") }
 }
 
+/// A number as a message shows it: as written for ordinary magnitudes, in exponent form beyond
+/// (`1e100`, not a hundred digits).
+fn shown(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&x.abs()) { format!("{x}") } else { format!("{x:e}") }
+}
+
 /// A quantity as given: its SI value, the key path it came from and the number as written.
 type Given = (f64, String, f64);
 
@@ -91,7 +97,7 @@ fn positive(v: Given, what: &str) -> R<f64> {
         Ok(v.0)
     } else {
         let unit = unit_of(&v.1);
-        err(v.1, format!("= {}: expected {what} > 0 {unit}", v.2))
+        err(v.1, format!("= {}: expected {what} > 0 {unit}", shown(v.2)))
     }
 }
 
@@ -100,7 +106,7 @@ fn non_negative(v: Given, what: &str) -> R<f64> {
         Ok(v.0)
     } else {
         let unit = unit_of(&v.1);
-        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", v.2))
+        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", shown(v.2)))
     }
 }
 

@@ -1,13 +1,13 @@
 //! The scene: shapes, `[[layers]]` (and sublayers) and `[[regions]]`.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
 use glam::DVec3;
 
 use super::density::attach_density;
-use super::flow::resolve_wind;
-use super::media::{Optics, Placement, check_mixture, populations_of};
+use super::flow::{check_velocity, resolve_wind};
+use super::media::{Optics, Placement, check_mixture, check_unused, populations_of};
 use super::{Ctx, R, err, given, index_of_refraction, join, positive, require, require_arr, unit_vector};
 use crate::config::schema::*;
 use crate::error::ConfigError;
@@ -57,6 +57,15 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             .ok_or_else(|| ConfigError::new(path, format!("= \"{name}\": unknown medium; defined media: {known}")))
     };
     let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
+    // Every velocity written is checked, used or not: a medium's own that a region overrides is
+    // otherwise never resolved.
+    for (name, ms) in &f.media {
+        if let Some(v) = &ms.velocity {
+            check_velocity(&format!("media.{name}.velocity"), v)?;
+        }
+    }
+    // The media built (a mixture's populations included); the others are checked at the end.
+    let mut used: BTreeSet<String> = BTreeSet::new();
     // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
     let mut optics: BTreeMap<String, Optics> = BTreeMap::new();
     // Densities likewise (a grid's majorant is built once).
@@ -70,6 +79,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                     cylinder: Option<&Shape>,
                     height: f64|
      -> R<Medium> {
+        used.insert(name.to_string());
         let Some(list) = &ms.populations else {
             let velocity = velocity.or_else(|| ms.velocity.as_ref().map(|v| (join(path, "velocity"), v)));
             let at = Placement { wind: wind.as_ref(), velocity, cylinder, height };
@@ -108,6 +118,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             sigma_a += sa;
             all.extend(pops);
             names.push(pname.clone());
+            used.insert(pname.clone());
         }
         let mut m = Medium::mixture(name, sigma_a, all);
         let g =
@@ -231,6 +242,9 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         media.push(make(&mpath, &r.medium, ms, velocity, Some(&shape), 0.5 * (zmin + zmax))?);
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
+    }
+    for (name, ms) in f.media.iter().filter(|(name, _)| !used.contains(*name)) {
+        check_unused(&mut optics, ctx, name, ms, &f.media)?;
     }
     let mut scene = Scene { layers, regions, media, n_above, n_below };
     scene.update_layers();
