@@ -166,8 +166,10 @@ pub fn write_run(
     config: &toml::Table,
     inv: &Invocation,
 ) -> Result<Manifest> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     let stderr = out.estimates.stderr();
+    // Non-finite estimates are a bug: refused before anything is written (issue 21, item 4).
+    super::check_finite(&out.layout.registry, out.estimates.mean(), &stderr)?;
+    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
     let t = std::time::Instant::now();
     let speckle = crate::post::speckle_of(exp, out);
