@@ -21,6 +21,7 @@ pub(super) struct FlowCtx<'a> {
     /// Where relative file names start, and the grids read so far.
     pub(super) base: &'a Path,
     pub(super) files: &'a GridFiles,
+    pub(super) memory: &'a super::Memory,
     pub(super) cylinder: Option<&'a Shape>,
     pub(super) wind: Option<&'a WindProfile>,
     /// Radii (m) with their σs weights.
@@ -145,7 +146,7 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
         VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {
-            let g = fc.files.vec3(path, fc.base, file, grid.as_deref())?;
+            let g = fc.files.vec3(path, (fc.base, fc.memory), file, grid.as_deref())?;
             let place = resolve_placement(path, *scale, translate)?;
             if !g.background.iter().all(|c| c.is_finite()) {
                 return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));

@@ -606,9 +606,11 @@ pub(super) fn populations_of(
     let field = |sizes: &[(f64, f64)]| -> R<VelocityField> {
         match &velocity {
             None => Ok(VelocityField::Static),
-            Some((p, v)) => {
-                resolve_velocity(p, v, FlowCtx { base: ctx.base, files: &ctx.files, cylinder, wind, sizes })
-            }
+            Some((p, v)) => resolve_velocity(
+                p,
+                v,
+                FlowCtx { base: ctx.base, files: &ctx.files, memory: &ctx.memory, cylinder, wind, sizes },
+            ),
         }
     };
     if o.classes.is_empty() {

@@ -58,5 +58,6 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         threads: threads as usize,
         walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
         memory_budget: (budget * (1u64 << 30) as f64) as u64,
+        memory: Vec::new(),
     })
 }
