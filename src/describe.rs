@@ -799,10 +799,13 @@ impl Display for Experiment {
             if self.needs_doppler() { "" } else { "out" },
             if self.needs_length() { "" } else { "out" }
         )?;
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        let parts: String = self.plan.memory.iter().map(|b| format!(", {} {:.1} MiB", b.what, mib(b.bytes))).collect();
         writeln!(
             f,
-            "memory estimate: {:.1} MiB of tallies (budget {:.1} GiB)",
-            self.memory_estimate() as f64 / (1 << 20) as f64,
+            "memory estimate: {:.1} MiB: {:.1} MiB of tallies{parts} (budget {:.1} GiB)",
+            mib(self.memory_total()),
+            mib(self.memory_estimate()),
             self.plan.memory_budget as f64 / (1u64 << 30) as f64
         )
     }

@@ -69,6 +69,12 @@ pub enum Error {
     /// Any other bad input (a command-line value out of range), with its message (exit status 2).
     #[error("{}", bounded(.0))]
     Input(String),
+    /// A run whose output holds values that are not finite (exit status 1): validation should have
+    /// refused what led to it, so the outputs are not written rather than written with NaN.
+    #[error(
+        "the run produced {count} non-finite value(s) (NaN or infinite) in {what}: its outputs are not written. A configuration value outside what validation checks is the likely cause; please report it with the configuration"
+    )]
+    NotFinite { what: String, count: usize },
 }
 
 impl Error {

@@ -30,6 +30,17 @@ pub struct RunPlan {
     /// Camera paths are traced from every `camera_pixel_stride`-th pixel only: 1, but in the
     /// pilot of `estimator = "auto"` ([`crate::pilot`]).
     pub camera_pixel_stride: usize,
+    /// What resolving counted against the budget besides the tallies (the media of the layers
+    /// and regions, voxel grids, speckle records), in the order it was counted.
+    pub memory: Vec<MemoryBlock>,
+}
+
+/// A block of memory an experiment holds, as counted against `run.memory_budget_gib`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MemoryBlock {
+    /// What it is, with the key that asks for it (e.g. "media of layers[0] (100 sublayers)").
+    pub what: String,
+    pub bytes: u64,
 }
 
 impl RunPlan {
@@ -418,10 +429,18 @@ impl Experiment {
         (2 * self.plan.effective_threads() as u64).min(self.plan.batches).max(1)
     }
 
-    /// Estimated peak memory of the tallies, bytes.
+    /// Estimated peak memory of the tallies, bytes: the mean and the variance, and the larger of
+    /// the batches in flight while running and the four vectors' worth writing makes (the
+    /// standard errors, an output's values and errors, its file's bytes).
     pub fn memory_estimate(&self) -> u64 {
         let len = self.tally_layout().tallies() as u64;
-        len.saturating_mul(8 * (2 + self.batches_in_flight()))
+        len.saturating_mul(8 * (2 + self.batches_in_flight().max(4)))
+    }
+
+    /// Everything counted against `run.memory_budget_gib`, bytes: the tallies
+    /// ([`memory_estimate`](Self::memory_estimate)) and [`RunPlan::memory`].
+    pub fn memory_total(&self) -> u64 {
+        self.plan.memory.iter().fold(self.memory_estimate(), |a, b| a.saturating_add(b.bytes))
     }
 
     /// Run every batch and reduce them in batch order.

@@ -126,6 +126,11 @@ impl FallSpeeds {
         self.speeds[self.shares.index(u)]
     }
 
+    /// Bytes of the table on the heap (its speeds and their cumulative shares).
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.speeds.as_slice()) + self.shares.heap_bytes()
+    }
+
     /// The speeds (m/s) with their shares of σs (summing to 1).
     pub fn shares(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
         self.speeds.iter().copied().zip(self.shares.shares())
@@ -222,6 +227,16 @@ impl VelocityField {
             VelocityField::Wind(ref w) | VelocityField::TerminalFall { wind: ref w, .. } => w.at(p.z),
             VelocityField::Grid(ref g) => g.value(p),
             _ => DVec3::ZERO,
+        }
+    }
+
+    /// Bytes the field owns on the heap beyond what fields share through an `Arc` made once: a
+    /// terminal fall's speed table (made for each medium that uses it), 0 for the others (a wind
+    /// table and a velocity grid are shared by every medium using them).
+    pub fn owned_bytes(&self) -> usize {
+        match self {
+            VelocityField::TerminalFall { fall, .. } => std::mem::size_of::<FallSpeeds>() + fall.heap_bytes(),
+            _ => 0,
         }
     }
 

@@ -8,6 +8,11 @@ pub struct Discrete {
 }
 
 impl Discrete {
+    /// Bytes of the cumulative table on the heap.
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(&*self.cumulative)
+    }
+
     /// From weights that are finite and ≥ 0 with a positive sum; `None` otherwise.
     pub fn new(weights: impl IntoIterator<Item = f64>) -> Option<Self> {
         let weights: Vec<f64> = weights.into_iter().collect();

@@ -22,6 +22,7 @@ mod phase_table;
 mod pixel_speckle;
 mod precision;
 mod presets;
+mod reliability;
 mod retrieval;
 mod sampling;
 mod slab;

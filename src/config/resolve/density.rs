@@ -56,13 +56,39 @@ pub(super) fn attach_density(
     let h = match built.get(&m.name) {
         Some(h) => h.clone(),
         None => {
-            let h = Arc::new(resolve_density(&join(path, "density"), d, m.sigma_t(), ctx)?);
+            let key = join(path, "density");
+            let h = resolve_density(&key, d, m.sigma_t(), ctx)?;
+            // The majorant grid (a min and max per cell), counted once made: it takes at most
+            // twice the density grid counted before it was read.
+            if let Some(cells) = h.info.majorant_cells {
+                let bytes = cells.iter().fold(8u64, |b, &n| b.saturating_mul(n as u64));
+                ctx.memory.charge(
+                    &join(&key, "majorant_cell_voxels"),
+                    "",
+                    &format!("the majorant grid of {path}"),
+                    &format!("{}×{}×{} cells of 8 bytes", cells[0], cells[1], cells[2]),
+                    bytes,
+                )?;
+            }
+            let h = Arc::new(h);
             built.insert(m.name.clone(), h.clone());
             h
         }
     };
     m.set_shared_heterogeneity(h);
     Ok(())
+}
+
+/// The keys of a density that no layer or region uses: a ramp is resolved (it is only numbers), a
+/// VDB density's placement and majorant keys are checked without reading its file.
+pub(super) fn check_density_keys(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<()> {
+    match d {
+        DensitySection::Ramp { .. } => resolve_density(path, d, sigma_t, ctx).map(drop),
+        DensitySection::Vdb { scale, translate, majorant, majorant_cell_voxels, .. } => {
+            resolve_placement(path, *scale, translate)?;
+            resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t).map(drop)
+        }
+    }
 }
 
 fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
@@ -85,9 +111,9 @@ fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R
             majorant,
             majorant_cell_voxels,
         } => {
-            let density = ctx.files.float(path, ctx.base, file, grid.as_deref())?;
+            let density = ctx.files.float(path, (ctx.base, &ctx.memory), file, grid.as_deref(), 2)?;
             let albedo = match albedo_grid {
-                Some(name) => Some(ctx.files.float(path, ctx.base, file, Some(name))?),
+                Some(name) => Some(ctx.files.float(path, (ctx.base, &ctx.memory), file, Some(name), 2)?),
                 None => None,
             };
             let place = resolve_placement(path, *scale, translate)?;

@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use super::{R, err, given, given_arr, join, non_negative, positive, require, require_arr, unit_vector};
+use super::{Given, R, err, given, given_arr, join, non_negative, positive, require, require_arr, shown, unit_vector};
 use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
@@ -182,6 +182,27 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
 
 /// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so
 /// every index in the scene must be 1 (the atmosphere; 1.0003 is within the model's accuracy).
+/// Accepted pulse FWHM of a lidar, s: 1 ps to 1 ms (coherent wind lidars use 0.1–1 µs).
+const LIDAR_PULSE_FWHM: (f64, f64) = (1e-12, 1e-3);
+/// Accepted digitiser rate of a lidar, Hz: 1 MHz to 100 GHz (wind lidars sample at 50 MHz–1 GHz).
+const LIDAR_SAMPLE_RATE: (f64, f64) = (1e6, 1e11);
+/// Accepted range of the first gate, m: 0 to 10⁸ m (a satellite lidar looks down from 10⁶ m).
+const LIDAR_FIRST_GATE: (f64, f64) = (0.0, 1e8);
+/// Accepted pulse energy, J: 1 pJ to 1 kJ (wind lidars: µJ to J).
+const LIDAR_PULSE_ENERGY: (f64, f64) = (1e-12, 1e3);
+
+/// `v` if it lies in `[lo, hi]` (SI), else an error naming the key, the value as written and the
+/// range in the key's unit.
+fn within(v: Given, (lo, hi): (f64, f64), what: &str) -> R<f64> {
+    if v.0.is_finite() && (lo..=hi).contains(&v.0) {
+        return Ok(v.0);
+    }
+    let unit = unit_of(&v.1);
+    let factor = crate::config::units::split_key(&v.1).map_or(1.0, |(_, u)| u.factor);
+    let (lo, hi) = (shown(lo / factor), shown(hi / factor));
+    err(v.1, format!("= {} {unit}: expected {what} in [{lo}, {hi}] {unit}", shown(v.2)))
+}
+
 pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene: &Scene) -> R<LidarSpec> {
     if scene.n_above != 1.0 {
         return err("ambient.n_above", format!("= {}: a lidar receiver needs n = 1 above the stack", scene.n_above));
@@ -198,12 +219,18 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
     if !(fov.0 > 0.0 && fov.0 <= std::f64::consts::FRAC_PI_2) {
         return err(fov.1, format!("= {}: expected a half-angle in (0, 90°]", fov.2));
     }
-    let fwhm = positive(require(path, "pulse_fwhm", &l.pulse_fwhm, "the pulse FWHM")?, "a pulse width")?;
-    let rate = positive(require(path, "sample_rate", &l.sample_rate, "the digitiser rate")?, "a sample rate")?;
-    let first = match l.first_gate.as_ref().map(|q| q.si()) {
+    // The ranges below keep every derived quantity (sample times, the range axis, the pulse's
+    // samples, the shot-noise floor) finite and the receiver a lidar's (issue 21: a sample rate of
+    // 1e-200 MHz or a first gate at 1e308 m wrote NaN and infinite axes).
+    let fwhm = within(require(path, "pulse_fwhm", &l.pulse_fwhm, "the pulse FWHM")?, LIDAR_PULSE_FWHM, "a pulse FWHM")?;
+    let rate = within(
+        require(path, "sample_rate", &l.sample_rate, "the digitiser rate")?,
+        LIDAR_SAMPLE_RATE,
+        "a sample rate",
+    )?;
+    let first = match given(path, &l.first_gate)? {
         None => 0.0,
-        Some(v) if v.is_finite() && v >= 0.0 => v,
-        Some(v) => return err(join(path, "first_gate_m"), format!("= {v}: expected a range ≥ 0 m")),
+        Some(v) => within(v, LIDAR_FIRST_GATE, "a range")?,
     };
     let count = |key: &str, v: Option<u64>, default: u64, max: u64| -> R<usize> {
         let v = v.unwrap_or(default);
@@ -223,7 +250,7 @@ pub(super) fn resolve_lidar(path: &str, l: &LidarSection, source: &Source, scene
         return err(join(path, "gates"), format!("= {gates}: gates × fft_points must stay below 2·10^7 (memory)"));
     }
     let pulse_energy = match given(path, &l.pulse_energy)? {
-        Some(v) => positive(v, "a pulse energy")?,
+        Some(v) => within(v, LIDAR_PULSE_ENERGY, "a pulse energy")?,
         None => crate::detect::lidar::DEFAULT_PULSE_ENERGY,
     };
     let efficiency = |key: &str, v: Option<f64>, default: f64| -> R<f64> {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::density::{interpolation, resolve_placement};
-use super::{GridFiles, R, err, given, join, non_negative, positive, require, require_arr};
+use super::{GridFiles, R, err, given, join, non_negative, positive, require, require_arr, shown};
 use crate::config::schema::*;
 use crate::config::units::{Speed, UnitSet};
 use crate::error::ConfigError;
@@ -21,13 +21,73 @@ pub(super) struct FlowCtx<'a> {
     /// Where relative file names start, and the grids read so far.
     pub(super) base: &'a Path,
     pub(super) files: &'a GridFiles,
+    pub(super) memory: &'a super::Memory,
     pub(super) cylinder: Option<&'a Shape>,
     pub(super) wind: Option<&'a WindProfile>,
     /// Radii (m) with their σs weights.
     pub(super) sizes: &'a [(f64, f64)],
 }
 
+/// Speeds are refused at or above the speed of light in vacuum, `c`: a physical bound (no
+/// particle reaches it; the Doppler shift `n·v·(d_in − d_out)/λ0` is the first-order formula,
+/// valid only far below it).
+pub(super) const SPEED_LIMIT: f64 = crate::SPEED_OF_LIGHT;
+
+/// The largest velocity dispersion (standard deviation of each component, m/s): `c/10`, so that a
+/// Gaussian draw per event reaches `c` in a component with probability below 10⁻²³.
+pub(super) const DISPERSION_LIMIT: f64 = 0.1 * crate::SPEED_OF_LIGHT;
+
+/// Refuse a speed `v` (m/s; `written` as written, in the key's unit) at or above `c`.
+fn below_light(path: &str, v: f64, written: &str) -> R<()> {
+    if v.is_finite() && v.abs() < SPEED_LIMIT {
+        return Ok(());
+    }
+    let unit = super::unit_of(path);
+    err(
+        path,
+        format!(
+            "= {written} {unit}: expected a finite speed below the speed of light, |v| < c = {SPEED_LIMIT} m/s (a physical bound)"
+        ),
+    )
+}
+
+/// The numbers of a velocity section that need nothing else to be checked: finite, and speeds
+/// below the speed of light. Run on every velocity section written, used or not (an unused
+/// medium's, a medium's overridden by a region's), so that nothing written is accepted unchecked;
+/// [`resolve_velocity`] checks the rest (files, the cylinder, the wind, the particles) where it
+/// is used.
+pub(super) fn check_velocity(path: &str, v: &VelocitySection) -> R<()> {
+    match v {
+        VelocitySection::None {}
+        | VelocitySection::Wind {}
+        | VelocitySection::TerminalFall {}
+        | VelocitySection::Vdb { .. } => Ok(()),
+        VelocitySection::Uniform { velocity } => {
+            let Some(q) = velocity else { return Ok(()) };
+            let (v, key) = require_arr(path, "velocity", velocity, "the velocity vector")?;
+            below_light(&key, DVec3::from_array(v).length(), &format!("[{}]", q.value.map(shown).join(", ")))
+        }
+        VelocitySection::RandomDirection { speed } => match given(path, speed)? {
+            Some((v, key, as_written)) => below_light(&key, v, &shown(as_written)),
+            None => Ok(()),
+        },
+        VelocitySection::Poiseuille { v_max, mean } => {
+            if let Some((v, key, as_written)) = given(path, v_max)? {
+                below_light(&key, v, &shown(as_written))?;
+            }
+            if let Some((v, key, as_written)) = given(path, mean)? {
+                // The centre line moves at twice the mean.
+                below_light(&key, 2.0 * v, &shown(as_written)).map_err(|e| {
+                    ConfigError::new(e.path, format!("{} (the centre line moves at twice the mean)", e.message))
+                })?;
+            }
+            Ok(())
+        }
+    }
+}
+
 pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> R<VelocityField> {
+    check_velocity(path, v)?;
     let cylinder = fc.cylinder;
     Ok(match v {
         VelocitySection::None {} => VelocityField::Static,
@@ -86,7 +146,7 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
         VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {
-            let g = fc.files.vec3(path, fc.base, file, grid.as_deref())?;
+            let g = fc.files.vec3(path, (fc.base, fc.memory), file, grid.as_deref())?;
             let place = resolve_placement(path, *scale, translate)?;
             if !g.background.iter().all(|c| c.is_finite()) {
                 return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));
@@ -94,6 +154,26 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             if let Some(o) = g.data.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
                 let ijk = g.index_of(o);
                 return err(join(path, "file"), format!("{file}: voxel {ijk:?} of the velocity grid is not finite"));
+            }
+            let speed = |v: &[f32; 3]| DVec3::new(v[0].into(), v[1].into(), v[2].into()).length();
+            if speed(&g.background) >= SPEED_LIMIT {
+                return err(
+                    join(path, "file"),
+                    format!(
+                        "{file}: the velocity grid's background, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
+                        g.background
+                    ),
+                );
+            }
+            if let Some(o) = g.data.iter().position(|v| speed(v) >= SPEED_LIMIT) {
+                return err(
+                    join(path, "file"),
+                    format!(
+                        "{file}: voxel {:?} of the velocity grid, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
+                        g.index_of(o),
+                        g.data[o]
+                    ),
+                );
             }
             VelocityField::Grid(Arc::new(GridField::new(g, interpolation(*i), place)))
         }
@@ -305,8 +385,20 @@ pub(super) fn resolve_height_profile(path: &str, h: &HeightProfileSection) -> R<
 /// `[media.X.motion]`: a per-event velocity dispersion and a diffusion coefficient, given directly
 /// or by Stokes–Einstein from radius, temperature and viscosity.
 pub(super) fn resolve_motion(path: &str, m: &MotionSection) -> R<Motion> {
-    let dispersion =
-        given(path, &m.dispersion)?.map_or(Ok(0.0), |v| non_negative(v, "a velocity standard deviation"))?;
+    let dispersion = match given(path, &m.dispersion)? {
+        None => 0.0,
+        Some((v, ..)) if v.is_finite() && (0.0..DISPERSION_LIMIT).contains(&v) => v,
+        Some((_, key, as_written)) => {
+            let unit = super::unit_of(&key);
+            return err(
+                key,
+                format!(
+                    "= {} {unit}: expected a velocity standard deviation in [0, c/10) = [0, {DISPERSION_LIMIT}) m/s (each event draws a Gaussian velocity; the bound keeps its draws below the speed of light, a physical bound)",
+                    shown(as_written)
+                ),
+            );
+        }
+    };
     let direct = given(path, &m.diffusion)?;
     let radius = given(path, &m.radius)?;
     let temperature = given(path, &m.temperature)?;

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use super::flow::{FlowCtx, resolve_height_profile, resolve_motion, resolve_velocity};
+use super::flow::{FlowCtx, check_velocity, resolve_height_profile, resolve_motion, resolve_velocity};
 use super::{Ctx, Given, R, err, given, index_of_refraction, join, positive};
 use crate::config::schema::*;
 use crate::config::units::{Coefficient, Length, Quantity, UnitSet};
@@ -470,6 +470,87 @@ fn coefficient_keys(m: &MediumSection) -> [(&str, bool); 2] {
     [key(&m.sigma_a), key(&m.sigma_s)]
 }
 
+/// Check a medium that no layer or region uses (issue 21: an unused medium with σa = NaN and
+/// g = 7 was accepted): everything written is validated, used or not. Its optics are resolved
+/// (Mie included, once per name into `optics`), its height profile and motion resolved, its
+/// velocity's numbers checked ([`check_velocity`]: what a velocity needs from where it is used —
+/// a cylinder, the wind, the particles — is not asked of an unused medium) and its density's keys
+/// checked (a VDB file is not read). A mixture's populations must be known media that are not
+/// mixtures themselves and carry no density, as when it is used; they are checked as media of
+/// their own.
+pub(super) fn check_unused(
+    optics: &mut BTreeMap<String, Optics>,
+    ctx: &Ctx,
+    name: &str,
+    ms: &MediumSection,
+    media: &BTreeMap<String, MediumSection>,
+) -> R<()> {
+    let path = format!("media.{name}");
+    let sigma_t = match &ms.populations {
+        Some(list) => {
+            check_mixture(&path, ms)?;
+            if list.is_empty() {
+                return err(join(&path, "populations"), "an empty list: name at least one medium");
+            }
+            let mut sigma_t = 0.0;
+            for (j, pname) in list.iter().enumerate() {
+                let key = format!("{}[{j}]", join(&path, "populations"));
+                let Some(pms) = media.get(pname) else {
+                    let known = media.keys().cloned().collect::<Vec<_>>().join(", ");
+                    return err(key, format!("= \"{pname}\": unknown medium; defined media: {known}"));
+                };
+                if pms.populations.is_some() {
+                    return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
+                }
+                if pms.density.is_some() {
+                    return err(
+                        format!("media.{pname}.density"),
+                        format!(
+                            "medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"
+                        ),
+                    );
+                }
+                let o = optics_of(optics, ctx, &format!("media.{pname}"), pname, pms)?;
+                sigma_t += o.sigma_a + o.sigma_s;
+            }
+            sigma_t
+        }
+        None => {
+            let o = optics_of(optics, ctx, &path, name, ms)?;
+            let sigma_t = o.sigma_a + o.sigma_s;
+            if let Some(h) = &ms.height_profile {
+                resolve_height_profile(&join(&path, "height_profile"), h)?;
+            }
+            if let Some(m) = &ms.motion {
+                resolve_motion(&join(&path, "motion"), m)?;
+            }
+            if let Some(v) = &ms.velocity {
+                check_velocity(&join(&path, "velocity"), v)?;
+            }
+            sigma_t
+        }
+    };
+    if let Some(d) = &ms.density {
+        super::density::check_density_keys(&join(&path, "density"), d, sigma_t, ctx)?;
+    }
+    Ok(())
+}
+
+/// The optics of the medium `name`, resolved once.
+fn optics_of<'o>(
+    optics: &'o mut BTreeMap<String, Optics>,
+    ctx: &Ctx,
+    path: &str,
+    name: &str,
+    ms: &MediumSection,
+) -> R<&'o Optics> {
+    if !optics.contains_key(name) {
+        let o = resolve_optics(path, ms, ctx)?;
+        optics.insert(name.to_string(), o);
+    }
+    Ok(&optics[name])
+}
+
 /// A mixture medium (`populations`) takes everything from its populations.
 pub(super) fn check_mixture(path: &str, ms: &MediumSection) -> R<()> {
     let particles = [("particles", ms.particles.is_some())];
@@ -513,11 +594,7 @@ pub(super) fn populations_of(
     at: Placement,
 ) -> R<(f64, Vec<Population>, MediumInfo)> {
     let Placement { wind, velocity, cylinder, height } = at;
-    if !optics.contains_key(name) {
-        let o = resolve_optics(path, ms, ctx)?;
-        optics.insert(name.to_string(), o);
-    }
-    let o = &optics[name];
+    let o = optics_of(optics, ctx, path, name, ms)?;
     let factor = match &ms.height_profile {
         Some(h) => resolve_height_profile(&join(path, "height_profile"), h)?.factor(height),
         None => 1.0,
@@ -529,9 +606,11 @@ pub(super) fn populations_of(
     let field = |sizes: &[(f64, f64)]| -> R<VelocityField> {
         match &velocity {
             None => Ok(VelocityField::Static),
-            Some((p, v)) => {
-                resolve_velocity(p, v, FlowCtx { base: ctx.base, files: &ctx.files, cylinder, wind, sizes })
-            }
+            Some((p, v)) => resolve_velocity(
+                p,
+                v,
+                FlowCtx { base: ctx.base, files: &ctx.files, memory: &ctx.memory, cylinder, wind, sizes },
+            ),
         }
     };
     if o.classes.is_empty() {

@@ -47,6 +47,12 @@ fn join(prefix: &str, key: &str) -> String {
     if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") }
 }
 
+/// A number as a message shows it: as written for ordinary magnitudes, in exponent form beyond
+/// (`1e100`, not a hundred digits).
+fn shown(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&x.abs()) { format!("{x}") } else { format!("{x:e}") }
+}
+
 /// A quantity as given: its SI value, the key path it came from and the number as written.
 type Given = (f64, String, f64);
 
@@ -91,7 +97,7 @@ fn positive(v: Given, what: &str) -> R<f64> {
         Ok(v.0)
     } else {
         let unit = unit_of(&v.1);
-        err(v.1, format!("= {}: expected {what} > 0 {unit}", v.2))
+        err(v.1, format!("= {}: expected {what} > 0 {unit}", shown(v.2)))
     }
 }
 
@@ -100,7 +106,7 @@ fn non_negative(v: Given, what: &str) -> R<f64> {
         Ok(v.0)
     } else {
         let unit = unit_of(&v.1);
-        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", v.2))
+        err(v.1, format!("= {}: expected {what} ≥ 0 {unit}", shown(v.2)))
     }
 }
 
@@ -132,7 +138,13 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let source = resolve_source(&f.source)?;
     let n_above = index_of_refraction("ambient.n_above", f.ambient.n_above.unwrap_or(1.0))?;
     let n_below = index_of_refraction("ambient.n_below", f.ambient.n_below.unwrap_or(n_above))?;
-    let ctx = Ctx { base, wavelength: source.wavelength, files: GridFiles::default() };
+    let ctx = Ctx {
+        base,
+        wavelength: source.wavelength,
+        files: GridFiles::default(),
+        memory: Memory::new(plan.memory_budget),
+        scene_copies: 1 + source.pointings.len().max(1) as u64,
+    };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
     let mut detectors = resolve_detectors(&f.detectors, &scene, &source)?;
     for (i, d) in f.detectors.iter().enumerate() {
@@ -184,7 +196,9 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         plan,
         references: Vec::new(),
     };
-    check_memory(&exp)?;
+    check_speckle_memory(&exp, &ctx.memory)?;
+    check_memory(&exp, &ctx.memory)?;
+    exp.plan.memory = ctx.memory.blocks.take();
     exp.references = resolve_references(&f.reference, &exp)?;
     Ok(exp)
 }
@@ -222,37 +236,151 @@ fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment)
 pub const DEFAULT_MEMORY_BUDGET_GIB: f64 = 8.0;
 
 /// Refuse an experiment whose tallies ([`Experiment::memory_estimate`]: the tally vector times
-/// the batches in flight, the mean and the variance) exceed `run.memory_budget_gib`, before
-/// anything is allocated. The error names the key of the largest block of tallies.
-fn check_memory(exp: &Experiment) -> R<()> {
+/// the mean, the variance and the larger of the batches in flight and what writing makes),
+/// together with what was counted before them (`memory`: media, grids), exceed
+/// `run.memory_budget_gib`, before anything is allocated. The error names the key of the largest
+/// block of tallies.
+fn check_memory(exp: &Experiment, memory: &Memory) -> R<()> {
     let need = exp.memory_estimate();
-    if need <= exp.plan.memory_budget {
-        return Ok(());
-    }
+    let Some(over) = memory.over(need) else { return Ok(()) };
     let layout = exp.tally_layout();
     let blocks = layout.registry.budget_blocks();
     let (key, value) = blocks
         .into_iter()
         .max_by_key(|b| b.2)
         .map_or(("run.memory_budget_gib".to_string(), String::new()), |b| (b.0, b.1));
-    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
     err(
         key,
         format!(
-            "{value}: the tallies need {:.1} GiB ({} tallies × 8 bytes × (2 + batches in flight)), above the memory budget of {:.1} GiB (run.memory_budget_gib)",
-            gib(need),
+            "{value}: the tallies need {} ({} tallies × 8 bytes × (2 + the larger of the batches in flight and 4 for writing)){over}",
+            bytes_shown(need),
             layout.tallies(),
-            gib(exp.plan.memory_budget)
         ),
     )
 }
 
-/// What resolving needs besides the file: where relative paths start, and the wavelength media
-/// are computed for.
+/// Bytes of one recorded detection for speckle ([`crate::detect::RecordedLine`]).
+const RECORDED_LINE_BYTES: u64 = std::mem::size_of::<crate::detect::RecordedLine>() as u64;
+
+/// Count what an LDH camera's speckle keeps and makes: the detections in its regions of
+/// interest, recorded for the whole run (estimated as one per path: a path reaches the camera
+/// at most once, but may fall in several overlapping regions) and the spectra synthesised from
+/// them (expected periodogram and both algorithms' windows per region).
+fn check_speckle_memory(exp: &Experiment, memory: &Memory) -> R<()> {
+    for (i, d) in exp.detectors.iter().enumerate() {
+        let Some(ldh) = d.ldh() else { continue };
+        let Some(sp) = ldh.speckle else { continue };
+        let samples = exp.plan.samples();
+        let lines = samples.saturating_mul(RECORDED_LINE_BYTES);
+        let n = ldh.stft.samples() as u64;
+        let windows = u64::from(sp.windows);
+        let spectra = (ldh.rois.len() as u64).saturating_mul(n.saturating_mul(1 + 2 * windows) * 8);
+        // Per pixel: M0± of every window and the expected M0+.
+        let pixels = d.surface().and_then(|s| s.image).map_or(0, |im| (im.nx * im.ny) as u64);
+        let per_pixel = if sp.pixels { pixels.saturating_mul((2 * windows + 1) * 8) } else { 0 };
+        memory.charge(
+            &format!("detectors[{i}].ldh.speckle"),
+            "",
+            &format!("the speckle of detectors[{i}] (run.samples = {samples})"),
+            &format!(
+                "{RECORDED_LINE_BYTES} bytes per detection recorded in a region of interest, one per path, and the synthesised windows"
+            ),
+            lines.saturating_add(spectra).saturating_add(per_pixel),
+        )?;
+    }
+    Ok(())
+}
+
+/// What resolving needs besides the file: where relative paths start, the wavelength media
+/// are computed for, the grids read so far and the memory counted so far.
 struct Ctx<'a> {
     base: &'a Path,
     wavelength: f64,
     files: GridFiles,
+    memory: Memory,
+    /// How many copies of the scene a run holds: the experiment as resolved, and one per part it
+    /// runs (a plain run's part is a copy; a scan makes one per pointing).
+    scene_copies: u64,
+}
+
+/// What an experiment will hold in memory, counted while it is resolved (issue 21, item 3: four
+/// layers of 10⁵ sublayers each grew to 5.8 GB in `ohd check` and aborted; the budget counted the
+/// tallies only). Each sizeable block — the media of the layers and regions, voxel grids, speckle
+/// records, the tallies — is charged, with the key that asks for it, *before* it is allocated,
+/// and the experiment is refused (a configuration error, exit status 2) once the blocks together
+/// exceed `run.memory_budget_gib`. Small things (phase tables of at most 10⁵ angles, the source,
+/// the detectors' settings) are not counted.
+struct Memory {
+    budget: u64,
+    blocks: std::cell::RefCell<Vec<crate::experiment::MemoryBlock>>,
+}
+
+/// `bytes` in binary units (`21.8 KiB`, `4.3 GiB`).
+fn bytes_shown(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..1024 => format!("{bytes} B"),
+        1024..1_048_576 => format!("{:.1} KiB", b / 1024.0),
+        1_048_576..1_073_741_824 => format!("{:.1} MiB", b / 1_048_576.0),
+        _ => format!("{:.1} GiB", b / 1_073_741_824.0),
+    }
+}
+
+impl Memory {
+    fn new(budget: u64) -> Self {
+        Memory { budget, blocks: Default::default() }
+    }
+
+    /// Bytes counted so far.
+    fn used(&self) -> u64 {
+        self.blocks.borrow().iter().fold(0, |a, b| a.saturating_add(b.bytes))
+    }
+
+    /// Bytes left under the budget.
+    fn remaining(&self) -> u64 {
+        self.budget.saturating_sub(self.used())
+    }
+
+    /// What is refused when `bytes` more would exceed the budget: the blocks counted before and
+    /// the budget, for the end of a message.
+    fn over(&self, bytes: u64) -> Option<String> {
+        let before = self.used();
+        if before.saturating_add(bytes) <= self.budget {
+            return None;
+        }
+        let counted = if before == 0 {
+            String::new()
+        } else {
+            let blocks = self.blocks.borrow();
+            let list: Vec<String> =
+                blocks.iter().take(4).map(|b| format!("{} {}", b.what, bytes_shown(b.bytes))).collect();
+            let more = if blocks.len() > 4 { format!(", and {} more", blocks.len() - 4) } else { String::new() };
+            format!("; with the {} counted before it ({}{more}) that is", bytes_shown(before), list.join(", "))
+        };
+        // The budget in GiB, as the key gives it (to 3 significant digits).
+        let gib = self.budget as f64 / (1u64 << 30) as f64;
+        let digits = (2 - gib.log10().floor() as i32).max(0) as usize;
+        let gib = format!("{gib:.digits$}");
+        let gib = if gib.contains('.') { gib.trim_end_matches('0').trim_end_matches('.') } else { &gib };
+        Some(format!("{counted} above the memory budget of {gib} GiB (run.memory_budget_gib)"))
+    }
+
+    /// Count `bytes` for `what` (named for `ohd check` and messages), asked for by the key `key`
+    /// (written `value`), or refuse it above the budget with a message naming the key, what needs
+    /// the memory (`how`: how it is counted) and the budget.
+    fn charge(&self, key: &str, value: &str, what: &str, how: &str, bytes: u64) -> R<()> {
+        if let Some(over) = self.over(bytes) {
+            let value = if value.is_empty() { String::new() } else { format!("{value}: ") };
+            return err(key, format!("{value}{what} would take {} ({how}){over}", bytes_shown(bytes)));
+        }
+        let mut blocks = self.blocks.borrow_mut();
+        match blocks.last_mut() {
+            // One block for many charges of the same thing (the regions' media).
+            Some(last) if last.what == what => last.bytes = last.bytes.saturating_add(bytes),
+            _ => blocks.push(crate::experiment::MemoryBlock { what: what.to_string(), bytes }),
+        }
+        Ok(())
+    }
 }
 
 /// The OpenVDB grids read so far, by file and grid name: a file is read once however many layers,
@@ -268,29 +396,68 @@ type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<Stri
 
 impl GridFiles {
     /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
-    fn float(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<f32>>> {
-        Self::get(&self.float, key, base, file, grid, crate::io::formats::vdb::read_float)
+    /// Counted in `memory` `copies` times (see [`GridFiles::get`]).
+    fn float(
+        &self,
+        key: &str,
+        at: (&Path, &Memory),
+        file: &str,
+        grid: Option<&str>,
+        copies: u64,
+    ) -> R<Arc<VoxelGrid<f32>>> {
+        Self::get(&self.float, key, at, file, grid, copies)
     }
 
     /// The vec3 grid `grid` (or the first) of `file`.
-    fn vec3(&self, key: &str, base: &Path, file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<[f32; 3]>>> {
-        Self::get(&self.vec3, key, base, file, grid, crate::io::formats::vdb::read_vec3)
+    fn vec3(&self, key: &str, at: (&Path, &Memory), file: &str, grid: Option<&str>) -> R<Arc<VoxelGrid<[f32; 3]>>> {
+        Self::get(&self.vec3, key, at, file, grid, 1)
     }
 
-    fn get<T>(
+    /// Read a grid once: its sparse tree, held to what is left of the memory budget, then its
+    /// dense block, counted in `memory` before it is made — `copies` times, for a grid of which
+    /// the medium makes its own copy (a density: the cache holds the one read until resolving
+    /// ends).
+    fn get<T: crate::io::formats::vdb::VdbValue>(
         cache: &GridCache<T>,
         key: &str,
-        base: &Path,
+        (base, memory): (&Path, &Memory),
         file: &str,
         grid: Option<&str>,
-        read: impl Fn(std::path::PathBuf, Option<&str>) -> crate::error::Result<crate::io::formats::vdb::VdbGrid<T>>,
+        copies: u64,
     ) -> R<Arc<VoxelGrid<T>>> {
+        use crate::io::formats::vdb::{DEFAULT_MAX_DENSE_BYTES, ReadOptions, read_tree};
         let path = base.join(file);
         let id = (path.clone(), grid.map(str::to_string));
         if let Some(g) = cache.borrow().get(&id) {
             return Ok(g.clone());
         }
-        let g = Arc::new(read(path, grid).map_err(|e| ConfigError::new(join(key, "file"), e.to_string()))?.grid);
+        let key = join(key, "file");
+        let left = memory.remaining();
+        let options = ReadOptions { max_dense_bytes: left.min(DEFAULT_MAX_DENSE_BYTES) };
+        let tree = read_tree::<T>(&path, grid, &options).map_err(|e| {
+            let budget = if left < DEFAULT_MAX_DENSE_BYTES {
+                format!(" (what is left of run.memory_budget_gib: {})", bytes_shown(left))
+            } else {
+                String::new()
+            };
+            ConfigError::new(&key, format!("{e}{budget}"))
+        })?;
+        let bytes = tree.dense_bytes();
+        memory.charge(
+            &key,
+            &format!("= \"{file}\""),
+            &format!("the grid {file}:{}", tree.info.name),
+            &format!(
+                "its dense block, {} bytes per voxel and an active mask{}",
+                std::mem::size_of::<T>(),
+                if copies > 1 { format!(", {copies} copies while resolving") } else { String::new() }
+            ),
+            bytes.saturating_mul(copies),
+        )?;
+        let dense = tree.to_dense(options.max_dense_bytes).map_err(|m| {
+            ConfigError::new(&key, format!("VDB file {}, grid \"{}\": {m}", path.display(), tree.info.unique_name))
+        })?;
+        let g = Arc::new(dense.grid);
         cache.borrow_mut().insert(id, g.clone());
         Ok(g)
     }

@@ -59,5 +59,6 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
         memory_budget: (budget * (1u64 << 30) as f64) as u64,
         camera_pixel_stride: 1,
+        memory: Vec::new(),
     })
 }

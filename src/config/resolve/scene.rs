@@ -1,13 +1,13 @@
 //! The scene: shapes, `[[layers]]` (and sublayers) and `[[regions]]`.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
 use glam::DVec3;
 
 use super::density::attach_density;
-use super::flow::resolve_wind;
-use super::media::{Optics, Placement, check_mixture, populations_of};
+use super::flow::{check_velocity, resolve_wind};
+use super::media::{Optics, Placement, check_mixture, check_unused, populations_of};
 use super::{Ctx, R, err, given, index_of_refraction, join, positive, require, require_arr, unit_vector};
 use crate::config::schema::*;
 use crate::error::ConfigError;
@@ -43,6 +43,39 @@ fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
     })
 }
 
+/// The most layers a stack may hold, sublayers counted, one layer's sublayers included (each is
+/// a medium of its own: 10⁵ sublayers of rain take 2 GB).
+const MAX_LAYERS: u64 = 100_000;
+
+/// A layer's keys, checked, before its media are made.
+struct PlannedLayer<'a> {
+    path: String,
+    name: String,
+    top: f64,
+    thickness: f64,
+    n: f64,
+    ms: &'a MediumSection,
+    medium: &'a str,
+    parts: u64,
+}
+
+impl PlannedLayer<'_> {
+    /// Top and bottom of sublayer `j` of `step` (the last bottom is exact, and a single
+    /// semi-infinite layer never forms 0·∞).
+    fn bounds(&self, j: u64, step: f64) -> (f64, f64) {
+        let z = self.top;
+        let top = if j == 0 { z } else { z + j as f64 * step };
+        let bottom = if j + 1 == self.parts { z + self.thickness } else { z + (j + 1) as f64 * step };
+        (top, bottom)
+    }
+
+    /// The height sublayer `j`'s medium is made for (its middle; the top of a semi-infinite one).
+    fn height(&self, j: u64) -> f64 {
+        let (top, bottom) = self.bounds(j, self.thickness / self.parts as f64);
+        if bottom.is_finite() { 0.5 * (top + bottom) } else { top }
+    }
+}
+
 pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx: &Ctx) -> R<Scene> {
     if f.media.is_empty() {
         return err("media", "no media defined: add a [media.NAME] table with sigma_a_* and sigma_s_*");
@@ -57,6 +90,15 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         })
     };
     let wind = f.wind.as_ref().map(resolve_wind).transpose()?;
+    // Every velocity written is checked, used or not: a medium's own that a region overrides is
+    // otherwise never resolved.
+    for (name, ms) in &f.media {
+        if let Some(v) = &ms.velocity {
+            check_velocity(&format!("media.{name}.velocity"), v)?;
+        }
+    }
+    // The media built (a mixture's populations included); the others are checked at the end.
+    let mut used: BTreeSet<String> = BTreeSet::new();
     // Optics are resolved once per named medium (a Mie ensemble can take seconds), on first use.
     let mut optics: BTreeMap<String, Optics> = BTreeMap::new();
     // Densities likewise (a grid's majorant is built once).
@@ -70,6 +112,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                     cylinder: Option<&Shape>,
                     height: f64|
      -> R<Medium> {
+        used.insert(name.to_string());
         let Some(list) = &ms.populations else {
             let velocity = velocity.or_else(|| ms.velocity.as_ref().map(|v| (join(path, "velocity"), v)));
             let at = Placement { wind: wind.as_ref(), velocity, cylinder, height };
@@ -108,6 +151,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             sigma_a += sa;
             all.extend(pops);
             names.push(pname.clone());
+            used.insert(pname.clone());
         }
         let mut m = Medium::mixture(name, sigma_a, all);
         let g =
@@ -126,7 +170,9 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
     let mut layers: Vec<Layer> = Vec::new();
     let mut layer_index: BTreeMap<String, usize> = BTreeMap::new();
     let mut split: Vec<String> = Vec::new();
-    let mut z = 0.0;
+    // First every layer's keys, and how many (sub)layers the stack will hold.
+    let mut planned: Vec<PlannedLayer> = Vec::with_capacity(f.layers.len());
+    let (mut z, mut count) = (0.0, 0u64);
     for (i, l) in f.layers.iter().enumerate() {
         let path = format!("layers[{i}]");
         let name = l.name.clone().unwrap_or_else(|| format!("layer{i}"));
@@ -134,8 +180,18 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             return err(join(&path, "name"), format!("= \"{name}\": layer names must be unique"));
         }
         let parts = l.sublayers.unwrap_or(1);
-        if !(1..=100_000).contains(&parts) {
-            return err(join(&path, "sublayers"), format!("= {parts}: expected 1 to 100000 layers"));
+        if !(1..=MAX_LAYERS).contains(&parts) {
+            return err(join(&path, "sublayers"), format!("= {parts}: expected 1 to {MAX_LAYERS} layers"));
+        }
+        count += parts;
+        if count > MAX_LAYERS {
+            return err(
+                if parts > 1 { join(&path, "sublayers") } else { path },
+                format!(
+                    "{}the stack would hold {count} layers or more (sublayers counted), more than the {MAX_LAYERS} it may hold",
+                    if parts > 1 { format!("= {parts}: ") } else { String::new() }
+                ),
+            );
         }
         let th = require(&path, "thickness", &l.thickness, "thickness")?;
         let last = i + 1 == f.layers.len();
@@ -151,24 +207,65 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?,
         )?;
         let ms = lookup(join(&path, "medium"), &l.medium)?;
-        let mpath = format!("media.{}", l.medium);
         if parts > 1 && thickness == f64::INFINITY {
             return err(join(&path, "sublayers"), "a semi-infinite layer cannot be split");
         }
-        let step = thickness / parts as f64;
-        for j in 0..parts {
-            // (The last bottom is exact, and a single semi-infinite layer never forms 0·∞.)
-            let top = if j == 0 { z } else { z + j as f64 * step };
-            let bottom = if j + 1 == parts { z + thickness } else { z + (j + 1) as f64 * step };
-            let height = if bottom.is_finite() { 0.5 * (top + bottom) } else { top };
-            let m = make(&mpath, &l.medium, ms, None, None, height)
-                .map_err(|e| ConfigError::new(e.path, format!("{} (used by {path}, a layer)", e.message)))?;
+        if parts > 1 {
+            split.push(name.clone());
+        } else {
+            layer_index.insert(name.clone(), (count - 1) as usize);
+        }
+        planned.push(PlannedLayer { path, name, top: z, thickness, n, ms, medium: &l.medium, parts });
+        z += thickness;
+    }
+    // Then each layer's first medium, to count what all of its sublayers' media will take before
+    // they are made (issue 21: 4 × 10⁵ sublayers of rain grew to 5.8 GB and aborted).
+    let copies = ctx.scene_copies;
+    let mut first: Vec<Medium> = Vec::with_capacity(planned.len());
+    for p in &planned {
+        let m = make(&format!("media.{}", p.medium), p.medium, p.ms, None, None, p.height(0))
+            .map_err(|e| ConfigError::new(e.path, format!("{} (used by {}, a layer)", e.message, p.path)))?;
+        // Each copy of the scene copies the layers and media; the tables made per medium (fall
+        // speeds) are shared by the copies.
+        let each = m.footprint() + std::mem::size_of::<Layer>() + p.name.len() + 8;
+        let per_layer = (each as u64).saturating_mul(copies).saturating_add(m.own_tables() as u64);
+        let bytes = per_layer.saturating_mul(p.parts);
+        let (key, value, what) = if p.parts > 1 {
+            (
+                join(&p.path, "sublayers"),
+                format!("= {}", p.parts),
+                format!("the media of {} ({} sublayers)", p.path, p.parts),
+            )
+        } else {
+            (join(&p.path, "medium"), format!("= \"{}\"", p.medium), format!("the medium of {}", p.path))
+        };
+        let how = format!(
+            "{} × {} per layer: the layer and its medium, {} held {copies} times (as resolved and in each run of it), and {} of tables made for it",
+            p.parts,
+            super::bytes_shown(per_layer),
+            super::bytes_shown(each as u64),
+            super::bytes_shown(m.own_tables() as u64)
+        );
+        ctx.memory.charge(&key, &value, &what, &how, bytes)?;
+        first.push(m);
+    }
+    // Then the layers.
+    for (p, m0) in planned.iter().zip(first) {
+        let step = p.thickness / p.parts as f64;
+        let mut m0 = Some(m0);
+        for j in 0..p.parts {
+            let (top, bottom) = p.bounds(j, step);
+            let m = match m0.take() {
+                Some(m) => m,
+                None => make(&format!("media.{}", p.medium), p.medium, p.ms, None, None, p.height(j))
+                    .map_err(|e| ConfigError::new(e.path, format!("{} (used by {}, a layer)", e.message, p.path)))?,
+            };
             media.push(m);
             layers.push(Layer {
-                name: if parts > 1 { format!("{name}[{j}]") } else { name.clone() },
+                name: if p.parts > 1 { format!("{}[{j}]", p.name) } else { p.name.clone() },
                 z_top: top,
                 z_bottom: bottom,
-                n,
+                n: p.n,
                 medium: media.len() - 1,
                 regions: Vec::new(),
                 majorant: 0.0,
@@ -177,12 +274,6 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 tau_above: 0.0,
             });
         }
-        if parts > 1 {
-            split.push(name);
-        } else {
-            layer_index.insert(name, layers.len() - 1);
-        }
-        z += thickness;
     }
     let mut regions: Vec<Region> = Vec::new();
     for (i, r) in f.regions.iter().enumerate() {
@@ -224,9 +315,25 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         let ms = lookup(join(&path, "medium"), &r.medium)?;
         let mpath = format!("media.{}", r.medium);
         let velocity = r.velocity.as_ref().map(|v| (join(&path, "velocity"), v));
-        media.push(make(&mpath, &r.medium, ms, velocity, Some(&shape), 0.5 * (zmin + zmax))?);
+        let m = make(&mpath, &r.medium, ms, velocity, Some(&shape), 0.5 * (zmin + zmax))?;
+        let each = (m.footprint() + std::mem::size_of::<Region>() + name.len()) as u64;
+        let bytes = each.saturating_mul(copies).saturating_add(m.own_tables() as u64);
+        ctx.memory.charge(
+            &join(&path, "medium"),
+            &format!("= \"{}\"", r.medium),
+            "the media of the regions",
+            &format!(
+                "{} for regions[{i}]: the region and its medium, held {copies} times, and its tables",
+                super::bytes_shown(bytes)
+            ),
+            bytes,
+        )?;
+        media.push(m);
         regions.push(Region { name, shape, medium: media.len() - 1, layer: li });
         layers[li].regions.push(regions.len() - 1);
+    }
+    for (name, ms) in f.media.iter().filter(|(name, _)| !used.contains(*name)) {
+        check_unused(&mut optics, ctx, name, ms, &f.media)?;
     }
     let mut scene = Scene { layers, regions, media, n_above, n_below };
     scene.update_layers();

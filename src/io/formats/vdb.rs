@@ -420,6 +420,15 @@ impl<T: VdbValue> VdbTree<T> {
         bbox.get()
     }
 
+    /// Bytes [`to_dense`](Self::to_dense) allocates: the stored block's values and its active
+    /// mask (0 for a grid that is background everywhere; saturating).
+    pub fn dense_bytes(&self) -> u64 {
+        let Some((lo, hi)) = self.stored_bbox() else { return 0 };
+        let points =
+            (0..3).map(|a| (i64::from(hi[a]) - i64::from(lo[a]) + 1) as u64).fold(1u64, |p, d| p.saturating_mul(d));
+        points.saturating_mul(std::mem::size_of::<T>() as u64).saturating_add(points / 8)
+    }
+
     /// Densify over [`stored_bbox`](Self::stored_bbox), refusing blocks above `max_bytes`.
     pub fn to_dense(&self, max_bytes: u64) -> std::result::Result<VdbGrid<T>, String> {
         let (active_voxel_count, active_bbox) = self.active_stats();

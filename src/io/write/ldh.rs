@@ -13,7 +13,6 @@ use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
 use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
 use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
-use crate::io::formats::npy;
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -91,7 +90,7 @@ pub fn write_ldh(
     let width = axis.bin_width();
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
     if !spec.rois.is_empty() || spec.pixel_spectra {
-        w.put("ldh_frequency_hz.npy".into(), npy::to_bytes(&[bins], &centres))?;
+        w.npy("ldh_frequency_hz.npy".into(), &[bins], &centres)?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
@@ -217,11 +216,11 @@ fn write_pixel_speckle(
     let signed = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| sign * x).collect() };
     let plus = &s.m0_plus[..pixels];
     let minus = signed(&s.m0_minus[..pixels]);
-    w.put("m0_plus_speckle.npy".into(), npy::to_bytes(&[ny, nx], plus))?;
-    w.put("m0_minus_speckle.npy".into(), npy::to_bytes(&[ny, nx], &minus))?;
-    w.put("m0_plus_speckle_windows.npy".into(), npy::to_bytes(&[windows, ny, nx], &s.m0_plus))?;
-    w.put("m0_minus_speckle_windows.npy".into(), npy::to_bytes(&[windows, ny, nx], &signed(&s.m0_minus)))?;
-    w.put("m0_plus_speckle_expected.npy".into(), npy::to_bytes(&[ny, nx], &s.expected_m0_plus))?;
+    w.npy("m0_plus_speckle.npy".into(), &[ny, nx], plus)?;
+    w.npy("m0_minus_speckle.npy".into(), &[ny, nx], &minus)?;
+    w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &s.m0_plus)?;
+    w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &signed(&s.m0_minus))?;
+    w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &s.expected_m0_plus)?;
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     w.put(
         "m0_plus_speckle.png".into(),
@@ -307,10 +306,10 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> 
     };
     let windows = s.algorithm1.len() / n.max(1);
     let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
-    w.put("stft_frequency_hz.npy".into(), npy::to_bytes(&[n], &freqs))?;
-    w.put(format!("roi_{name}_periodogram.npy"), npy::to_bytes(&[n], &prep(&s.expected)))?;
-    w.put(format!("roi_{name}_speckle_algorithm1.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm1)))?;
-    w.put(format!("roi_{name}_speckle_algorithm2.npy"), npy::to_bytes(&[windows, n], &prep(&s.algorithm2)))?;
+    w.npy("stft_frequency_hz.npy".into(), &[n], &freqs)?;
+    w.npy(format!("roi_{name}_periodogram.npy"), &[n], &prep(&s.expected))?;
+    w.npy(format!("roi_{name}_speckle_algorithm1.npy"), &[windows, n], &prep(&s.algorithm1))?;
+    w.npy(format!("roi_{name}_speckle_algorithm2.npy"), &[windows, n], &prep(&s.algorithm2))?;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows

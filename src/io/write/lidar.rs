@@ -12,7 +12,6 @@ use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::error::Result;
 use crate::io::figures::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
 use crate::io::figures::raster::Colormap;
-use crate::io::formats::npy;
 use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
 
 /// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).
@@ -29,8 +28,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
     let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
-    w.put("range_m.npy".into(), npy::to_bytes(&[gates], &range))?;
-    w.put("frequency_hz.npy".into(), npy::to_bytes(&[bins], &freq))?;
+    w.npy("range_m.npy".into(), &[gates], &range)?;
+    w.npy("frequency_hz.npy".into(), &[bins], &freq)?;
     let mut files = serde_json::Map::new();
     // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
     let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());

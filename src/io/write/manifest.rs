@@ -172,6 +172,8 @@ pub fn write_run(
     inv: &Invocation,
 ) -> Result<Manifest> {
     let stderr = out.estimates.stderr();
+    // Non-finite estimates are a bug: refused before anything is written (issue 21, item 4).
+    super::check_finite(&out.layout.registry, out.estimates.mean(), &stderr)?;
     // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
     let t = std::time::Instant::now();
     let speckle = crate::post::speckle_of(exp, out);

@@ -55,6 +55,30 @@ pub fn stderr_file(file: &str) -> String {
     format!("{}_stderr.npy", file.trim_end_matches(".npy"))
 }
 
+/// The last line of defence against non-finite outputs (issue 21, item 4): validation refuses
+/// what cannot give finite output, so a NaN or an infinity in a run's estimates or standard errors
+/// is a bug, and the run fails (exit status 1) naming the first output that holds one, before any
+/// file is written, rather than write it silently. Every written output is checked, its
+/// out-of-range tallies included; internal ones (a lidar's lag sums) are not written, and show in
+/// the outputs made from them.
+pub fn check_finite(registry: &Registry, mean: &[f64], stderr: &[f64]) -> Result<()> {
+    for o in registry.outputs.iter().filter(|o| o.kind != Kind::Internal) {
+        let slots = o.slots.start..o.slots.start + o.slots.footprint();
+        let count = |v: &[f64]| v[slots.clone()].iter().filter(|x| !x.is_finite()).count();
+        let (values, errors) = (count(mean), count(stderr));
+        if values + errors > 0 {
+            let what = format!(
+                "output {} ({values} of its {} values and {errors} of their standard errors; file {})",
+                o.name,
+                slots.len(),
+                o.file.trim_start_matches('/')
+            );
+            return Err(Error::NotFinite { what, count: values + errors });
+        }
+    }
+    Ok(())
+}
+
 /// A finished run's outputs being written: where files go, the registry that declares the
 /// outputs, and the run's means and standard errors laid out as the tallies.
 pub struct Writer<'a, 'p> {
@@ -87,6 +111,16 @@ impl<'a, 'p> Writer<'a, 'p> {
     /// Write a file.
     pub fn put(&mut self, name: String, bytes: Vec<u8>) -> Result<()> {
         (self.put)(name, bytes)
+    }
+
+    /// Write `values` (of `shape`) as the `.npy` file `name`, refusing non-finite values
+    /// ([`check_finite`] for arrays made at write time: axes, speckle).
+    pub fn npy(&mut self, name: String, shape: &[usize], values: &[f64]) -> Result<()> {
+        let count = values.iter().filter(|x| !x.is_finite()).count();
+        if count > 0 {
+            return Err(Error::NotFinite { what: format!("{name} (of {} values)", values.len()), count });
+        }
+        self.put(name, npy::to_bytes(shape, values))
     }
 
     /// The output `name` (declared by the detector being written).

@@ -1,7 +1,8 @@
 //! Test support shared by the modules of the integration-test binary: [`stats`] (the statistics
 //! harness), [`run`] (running experiments from inline TOML and reading their tallies) and
-//! [`lidar`] (lidar physics for the wind-lidar tests).
+//! [`lidar`] (lidar physics for the wind-lidar tests); [`alloc`] counts what each thread allocates.
 
+pub mod alloc;
 pub mod lidar;
 pub mod run;
 pub mod stats;
