@@ -98,8 +98,33 @@ fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
     }
 }
 
-/// `density = { type = "ramp" | "vdb", … }`.
+/// Largest extinction a density may reach, 1/m (10⁶ /mm, a mean free path of 1 nm): delta
+/// tracking takes a tentative collision per majorant free path, which no cap on real collisions
+/// bounds, so a denser medium would never finish (issue 21: `density_to = 1e300` ran without
+/// end).
+pub const MAX_EXTINCTION_PER_M: f64 = 1e9;
+
+/// `density = { type = "ramp" | "vdb", … }`, its largest extinction at most
+/// [`MAX_EXTINCTION_PER_M`].
 fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<Heterogeneity> {
+    let h = resolve_density_field(path, d, sigma_t, ctx)?;
+    let peak = h.info.max * sigma_t;
+    if !(peak <= MAX_EXTINCTION_PER_M) {
+        return err(
+            path,
+            format!(
+                "its largest density {:.3e} × the medium's σt {:.3e} /mm = {:.3e} /mm: expected an extinction of at most {:e} /mm (a mean free path of 1 nm; delta tracking takes a step per free path)",
+                h.info.max,
+                sigma_t * 1e-3,
+                peak * 1e-3,
+                MAX_EXTINCTION_PER_M * 1e-3
+            ),
+        );
+    }
+    Ok(h)
+}
+
+fn resolve_density_field(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<Heterogeneity> {
     match d {
         DensitySection::Vdb {
             file,
