@@ -505,6 +505,10 @@ fn report(exp: &Experiment, output: &RunOutput) {
             eprintln!("  {name}: FMCW {note}");
         }
     }
+    // Last, where they are seen: what the run could not get right (also in the manifest).
+    for w in ohd::post::warnings(exp, output) {
+        eprintln!("ohd: warning: {}", w.message);
+    }
 }
 
 /// `ohd converge`: the study, then a table of its outputs on stderr.

@@ -168,6 +168,9 @@ pub struct LidarLayout {
     pub lags: usize,
     /// `[channel][gate][bin]`: the expected periodograms (filled per batch from the lag sums).
     pub spectra: usize,
+    /// The power of the echoes whose beat frequency lies outside the spectra's band
+    /// `[−f_s/2, f_s/2)`: sampled at `f_s`, they fold into it at a wrong velocity (aliasing).
+    pub aliased: usize,
 }
 
 impl LidarSpec {
@@ -332,7 +335,8 @@ impl LidarSpec {
     }
 
     /// Lay out the receiver's tallies (detector `i`, called `name`) from the end of `reg` and
-    /// declare its outputs: the range–Doppler spectra of each channel, from the lag sums.
+    /// declare its outputs: the range–Doppler spectra of each channel, from the lag sums, and the
+    /// power of aliased echoes (a scalar, `aliased_power`).
     pub fn declare(&self, i: usize, name: &str, reg: &mut Registry) -> LidarLayout {
         let channels = LIDAR_CHANNELS.len();
         let budget = Some((format!("detectors[{i}].lidar.gates"), format!("= {}", self.gates)));
@@ -360,7 +364,22 @@ impl LidarSpec {
                 )
             });
         }
-        LidarLayout { lags, spectra }
+        // After the spectra, so that the slots before it stay where they were.
+        let aliased = reg.take(1);
+        reg.declare(Output {
+            units: "fraction of the pulse energy",
+            file: format!("/estimates/detectors/{name}/aliased_power/value"),
+            ..detector_output(i, format!("{name}.aliased_power"), Kind::Scalar, Slots::contiguous(aliased, 1), vec![])
+        });
+        LidarLayout { lags, spectra, aliased }
+    }
+
+    /// Whether an echo of beat frequency `f` (Hz) lies outside the band `[−f_s/2, f_s/2)` the
+    /// sampled signal represents, so that its spectrum folds in at `f` minus a multiple of `f_s`.
+    #[inline]
+    pub fn aliases(&self, f: f64) -> bool {
+        let half = 0.5 * self.sample_rate;
+        !(-half..half).contains(&f)
     }
 
     /// Offset of the lag sum `D_d` of channel `c` in gate `g` (real part; the imaginary part
@@ -370,10 +389,14 @@ impl LidarSpec {
         ((c * self.gates + g) * self.gate_points + d) * 2
     }
 
-    /// Record a detected path `echo` into channel 0 and the channel of its scattering order. `x`
-    /// is scratch space for the pulse samples, reused across calls (no allocation per path).
+    /// Record a detected path `echo` into channel 0 and the channel of its scattering order (and,
+    /// beyond the sampled band, into the aliased power). `x` is scratch space for the pulse
+    /// samples, reused across calls (no allocation per path).
     pub fn record(&self, lay: &LidarLayout, acc: &mut [f64], x: &mut Vec<f64>, echo: Echo) {
         let Echo { weight: w, length: l, frequency: f, order } = echo;
+        if self.aliases(f) {
+            acc[lay.aliased] += w;
+        }
         let class = if order <= 1 { 1 } else { 2 };
         let dt = self.dt();
         let sigma = self.pulse_sigma();

@@ -85,3 +85,115 @@ fn the_budget_counts_what_sublayers_take() {
     assert!(msg.starts_with("layers[0].sublayers: = 100000: the media of layers[0]"), "{msg}");
     assert!(msg.contains("above the memory budget of 1 GiB (run.memory_budget_gib)"), "{msg}");
 }
+
+/// The codes of a run's warnings.
+fn codes(r: &crate::support::run::Run) -> Vec<&'static str> {
+    ohd::post::warnings(&r.exp, &r.out).iter().map(|w| w.code).collect()
+}
+
+/// A belt moving at 10⁵ m/s shifts most of the probe's power beyond its ±20 kHz axis: warned of.
+/// The fixture as written loses 1.2 % into the tails, below the threshold of 5 %.
+#[test]
+fn power_off_the_spectrum_axis_is_warned_of() {
+    let text = read(&repo().join("tests/configs/good/moving_media.toml"));
+    let fast = crate::support::run::run(&text, &["run.samples=2000", "media.belt.velocity.velocity_m_per_s=[1e5,0,0]"]);
+    assert_eq!(codes(&fast), ["off_axis_power"]);
+    let w = &ohd::post::warnings(&fast.exp, &fast.out)[0];
+    assert!(
+        w.message.starts_with("detector \"probe\": ") && w.message.contains("detectors[0].spectrum"),
+        "{}",
+        w.message
+    );
+    let slow = crate::support::run::run(&text, &["run.samples=2000"]);
+    assert!(codes(&slow).is_empty(), "{:?}", codes(&slow));
+}
+
+/// A fog receding at 35.75 m/s from a 1.55 µm lidar sampling at 50 MHz (band ±19.375 m/s) is
+/// seen at −3 m/s, every gate's retrieval "ok": all of its power is counted as aliased and warned
+/// of. At 10 m/s nothing is aliased.
+#[test]
+fn lidar_aliasing_is_warned_of() {
+    let text = r#"
+schema_version = 1
+[run]
+samples = 4000
+[source]
+wavelength_nm = 1550
+position_m = [0, 0, -1]
+[media.fog]
+sigma_s_per_m = 1e-2
+sigma_a_per_m = 0
+velocity = { type = "uniform", velocity_m_per_s = [0, 0, 35.75] }
+[[layers]]
+thickness_m = 300
+n = 1.0
+medium = "fog"
+[[detectors]]
+name = "lidar"
+[detectors.lidar]
+aperture_radius_mm = 40
+field_of_view_urad = 100
+pulse_fwhm_ns = 200
+sample_rate_mhz = 50
+first_gate_m = 30
+gates = 8
+"#;
+    let power = |r: &crate::support::run::Run, name: &str| {
+        let o = r.out.layout.registry.expect(name);
+        r.out.estimates.mean()[o.slots.start]
+    };
+    let fast = crate::support::run::run(text, &[]);
+    assert_eq!(codes(&fast), ["lidar_aliasing"]);
+    let detected = power(&fast, "lidar.detected_power");
+    assert!(detected > 0.0 && power(&fast, "lidar.aliased_power") == detected);
+    let slow = crate::support::run::run(text, &["media.fog.velocity.velocity_m_per_s=[0,0,10]"]);
+    assert!(codes(&slow).is_empty(), "{:?}", codes(&slow));
+    assert_eq!(power(&slow, "lidar.aliased_power"), 0.0);
+}
+
+/// An albedo-1 half-space with the event cap at 10⁴ truncates about 6 % of its paths (their
+/// weight lost: R falls short of 1 by as much): warned of. With the default cap (10⁶) a 0.2 mm
+/// slab truncates none.
+#[test]
+fn truncated_paths_are_warned_of() {
+    let text = read(&repo().join("validation/energy_albedo1.toml"));
+    let capped = crate::support::run::run(
+        &text,
+        &["run.samples=2000", "layers.0.thickness_mm=inf", "run.max_scattering_events=10000"],
+    );
+    assert!(capped.out.stats.truncated_paths > 0);
+    assert_eq!(codes(&capped), ["truncated_paths"]);
+    let slab = crate::support::run::run(&text, &["run.samples=2000"]);
+    assert_eq!(slab.out.stats.truncated_paths, 0);
+    assert!(codes(&slab).is_empty(), "{:?}", codes(&slab));
+}
+
+/// The warnings go into the manifest (`warnings`, `[]` when there are none) and onto stderr at
+/// the end of the run's report.
+#[test]
+fn warnings_are_in_the_manifest_and_on_stderr() {
+    let config = repo().join("validation/energy_albedo1.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |dir: &Path, sets: &[&str]| {
+        let mut args = vec!["run".to_string(), config.display().to_string(), "--samples".into(), "2000".into()];
+        args.extend(["--quiet".into(), "--out".into(), dir.display().to_string()]);
+        for s in sets {
+            args.extend(["--set".to_string(), s.to_string()]);
+        }
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_ohd")).args(&args).output().expect("ohd runs");
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        let manifest: serde_json::Value = serde_json::from_str(&read(&dir.join("manifest.json"))).unwrap();
+        (String::from_utf8_lossy(&o.stderr).into_owned(), manifest)
+    };
+    let (stderr, manifest) =
+        run(&tmp.path().join("capped"), &["layers.0.thickness_mm=inf", "run.max_scattering_events=10000"]);
+    let warnings = manifest["warnings"].as_array().expect("a warnings array");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert_eq!(warnings[0]["code"], "truncated_paths");
+    let message = warnings[0]["message"].as_str().unwrap();
+    let last = stderr.lines().last().unwrap_or_default();
+    assert_eq!(last, format!("ohd: warning: {message}"), "the warning ends the report:\n{stderr}");
+    let (stderr, manifest) = run(&tmp.path().join("slab"), &[]);
+    assert_eq!(manifest["warnings"], serde_json::json!([]));
+    assert!(!stderr.contains("warning"), "{stderr}");
+}

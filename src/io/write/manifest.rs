@@ -61,6 +61,8 @@ pub struct Manifest {
     pub pixel_errors: BTreeMap<String, super::PixelErrorEntry>,
     /// Every file written, in order.
     pub files: Vec<String>,
+    /// What the run could not get right ([`crate::post::warnings`]), `[]` when nothing.
+    pub warnings: Vec<crate::post::Warning>,
 }
 
 impl Manifest {
@@ -312,6 +314,7 @@ pub fn write_run(
         detectors: det_info,
         pixel_errors,
         files,
+        warnings: crate::post::warnings(exp, out),
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
     writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
