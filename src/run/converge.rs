@@ -36,8 +36,12 @@ pub struct StudyWritten {
 /// Check `req`, load its experiment (of a scan: the first pointing, told as
 /// [`Event::StudyingFirstPointing`]), run the study with `log` and write it.
 pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLog) -> Result<StudyWritten> {
-    if !(req.budget_seconds.is_finite() && req.budget_seconds > 0.0) {
-        return Err(Error::Input(format!("--budget-seconds {}: expected a time > 0 s", req.budget_seconds)));
+    // At most a year: a study is a run to be waited for (issue 21: 1e300 s ran without end).
+    if !(req.budget_seconds > 0.0 && req.budget_seconds <= 3.2e7) {
+        return Err(Error::Input(format!(
+            "--budget-seconds {}: expected a time in (0, 3.2e7] s (at most a year)",
+            req.budget_seconds
+        )));
     }
     if !(2..=24).contains(&req.rungs) {
         return Err(Error::Input(format!("--rungs {}: expected 2 to 24 rungs", req.rungs)));

@@ -405,6 +405,8 @@ fn converge_bad_input_exits_2_and_writes_nothing() {
     assert!(text(&o.stderr).contains("is it a run of this experiment?"), "{}", describe(&o));
     for (args, named) in [
         (&["converge", "--budget-seconds", "0"][..], "--budget-seconds"),
+        // Issue 21: a budget of 1e300 s without --samples ran without end.
+        (&["converge", "--budget-seconds", "1e300"], "--budget-seconds"),
         (&["converge", "--rungs", "1"], "--rungs"),
         (&["converge", "--samples", "10"], "--samples"),
         (&["converge", "--set", "reference.nonsense=1"], "reference.nonsense"),
