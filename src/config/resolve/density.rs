@@ -109,7 +109,7 @@ pub const MAX_EXTINCTION_PER_M: f64 = 1e9;
 fn resolve_density(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx) -> R<Heterogeneity> {
     let h = resolve_density_field(path, d, sigma_t, ctx)?;
     let peak = h.info.max * sigma_t;
-    if !(peak <= MAX_EXTINCTION_PER_M) {
+    if peak.is_nan() || peak > MAX_EXTINCTION_PER_M {
         return err(
             path,
             format!(
