@@ -83,7 +83,7 @@ fn the_budget_counts_what_sublayers_take() {
         .expect_err("2.4 GiB of sublayers refused under a 1 GiB budget");
     let msg = e.to_string();
     assert!(msg.starts_with("layers[0].sublayers: = 100000: the media of layers[0]"), "{msg}");
-    assert!(msg.contains("above the memory budget of 1 GiB (run.memory_budget_gib)"), "{msg}");
+    assert!(msg.contains("above the memory budget of 1.0 GiB (run.memory_budget_gib)"), "{msg}");
 }
 
 /// The codes of a run's warnings.

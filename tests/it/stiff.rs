@@ -833,7 +833,9 @@ pixel_spectra = true
     assert!(msg.contains("detectors[0].image.pixels") && msg.contains("[16384, 16384]") && msg.contains("4.0 GiB"));
     let small = plain.replace("[16384, 16384]", "[64, 64]");
     assert!(ohd::config::load(&small, "test", &[]).is_ok());
-    let e = ohd::config::load(&small, "test", &["run.memory_budget_gib=1e-6".into()]).expect_err("refused");
+    // (1e-4 GiB = 107 kB: the layer's medium, counted first, fits; the 64 × 64 image's tallies,
+    // about 200 kB with the copies, do not.)
+    let e = ohd::config::load(&small, "test", &["run.memory_budget_gib=1e-4".into()]).expect_err("refused");
     assert!(e.to_string().contains("detectors[0].image.pixels"), "{e}");
     assert!(ohd::config::load(&small, "test", &["run.memory_budget_gib=0".into()]).is_err());
 }

@@ -357,11 +357,12 @@ impl Memory {
             let more = if blocks.len() > 4 { format!(", and {} more", blocks.len() - 4) } else { String::new() };
             format!("; with the {} counted before it ({}{more}) that is", bytes_shown(before), list.join(", "))
         };
-        // The budget in GiB, as the key gives it (to 3 significant digits).
+        // The budget in GiB, as the key gives it: to 0.1 GiB, or 3 significant digits below.
         let gib = self.budget as f64 / (1u64 << 30) as f64;
-        let digits = (2 - gib.log10().floor() as i32).max(0) as usize;
+        // (The budget in bytes is truncated: 0.1 GiB comes back as 0.09999999963.)
+        let digits = if gib >= 0.095 { 1 } else { (2 - gib.log10().floor() as i32).max(1) as usize };
         let gib = format!("{gib:.digits$}");
-        let gib = if gib.contains('.') { gib.trim_end_matches('0').trim_end_matches('.') } else { &gib };
+        let gib = if digits > 1 { gib.trim_end_matches('0').to_string() } else { gib };
         Some(format!("{counted} above the memory budget of {gib} GiB (run.memory_budget_gib)"))
     }
 
