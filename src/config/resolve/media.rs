@@ -499,17 +499,7 @@ pub(super) fn check_unused(
                     let known = media.keys().cloned().collect::<Vec<_>>().join(", ");
                     return err(key, format!("= \"{pname}\": unknown medium; defined media: {known}"));
                 };
-                if pms.populations.is_some() {
-                    return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
-                }
-                if pms.density.is_some() {
-                    return err(
-                        format!("media.{pname}.density"),
-                        format!(
-                            "medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"
-                        ),
-                    );
-                }
+                check_population(&key, pname, pms, name)?;
                 let o = optics_of(optics, ctx, &format!("media.{pname}"), pname, pms)?;
                 sigma_t += o.sigma_a + o.sigma_s;
             }
@@ -634,4 +624,19 @@ pub(super) fn populations_of(
         });
     }
     Ok((o.sigma_a * factor, populations, o.info.clone()))
+}
+
+/// A mixture's population `pname` (listed at `key` in mixture `name`) is a plain medium: not a
+/// mixture itself, and without a density of its own (the mixture's applies).
+pub(super) fn check_population(key: &str, pname: &str, pms: &MediumSection, name: &str) -> R<()> {
+    if pms.populations.is_some() {
+        return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
+    }
+    if pms.density.is_some() {
+        return err(
+            format!("media.{pname}.density"),
+            format!("medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"),
+        );
+    }
+    Ok(())
 }

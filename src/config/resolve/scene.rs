@@ -133,17 +133,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         for (j, pname) in list.iter().enumerate() {
             let key = format!("{}[{j}]", join(path, "populations"));
             let pms = lookup(key.clone(), pname)?;
-            if pms.populations.is_some() {
-                return err(key, format!("= \"{pname}\" is itself a mixture: list its populations here instead"));
-            }
-            if pms.density.is_some() {
-                return err(
-                    format!("media.{pname}.density"),
-                    format!(
-                        "medium \"{pname}\" is a population of the mixture \"{name}\": give the density on the mixture"
-                    ),
-                );
-            }
+            super::media::check_population(&key, pname, pms, name)?;
             let ppath = format!("media.{pname}");
             let pv = pms.velocity.as_ref().map(|v| (join(&ppath, "velocity"), v));
             let at = Placement { wind: wind.as_ref(), velocity: pv, cylinder, height };
