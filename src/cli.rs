@@ -37,6 +37,9 @@ enum Command {
         /// Output directory of the merged run.
         #[arg(long)]
         out: PathBuf,
+        /// Write no figures (PNG/SVG), only the data files.
+        #[arg(long)]
+        no_figures: bool,
     },
     /// Error against run time: run a ladder of sample counts (independent seeds), measure every
     /// output's error against a reference, and write converge.csv, converge.json, converge.png.
@@ -66,6 +69,9 @@ enum Command {
         /// No log of each run.
         #[arg(long, short)]
         quiet: bool,
+        /// Write no figure (converge.png/.svg).
+        #[arg(long)]
+        no_figures: bool,
     },
     /// Mie scattering by one homogeneous sphere: prints {"x", "qext", "qsca", "qback", "g"} as JSON
     /// (qback = 4|S1(180°)|²/x²). Give the relative index and size parameter (--m-real, --m-imag,
@@ -118,6 +124,9 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Write no figures (PNG/SVG), only the data files (for batch work).
+    #[arg(long)]
+    no_figures: bool,
 }
 
 /// `I/N` with 0 ≤ I < N.
@@ -319,7 +328,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Mie(a) => mie(&a),
-        Command::Converge { config, out, reference, budget_seconds, samples, rungs, overrides, quiet } => {
+        Command::Converge { config, out, reference, budget_seconds, samples, rungs, overrides, quiet, no_figures } => {
             let req = ConvergeRequest {
                 config,
                 overrides: overrides.sets(None),
@@ -328,6 +337,7 @@ pub fn main() -> ExitCode {
                 budget_seconds,
                 samples,
                 rungs,
+                no_figures,
             };
             converge(&req, quiet)
         }
@@ -336,7 +346,9 @@ pub fn main() -> ExitCode {
             print!("{}", l.exp);
         }),
         Command::Run(a) => run(a),
-        Command::Merge { dirs, out } => ohd::run::merge(&dirs, &out, &Terminal { quiet: false }).map(drop),
+        Command::Merge { dirs, out, no_figures } => {
+            ohd::run::merge(&dirs, &out, !no_figures, &Terminal { quiet: false }).map(drop)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -355,6 +367,7 @@ fn run(a: RunArgs) -> Result<(), Error> {
         checkpoint_seconds: a.checkpoint_seconds,
         resume: a.resume,
         shard: a.shard,
+        no_figures: a.no_figures,
     };
     ohd::run::run(&loaded, &req, &Terminal { quiet: a.quiet }).map(drop)
 }

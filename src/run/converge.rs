@@ -24,6 +24,8 @@ pub struct ConvergeRequest {
     pub samples: Option<u64>,
     /// Rungs, each twice the paths of the one before (2 to 24).
     pub rungs: usize,
+    /// Write no figure (`--no-figures`).
+    pub no_figures: bool,
 }
 
 /// A study written into `dir`.
@@ -74,6 +76,6 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
     };
     let exp = crate::pilot::decide(&exp);
     let study = crate::converge::study(&exp, refs, &opts, log);
-    crate::io::write::converge::write_study(&dir, &study, &origin)?;
+    crate::io::write::converge::write_study(&dir, &study, &origin, !req.no_figures)?;
     Ok(StudyWritten { study, dir })
 }

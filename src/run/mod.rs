@@ -73,7 +73,7 @@ impl Loaded {
 
     /// What the manifest records about how the run was invoked.
     pub fn invocation(&self) -> Invocation {
-        Invocation { config_source: self.origin.clone(), overrides: self.overrides.clone() }
+        Invocation { config_source: self.origin.clone(), overrides: self.overrides.clone(), figures: true }
     }
 }
 
@@ -127,6 +127,8 @@ pub struct RunRequest {
     pub resume: bool,
     /// Run only part `I` of `N` of the batches into `dir/shard.ohd`, for [`merge`].
     pub shard: Option<(u64, u64)>,
+    /// Write no figures (`--no-figures`).
+    pub no_figures: bool,
 }
 
 /// What [`run`] and [`merge`] finished.
@@ -212,7 +214,7 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
         return Err(Error::invalid_file(parts[0].checkpoint(), "no checkpoint of any pointing of this scan to resume"));
     }
     let opts = RunOptions { target, checkpoint_seconds: req.checkpoint_seconds, resume: req.resume };
-    let inv = loaded.invocation();
+    let inv = Invocation { figures: !req.no_figures, ..loaded.invocation() };
     if let [part] = parts.as_slice() {
         return Ok(Finished::Run(Box::new(run_part(part, &loaded.table, &inv, &opts, false, obs)?)));
     }
@@ -223,7 +225,7 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
         write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
         scan.add(part, &output);
     }
-    let vad = scan.finish(exp, obs)?;
+    let vad = scan.finish(exp, inv.figures, obs)?;
     if opts.saving() {
         // The whole scan is written: the pointings' checkpoints have served.
         parts.iter().for_each(|p| drop(std::fs::remove_file(p.checkpoint())));

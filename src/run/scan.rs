@@ -104,13 +104,18 @@ impl Scan {
 
     /// Once every pointing is written: the VAD wind of a scan of `exp` into the scan's directory
     /// when every pointing has gate velocities, returned; then the directory is complete.
-    pub(super) fn finish(&mut self, exp: &Experiment, obs: &dyn Observer) -> Result<Option<Vec<GateWind>>> {
+    pub(super) fn finish(
+        &mut self,
+        exp: &Experiment,
+        figures: bool,
+        obs: &dyn Observer,
+    ) -> Result<Option<Vec<GateWind>>> {
         let pointings = &exp.source.pointings;
         let Some(out) = self.out.take() else { return Ok(None) };
         if pointings.len() > 1 && self.velocities.len() == pointings.len() {
             let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
             let path = out.dir().join(VAD);
-            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates)?;
+            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates, figures)?;
             obs.event(Event::VadWritten { path: &path });
             return Ok(Some(gates));
         }

@@ -82,7 +82,7 @@ pub fn run_shard(loaded: &Loaded, part: &Part, index: u64, count: u64, obs: &dyn
 /// Merge the shards in `dirs` (every part of one run, any order) into the run's outputs in
 /// `out`, identical to a single run's (the manifest's timings aside): of a scan per pointing,
 /// then the VAD wind. The configuration is the one the shards recorded.
-pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finished> {
+pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) -> Result<Finished> {
     let Some(first) = dirs.first() else {
         return Err(Error::Input("no shard directories given".into()));
     };
@@ -95,7 +95,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finishe
     // The configuration recorded in the shard: if it no longer loads, the shard is what is wrong.
     let (table, exp) = crate::config::load(&h.config_text, &h.config_source, &h.overrides)
         .map_err(|e| Error::invalid_file(&head, format!("the configuration it records does not load: {e}")))?;
-    let inv = Invocation { config_source: h.config_source, overrides: h.overrides };
+    let inv = Invocation { config_source: h.config_source, overrides: h.overrides, figures };
     let mut scan = Scan::default();
     let parts = parts(&exp, &table, out);
     let mut last = None;
@@ -119,7 +119,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, obs: &dyn Observer) -> Result<Finishe
             last = Some(output);
         }
     }
-    let vad = scan.finish(&exp, obs)?;
+    let vad = scan.finish(&exp, figures, obs)?;
     match (parts.len(), last) {
         (1, Some(output)) => Ok(Finished::Run(Box::new(output))),
         (n, _) => Ok(Finished::Scan { pointings: n, vad }),

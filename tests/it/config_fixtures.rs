@@ -157,7 +157,7 @@ fn shipped_experiments_run_and_write_outputs() {
         let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
         let out = smoke_run(&stem, &mut exp, 4000);
         let dir = tmp.path().join(&stem);
-        let inv = Invocation { config_source: path.display().to_string(), overrides: vec![] };
+        let inv = Invocation { config_source: path.display().to_string(), overrides: vec![], figures: true };
         let manifest = write_run(&dir, &exp, &out, &table, &inv).unwrap_or_else(|e| panic!("{stem}: {e}")).json();
         let text = std::fs::read_to_string(dir.join("manifest.json")).expect("manifest.json written");
         let parsed: serde_json::Value = serde_json::from_str(&text).expect("manifest.json parses");

@@ -195,7 +195,7 @@ fn run_and_write(text: &str, sets: &[&str]) -> (Run, tempfile::TempDir, serde_js
     let (table, exp) = ohd::config::load(text, "test", &sets).unwrap_or_else(|e| panic!("config: {e}"));
     let out = exp.run(&ohd::experiment::Silent);
     let dir = tempfile::tempdir().expect("temporary directory");
-    let inv = ohd::io::write::manifest::Invocation { config_source: "test".into(), overrides: sets };
+    let inv = ohd::io::write::manifest::Invocation { config_source: "test".into(), overrides: sets, figures: true };
     let manifest =
         ohd::io::write::manifest::write_run(dir.path(), &exp, &out, &table, &inv).expect("outputs written").json();
     let entry = manifest["detectors"]["lidar"]["lidar"].clone();

@@ -12,6 +12,7 @@ mod config_fixtures;
 mod converge;
 mod determinism;
 mod doppler;
+mod figures;
 mod fmcw;
 mod grid;
 mod hostile;

@@ -12,7 +12,7 @@ use crate::converge::{NamedOutput, Reference, Study};
 use crate::error::{Error, Result};
 
 use super::dir::DirWriter;
-use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
+use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
 use crate::io::formats::npy;
 
 /// The agreement band of measured to self-reported error (issue 7).
@@ -136,48 +136,58 @@ pub fn json(study: &Study, config_source: &str) -> Value {
     })
 }
 
-/// `converge.png`: log10 relative error against log10 seconds per output (the main output
-/// first; at most 7), and a `1/√t` guide through the main output's mean point.
-pub fn png(study: &Study) -> Vec<u8> {
+/// The study's figure: relative error against wall time per output (the main output first; at
+/// most 7), log–log, with markers, the run's own relative σ as error bars and a `1/√t` line
+/// through the main output's points.
+pub fn plot(study: &Study) -> LinePlot {
     let mut order: Vec<&_> = study.outputs.iter().collect();
     order.sort_by_key(|o| o.output.name != study.main_output);
-    let data: Vec<(String, Vec<f64>, Vec<f64>)> = order
-        .iter()
-        .take(PALETTE.len() - 1)
-        .map(|o| {
-            let (x, y) = study
-                .rungs
-                .iter()
-                .zip(&o.relative)
-                .map(|(r, &e)| (r.seconds.log10(), if e > 0.0 { e.log10() } else { f64::NAN }))
-                .unzip();
-            (o.output.name.clone(), x, y)
-        })
-        .collect();
-    let mut guide = (Vec::new(), Vec::new());
-    if let Some((_, x, y)) = data.first() {
-        let pts: Vec<(f64, f64)> =
-            x.iter().zip(y).filter(|(a, b)| a.is_finite() && b.is_finite()).map(|(a, b)| (*a, *b)).collect();
+    let seconds: Vec<f64> = study.rungs.iter().map(|r| r.seconds).collect();
+    let mut plot = LinePlot::new("Error against run time", "wall time (s)", "relative error");
+    plot.log_x = true;
+    plot.log_y = true;
+    for (i, o) in order.iter().take(PALETTE.len() - 1).enumerate() {
+        let mut c = Curve::line(o.output.name.clone(), seconds.clone(), o.relative.clone(), PALETTE[i]);
+        c.y_err = Some(o.relative_stderr.clone());
+        c.mark = Mark::LineMarkers;
+        plot.curves.push(c);
+    }
+    if let Some(main) = order.first() {
+        let pts: Vec<(f64, f64)> = seconds
+            .iter()
+            .zip(&main.relative)
+            .filter(|(t, e)| **t > 0.0 && **e > 0.0 && t.is_finite() && e.is_finite())
+            .map(|(t, e)| (t.ln(), e.ln()))
+            .collect();
         if !pts.is_empty() {
+            // ln e = c − ln(t)/2 through the mean point.
             let n = pts.len() as f64;
-            let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+            let c = pts.iter().map(|(t, e)| e + 0.5 * t).sum::<f64>() / n;
             let (lo, hi) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p.0), h.max(p.0)));
-            guide = (vec![lo, hi], vec![my - 0.5 * (lo - mx), my - 0.5 * (hi - mx)]);
+            let x = vec![lo.exp(), hi.exp()];
+            let y = x.iter().map(|t: &f64| (c - 0.5 * t.ln()).exp()).collect();
+            let mut g = Curve::line("1/√t", x, y, PALETTE[PALETTE.len() - 1]);
+            g.mark = Mark::Dashed;
+            plot.curves.push(g);
         }
     }
-    let mut series: Vec<Series> =
-        data.iter().enumerate().map(|(i, (name, x, y))| Series { label: name, x, y, color: PALETTE[i] }).collect();
-    series.push(Series { label: "1/sqrt(t)", x: &guide.0, y: &guide.1, color: PALETTE[PALETTE.len() - 1] });
-    line_plot_png(&series, "Error against run time", "log10 wall time (s)", "log10 relative error", None)
+    plot.note = "error bars: the runs' own relative σ".into();
+    plot
 }
 
-/// Write `converge.csv`, `converge.png` and (last) `converge.json` into `dir`, atomically,
+/// Write `converge.csv`, the figure `converge.png`/`.svg` (if `figures`) and (last)
+/// `converge.json` into `dir`, atomically,
 /// through a [`DirWriter`] (an earlier study there is replaced; a run stays).
-pub fn write_study(dir: &Path, study: &Study, config_source: &str) -> Result<()> {
+pub fn write_study(dir: &Path, study: &Study, config_source: &str, figures: bool) -> Result<()> {
     let mut out = DirWriter::begin(dir, super::dir::Output::Study, &[])?;
-    let [csv_file, png_file] = super::dir::CONVERGE_FILES;
+    let [csv_file, png_file, svg_file] = super::dir::CONVERGE_FILES;
     out.put(csv_file, csv(study).as_bytes())?;
-    out.put(png_file, &png(study))?;
+    if figures {
+        let f = crate::io::figures::render(&plot(study))
+            .map_err(|m| Error::Write { path: dir.join(png_file), source: std::io::Error::other(m) })?;
+        out.put(png_file, &f.png)?;
+        out.put(svg_file, f.svg.as_bytes())?;
+    }
     let text = serde_json::to_string_pretty(&json(study, config_source)).expect("a JSON value serialises");
     out.finish(Some((super::dir::CONVERGE, text.as_bytes())))
 }

@@ -14,7 +14,7 @@
 //! A run or a scan replaces an earlier run or scan; a convergence study an earlier study (a study
 //! written beside a run leaves the run, and the other way round). Only ohd's own files are ever
 //! removed: the files an earlier record or marker lists (plain file names with an extension ohd
-//! writes: `.npy`, `.exr`, `.png`, `.csv`, `.json`), the records themselves, ohd's temporary
+//! writes: `.npy`, `.exr`, `.png`, `.svg`, `.csv`, `.json`), the records themselves, ohd's temporary
 //! files of those names (`.NAME.tmp-PID`, left by a killed process) and an earlier scan's
 //! pointing directories, each cleaned the same way and then removed if empty. Files of other
 //! programs stay, and so do checkpoints and shards (runs resume and merge from them).
@@ -37,16 +37,18 @@ pub const MANIFEST: &str = "manifest.json";
 /// A scan's record, and the VAD table written with it.
 pub const SCAN: &str = "scan.json";
 pub const VAD: &str = "vad.csv";
+/// The scan's figure (PNG and SVG).
+pub const VAD_FIGURES: [&str; 2] = ["vad_wind_profile.png", "vad_wind_profile.svg"];
 
 /// A convergence study's record, and the files written with it.
 pub const CONVERGE: &str = "converge.json";
-pub const CONVERGE_FILES: [&str; 2] = ["converge.csv", "converge.png"];
+pub const CONVERGE_FILES: [&str; 3] = ["converge.csv", "converge.png", "converge.svg"];
 
 /// Largest record read back to find an earlier output's files, bytes.
 const MAX_RECORD_BYTES: u64 = 256 << 20;
 
 /// The extensions of the files ohd writes as outputs: a listed name without one is not removed.
-const EXTENSIONS: [&str; 5] = ["npy", "exr", "png", "csv", "json"];
+const EXTENSIONS: [&str; 6] = ["npy", "exr", "png", "svg", "csv", "json"];
 
 /// Files ohd writes under fixed names besides outputs, whose temporary files are its own.
 const OWN_FILES: [&str; 3] = [MARKER, "checkpoint.ohd", "shard.ohd"];
@@ -97,7 +99,7 @@ impl Earlier {
         if let Some(s) = json(SCAN).filter(|s| run && s.get("gates").is_some()) {
             let pointings = s.get("pointings").and_then(Value::as_array).into_iter().flatten();
             e.dirs.extend(pointings.filter_map(|p| p.get("run").and_then(Value::as_str)).map(str::to_string));
-            e.files.extend([SCAN.to_string(), VAD.to_string()]);
+            e.files.extend([SCAN, VAD].iter().chain(&VAD_FIGURES).map(|s| s.to_string()));
         }
         if !run && json(CONVERGE).is_some_and(|c| c.get("ohd_version").is_some()) {
             e.files.extend(CONVERGE_FILES.iter().chain([&CONVERGE]).map(|s| s.to_string()));

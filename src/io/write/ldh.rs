@@ -7,12 +7,12 @@ use std::collections::BTreeMap;
 
 use serde_json::{Map, Value, json};
 
+use super::figures::{Channel, directional, frequency_unit, mark_band, spectrum_plot, stem};
 use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
 use crate::detect::ImageSpec;
 use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
-use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
-use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
+use crate::io::figures::image::ImageFigure;
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -20,11 +20,6 @@ use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 fn mirror_fftshift(v: &[f64]) -> Vec<f64> {
     let n = v.len();
     (0..n).map(|k| if k == 0 { v[0] } else { v[n - k] }).collect()
-}
-
-/// Power in dB (10 log10), −∞ for zero (breaks a plotted line).
-fn db(v: f64) -> f64 {
-    if v > 0.0 { 10.0 * v.log10() } else { f64::NEG_INFINITY }
 }
 
 /// Write the outputs of the LDH camera `name` (over the image `im`) as the registry declares
@@ -41,47 +36,28 @@ pub fn write_ldh(
 ) -> Result<Value> {
     let registry = w.registry;
     let out = |what: &str| registry.expect(&format!("{name}.{what}"));
-    let (m0p, _) = w.image(out("m0_plus"), "value")?;
-    let (m0m, _) = w.image(out("m0_minus"), "value")?;
+    let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
+    let band = format!("{f1}–{f2} kHz");
+    const M0: &str = "fraction of emitted power";
+    let (m0p, e) = w.image(out("m0_plus"), "value")?;
+    w.image_figure(out("m0_plus"), &m0p, &e, &format!("{name}: M0+ ({band})"), M0)?;
+    let (m0m, e) = w.image(out("m0_minus"), "value")?;
+    w.image_figure(out("m0_minus"), &m0m, &e, &format!("{name}: M0− ({band}, + receding)"), M0)?;
     if spec.m1 {
-        w.image(out("m1"), "value")?;
+        let (v, e) = w.image(out("m1"), "value")?;
+        w.image_figure(out("m1"), &v, &e, &format!("{name}: M1 ({band})"), "Hz × fraction of emitted power")?;
     }
     if spec.by_class {
         for cname in CLASS_NAMES {
-            w.image(out(&format!("m0_plus_{cname}")), "value")?;
-            w.image(out(&format!("m0_minus_{cname}")), "value")?;
+            for (what, sign) in [("m0_plus", "+"), ("m0_minus", "−")] {
+                let o = out(&format!("{what}_{cname}"));
+                let (v, e) = w.image(o, "value")?;
+                w.image_figure(o, &v, &e, &format!("{name}: M0{sign}, {} ({band})", cname.replace('_', " ")), M0)?;
+            }
         }
     }
-
-    // Previews (y up).
-    let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
-    w.put(
-        "m0_plus.png".into(),
-        image_png(
-            &m0p,
-            im.nx,
-            im.ny,
-            Colormap::Grey,
-            sequential_range(&m0p, 0.995),
-            &format!("M0+  ({f1}-{f2} kHz)"),
-            "fraction of emitted power",
-        ),
-    )?;
-    w.put(
-        "m0_minus.png".into(),
-        image_png(
-            &m0m,
-            im.nx,
-            im.ny,
-            Colormap::Diverging,
-            symmetric_range(&m0m, 0.995),
-            &format!("M0-  ({f1}-{f2} kHz, red = receding)"),
-            "fraction of emitted power",
-        ),
-    )?;
-    let pos: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p + m)).collect();
-    let neg: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p - m)).collect();
-    w.put("m0_directional.png".into(), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
+    let title = format!("{name}: directional M0 ({band})");
+    w.figure(&format!("{name}_m0_directional"), &directional(out("m0_plus"), &m0p, &m0m, &title))?;
 
     // ROI spectra.
     let axis = spec.spectrum_axis;
@@ -103,7 +79,7 @@ pub fn write_ldh(
         }
         // On the written axis: mirrored with the set-up's sign flipped.
         let o = roi_out("spectrum");
-        let (v, _) = w.array(o)?;
+        w.array(o)?;
         let mut out_of_range = Map::new();
         for (ch, chname) in channel_names.iter().enumerate() {
             let ((below, above), (below_se, above_se)) = (o.tails(w.mean, ch), o.tails(w.stderr, ch));
@@ -112,24 +88,17 @@ pub fn write_ldh(
                 json!({ "below": estimate(below, below_se), "above": estimate(above, above_se) }),
             );
         }
-        let khz: Vec<f64> = centres.iter().map(|f| f / 1e3).collect();
-        let dbs: Vec<Vec<f64>> = v.chunks_exact(bins).map(|c| c.iter().map(|&x| db(x)).collect()).collect();
-        let series: Vec<Series> = channel_names
+        let (v, e) = o.values(w.mean, w.stderr);
+        let channels: Vec<Channel> = channel_names
             .iter()
-            .zip(&dbs)
-            .enumerate()
-            .map(|(i, (name, y))| Series { label: name, x: &khz, y, color: PALETTE[i % PALETTE.len()] })
+            .zip(v.chunks_exact(bins).zip(e.chunks_exact(bins)))
+            .map(|(n, (values, stderr))| Channel { name: n, values, stderr })
             .collect();
-        w.put(
-            format!("roi_{}_spectrum.png", roi.name),
-            line_plot_png(
-                &series,
-                &format!("ROI \"{}\": Doppler spectrum by path class", roi.name),
-                "beat frequency (kHz)",
-                "power per bin (dB of emitted)",
-                None,
-            ),
-        )?;
+        let title = format!("{name}: ROI \"{}\" spectrum by path class", roi.name);
+        let mut plot = spectrum_plot(&title, &centres, &channels, "power per bin (dB re emitted)");
+        let (div, _) = frequency_unit(centres.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
+        mark_band(&mut plot, spec.band, div, "M0 band (both signs)");
+        w.figure(&stem(o), &plot)?;
         let mut info = Map::new();
         info.insert("x_range_m".into(), json!([roi.min[0], roi.max[0]]));
         info.insert("y_range_m".into(), json!([roi.min[1], roi.max[1]]));
@@ -141,10 +110,12 @@ pub fn write_ldh(
         rois.insert(roi.name.clone(), Value::Object(info));
     }
     if spec.pixel_spectra {
-        w.array(out("pixel_spectra"))?;
+        let o = out("pixel_spectra");
+        let (v, _) = w.array(o)?;
+        w.figure(&stem(o), &pixel_spectra_plot(name, &centres, &v, bins, spec.band))?;
     }
     let pixel_speckle = match pixel_speckle {
-        Some(s) => write_pixel_speckle(w, im, spec, s, &m0p, &m0m)?,
+        Some(s) => write_pixel_speckle(w, name, spec, s, &m0p, &m0m)?,
         None => Value::Null,
     };
 
@@ -204,7 +175,7 @@ fn median(v: impl Iterator<Item = f64>) -> f64 {
 /// sign).
 fn write_pixel_speckle(
     w: &mut Writer,
-    im: &ImageSpec,
+    name: &str,
     spec: &LdhSpec,
     s: &PixelSpeckle,
     m0p: &[f64],
@@ -221,31 +192,13 @@ fn write_pixel_speckle(
     w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &s.m0_plus)?;
     w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &signed(&s.m0_minus))?;
     w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &s.expected_m0_plus)?;
-    let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
-    w.put(
-        "m0_plus_speckle.png".into(),
-        image_png(
-            plus,
-            im.nx,
-            im.ny,
-            Colormap::Grey,
-            sequential_range(plus, 0.995),
-            &format!("M0+ single window  ({f1}-{f2} kHz)"),
-            "fraction of emitted power",
-        ),
-    )?;
-    w.put(
-        "m0_minus_speckle.png".into(),
-        image_png(
-            &minus,
-            im.nx,
-            im.ny,
-            Colormap::Diverging,
-            symmetric_range(&minus, 0.995),
-            &format!("M0- single window  ({f1}-{f2} kHz, red = receding)"),
-            "fraction of emitted power",
-        ),
-    )?;
+    let band = format!("{}–{} kHz", spec.band.0 / 1e3, spec.band.1 / 1e3);
+    let grid = w.registry.expect(&format!("{}.m0_plus", name));
+    for (what, values, sign) in [("m0_plus", plus, "+"), ("m0_minus", &minus[..], "−")] {
+        let title = format!("{}: M0{sign}, single window ({band})", name);
+        let p = super::figures::image_panel(grid, values, &title, "fraction of emitted power", sign == "−");
+        w.figure(&format!("{}_{what}_speckle", name), &ImageFigure { panels: vec![p] })?;
+    }
     // The binning approximation: E M0± = band sums of S against the exact images.
     let total = |v: &[f64]| v.iter().sum::<f64>();
     let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
@@ -292,7 +245,6 @@ fn write_pixel_speckle(
             "m0_plus_windows": "m0_plus_speckle_windows.npy",
             "m0_minus_windows": "m0_minus_speckle_windows.npy",
             "m0_plus_expected": "m0_plus_speckle_expected.npy",
-            "previews": ["m0_plus_speckle.png", "m0_minus_speckle.png"],
         },
     }))
 }
@@ -350,4 +302,37 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> 
             "algorithm2": format!("roi_{name}_speckle_algorithm2.npy"),
         },
     }))
+}
+
+/// The spectra of every pixel summed (the image's spectrum) and of its brightest pixel, in dB,
+/// with the M0 band shaded.
+fn pixel_spectra_plot(
+    name: &str,
+    centres: &[f64],
+    v: &[f64],
+    bins: usize,
+    band: (f64, f64),
+) -> crate::io::figures::lines::LinePlot {
+    let bins = bins.max(1);
+    let mut sum = vec![0.0; bins];
+    let mut best = (0.0, 0);
+    for (p, px) in v.chunks_exact(bins).enumerate() {
+        sum.iter_mut().zip(px).for_each(|(s, x)| *s += x);
+        let t: f64 = px.iter().sum();
+        if t > best.0 {
+            best = (t, p);
+        }
+    }
+    let bright = v.chunks_exact(bins).nth(best.1).map_or(vec![0.0; bins], |c| c.to_vec());
+    let zero = vec![0.0; bins];
+    let channels = [
+        Channel { name: "all pixels (sum)", values: &sum, stderr: &zero },
+        Channel { name: "brightest pixel", values: &bright, stderr: &zero },
+    ];
+    let mut plot =
+        spectrum_plot(&format!("{name}: pixel spectra"), centres, &channels, "power per bin (dB re emitted)");
+    plot.note = plot.note.replace("band: ±σ; ", "");
+    let (div, _) = frequency_unit(centres.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
+    mark_band(&mut plot, band, div, "M0 band (both signs)");
+    plot
 }

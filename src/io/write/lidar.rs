@@ -10,14 +10,15 @@ use super::{Writer, estimate};
 use crate::detect::LidarSpec;
 use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::error::Result;
-use crate::io::figures::plot::{AxesImage, PALETTE, Series, image_with_axes, line_plot_png};
-use crate::io::figures::raster::Colormap;
+use crate::io::figures::image::{ImageFigure, Panel};
+use crate::io::figures::lines::{Curve, LinePlot, PALETTE, db_range};
+use crate::io::figures::scale::{Colormap, db};
 use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
 
-/// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).
+/// Gates drawn in the gate-spectra figure (fewer if the receiver has fewer).
 const PLOTTED_GATES: usize = 4;
-/// Dynamic range of `range_doppler.png` below the map's peak, dB.
-const MAP_RANGE_DB: f64 = 60.0;
+/// Dynamic range of the range–Doppler map below its peak, dB.
+const MAP_RANGE_DB: f64 = super::figures::DB_DEPTH;
 
 /// Write the receiver's outputs; returns the manifest entry (axes, files, noise model, per-gate
 /// energies and estimates).
@@ -45,8 +46,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         (&mean[o..o + bins], &se[o..o + bins])
     };
     let total = &mean[output(&format!("{name}.range_doppler")).range()];
-    w.put("range_doppler.png".into(), range_doppler_png(spec, &range, total))?;
-    w.put("gate_spectra.png".into(), gate_spectra_png(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
+    w.figure(&format!("{name}_range_doppler"), &range_doppler_figure(spec, &range, total))?;
+    w.figure(&format!("{name}_gate_spectra"), &gate_spectra_plot(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
     // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
@@ -103,7 +104,11 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         "range_file": "range_m.npy",
         "frequency_file": "frequency_hz.npy",
         "spectra": Value::Object(files),
-        "plots": ["range_doppler.png", "gate_spectra.png"],
+        "figures": if w.figures {
+            json!([format!("{name}_range_doppler.png"), format!("{name}_gate_spectra.png")])
+        } else {
+            json!([])
+        },
         "layout": "gates × bins, bins in fftshift order (ν_k = (k − K/2)·f_s/K)",
         "units": "fraction of the pulse energy per bin (expected periodogram, |X_k|²/K), without noise",
         "gate_points": m,
@@ -223,33 +228,33 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
     row.insert("stderr_substituted".into(), json!(gate.stderr_substituted));
 }
 
-/// The total range–Doppler map in dB re its peak: x = radial velocity, y = range.
-fn range_doppler_png(spec: &LidarSpec, range: &[f64], total: &[f64]) -> Vec<u8> {
+/// The total range–Doppler map in dB re its peak: x = radial velocity, y = range (the farthest
+/// gate at the top), with the height of each range on the right (`z0 + range · sin(elevation)`).
+fn range_doppler_figure(spec: &LidarSpec, range: &[f64], total: &[f64]) -> ImageFigure {
     let (gates, bins) = (spec.gates, spec.fft_points);
     let peak = total.iter().cloned().fold(0.0, f64::max);
-    let db: Vec<f64> =
-        total.iter().map(|&v| if v > 0.0 && peak > 0.0 { 10.0 * (v / peak).log10() } else { f64::NAN }).collect();
+    // Row 0 of the figure is the top: the last gate.
+    let db_map: Vec<f64> = (0..gates)
+        .rev()
+        .flat_map(|g| total[g * bins..(g + 1) * bins].iter())
+        .map(|&v| if v > 0.0 && peak > 0.0 { db(v / peak) } else { f64::NAN })
+        .collect();
     let half_bin = 0.5 * spec.sample_rate / bins as f64;
     let v = |f: f64| radial_velocity(f, spec.wavelength);
-    let x_range = (v(spec.bin_frequency(0) - half_bin), v(spec.bin_frequency(bins - 1) + half_bin));
+    let x = (v(spec.bin_frequency(0) - half_bin), v(spec.bin_frequency(bins - 1) + half_bin));
     // Each row spans its gate: M samples of c/(2 f_s) each, centred on the gate's range.
     let half_gate = 0.25 * crate::SPEED_OF_LIGHT * spec.gate_points as f64 / spec.sample_rate;
-    let y_range = (range[0] - half_gate, range[gates - 1] + half_gate);
-    let title = format!("Range-Doppler spectrum (total), {} gates x {} bins", gates, bins);
-    image_with_axes(&AxesImage {
-        values: &db,
-        nx: bins,
-        ny: gates,
-        x_range,
-        y_range,
-        x_label: "radial velocity (m/s), + receding",
-        y_label: "range (m)",
-        title: &title,
-        cmap: Colormap::Viridis,
-        value_range: (-MAP_RANGE_DB, 0.0),
-        colorbar_label: "power (dB re peak)",
-    })
-    .to_png()
+    let y = (range[0] - half_gate, range[gates - 1] + half_gate);
+    let height = |r: f64| spec.position.z + r * spec.axis.z;
+    let title = format!("Range–Doppler spectrum (total), {gates} gates × {bins} bins");
+    let mut p =
+        Panel::new(title, db_map, (bins, gates), x, y, Colormap::Viridis, (-MAP_RANGE_DB, 0.0), "power (dB re peak)");
+    p.x_label = "radial velocity (m/s), + receding".into();
+    p.y_label = "range (m)".into();
+    p.equal = false;
+    p.right_axis = Some(("height (m)".into(), (height(y.0), height(y.1))));
+    p.caption = format!("grey: no power; {MAP_RANGE_DB:.0} dB below the peak; height = z0 + range · sin(elevation)");
+    ImageFigure { panels: vec![p] }
 }
 
 /// A colour halfway to white.
@@ -258,38 +263,51 @@ fn tint(c: [u8; 3]) -> [u8; 3] {
 }
 
 /// A few evenly spaced gates' total and multiple-scattering spectra (dB re the pulse energy per
-/// bin) against radial velocity, with the shot-noise floor.
+/// bin) against radial velocity, with the shot-noise floor; 60 dB below the peak (the floor too
+/// when it lies within 80 dB of the peak). The legend lists only curves with power in range.
 /// `spectrum(c, g)`: channel `c`'s spectrum in gate `g`.
-fn gate_spectra_png<'a>(
+fn gate_spectra_plot<'a>(
     spec: &LidarSpec,
     range: &[f64],
     velocity: &[f64],
     spectrum: impl Fn(usize, usize) -> &'a [f64],
-) -> Vec<u8> {
+) -> LinePlot {
     let gates = spec.gates;
     let n = PLOTTED_GATES.min(gates);
     let mut chosen: Vec<usize> =
         (0..n).map(|i| if n == 1 { 0 } else { (i * (gates - 1) + (n - 1) / 2) / (n - 1) }).collect();
     chosen.dedup();
-    let db = |p: &[f64]| -> Vec<f64> {
-        p.iter().map(|&v| if v > 0.0 { 10.0 * v.log10() } else { f64::NEG_INFINITY }).collect()
-    };
-    let mut curves: Vec<(String, Vec<f64>, [u8; 3])> = Vec::new();
+    let to_db = |p: &[f64]| -> Vec<f64> { p.iter().map(|&v| db(v)).collect() };
+    let title = format!("Gate spectra, E_p = {:.3e} J, η = {:.2}", spec.pulse_energy, spec.efficiency());
+    let mut plot = LinePlot::new(title, "radial velocity (m/s), + receding", "dB re pulse energy per bin");
     for (i, &g) in chosen.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        curves.push((format!("{:.0} m total", range[g]), db(spectrum(0, g)), color));
-        curves.push((format!("{:.0} m multiple", range[g]), db(spectrum(2, g)), tint(color)));
+        plot.curves.push(Curve::line(
+            format!("{:.0} m total", range[g]),
+            velocity.to_vec(),
+            to_db(spectrum(0, g)),
+            color,
+        ));
+        let multiple =
+            Curve::line(format!("{:.0} m multiple", range[g]), velocity.to_vec(), to_db(spectrum(2, g)), tint(color));
+        plot.curves.push(multiple);
     }
-    let floor_db = 10.0 * spec.noise_floor_per_bin().log10();
-    curves.push(("shot-noise floor".into(), vec![floor_db; velocity.len()], [90, 90, 90]));
-    let top =
-        curves.iter().flat_map(|c| c.1.iter()).copied().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, f64::max);
-    let y_range = top.is_finite().then(|| {
-        let lo = (top - 80.0).min(floor_db - 10.0);
-        (lo, top + 5.0)
+    let floor_db = db(spec.noise_floor_per_bin());
+    plot.y_range = db_range(plot.curves.iter().flat_map(|c| &c.y), MAP_RANGE_DB).map(|(lo, hi)| {
+        if floor_db.is_finite() && floor_db > lo - 20.0 { (lo.min(floor_db - 5.0), hi) } else { (lo, hi) }
     });
-    let series: Vec<Series> =
-        curves.iter().map(|(label, y, color)| Series { label, x: velocity, y, color: *color }).collect();
-    let title = format!("Gate spectra, E_p = {:.3e} J, eta = {:.2}", spec.pulse_energy, spec.efficiency());
-    line_plot_png(&series, &title, "radial velocity (m/s), + receding", "dB re pulse energy per bin", y_range)
+    let mut floor = Curve::line("shot-noise floor", velocity.to_vec(), vec![floor_db; velocity.len()], [90, 90, 90]);
+    floor.mark = crate::io::figures::lines::Mark::Dashed;
+    plot.curves.push(floor);
+    let (lo, _) = plot.y_range.unwrap_or((f64::NEG_INFINITY, 0.0));
+    let hidden: Vec<String> = plot
+        .curves
+        .iter()
+        .filter(|c| !c.y.iter().any(|&y| y.is_finite() && y >= lo))
+        .map(|c| c.label.clone())
+        .collect();
+    if !hidden.is_empty() {
+        plot.note = format!("below the plotted range or without power (not drawn): {}", hidden.join(", "));
+    }
+    plot
 }

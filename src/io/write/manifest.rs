@@ -22,12 +22,21 @@ use crate::io::formats::npy;
 use crate::output::{Kind, Output};
 
 /// What the manifest records about how the run was invoked.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Invocation {
     /// Where the configuration came from (a path, or "built-in default").
     pub config_source: String,
     /// `--set` overrides in the order given.
     pub overrides: Vec<String>,
+    /// Whether figures are written (`--no-figures`: none).
+    pub figures: bool,
+}
+
+impl Default for Invocation {
+    /// No source, no overrides, figures written (as by default on the command line).
+    fn default() -> Self {
+        Invocation { config_source: String::new(), overrides: Vec::new(), figures: true }
+    }
 }
 
 /// `manifest.json`. Written with its keys sorted (as a JSON object, at every level).
@@ -184,6 +193,7 @@ pub fn write_run(
     let mut writer = DirWriter::begin(dir, super::dir::Output::Run, &[])?;
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put(&name, &bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
+    w.figures = inv.figures;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
     let mut det_estimates = BTreeMap::new();
@@ -209,6 +219,8 @@ pub fn write_run(
             DetectorKind::Surface(s) => {
                 if let Some(spec) = &s.spectrum {
                     let (entry, oor) = write_spectra(&mut w, i, &d.name, spec, &mut de)?;
+                    let fmcw = exp.fmcw_estimates(out, i).and_then(|r| r.ok());
+                    super::figures::spectra_figures(&mut w, i, &d.name, fmcw.as_ref())?;
                     info.spectrum = Some(entry);
                     out_of_range_total += oor;
                 }
@@ -218,7 +230,9 @@ pub fn write_run(
                     fmcw_rows.extend(entry.row);
                 }
                 if let Some(im) = &s.image {
-                    w.image(w.output(&format!("{}.image", d.name)), "intensity")?;
+                    let o = w.output(&format!("{}.image", d.name));
+                    let (v, e) = w.image(o, "intensity")?;
+                    w.image_figure(o, &v, &e, &format!("{}: intensity image", d.name), "fraction of emitted power")?;
                     info.image = Some(ImageEntry {
                         pixels: [im.nx, im.ny],
                         x_range_m: [im.min[0], im.max[0]],

@@ -7,6 +7,7 @@
 
 pub mod converge;
 pub mod dir;
+pub mod figures;
 pub mod fmcw;
 pub mod ldh;
 pub mod lidar;
@@ -19,7 +20,6 @@ use serde::Serialize;
 
 use super::formats::{exr::exr_bytes, npy};
 use crate::error::{Error, Result};
-use crate::io::figures::raster::{Colormap, image_png};
 use crate::output::{Kind, Output, PixelErrors, Registry};
 
 /// A value and its standard error (`null` in JSON when not finite).
@@ -90,6 +90,8 @@ pub struct Writer<'a, 'p> {
     pub written: BTreeSet<String>,
     /// The per-pixel relative errors of the images written, by output name (for the manifest).
     pub pixel_errors: BTreeMap<String, PixelErrorEntry>,
+    /// Whether figures are drawn ([`Writer::figure`]; `--no-figures` turns them off).
+    pub figures: bool,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -105,7 +107,7 @@ pub struct PixelErrorEntry {
 
 impl<'a, 'p> Writer<'a, 'p> {
     pub fn new(put: &'a mut Put<'p>, registry: &'a Registry, mean: &'a [f64], stderr: &'a [f64]) -> Self {
-        Writer { put, registry, mean, stderr, written: BTreeSet::new(), pixel_errors: BTreeMap::new() }
+        Writer { put, registry, mean, stderr, written: BTreeSet::new(), pixel_errors: BTreeMap::new(), figures: true }
     }
 
     /// Write a file.
@@ -162,20 +164,13 @@ impl<'a, 'p> Writer<'a, 'p> {
         Ok((v, e))
     }
 
-    /// A main image's per-pixel relative errors: a map (`.npy`, NaN where the value is 0, and a
-    /// PNG on a fixed 0–100 % scale) and its summary for the manifest.
+    /// A main image's per-pixel relative errors: a map (`.npy`, NaN where the value is 0; drawn
+    /// beside the image in its figure) and its summary for the manifest.
     fn pixel_error_map(&mut self, o: &Output, nx: usize, ny: usize, v: &[f64], e: &[f64]) -> Result<()> {
         let pe = PixelErrors::of(v, e);
         let stem = o.file.trim_end_matches(".npy");
         let file = format!("{stem}_relative_error.npy");
         self.put(file.clone(), npy::to_bytes(&[ny, nx], &pe.map))?;
-        // Pixels without signal drawn as 100 %; the scale is fixed so that maps compare.
-        let shown: Vec<f64> = pe.map.iter().map(|&r| if r.is_nan() { 1.0 } else { r.min(1.0) }).collect();
-        let title = format!("{}: relative error (median {:.1} %)", o.name, 100.0 * pe.median);
-        self.put(
-            format!("{stem}_relative_error.png"),
-            image_png(&shown, nx, ny, Colormap::Grey, (0.0, 1.0), &title, "sigma / |value|"),
-        )?;
         let finite = |v: f64| v.is_finite().then_some(v);
         let entry = PixelErrorEntry {
             file,

@@ -4,14 +4,21 @@
 
 use serde_json::{Value, json};
 
-use super::dir::{DirWriter, SCAN, VAD};
+use super::dir::{DirWriter, SCAN, VAD, VAD_FIGURES};
 use crate::error::Result;
+use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
 use crate::scan::GateWind;
 use crate::source::Pointing;
 
 /// Write `vad.csv` and (last) `scan.json` into the scan's directory `out`; `runs[i]` is the
 /// directory of pointing `i` (relative to it). Returns the JSON as written.
-pub fn write_scan(mut out: DirWriter, pointings: &[Pointing], runs: &[String], gates: &[GateWind]) -> Result<Value> {
+pub fn write_scan(
+    mut out: DirWriter,
+    pointings: &[Pointing],
+    runs: &[String],
+    gates: &[GateWind],
+    figures: bool,
+) -> Result<Value> {
     let mut csv = String::from(
         "gate,range_m,height_m,u_east_m_per_s,v_north_m_per_s,w_up_m_per_s,u_stderr,v_stderr,w_stderr,\
          horizontal_speed_m_per_s,direction_from_deg,chi2,dof,pointings_used,error",
@@ -66,6 +73,14 @@ pub fn write_scan(mut out: DirWriter, pointings: &[Pointing], runs: &[String], g
         table.push(row);
     }
     out.put(VAD, csv.as_bytes())?;
+    if figures {
+        let f = crate::io::figures::render(&wind_profile(gates)).map_err(|m| crate::error::Error::Write {
+            path: out.dir().join(VAD_FIGURES[0]),
+            source: std::io::Error::other(m),
+        })?;
+        out.put(VAD_FIGURES[0], &f.png)?;
+        out.put(VAD_FIGURES[1], f.svg.as_bytes())?;
+    }
     let scan = json!({
         "pointings": pointings.iter().zip(runs).map(|(p, r)| json!({
             "azimuth_deg": p.azimuth_deg,
@@ -80,4 +95,28 @@ pub fn write_scan(mut out: DirWriter, pointings: &[Pointing], runs: &[String], g
     let text = serde_json::to_string_pretty(&scan).unwrap_or_default();
     out.finish(Some((SCAN, text.as_bytes())))?;
     Ok(scan)
+}
+
+/// The VAD wind profile: east, north and vertical wind against height, each gate's value with
+/// its standard error as a horizontal error bar (gates without a fit left out).
+pub fn wind_profile(gates: &[GateWind]) -> LinePlot {
+    let mut plot = LinePlot::new("VAD wind profile", "wind (m/s)", "height (m)");
+    let names = ["u (east)", "v (north)", "w (up)"];
+    for (k, label) in names.iter().enumerate() {
+        let (mut x, mut y, mut e) = (vec![], vec![], vec![]);
+        for g in gates {
+            if let Ok(f) = &g.fit {
+                x.push(f.wind[k]);
+                y.push(g.height_m);
+                e.push(f.wind_stderr().map_or(f64::NAN, |s| s[k]));
+            }
+        }
+        let mut c = Curve::line(*label, x, y, PALETTE[k]);
+        c.x_err = Some(e);
+        c.mark = Mark::LineMarkers;
+        plot.curves.push(c);
+    }
+    let failed = gates.iter().filter(|g| g.fit.is_err()).count();
+    plot.note = format!("error bars: ±σ of the fit; {failed} of {} gates without a fit (not drawn)", gates.len());
+    plot
 }
