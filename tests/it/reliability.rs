@@ -34,7 +34,7 @@ fn a_non_finite_estimate_fails_the_run_and_writes_nothing() {
     out.estimates = BatchAccumulator::from_parts(batches, mean, m2.to_vec()).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
-    let inv = Invocation { config_source: path.display().to_string(), overrides: vec![] };
+    let inv = Invocation { config_source: path.display().to_string(), overrides: vec![], figures: true };
     match write_run(&dir, &exp, &out, &table, &inv) {
         Err(e @ Error::NotFinite { .. }) => {
             let msg = e.to_string();

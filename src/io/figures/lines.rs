@@ -163,7 +163,7 @@ impl LinePlot {
             .y_range
             .map(|(a, b)| (a.min(b), a.max(b)))
             .filter(|&(a, b)| self.shown(a, true) && self.shown(b, true) && b > a && (b - a).is_finite());
-        (pad(xs, self.log_x, 0.0), fixed.unwrap_or_else(|| pad(ys, self.log_y, 0.05)))
+        (bound(pad(xs, self.log_x, 0.0)), bound(fixed.unwrap_or_else(|| pad(ys, self.log_y, 0.05))))
     }
 }
 
@@ -186,6 +186,14 @@ fn pad((lo, hi): (f64, f64), log: bool, margin: f64) -> (f64, f64) {
     }
     let p = margin * (hi - lo);
     if (hi - lo + 2.0 * p).is_finite() { (lo - p, hi + p) } else { (lo, hi) }
+}
+
+/// A range plotters can lay ticks on: within ±1e250 (a span near the largest float makes its
+/// tick search overflow and never end); an emptied range widened.
+fn bound((lo, hi): (f64, f64)) -> (f64, f64) {
+    const B: f64 = 1e250;
+    let (lo, hi) = (lo.clamp(-B, B), hi.clamp(-B, B));
+    if hi > lo { (lo, hi) } else { (lo, lo + lo.abs().max(1.0)) }
 }
 
 /// Runs of consecutive points for which `ok` holds.
@@ -265,7 +273,7 @@ impl LinePlot {
         let mut labelled_span = false;
         for s in &self.spans {
             let (lo, hi) = (s.lo.max(xr.0), s.hi.min(xr.1));
-            if !(lo < hi) {
+            if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
                 continue;
             }
             let c = rgb(s.color);
@@ -396,7 +404,7 @@ fn tick_step((lo, hi): (f64, f64), log: bool) -> f64 {
 /// The y range for spectra in dB: from `depth` dB below the highest finite value to 3 dB above.
 pub fn db_range<'a>(values: impl IntoIterator<Item = &'a f64>, depth: f64) -> Option<(f64, f64)> {
     let top = values.into_iter().copied().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, f64::max);
-    top.is_finite().then(|| (top - depth, top + 3.0))
+    top.is_finite().then_some((top - depth, top + 3.0))
 }
 
 #[cfg(test)]
