@@ -15,10 +15,10 @@
 //! A [`Canvas`] is addressed like the PNG it becomes: `(x, y)` in pixels, `x` to the right and
 //! row `y = 0` at the **top**.
 //!
-//! Data images are `ny × nx`, row-major, with data row 0 = the smallest `y`
-//! (`values[iy * nx + ix]`). Previews draw them with **y up**: data row 0 is the **bottom** row of
-//! the picture and data column 0 its left column, so a preview looks like a plot of the `x`–`y`
-//! plane seen from `+z`. [`PreviewGeometry`] gives the exact placement (tests use it to find the
+//! Data images are `ny × nx`, row-major, as written ([`crate::output::Output::values`]): data
+//! row 0 = the largest `y` (`values[iy * nx + ix]`). Previews draw them with **y up**: data row 0
+//! is the **top** row of the picture and data column 0 its left column, so a preview looks like a
+//! plot of the `x`–`y` plane seen from `+z`, and like the `.npy` in `plt.imshow`. [`PreviewGeometry`] gives the exact placement (tests use it to find the
 //! picture pixel of a data pixel).
 
 use super::ticks::{nice_ticks, tick_label};
@@ -365,7 +365,7 @@ pub fn sequential_range(values: &[f64], quantile: f64) -> (f64, f64) {
 
 /// Where a preview draws its image: the top-left corner and size in pixels of the picture of the
 /// `nx × ny` data. Picture pixel `(left + px, top + py)` shows data pixel
-/// `ix = px · nx / width`, `iy = ny − 1 − py · ny / height` (y up).
+/// `ix = px · nx / width`, `iy = py · ny / height` (data row 0, the largest y, at the top).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PreviewGeometry {
     pub nx: usize,
@@ -418,7 +418,7 @@ impl PreviewGeometry {
     /// The data pixel shown at picture offset `(px, py)` from the image's top-left corner.
     pub fn data_index(&self, px: usize, py: usize) -> (usize, usize) {
         let ix = (px * self.nx / self.width).min(self.nx - 1);
-        let iy = self.ny - 1 - (py * self.ny / self.height).min(self.ny - 1);
+        let iy = (py * self.ny / self.height).min(self.ny - 1);
         (ix, iy)
     }
 
@@ -426,7 +426,7 @@ impl PreviewGeometry {
     pub fn pixel_center(&self, ix: usize, iy: usize) -> (usize, usize) {
         let col = |i: usize, n: usize, size: usize| (i * size).div_ceil(n) + size / n / 2;
         let x = self.left + col(ix.min(self.nx - 1), self.nx, self.width);
-        let y = self.top + col(self.ny - 1 - iy.min(self.ny - 1), self.ny, self.height);
+        let y = self.top + col(iy.min(self.ny - 1), self.ny, self.height);
         (x, y)
     }
 
@@ -478,8 +478,8 @@ fn check_shape(len: usize, nx: usize, ny: usize) -> Result<(), String> {
     }
 }
 
-/// A false-colour preview of a `ny × nx` image stored row-major with row 0 = smallest y, drawn
-/// with y up (data row 0 at the bottom), upscaled by an integer factor to at least 384 px on its
+/// A false-colour preview of a `ny × nx` image stored row-major with row 0 = largest y, drawn
+/// with y up (data row 0 at the top), upscaled by an integer factor to at least 384 px on its
 /// long side, with `title` above and a vertical colour bar on the right whose 3–5 tick labels are
 /// in the value's units (`colorbar_label`, e.g. "M0+ (fraction of emitted power)"). `range = (lo,
 /// hi)` maps `lo` → 0 and `hi` → 1 (a degenerate or non-finite range is widened around its
@@ -843,8 +843,8 @@ mod tests {
     }
 
     #[test]
-    fn grey_preview_puts_data_row_zero_at_the_bottom() {
-        // Row 0 (bottom): 0, 1/3; row 1 (top): 2/3, 1.
+    fn grey_preview_puts_data_row_zero_at_the_top() {
+        // Row 0 (top, the largest y): 0, 1/3; row 1 (bottom): 2/3, 1.
         let values = [0.0, 1.0, 2.0, 3.0];
         let png = image_png(&values, 2, 2, Colormap::Grey, (0.0, 3.0), "grey 2x2", "value (a.u.)");
         let img = decode(&png);
@@ -855,13 +855,13 @@ mod tests {
             let (x, y) = geo.pixel_center(ix, iy);
             pixel(&img, x, y)
         };
-        assert_eq!(at(0, 0), [0, 0, 0], "value 0 black, bottom left");
-        assert_eq!(at(1, 1), [255, 255, 255], "value 3 white, top right");
+        assert_eq!(at(0, 0), [0, 0, 0], "value 0 black, top left");
+        assert_eq!(at(1, 1), [255, 255, 255], "value 3 white, bottom right");
         assert_eq!(at(1, 0), Colormap::Grey.color(1.0 / 3.0));
         assert_eq!(at(0, 1), Colormap::Grey.color(2.0 / 3.0));
-        // Bottom-left corner of the picture is data (0, 0); top-left is data (0, 1).
-        assert_eq!(pixel(&img, geo.left, geo.top + geo.height - 1), [0, 0, 0]);
-        assert_eq!(pixel(&img, geo.left + geo.width - 1, geo.top), [255, 255, 255]);
+        // Top-left corner of the picture is data (0, 0); bottom-right is data (1, 1).
+        assert_eq!(pixel(&img, geo.left, geo.top), [0, 0, 0]);
+        assert_eq!(pixel(&img, geo.left + geo.width - 1, geo.top + geo.height - 1), [255, 255, 255]);
     }
 
     #[test]

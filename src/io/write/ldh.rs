@@ -13,6 +13,7 @@ use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
 use crate::io::figures::plot::{PALETTE, Series, line_plot_png};
 use crate::io::figures::raster::{Colormap, directional_png, image_png, sequential_range, symmetric_range};
+use crate::output::rows_reversed;
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -41,19 +42,21 @@ pub fn write_ldh(
 ) -> Result<Value> {
     let registry = w.registry;
     let out = |what: &str| registry.expect(&format!("{name}.{what}"));
-    let (m0p, _) = w.image(out("m0_plus"), "value")?;
-    let (m0m, _) = w.image(out("m0_minus"), "value")?;
+    // Each image's EXR channel is named after what it holds (`m0_plus`, `m0_minus_static`, …).
+    let image = |w: &mut Writer, what: &str| w.image(out(what), what);
+    let (m0p, _) = image(w, "m0_plus")?;
+    let (m0m, _) = image(w, "m0_minus")?;
     if spec.m1 {
-        w.image(out("m1"), "value")?;
+        image(w, "m1")?;
     }
     if spec.by_class {
         for cname in CLASS_NAMES {
-            w.image(out(&format!("m0_plus_{cname}")), "value")?;
-            w.image(out(&format!("m0_minus_{cname}")), "value")?;
+            image(w, &format!("m0_plus_{cname}"))?;
+            image(w, &format!("m0_minus_{cname}"))?;
         }
     }
 
-    // Previews (y up).
+    // Previews (y up: row 0, the largest y, at the top).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     w.put(
         "m0_plus.png".into(),
@@ -213,14 +216,19 @@ fn write_pixel_speckle(
     let (nx, ny, windows) = (s.nx, s.ny, s.windows);
     let pixels = nx * ny;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
+    // Drawn per tally pixel (row 0 = the lowest y); written, and compared with the images `m0p`
+    // and `m0m`, with row 0 = the largest y, window by window.
+    let top_first = |v: &[f64]| -> Vec<f64> { v.chunks(pixels.max(1)).flat_map(|im| rows_reversed(im, nx)).collect() };
     let signed = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| sign * x).collect() };
-    let plus = &s.m0_plus[..pixels];
-    let minus = signed(&s.m0_minus[..pixels]);
+    let (all_plus, all_minus) = (top_first(&s.m0_plus), signed(&top_first(&s.m0_minus)));
+    let (expected_plus, contrast) = (top_first(&s.expected_m0_plus), top_first(&s.contrast));
+    let plus = &all_plus[..pixels];
+    let minus = &all_minus[..pixels];
     w.npy("m0_plus_speckle.npy".into(), &[ny, nx], plus)?;
-    w.npy("m0_minus_speckle.npy".into(), &[ny, nx], &minus)?;
-    w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &s.m0_plus)?;
-    w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &signed(&s.m0_minus))?;
-    w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &s.expected_m0_plus)?;
+    w.npy("m0_minus_speckle.npy".into(), &[ny, nx], minus)?;
+    w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &all_plus)?;
+    w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &all_minus)?;
+    w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &expected_plus)?;
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     w.put(
         "m0_plus_speckle.png".into(),
@@ -237,11 +245,11 @@ fn write_pixel_speckle(
     w.put(
         "m0_minus_speckle.png".into(),
         image_png(
-            &minus,
+            minus,
             im.nx,
             im.ny,
             Colormap::Diverging,
-            symmetric_range(&minus, 0.995),
+            symmetric_range(minus, 0.995),
             &format!("M0- single window  ({f1}-{f2} kHz, red = receding)"),
             "fraction of emitted power",
         ),
@@ -251,12 +259,12 @@ fn write_pixel_speckle(
     let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
     let relative = |a: f64, b: f64| ratio(a, b) - 1.0;
     let mean_plus: Vec<f64> =
-        (0..pixels).map(|p| (0..windows).map(|j| s.m0_plus[j * pixels + p]).sum::<f64>() / windows as f64).collect();
-    let per_pixel = median((0..pixels).filter(|&p| m0p[p] > 0.0).map(|p| (s.expected_m0_plus[p] / m0p[p] - 1.0).abs()));
+        (0..pixels).map(|p| (0..windows).map(|j| all_plus[j * pixels + p]).sum::<f64>() / windows as f64).collect();
+    let per_pixel = median((0..pixels).filter(|&p| m0p[p] > 0.0).map(|p| (expected_plus[p] / m0p[p] - 1.0).abs()));
     // Measured single-window contrast of M0+ per pixel (over the windows) against the closed form.
     let measured = (windows > 1).then(|| {
-        median((0..pixels).filter(|&p| s.contrast[p].is_finite()).map(|p| {
-            let v: Vec<f64> = (0..windows).map(|j| s.m0_plus[j * pixels + p]).collect();
+        median((0..pixels).filter(|&p| contrast[p].is_finite()).map(|p| {
+            let v: Vec<f64> = (0..windows).map(|j| all_plus[j * pixels + p]).collect();
             let m = total(&v) / windows as f64;
             let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (windows - 1) as f64;
             var.sqrt() / m
@@ -278,7 +286,7 @@ fn write_pixel_speckle(
                 relative(sign * total(&s.expected_m0_minus), total(m0m)),
             "expected_m0_plus_median_pixel_relative_difference": per_pixel,
             "expected_m0_plus_pixel_absolute_difference_over_total":
-                ratio(s.expected_m0_plus.iter().zip(m0p).map(|(e, m)| (e - m).abs()).sum::<f64>(), total(m0p)),
+                ratio(expected_plus.iter().zip(m0p).map(|(e, m)| (e - m).abs()).sum::<f64>(), total(m0p)),
             "mean_over_windows_m0_plus_total_relative_difference": relative(total(&mean_plus), total(m0p)),
             "out_of_axis_fraction": if power > 0.0 { s.out_of_range / power } else { f64::NAN },
         },
