@@ -59,7 +59,7 @@ pub fn write_ldh(
     // Previews (y up: row 0, the largest y, at the top).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     w.put(
-        "m0_plus.png".into(),
+        format!("{name}_m0_plus.png"),
         image_png(
             &m0p,
             im.nx,
@@ -71,7 +71,7 @@ pub fn write_ldh(
         ),
     )?;
     w.put(
-        "m0_minus.png".into(),
+        format!("{name}_m0_minus.png"),
         image_png(
             &m0m,
             im.nx,
@@ -84,7 +84,7 @@ pub fn write_ldh(
     )?;
     let pos: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p + m)).collect();
     let neg: Vec<f64> = m0p.iter().zip(&m0m).map(|(p, m)| 0.5 * (p - m)).collect();
-    w.put("m0_directional.png".into(), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
+    w.put(format!("{name}_m0_directional.png"), directional_png(&pos, &neg, im.nx, im.ny, "Directional M0 (HSV)"))?;
 
     // ROI spectra.
     let axis = spec.spectrum_axis;
@@ -92,8 +92,9 @@ pub fn write_ldh(
     let (f_lo, f_hi) = if spec.flip_sign { (-axis.f_max, -axis.f_min) } else { (axis.f_min, axis.f_max) };
     let width = axis.bin_width();
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
+    let frequency_file = format!("{name}_roi_frequency_hz.npy");
     if !spec.rois.is_empty() || spec.pixel_spectra {
-        w.npy("ldh_frequency_hz.npy".into(), &[bins], &centres)?;
+        w.npy(frequency_file.clone(), &[bins], &centres)?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
@@ -124,7 +125,7 @@ pub fn write_ldh(
             .map(|(i, (name, y))| Series { label: name, x: &khz, y, color: PALETTE[i % PALETTE.len()] })
             .collect();
         w.put(
-            format!("roi_{}_spectrum.png", roi.name),
+            format!("{name}_roi_{}_spectrum.png", roi.name),
             line_plot_png(
                 &series,
                 &format!("ROI \"{}\": Doppler spectrum by path class", roi.name),
@@ -139,7 +140,7 @@ pub fn write_ldh(
         info.insert("spectrum_file".into(), json!(o.file));
         info.insert("out_of_range".into(), Value::Object(out_of_range));
         if let Some(s) = speckle.get(r) {
-            info.insert("speckle".into(), write_speckle(w, spec, &roi.name, s)?);
+            info.insert("speckle".into(), write_speckle(w, spec, name, &roi.name, s)?);
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
@@ -147,7 +148,7 @@ pub fn write_ldh(
         w.array(out("pixel_spectra"))?;
     }
     let pixel_speckle = match pixel_speckle {
-        Some(s) => write_pixel_speckle(w, im, spec, s, &m0p, &m0m)?,
+        Some(s) => write_pixel_speckle(w, name, im, spec, s, &m0p, &m0m)?,
         None => Value::Null,
     };
 
@@ -180,7 +181,7 @@ pub fn write_ldh(
             "f_max_hz": f_hi,
             "bins": bins,
             "bin_width_hz": width,
-            "frequency_file": "ldh_frequency_hz.npy",
+            "frequency_file": frequency_file,
             "channels": channel_names,
             "units": "fraction of emitted power per bin (no window kernel)",
         },
@@ -200,13 +201,14 @@ fn median(v: impl Iterator<Item = f64>) -> f64 {
     if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
 }
 
-/// The per-pixel speckle files and their summary: window 0 as the frame (`m0_{plus,minus}_speckle`
-/// `.npy` and `.png`, as the M0± images), all windows (`_windows.npy`, windows × ny × nx), the
-/// expectation `m0_plus_speckle_expected.npy` (band sums of `S`), and how `S`'s binning
-/// approximation compares with the exact images `m0p`, `m0m` (as written: M0− with the set-up's
-/// sign).
+/// The per-pixel speckle files of the camera `name` and their summary: window 0 as the frame
+/// (`NAME_m0_{plus,minus}_speckle` `.npy` and `.png`, as the M0± images), all windows
+/// (`_windows.npy`, windows × ny × nx), the expectation `NAME_m0_plus_speckle_expected.npy` (band
+/// sums of `S`), and how `S`'s binning approximation compares with the exact images `m0p`, `m0m`
+/// (as written: M0− with the set-up's sign).
 fn write_pixel_speckle(
     w: &mut Writer,
+    name: &str,
     im: &ImageSpec,
     spec: &LdhSpec,
     s: &PixelSpeckle,
@@ -224,14 +226,15 @@ fn write_pixel_speckle(
     let (expected_plus, contrast) = (top_first(&s.expected_m0_plus), top_first(&s.contrast));
     let plus = &all_plus[..pixels];
     let minus = &all_minus[..pixels];
-    w.npy("m0_plus_speckle.npy".into(), &[ny, nx], plus)?;
-    w.npy("m0_minus_speckle.npy".into(), &[ny, nx], minus)?;
-    w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &all_plus)?;
-    w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &all_minus)?;
-    w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &expected_plus)?;
+    let file = |what: &str| format!("{name}_{what}");
+    w.npy(file("m0_plus_speckle.npy"), &[ny, nx], plus)?;
+    w.npy(file("m0_minus_speckle.npy"), &[ny, nx], minus)?;
+    w.npy(file("m0_plus_speckle_windows.npy"), &[windows, ny, nx], &all_plus)?;
+    w.npy(file("m0_minus_speckle_windows.npy"), &[windows, ny, nx], &all_minus)?;
+    w.npy(file("m0_plus_speckle_expected.npy"), &[ny, nx], &expected_plus)?;
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     w.put(
-        "m0_plus_speckle.png".into(),
+        file("m0_plus_speckle.png"),
         image_png(
             plus,
             im.nx,
@@ -243,7 +246,7 @@ fn write_pixel_speckle(
         ),
     )?;
     w.put(
-        "m0_minus_speckle.png".into(),
+        file("m0_minus_speckle.png"),
         image_png(
             minus,
             im.nx,
@@ -295,29 +298,32 @@ fn write_pixel_speckle(
             "median_measured": measured,
         },
         "files": {
-            "m0_plus": "m0_plus_speckle.npy",
-            "m0_minus": "m0_minus_speckle.npy",
-            "m0_plus_windows": "m0_plus_speckle_windows.npy",
-            "m0_minus_windows": "m0_minus_speckle_windows.npy",
-            "m0_plus_expected": "m0_plus_speckle_expected.npy",
-            "previews": ["m0_plus_speckle.png", "m0_minus_speckle.png"],
+            "m0_plus": file("m0_plus_speckle.npy"),
+            "m0_minus": file("m0_minus_speckle.npy"),
+            "m0_plus_windows": file("m0_plus_speckle_windows.npy"),
+            "m0_minus_windows": file("m0_minus_speckle_windows.npy"),
+            "m0_plus_expected": file("m0_plus_speckle_expected.npy"),
+            "previews": [file("m0_plus_speckle.png"), file("m0_minus_speckle.png")],
         },
     }))
 }
 
-/// Speckle files of one ROI and their summary: the expected periodogram and single windows of
-/// both algorithms (`.npy`), and the single-window M0± statistics.
-fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> Result<Value> {
+/// Speckle files of the ROI `roi` of the camera `name` and their summary: the expected
+/// periodogram and single windows of both algorithms (`.npy`), and the single-window M0±
+/// statistics.
+fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiSpeckle) -> Result<Value> {
     let n = spec.stft.samples();
     let prep = |v: &[f64]| -> Vec<f64> {
         if spec.flip_sign { v.chunks_exact(n).flat_map(mirror_fftshift).collect() } else { v.to_vec() }
     };
     let windows = s.algorithm1.len() / n.max(1);
     let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
-    w.npy("stft_frequency_hz.npy".into(), &[n], &freqs)?;
-    w.npy(format!("roi_{name}_periodogram.npy"), &[n], &prep(&s.expected))?;
-    w.npy(format!("roi_{name}_speckle_algorithm1.npy"), &[windows, n], &prep(&s.algorithm1))?;
-    w.npy(format!("roi_{name}_speckle_algorithm2.npy"), &[windows, n], &prep(&s.algorithm2))?;
+    let file = |what: &str| format!("{name}_roi_{roi}_{what}.npy");
+    let frequency_file = format!("{name}_stft_frequency_hz.npy");
+    w.npy(frequency_file.clone(), &[n], &freqs)?;
+    w.npy(file("periodogram"), &[n], &prep(&s.expected))?;
+    w.npy(file("speckle_algorithm1"), &[windows, n], &prep(&s.algorithm1))?;
+    w.npy(file("speckle_algorithm2"), &[windows, n], &prep(&s.algorithm2))?;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows
@@ -352,10 +358,10 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> 
         "seconds_algorithm1": s.seconds_algorithm1,
         "seconds_algorithm2": s.seconds_algorithm2,
         "files": {
-            "frequency": "stft_frequency_hz.npy",
-            "expected": format!("roi_{name}_periodogram.npy"),
-            "algorithm1": format!("roi_{name}_speckle_algorithm1.npy"),
-            "algorithm2": format!("roi_{name}_speckle_algorithm2.npy"),
+            "frequency": frequency_file,
+            "expected": file("periodogram"),
+            "algorithm1": file("speckle_algorithm1"),
+            "algorithm2": file("speckle_algorithm2"),
         },
     }))
 }

@@ -14,9 +14,9 @@ use crate::io::figures::plot::{AxesImage, PALETTE, Series, image_with_axes, line
 use crate::io::figures::raster::Colormap;
 use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
 
-/// Gates drawn in `gate_spectra.png` (fewer if the receiver has fewer).
+/// Gates drawn in `NAME_gate_spectra.png` (fewer if the receiver has fewer).
 const PLOTTED_GATES: usize = 4;
-/// Dynamic range of `range_doppler.png` below the map's peak, dB.
+/// Dynamic range of `NAME_range_doppler.png` below the map's peak, dB.
 const MAP_RANGE_DB: f64 = 60.0;
 
 /// Write the receiver's outputs; returns the manifest entry (axes, files, noise model, per-gate
@@ -28,8 +28,9 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
     let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
-    w.npy("range_m.npy".into(), &[gates], &range)?;
-    w.npy("frequency_hz.npy".into(), &[bins], &freq)?;
+    let file = |what: &str| format!("{name}_{what}");
+    w.npy(file("range_m.npy"), &[gates], &range)?;
+    w.npy(file("frequency_hz.npy"), &[bins], &freq)?;
     let mut files = serde_json::Map::new();
     // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
     let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());
@@ -45,8 +46,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         (&mean[o..o + bins], &se[o..o + bins])
     };
     let total = &mean[output(&format!("{name}.range_doppler")).range()];
-    w.put("range_doppler.png".into(), range_doppler_png(spec, &range, total))?;
-    w.put("gate_spectra.png".into(), gate_spectra_png(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
+    w.put(file("range_doppler.png"), range_doppler_png(spec, &range, total))?;
+    w.put(file("gate_spectra.png"), gate_spectra_png(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
     // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
@@ -96,14 +97,15 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         csv.push('\n');
         table.push(Value::Object(row));
     }
-    w.put("gates.csv".into(), csv.into_bytes())?;
+    w.put(file("gates.csv"), csv.into_bytes())?;
     Ok(json!({
         "range_m": range,
         "frequency_hz": freq,
-        "range_file": "range_m.npy",
-        "frequency_file": "frequency_hz.npy",
+        "range_file": file("range_m.npy"),
+        "frequency_file": file("frequency_hz.npy"),
+        "gates_file": file("gates.csv"),
         "spectra": Value::Object(files),
-        "plots": ["range_doppler.png", "gate_spectra.png"],
+        "plots": [file("range_doppler.png"), file("gate_spectra.png")],
         "layout": "gates × bins, bins in fftshift order (ν_k = (k − K/2)·f_s/K)",
         "units": "fraction of the pulse energy per bin (expected periodogram, |X_k|²/K), without noise",
         "gate_points": m,
