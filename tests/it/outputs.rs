@@ -380,3 +380,37 @@ fn lidar_scan_and_fmcw_files() {
     let csv = std::fs::read_to_string(dir.join("receiver_fmcw_estimates.csv")).unwrap();
     assert!(csv.lines().nth(1).is_some_and(|l| l.starts_with("receiver,")), "{csv}");
 }
+
+/// What is read back as a reference — a run directory (`ohd converge --reference`) or values
+/// given in `[reference]` as the file holds them — is in the tally's order and sign again: for
+/// the intensity image and the M0− image with `flip_sign` (negated and flipped when written), the
+/// tallies exactly.
+#[test]
+fn references_read_back_in_the_tally_order() {
+    use ohd::io::write::manifest::{Invocation, write_run};
+    let text = format!("{SURFACE}{LDH}");
+    let sets = ["run.samples=4000", "detectors.0.ldh.flip_sign=true", "detectors.0.ldh.speckle.pixels=false"];
+    let r = crate::support::run::run(&text, &sets);
+    let tmp = tempfile::tempdir().unwrap();
+    let table: toml::Table = toml::from_str(&text).unwrap();
+    write_run(tmp.path(), &r.exp, &r.out, &table, &Invocation::default()).unwrap();
+    let outputs = r.exp.outputs();
+    let refs = ohd::io::write::converge::read_reference(tmp.path(), &outputs).unwrap();
+    let (mean, stderr) = (r.out.estimates.mean(), r.out.estimates.stderr());
+    for name in ["camera.image", "camera.m0_minus"] {
+        let k = outputs.iter().position(|o| o.name == name).unwrap();
+        let (o, reference) = (&outputs[k], refs[k].as_ref().unwrap());
+        assert_eq!(reference.values, &mean[o.range()], "{name}");
+        assert_eq!(reference.stderr, &stderr[o.range()], "{name}");
+        // Not vacuous: the file is the tally's image upside down (and negated for M0−).
+        let (_, file) = load(&tmp.path().join(&o.file));
+        assert_ne!(file, reference.values, "{name}");
+
+        // The file's values given in `[reference]`.
+        let values: Vec<String> = file.iter().map(|v| format!("{v:e}")).collect();
+        let with_reference = format!("{text}\n[reference]\n\"{name}\" = [{}]\n", values.join(", "));
+        let exp = crate::support::run::experiment(&with_reference, &sets);
+        let given = exp.references.iter().find(|(n, _)| n == name).expect("the reference");
+        assert_eq!(given.1, &mean[o.range()], "{name} from [reference]");
+    }
+}
