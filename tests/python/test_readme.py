@@ -132,3 +132,19 @@ def test_image_orientation_matches_manifest(workdir):
     assert found, "the manifest states no image layout"
     for layout in found:
         assert "descending" in layout and "top" in layout, layout
+
+
+def test_configs_readme_key_reference_is_the_default_experiment(tmp_path):
+    """configs/README.md's annotated key-by-key block is the default experiment: `ohd check`
+    resolves it exactly as configs/default.toml (so its uncommented keys and values are real)."""
+    text = (ROOT / "configs" / "README.md").read_text()
+    block = re.search(r"^```toml\n(.*?)^```", text, re.M | re.S).group(1)
+    (tmp_path / "block.toml").write_text(block)
+    binary = ohd_binary()
+
+    def resolved(path):
+        p = subprocess.run([binary, "check", str(path)], capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        return p.stdout.split("\n", 1)[1]  # the first line names the file
+
+    assert resolved(tmp_path / "block.toml") == resolved(ROOT / "configs" / "default.toml")
