@@ -47,7 +47,7 @@ enum Command {
     Converge {
         /// Experiment file (TOML). Omit for the built-in default.
         config: Option<PathBuf>,
-        /// Output directory [default: out/<config name>_converge].
+        /// Output directory [default: out/<experiment name>_converge].
         #[arg(long)]
         out: Option<PathBuf>,
         /// A run directory of the same experiment (from `ohd run`) as the reference. Without it,
@@ -92,7 +92,7 @@ enum Command {
 struct RunArgs {
     /// Experiment file (TOML). Omit to run the built-in default (configs/default.toml).
     config: Option<PathBuf>,
-    /// Output directory [default: out/<config name>].
+    /// Output directory [default: out/<experiment name>, else out/<config file stem>].
     #[arg(long)]
     out: Option<PathBuf>,
     /// Number of paths (same as --set run.samples=N).

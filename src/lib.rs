@@ -46,6 +46,11 @@
 //!   axis goes to the `below` / `above` out-of-range tallies, never out of bounds. Spectrum values
 //!   are power per bin as a fraction of the emitted power (not per Hz), so a spectrum summed over
 //!   its bins plus its out-of-range tallies equals the detected power of the same paths (Parseval).
+//! * **Images** in every written format (`.npy`, EXR, PNG): row 0 = the top row = the largest `y`
+//!   of the detector plane, columns `x` ascending — as `plt.imshow` and image viewers show them.
+//!   With more axes the image rows and columns stay in that order: `[window][row][col]`,
+//!   per-pixel spectra `[row][col][bin]`. Tallies keep row 0 at the lowest `y`; the flip is made
+//!   once, where an output's values are taken for writing ([`output::Output::values`]).
 //! * **Estimates** are means over paths of the fraction of emitted power; every estimate carries
 //!   the standard error of the mean over `batches` independent batches of equal size. The FMCW
 //!   range and velocity read off the spectra afterwards ([`retrieval::fmcw`]) are the exception:

@@ -70,9 +70,11 @@ pub enum Kind {
     /// axis (an LDH camera with `flip_sign`), bins reversed and tails swapped.
     Spectrum { axis: FrequencyAxis, channels: Vec<String>, mirrored: bool },
     /// An image over the rectangle `[min, max]` of the detector plane (m), `ny` rows of `nx`
-    /// pixels, row 0 at the lowest `y`.
+    /// pixels. Tallied with row 0 at the lowest `y`; written (and given to figures) with row 0 at
+    /// the largest `y` ([`Output::values`]).
     Image { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
-    /// A full spectrum in every pixel of an image: `[y][x][bin]`.
+    /// A full spectrum in every pixel of an image: `[y][x][bin]`, its rows ordered as an
+    /// [`Kind::Image`]'s.
     PixelSpectra { nx: usize, ny: usize, axis: FrequencyAxis, mirrored: bool },
     /// Range-gate spectra `[gate][bin]` of a lidar receiver, bins in fftshift order.
     RangeDoppler { gates: usize, bins: usize },
@@ -144,20 +146,57 @@ impl Output {
         self.slots.range()
     }
 
+    /// For an image-like output ([`Kind::Image`], [`Kind::PixelSpectra`]): its image rows and the
+    /// written values per row (`nx`, or `nx · bins`); `None` for other kinds.
+    pub fn image_rows(&self) -> Option<(usize, usize)> {
+        match self.kind {
+            Kind::Image { nx, ny, .. } => Some((ny, nx)),
+            Kind::PixelSpectra { nx, ny, axis, .. } => Some((ny, nx * axis.bins)),
+            _ => None,
+        }
+    }
+
     /// The written values (`sign ×` the tallies, every row, mirrored if [`mirrored`](Self::mirrored))
-    /// and standard errors, read off a run's mean and standard error vectors.
+    /// and standard errors, read off a run's mean and standard error vectors. Image-like outputs
+    /// come with their image rows reversed, row 0 = the largest `y` (the tallies keep row 0 at
+    /// the lowest): the one place the written orientation is made, so that every file and every
+    /// figure shows the detector plane as an image viewer does.
     pub fn values(&self, mean: &[f64], stderr: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let gather = |v: &[f64]| -> Vec<f64> {
             let rows = (0..self.slots.rows).map(|r| &v[self.slots.row_range(r)]);
-            if self.mirrored() {
+            let v: Vec<f64> = if self.mirrored() {
                 rows.flat_map(|row| row.iter().rev().copied()).collect()
             } else {
                 rows.flat_map(|row| row.iter().copied()).collect()
-            }
+            };
+            self.flip_rows(v)
         };
         let v = gather(mean);
         let v = if self.sign == 1.0 { v } else { v.into_iter().map(|x| self.sign * x).collect() };
         (v, gather(stderr))
+    }
+
+    /// `v` with its image rows reversed (image-like outputs; unchanged otherwise). Its own
+    /// inverse.
+    fn flip_rows(&self, v: Vec<f64>) -> Vec<f64> {
+        match self.image_rows() {
+            Some((ny, len)) if ny > 1 && v.len() == ny * len => rows_reversed(&v, len),
+            _ => v,
+        }
+    }
+
+    /// Written values (as [`values`](Self::values) gives them, or as read back from the output's
+    /// file) in the tally's convention and order, its rows without their gaps: the sign undone,
+    /// each row un-mirrored and image rows back to row 0 = the lowest `y`.
+    pub fn to_tally(&self, written: &[f64]) -> Vec<f64> {
+        let v = self.flip_rows(written.to_vec());
+        let v: Vec<f64> = if self.mirrored() && self.slots.len > 0 {
+            v.chunks(self.slots.len).flat_map(|row| row.iter().rev().copied()).collect()
+        } else {
+            v
+        };
+        // The sign is ±1: its own inverse.
+        if self.sign == 1.0 { v } else { v.into_iter().map(|x| self.sign * x).collect() }
     }
 
     /// Per-pixel relative errors of an image output (`None` for other kinds), read off a run's
@@ -175,6 +214,16 @@ impl Output {
         let t = self.slots.row_range(r).end;
         if self.mirrored() { (v[t + 1], v[t]) } else { (v[t], v[t + 1]) }
     }
+}
+
+/// `v`, rows of `len` values, with the order of its rows reversed: an image tallied with row 0
+/// at the lowest `y` as it is written, row 0 at the largest (and back). A `len` of 0 or a partial
+/// last row leaves `v` as it is.
+pub fn rows_reversed(v: &[f64], len: usize) -> Vec<f64> {
+    if len == 0 || v.len() % len != 0 {
+        return v.to_vec();
+    }
+    v.chunks_exact(len).rev().flatten().copied().collect()
 }
 
 /// The relative error `σ/|value|` of every pixel of an image, and its median and 90th
@@ -310,5 +359,44 @@ mod tests {
         assert!((pe.p90 - 0.9).abs() < 1e-15, "p90 {}", pe.p90);
         let none = PixelErrors::of(&[0.0; 3], &[0.0; 3]);
         assert!(none.median.is_nan() && none.p90.is_nan() && none.without_signal == 3);
+    }
+
+    /// Images are written with row 0 = the largest `y` (the tally's last row), per-pixel spectra
+    /// likewise by pixel row with each pixel's bins in order (mirrored when asked), and
+    /// [`Output::to_tally`] undoes all of it.
+    #[test]
+    fn image_rows_are_written_top_first_and_read_back() {
+        // A 3 × 2 image (nx = 3, ny = 2): tally row 0 (lowest y) = 0, 1, 2; row 1 = 3, 4, 5.
+        let kind = Kind::Image { nx: 3, ny: 2, min: [0.0; 2], max: [1.0; 2] };
+        let mut o = Output::new("cam.image".into(), kind, Slots::contiguous(1, 6), vec![2, 3]);
+        let mean = [9.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 9.0];
+        let se: Vec<f64> = mean.iter().map(|x| x / 10.0).collect();
+        let (v, e) = o.values(&mean, &se);
+        assert_eq!(v, [3.0, 4.0, 5.0, 0.0, 1.0, 2.0]);
+        assert_eq!(e, [0.3, 0.4, 0.5, 0.0, 0.1, 0.2]);
+        assert_eq!(o.to_tally(&v), &mean[1..7]);
+        o.sign = -1.0;
+        let (v, _) = o.values(&mean, &se);
+        assert_eq!(v, [-3.0, -4.0, -5.0, -0.0, -1.0, -2.0]);
+        assert_eq!(o.to_tally(&v), &mean[1..7]);
+
+        // Per-pixel spectra of a 1 × 2 image, 2 bins and 2 out-of-range tallies per pixel.
+        let axis = FrequencyAxis::new(-1.0, 1.0, 2).unwrap();
+        let kind = Kind::PixelSpectra { nx: 1, ny: 2, axis, mirrored: true };
+        let o = Output::new(
+            "cam.pixel_spectra".into(),
+            kind,
+            Slots { start: 0, rows: 2, stride: 4, len: 2 },
+            vec![2, 1, 2],
+        );
+        let mean = [1.0, 2.0, 90.0, 91.0, 3.0, 4.0, 92.0, 93.0];
+        let (v, _) = o.values(&mean, &mean);
+        assert_eq!(v, [4.0, 3.0, 2.0, 1.0], "top pixel row first, bins mirrored");
+        assert_eq!(o.to_tally(&v), [1.0, 2.0, 3.0, 4.0]);
+
+        // Other kinds keep their order.
+        let kind = Kind::RangeDoppler { gates: 2, bins: 2 };
+        let o = Output::new("lidar.range_doppler".into(), kind, Slots::contiguous(0, 4), vec![2, 2]);
+        assert_eq!(o.values(&mean[..4], &mean[..4]).0, [1.0, 2.0, 90.0, 91.0]);
     }
 }

@@ -136,8 +136,11 @@ fn camera_work(st: &RunStats) -> f64 {
 fn relative_variances(exp: &Experiment, i: usize, stride: usize, f: &RunOutput, c: &RunOutput) -> (f64, f64) {
     let d = &exp.detectors[i];
     let name = format!("{}.{}", d.name, if d.ldh().is_some() { "m0_plus" } else { "image" });
-    let image =
-        |o: &RunOutput| o.layout.registry.get(&name).map(|out| out.values(o.estimates.mean(), &o.estimates.stderr()));
+    // In the tally's pixel order, which the camera pilot's stride counts in.
+    let image = |o: &RunOutput| {
+        let (mean, stderr) = (o.estimates.mean(), o.estimates.stderr());
+        o.layout.registry.get(&name).map(|out| (mean[out.range()].to_vec(), stderr[out.range()].to_vec()))
+    };
     let (Some((mf, sf)), Some((mc, sc))) = (image(f), image(c)) else { return (f64::INFINITY, f64::INFINITY) };
     let (mut m2, mut vf, mut vc) = (0.0, 0.0, 0.0);
     for p in (0..mf.len()).step_by(stride) {

@@ -15,7 +15,7 @@ use crate::source::Pointing;
 
 /// The peak radial velocity (m/s, positive receding) of every gate of the run's lidar receiver,
 /// from the expected spectrum of all scattering orders (the `peak_velocity_m_per_s` of
-/// `gates.csv`: the shot-noise floor, a constant, does not move the peak); `None` for a gate
+/// `NAME_gates.csv`: the shot-noise floor, a constant, does not move the peak); `None` for a gate
 /// without signal. `None` altogether without a lidar receiver.
 pub fn gate_peak_velocities(exp: &Experiment, out: &RunOutput) -> Option<Vec<Option<f64>>> {
     let (d, spec) = exp.detectors.iter().find_map(|d| d.lidar().map(|l| (d, l)))?;

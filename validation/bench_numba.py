@@ -6,8 +6,9 @@ The numba reference is our own MCML-style code for the same physics: pencil beam
 incidence, matched boundaries (n = 1), HG g = 0.75, absorption weighting, Russian roulette at
 weight 1e-4 with survival 0.1. It prints its Rd and Tt as a sanity check.
 
-Usage: python3 validation/bench_numba.py [--photons N] [--repeats R]
-Installs numba with pip if it is missing.
+Usage: python3 validation/bench_numba.py [--photons N] [--repeats R] [--binary PATH]
+Runs --binary PATH, else builds ohd (cargo build --release). numba and numpy are installed into
+validation/.venv (validation/ohdpy.py), where the script re-runs itself.
 """
 import argparse
 import json
@@ -19,18 +20,14 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ohdpy  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-try:
-    import numba  # noqa: F401
-except ImportError:
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "numba"], check=True)
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
+np = None  # numpy, imported in main() once inside the venv
 
 
-@numba.njit(cache=False, fastmath=False)
-def vdh_numba(n_photons, seed):
+def vdh_numba(n_photons, seed):  # compiled by numba.njit in main()
     np.random.seed(seed)
     mua, mus, g, d = 10.0, 90.0, 0.75, 0.02  # cm⁻¹, cm
     mut = mua + mus
@@ -99,9 +96,15 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--photons", type=int, default=4_000_000)
     ap.add_argument("--repeats", type=int, default=5)
+    ohdpy.add_binary_argument(ap)
     args = ap.parse_args()
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    binary = os.path.join(ROOT, "target", "release", "ohd")
+    ohdpy.use_venv("numba", "numpy")
+    global np, vdh_numba
+    import numba
+    import numpy as np
+
+    vdh_numba = numba.njit(cache=False, fastmath=False)(vdh_numba)
+    binary = ohdpy.binary(args.binary)
     vdh_numba(1000, 1)  # JIT compile outside the timing
     ohd_t, ohd_proc, nb_t = [], [], []
     with tempfile.TemporaryDirectory() as tmp:

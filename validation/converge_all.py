@@ -3,9 +3,9 @@
 and validation/vdh_slab.toml, then one markdown table of the main outputs and the agreement of each
 run's own σ with its measured error.
 
-    python3 validation/converge_all.py [--budget-seconds 60] [--out out/converge_all] [--no-build]
+    python3 validation/converge_all.py [--budget-seconds 60] [--out out/converge_all] [--binary PATH | --no-build]
 
-Builds ohd once (cargo build --release) unless --no-build. Prints the table to stdout.
+Runs --binary PATH, else builds ohd once (cargo build --release; --no-build: use the last build). Prints the table to stdout.
 """
 
 import argparse
@@ -15,6 +15,9 @@ import pathlib
 import subprocess
 import sys
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import ohdpy  # noqa: E402
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
@@ -22,11 +25,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--budget-seconds", type=float, default=60.0)
     ap.add_argument("--out", default=str(ROOT / "out" / "converge_all"))
-    ap.add_argument("--no-build", action="store_true")
+    ap.add_argument("--no-build", action="store_true", help="without --binary: the last release build, not rebuilt")
+    ohdpy.add_binary_argument(ap)
     args = ap.parse_args()
-    if not args.no_build:
-        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    ohd = ROOT / "target" / "release" / "ohd"
+    if args.no_build and args.binary is None:
+        ohd = ohdpy.target_dir() / "release" / "ohd"
+    else:
+        ohd = pathlib.Path(ohdpy.binary(args.binary))
     configs = sorted((ROOT / "configs").glob("*.toml")) + [ROOT / "validation" / "vdh_slab.toml"]
     rows = []
     for cfg in configs:

@@ -31,9 +31,15 @@ therefore carry miepython errors up to ~1e-5 relative at x >= 3e3.
 import cmath
 import json
 import math
+import os
 import sys
 
-import miepython
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ohdpy  # noqa: E402
+
+if __name__ == "__main__":
+    ohdpy.use_venv("miepython==3.3.0")  # into validation/.venv, never the caller's interpreter
+import miepython  # noqa: E402
 
 XS = [1e-3, 1e-2, 0.1, 0.5, 1.0, 2.5, 5.21282, 10.0, 30.0, 100.0, 300.0, 1e3, 3e3, 1e4, 2e4]
 # (n, k): m = n - ik.

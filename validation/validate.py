@@ -2,7 +2,7 @@
 """Run the validation cases and tabulate reference, measured ± σ, z, samples and seconds.
 
 Usage: python3 validation/validate.py [--samples N] [--markdown FILE]
-Builds ohd in release mode if needed (cargo). Standard library only.
+Runs --binary PATH, else builds ohd (cargo build --release). Standard library only.
 Exit status 1 if any |z| > 3 (3σ), so the script can gate a release.
 """
 import argparse
@@ -13,13 +13,11 @@ import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ohdpy  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 C = 299_792_458.0
-
-
-def ohd_binary():
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    return os.path.join(ROOT, "target", "release", "ohd")
 
 
 def run(binary, config, out, samples=None):
@@ -35,8 +33,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--samples", type=int, default=None, help="override every case's sample count")
     ap.add_argument("--markdown", default=None, help="also write the table to this file")
+    ohdpy.add_binary_argument(ap)
     args = ap.parse_args()
-    binary = ohd_binary()
+    binary = ohdpy.binary(args.binary)
     rows = []  # (case, quantity, reference, value, stderr, samples, seconds)
     with tempfile.TemporaryDirectory() as tmp:
         def case(config):

@@ -152,7 +152,7 @@ impl LdhSpec {
         let budget = Some(im.budget_key(i));
         let image = |reg: &mut Registry, start: usize, stem: String, sign: f64, primary: bool| {
             reg.declare(Output {
-                file: format!("{stem}.npy"),
+                file: format!("{name}_{stem}.npy"),
                 sign,
                 primary,
                 budget_key: budget.clone(),
@@ -203,7 +203,7 @@ impl LdhSpec {
                 let (m0_plus, m0_minus) = (scalar("m0_plus", 1.0), scalar("m0_minus", sign));
                 let s = reg.take(Self::ROI_CHANNELS * stride);
                 reg.declare(Output {
-                    file: format!("roi_{}_spectrum.npy", roi.name),
+                    file: format!("{name}_roi_{}_spectrum.npy", roi.name),
                     ..detector_output(
                         i,
                         format!("{name}.roi_{}.spectrum", roi.name),
@@ -218,7 +218,7 @@ impl LdhSpec {
         let pixel_spectra = self.pixel_spectra.then(|| {
             let o = reg.take(pixels * stride);
             reg.declare(Output {
-                file: "pixel_spectra.npy".into(),
+                file: format!("{name}_pixel_spectra.npy"),
                 stderr: false,
                 budget_key: Some((
                     format!("detectors[{i}].ldh.pixel_spectra"),

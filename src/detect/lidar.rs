@@ -352,7 +352,7 @@ impl LidarSpec {
             let stem = if c == 0 { "range_doppler".to_string() } else { format!("range_doppler_{channel}") };
             reg.declare(Output {
                 units: "fraction of the pulse energy per bin",
-                file: format!("{stem}.npy"),
+                file: format!("{name}_{stem}.npy"),
                 primary: c == 0,
                 budget_key: budget.clone(),
                 ..detector_output(

@@ -13,7 +13,7 @@
 //! half an STFT bin), and power outside the axis (the out-of-range tallies) is not in `S`.
 //!
 //! Streams: window `j` of ROI `r` and algorithm `a` draws from `(seed, Speckle, r, 2j + a)`;
-//! window `j` of pixel `p` (image order, rows = y ascending) from
+//! window `j` of pixel `p` (the tally's image order, rows = y ascending) from
 //! `(seed, Speckle, PIXEL_STREAM | p, j)`. An ROI index is a `Vec` index, below 2⁶³, so the
 //! elements never coincide; each pixel's numbers depend on nothing but `(seed, p, j)`, so the
 //! result is the same for any thread count.
@@ -123,8 +123,9 @@ pub fn synthesize_speckle(spec: &LdhSpec, recorded: &[RecordedLine], paths: u64,
 pub const PIXEL_STREAM: u64 = 1 << 63;
 
 /// Single-window speckled M0± of every pixel (Algorithm 1 per pixel), with what they are drawn
-/// from. Pixels in image order (`ny` rows of `nx`, rows = y ascending), M0− with the library's
-/// sign (the writer applies `flip_sign`).
+/// from. Pixels in the tally's image order (`ny` rows of `nx`, rows = y ascending; the writer
+/// turns them to row 0 = the largest y, as every written image), M0− with the library's sign (the
+/// writer applies `flip_sign`).
 #[derive(Debug, Clone)]
 pub struct PixelSpeckle {
     pub nx: usize,

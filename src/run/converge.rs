@@ -14,7 +14,7 @@ pub struct ConvergeRequest {
     /// The experiment file (the built-in default without one) and the `--set` overrides.
     pub config: Option<PathBuf>,
     pub overrides: Vec<String>,
-    /// Output directory (default: `out/<config name>_converge`).
+    /// Output directory (default: `out/<experiment name>_converge`).
     pub out: Option<PathBuf>,
     /// A run directory of the same experiment as the reference.
     pub reference: Option<PathBuf>,

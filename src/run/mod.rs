@@ -26,6 +26,9 @@ use checkpoint::FileCheckpoint;
 pub use scan::{Part, parts, pointing_dir, pointing_name};
 pub use shard::{ShardSummary, merge, run_shard};
 
+/// Longest experiment name kept in a default output directory's name, characters.
+const MAX_FOLDER_NAME: usize = 100;
+
 /// A configuration read and resolved, with what a run records about it.
 #[derive(Debug, Clone)]
 pub struct Loaded {
@@ -33,7 +36,8 @@ pub struct Loaded {
     pub text: String,
     /// Where it came from, for the manifest (a path as given, or the built-in default).
     pub origin: String,
-    /// A name for default output paths (the file's stem, or `default`).
+    /// The file's stem (or `default`): names the default output directory of an experiment
+    /// without a `name`.
     pub stem: String,
     /// The file's absolute path (relative media paths resolve against it), else `origin`.
     pub source_path: String,
@@ -66,9 +70,18 @@ impl Loaded {
         Ok(Loaded { text, origin, stem, source_path, overrides: sets.to_vec(), table, exp })
     }
 
-    /// The default output directory: `out/<stem><suffix>`.
+    /// The default output directory: `out/<name><suffix>` from the experiment's `name` (as run,
+    /// after `--set`), or from the file's stem when it has none. A name is free text: characters
+    /// other than letters, digits, `_` and `-` become `_`, so that it stays one folder in `out/`.
     pub fn default_dir(&self, suffix: &str) -> PathBuf {
-        PathBuf::from("out").join(format!("{}{suffix}", self.stem))
+        let name = self.table.get("name").and_then(toml::Value::as_str).map(|n| {
+            n.chars()
+                .take(MAX_FOLDER_NAME)
+                .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+                .collect()
+        });
+        let name = name.filter(|n: &String| !n.is_empty()).unwrap_or_else(|| self.stem.clone());
+        PathBuf::from("out").join(format!("{name}{suffix}"))
     }
 
     /// What the manifest records about how the run was invoked.

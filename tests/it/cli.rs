@@ -189,7 +189,8 @@ fn default_experiment_without_config() {
     assert_eq!(&npy[..6], b"\x93NUMPY");
     assert!(text(&npy[..128.min(npy.len())]).contains("(201,)"), "{}", text(&npy[..128.min(npy.len())]));
     assert_eq!(m["detectors"]["camera"]["spectrum"]["bins"].as_u64(), Some(201), "{m}");
-    // With no --out the default directory would be out/default: nothing else was written here.
+    // With no --out the default directory would be out/vessel_in_tissue (the experiment's name):
+    // nothing else was written here.
     assert!(!tmp.path().join("out").exists());
 }
 

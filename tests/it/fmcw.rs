@@ -88,7 +88,7 @@ fn hard_target_range_and_velocity_within_one_bin() {
     assert_eq!(est["radial_velocity_m_per_s"].as_f64(), Some(e.radial_velocity_m_per_s));
     assert_eq!(est["velocity_bin_m_per_s"].as_f64(), Some(e.velocity_bin_m_per_s));
     assert!(m["detectors"]["receiver"]["fmcw"]["note"].is_null());
-    let csv = std::fs::read_to_string(tmp.path().join("fmcw_estimates.csv")).unwrap();
+    let csv = std::fs::read_to_string(tmp.path().join("receiver_fmcw_estimates.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), 2, "{csv}");
     assert!(lines[0].starts_with("detector,range_m,radial_velocity_m_per_s,f_up_hz,f_down_hz,"), "{csv}");
@@ -177,7 +177,7 @@ fn no_signal_gives_a_note_and_no_estimates() {
     let note = m["detectors"]["receiver"]["fmcw"]["note"].as_str().unwrap_or_default();
     assert!(note.starts_with("no estimates: no signal"), "{note}");
     assert!(m["estimates"]["detectors"]["receiver"].get("range_m").is_none());
-    let csv = std::fs::read_to_string(tmp.path().join("fmcw_estimates.csv")).unwrap();
+    let csv = std::fs::read_to_string(tmp.path().join("receiver_fmcw_estimates.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1, "header only: {csv}");
     // Without a chirp there are no FMCW outputs at all.
     let single = TARGET.replace("chirp = { bandwidth_ghz = 1, duration_us = 10 }", "");

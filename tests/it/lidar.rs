@@ -349,7 +349,7 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
     assert!(two_receiver <= 1, "two components in {two_receiver} gates with 10⁴ pulses' noise");
 
     // The files: CSV with one row per gate and the manifest's numbers; PNGs of the plot size.
-    let csv = std::fs::read_to_string(dir.path().join("gates.csv")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("lidar_gates.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     let header = csv_fields(lines[0]);
     assert_eq!(lines.len(), spec.gates + 1);
@@ -363,8 +363,8 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
         assert!((peak - f(&rows[g]["peak_velocity_m_per_s"])).abs() < 1e-12);
         assert_eq!(fields[col("fit_components")], rows[g]["fit"]["components"].to_string());
     }
-    assert_eq!(png_size(&dir.path().join("range_doppler.png")), (900, 560));
-    assert_eq!(png_size(&dir.path().join("gate_spectra.png")), (900, 560));
+    assert_eq!(png_size(&dir.path().join("lidar_range_doppler.png")), (900, 560));
+    assert_eq!(png_size(&dir.path().join("lidar_gate_spectra.png")), (900, 560));
 }
 
 #[test]
@@ -480,7 +480,7 @@ fn one_gaussian_per_slab_gate_and_an_empty_gate_reports_no_signal() {
     assert!(row["peak_velocity_m_per_s"].is_null() && row["fit"].is_null());
     assert!(row["moments_status"].as_str().unwrap().contains("no signal"), "{}", row["moments_status"]);
     assert!(row["fit_status"].as_str().unwrap().contains("no signal"), "{}", row["fit_status"]);
-    let csv = std::fs::read_to_string(dir.path().join("gates.csv")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("lidar_gates.csv")).unwrap();
     let fields = csv_fields(csv.lines().nth(1).unwrap());
     assert!(fields.iter().filter(|v| *v == "NaN").count() >= 16, "{fields:?}");
     let sigma_v = 0.5 * LAMBDA * 2.0 * std::f64::consts::LN_2

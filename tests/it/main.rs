@@ -19,6 +19,7 @@ mod hostile;
 mod ldh;
 mod lidar;
 mod mie;
+mod outputs;
 mod phase_table;
 mod pixel_speckle;
 mod precision;

@@ -198,7 +198,12 @@ fn files_are_identical_for_one_and_two_threads() {
     assert_eq!(info["windows"], 3);
     let files = manifests[0]["files"].as_array().unwrap();
     let speckle: Vec<&str> = files.iter().filter_map(|f| f.as_str()).filter(|f| f.contains("speckle")).collect();
-    for f in ["m0_plus_speckle.npy", "m0_minus_speckle.npy", "m0_plus_speckle.png", "m0_minus_speckle.png"] {
+    for f in [
+        "camera_m0_plus_speckle.npy",
+        "camera_m0_minus_speckle.npy",
+        "camera_m0_plus_speckle.png",
+        "camera_m0_minus_speckle.png",
+    ] {
         assert!(speckle.contains(&f), "{f} not in the manifest's files");
     }
     for f in files {
@@ -208,11 +213,11 @@ fn files_are_identical_for_one_and_two_threads() {
         assert!(a == b, "{f} differs between 1 and 2 threads");
     }
     // Not vacuous: the frame has signal, and another seed changes it.
-    let frame = std::fs::read(dirs[0].path().join("m0_plus_speckle.npy")).unwrap();
+    let frame = std::fs::read(dirs[0].path().join("camera_m0_plus_speckle.npy")).unwrap();
     let (shape, values) = ohd::io::formats::npy::from_bytes(&frame).unwrap();
     assert_eq!(shape, vec![8, 8]);
     assert!(values.iter().filter(|&&v| v > 0.0).count() > 32, "{values:?}");
-    assert_ne!(frame, std::fs::read(dirs[2].path().join("m0_plus_speckle.npy")).unwrap());
+    assert_ne!(frame, std::fs::read(dirs[2].path().join("camera_m0_plus_speckle.npy")).unwrap());
 }
 
 fn config_error(sets: &[String]) -> String {

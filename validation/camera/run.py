@@ -17,10 +17,13 @@ import json
 import os
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(ROOT, "validation"))
+import ohdpy  # noqa: E402
 
 SCENES = {
     "retina_ldh": ("configs/retina_ldh.toml", 2_400_000),
@@ -49,16 +52,13 @@ def spread(xs, fmt="{:.3g}"):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--binary")
+    ohdpy.add_binary_argument(ap)
     ap.add_argument("--samples", type=int)
     ap.add_argument("--pixels", type=int, help="override the image to NX × NX pixels")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--json")
     a = ap.parse_args()
-    binary = a.binary
-    if not binary:
-        subprocess.run(["cargo", "build", "--release", "--bin", "ohd"], cwd=ROOT, check=True)
-        binary = os.path.join(ROOT, "target", "release", "ohd")
+    binary = ohdpy.binary(a.binary)
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         for scene in a.scenes.split(","):

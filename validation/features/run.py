@@ -11,7 +11,8 @@ Per variant: whole-process wall (min / median / max, s), ohd's own transport tim
 the peak resident memory of the process (GNU time's max RSS, when /usr/bin/time exists). With --callgrind every variant also
 runs once under callgrind (fewer paths, one thread) and the instructions inside the batch loop
 (`--toggle-collect=*run_batch*`: transport and tallies, without start-up and output) are compared:
-the repeatable figure on a noisy machine. Needs cargo; --callgrind needs valgrind.
+the repeatable figure on a noisy machine. Measures --binary PATH as ohd, else builds it; the bare walk
+is always built from this tree (cargo); --callgrind needs valgrind.
 """
 
 import argparse
@@ -28,6 +29,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
+sys.path.insert(0, str(ROOT / "validation"))
+import ohdpy  # noqa: E402
 
 # (group, [(label, config, extra --set values)], paths per run, paths under callgrind)
 GROUPS = [
@@ -92,16 +95,6 @@ GROUPS = [
 BARE_PHOTONS = 2_000_000
 
 
-def target_dir():
-    return Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-
-
-def build():
-    cmd = ["cargo", "build", "--release", "--bin", "ohd", "--example", "bare_walk"]
-    print("building:", " ".join(cmd), file=sys.stderr)
-    subprocess.run(cmd, cwd=ROOT, check=True)
-    rel = target_dir() / "release"
-    return rel / "ohd", rel / "examples" / "bare_walk"
 
 
 TIME = shutil.which("time", path="/usr/bin:/bin")
@@ -267,13 +260,18 @@ def main():
     ap.add_argument("--callgrind", action="store_true", help="also count instructions with callgrind")
     ap.add_argument("--only", action="append", help="run only groups whose name contains this (repeatable); 'bare' for the bare walk")
     ap.add_argument("--no-build", action="store_true", help="use the binaries already built")
+    ohdpy.add_binary_argument(ap)
     ap.add_argument("--markdown", help="also write the tables to this file")
     args = ap.parse_args()
-    if args.no_build:
-        rel = target_dir() / "release"
-        ohd, bare = rel / "ohd", rel / "examples" / "bare_walk"
+    # The bare walk (examples/bare_walk.rs) is always this source tree's; --binary replaces ohd only.
+    want_bare = not args.only or "bare" in args.only
+    if args.no_build or (args.binary is not None and not want_bare):
+        rel = ohdpy.target_dir() / "release"
     else:
-        ohd, bare = build()
+        rel = ohdpy.build("--example", "bare_walk")
+    ohd, bare = rel / "ohd", rel / "examples" / "bare_walk"
+    if args.binary is not None:
+        ohd = Path(ohdpy.binary(args.binary))
     lines = []
     if not args.only or "bare" in args.only:
         lines += bare_table(ohd, bare, args.rounds, args.callgrind)

@@ -7,7 +7,9 @@ exceptions are the numbers that measure time (wall seconds, paths per second, ..
 files they are masked by key name before comparing, and the figures and CSV files of
 `ohd converge` (drawn from timings) are left out.
 
-    python3 validation/identity/check.py --baseline OLD/ohd --candidate target/release/ohd
+    python3 validation/identity/check.py --baseline OLD/ohd [--candidate NEW/ohd]
+
+The candidate (alias --binary) defaults to a fresh release build of this tree (cargo build --release).
 
 Cases (see `cases()`): `ohd run` on every configs/*.toml, validation/*.toml,
 validation/features/*.toml, validation/vdb/vessels_bench.toml and tests/configs/good/*.toml
@@ -31,6 +33,8 @@ import sys
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+sys.path.insert(0, os.path.join(ROOT, "validation"))
+import ohdpy  # noqa: E402
 
 # JSON keys whose values measure time, not physics: masked before comparing.
 TIMING_KEY = re.compile(r"(seconds|per_second|wall|elapsed|^slope)")
@@ -195,7 +199,8 @@ def differing(a, b, names_a, names_b, additions=False):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--baseline", required=True, help="ohd binary of the reference commit")
-    ap.add_argument("--candidate", default=os.path.join(ROOT, "target", "release", "ohd"))
+    ap.add_argument("--candidate", "--binary", metavar="PATH",
+                    help="ohd binary under test (default: cargo build --release, then target/release/ohd)")
     ap.add_argument("--samples", type=int, default=20000)
     ap.add_argument("--work", default="/tmp/ohd_identity")
     ap.add_argument("--only", help="regular expression on case names")
@@ -203,6 +208,7 @@ def main():
     ap.add_argument("--additions", action="store_true",
                     help="allow files and JSON keys that only the candidate writes (new outputs)")
     a = ap.parse_args()
+    a.candidate = ohdpy.binary(a.candidate)
     failed = 0
     all_cases = [c for c in cases(a.samples) if not a.only or re.search(a.only, c[0])]
     t0 = time.time()

@@ -19,9 +19,9 @@ entering the top face at its centre, along +z:
            leaves toward z > 0, i.e. the same T. volpath's next-event estimation and MIS change its
            variance, not its expectation. See README.md for the depth cap and roulette.
 
-Usage: python3 validation/peers/run.py [--repeats R] [--mitsuba-paths N] [--ohd-paths N] [--scenes LIST] [--seed S]
-Creates validation/peers/.venv (python3 -m venv; pip install mitsuba==3.9.1) on first use and
-re-runs itself there; the .vdb files are written by Debian's python3-openvdb (/usr/bin/python3).
+Usage: python3 validation/peers/run.py [--repeats R] [--mitsuba-paths N] [--ohd-paths N] [--scenes LIST] [--seed S] [--binary PATH]
+Runs --binary PATH, else builds ohd (cargo build --release). Installs mitsuba==3.9.1 and numpy into
+validation/.venv (validation/ohdpy.py: python3 -m venv on first use) and re-runs itself there; the .vdb files are written by Debian's python3-openvdb (/usr/bin/python3).
 """
 import argparse
 import json
@@ -35,24 +35,10 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-VENV = os.path.join(HERE, ".venv")
+sys.path.insert(0, os.path.dirname(HERE))
+import ohdpy  # noqa: E402
+
 MITSUBA_VERSION = "3.9.1"  # drjit 1.5.0 comes with it
-
-
-def ensure_venv():
-    """Re-execute this script inside validation/peers/.venv, creating it if needed."""
-    py = os.path.join(VENV, "bin", "python")
-    if os.path.realpath(sys.prefix) == os.path.realpath(VENV):
-        return
-    if not os.path.exists(py):
-        if subprocess.run([sys.executable, "-m", "venv", VENV]).returncode != 0:
-            # Debian ships venv separately.
-            env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-            subprocess.run(["apt-get", "update", "-qq"], check=True, env=env)
-            subprocess.run(["apt-get", "install", "-y", "-qq", "python3-venv"], check=True, env=env)
-            subprocess.run([sys.executable, "-m", "venv", "--clear", VENV], check=True)
-        subprocess.run([py, "-m", "pip", "install", "--quiet", f"mitsuba=={MITSUBA_VERSION}", "numpy"], check=True)
-    os.execv(py, [py, os.path.abspath(__file__)] + sys.argv[1:])
 
 
 ALBEDO, G, MAX_DEPTH = 0.9, 0.7, 64
@@ -238,24 +224,22 @@ def pooled(values_and_errors):
 
 
 def main():
-    ensure_venv()
-    import drjit as dr
-    import mitsuba as mi
-    import numpy as np
-
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--mitsuba-paths", type=int, default=400_000, help="paths per Mitsuba run (16 renders)")
     ap.add_argument("--ohd-paths", type=int, default=4_000_000, help="paths per ohd run")
     ap.add_argument("--scenes", default="slab,grid16,grid64")
     ap.add_argument("--seed", type=int, default=1, help="repeat r uses seed + r (ohd) and (seed + r)·1000 + batch (Mitsuba)")
+    ohdpy.add_binary_argument(ap)
     args = ap.parse_args()
+    ohdpy.use_venv(f"mitsuba=={MITSUBA_VERSION}", "numpy")
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
 
     mi.set_variant("scalar_rgb")
     dr.set_thread_count(1)
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
-    binary = os.path.join(target, "release", "ohd")
+    binary = ohdpy.binary(args.binary)
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="ohd-peers-") as tmp:

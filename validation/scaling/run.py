@@ -14,9 +14,12 @@ import json
 import os
 import statistics
 import subprocess
+import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(ROOT, "validation"))
+import ohdpy  # noqa: E402
 
 # name: (config or None for the built-in default, paths for a run of a few seconds on one thread)
 SCENES = {
@@ -37,15 +40,12 @@ def run(binary, config, paths, threads, out):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--binary")
+    ohdpy.add_binary_argument(ap)
     ap.add_argument("--before", help="an earlier ohd binary, measured interleaved with --binary")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--json")
     a = ap.parse_args()
-    binary = a.binary
-    if not binary:
-        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-        binary = os.path.join(ROOT, "target", "release", "ohd")
+    binary = ohdpy.binary(a.binary)
     builds = [("before", a.before), ("after", binary)] if a.before else [("", binary)]
     results = {}
     with tempfile.TemporaryDirectory() as tmp:

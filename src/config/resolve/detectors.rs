@@ -15,9 +15,10 @@ use crate::medium::Scene;
 use crate::source::Source;
 use crate::spectrum::{FrequencyAxis, Stft, Window};
 
-/// Longest detector or ROI name: the files it names add up to ~45 characters
-/// (`NAME_up_spectrum_by_doppler_events_stderr.npy`, and a temporary `.NAME….tmp-PID` while
-/// written), within the 255 bytes a file name may have on common file systems.
+/// Longest detector or ROI name: the longest file they name adds ~40 characters to both
+/// (`NAME_roi_ROI_speckle_algorithm1.npy`, `NAME_up_spectrum_by_doppler_events_stderr.npy`, and a
+/// temporary `.NAME….tmp-PID` while written), within the 255 bytes a file name may have on
+/// common file systems.
 pub const MAX_NAME: usize = 64;
 
 /// `name` names output files: a non-empty word of letters, digits, `_` and `-`, at most

@@ -203,8 +203,9 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     Ok(exp)
 }
 
-/// `[reference]`: each key a named output of the experiment, each value finite and of its size;
-/// stored in the tally's convention (an M0− written with `flip_sign` is negated back).
+/// `[reference]`: each key a named output of the experiment, each value finite and of its size,
+/// given as its file holds it; stored in the tally's convention (an M0− written with `flip_sign`
+/// is negated back, an image's rows put back to row 0 = the lowest `y`).
 fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment) -> R<Vec<(String, Vec<f64>)>> {
     if refs.is_empty() {
         return Ok(Vec::new());
@@ -227,7 +228,7 @@ fn resolve_references(refs: &BTreeMap<String, ReferenceValue>, exp: &Experiment)
         if let Some(v) = values.iter().find(|v| !v.is_finite()) {
             return err(path, format!("contains {v}: expected finite values"));
         }
-        out.push((name.clone(), values.iter().map(|v| v * o.sign).collect()));
+        out.push((name.clone(), o.to_tally(&values)));
     }
     Ok(out)
 }

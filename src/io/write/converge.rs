@@ -76,7 +76,9 @@ pub fn read_reference(dir: &Path, outputs: &[NamedOutput]) -> Result<Vec<Option<
             };
             (load(&o.file)?, load(&se_name)?)
         };
-        refs.push(Some(Reference { values: values.iter().map(|v| v * o.sign).collect(), stderr, kind: "directory" }));
+        // Back to the tally's convention and order (standard errors carry no sign).
+        let stderr = o.to_tally(&stderr).into_iter().map(f64::abs).collect();
+        refs.push(Some(Reference { values: o.to_tally(&values), stderr, kind: "directory" }));
     }
     Ok(refs)
 }

@@ -240,7 +240,7 @@ mod tests {
 
     #[test]
     fn only_plain_output_names_are_ohds() {
-        for ok in ["a.npy", "camera_image.exr", "gates.csv", "manifest.json", "m0_directional.png"] {
+        for ok in ["a.npy", "camera_image.exr", "lidar_gates.csv", "manifest.json", "camera_m0_directional.png"] {
             assert!(output_file(ok), "{ok}");
         }
         for not in ["", ".npy", ".hidden.npy", "../x.npy", "a/b.npy", "/etc/x.csv", "notes.txt", "thesis", "x.npy.bak"]

@@ -1,8 +1,8 @@
 //! FMCW outputs of a chirped run: per spectrum detector, the range and radial velocity read off its
 //! total up- and down-chirp spectra ([`crate::retrieval::fmcw`]) — in the manifest's
 //! `estimates.detectors.NAME` (plain numbers: they have no standard errors, see the module docs
-//! there) with the method in `detectors.NAME.fmcw`, and one row per detector in
-//! `fmcw_estimates.csv`.
+//! there) with the method in `detectors.NAME.fmcw`, and a row in the detector's
+//! `NAME_fmcw_estimates.csv`.
 
 use std::collections::BTreeMap;
 
@@ -27,8 +27,10 @@ pub const KEYS: [&str; 10] = [
     "velocity_bin_m_per_s",
 ];
 
-/// The output file.
-pub const CSV_FILE: &str = "fmcw_estimates.csv";
+/// The output file of the detector `name`.
+pub fn csv_file(name: &str) -> String {
+    format!("{name}_fmcw_estimates.csv")
+}
 
 fn values(e: &FmcwEstimate) -> [f64; 10] {
     [
@@ -46,7 +48,8 @@ fn values(e: &FmcwEstimate) -> [f64; 10] {
 }
 
 /// What one detector contributes: its estimates (into `estimates`), the manifest's description
-/// of them, and its CSV row. `None` when the run has no chirp or the detector no spectrum.
+/// of them, and its CSV row (none without estimates). `None` when the run has no chirp or the
+/// detector no spectrum.
 pub struct Entry {
     pub info: Value,
     pub row: Option<String>,
@@ -62,6 +65,7 @@ pub fn detector_entry(
     estimates: &mut BTreeMap<String, Estimates>,
 ) -> Option<Entry> {
     let result = exp.fmcw_estimates(out, i)?;
+    let name = &exp.detectors[i].name;
     let mut info = json!({
         "spectra": "total up- and down-chirp spectra",
         "range": "R = c·T·(f_up + f_down)/(4B)",
@@ -71,7 +75,7 @@ pub fn detector_entry(
         "range_bin_m": "c·T·Δf/(2B): the range one frequency bin spans",
         "velocity_bin_m_per_s": "λ0·Δf/2: the radial velocity one bin of Doppler shift spans (peaks inside their true bins give errors below one range_bin and one velocity_bin)",
         "standard_errors": "none: the up- and down-chirp spectra are the same paths and their cross-covariance over batches is not kept",
-        "file": CSV_FILE,
+        "file": csv_file(name),
     });
     let row = match &result {
         Ok(e) => {
@@ -79,7 +83,6 @@ pub fn detector_entry(
             for (k, x) in KEYS.iter().zip(v) {
                 estimates.insert((*k).into(), Estimates::Number(x));
             }
-            let name = &exp.detectors[i].name;
             Some(std::iter::once(name.clone()).chain(v.iter().map(|x| x.to_string())).collect::<Vec<_>>().join(","))
         }
         Err(_) => None,
@@ -107,7 +110,7 @@ pub fn note(result: &Result<FmcwEstimate, RetrievalError>) -> Option<String> {
     }
 }
 
-/// The CSV text: a header and one row per detector with estimates.
+/// The CSV text: a header and the rows given (a detector's, if it has estimates).
 pub fn csv(rows: &[String]) -> String {
     let mut s = format!("detector,{}\n", KEYS.join(","));
     for r in rows {

@@ -13,6 +13,7 @@ use crate::detect::ImageSpec;
 use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
 use crate::error::Result;
 use crate::io::figures::image::ImageFigure;
+use crate::output::rows_reversed;
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -36,23 +37,26 @@ pub fn write_ldh(
 ) -> Result<Value> {
     let registry = w.registry;
     let out = |what: &str| registry.expect(&format!("{name}.{what}"));
+    // Each image's EXR channel is named after what it holds (`m0_plus`, `m0_minus_static`, …).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     let band = format!("{f1}–{f2} kHz");
     const M0: &str = "fraction of emitted power";
-    let (m0p, e) = w.image(out("m0_plus"), "value")?;
-    w.image_figure(out("m0_plus"), &m0p, &e, &format!("{name}: M0+ ({band})"), M0)?;
-    let (m0m, e) = w.image(out("m0_minus"), "value")?;
-    w.image_figure(out("m0_minus"), &m0m, &e, &format!("{name}: M0− ({band}, + receding)"), M0)?;
+    let image = |w: &mut Writer, what: &str, title: String, unit: &str| -> Result<Vec<f64>> {
+        let o = out(what);
+        let (v, e) = w.image(o, what)?;
+        w.image_figure(o, &v, &e, &format!("{name}: {title}"), unit)?;
+        Ok(v)
+    };
+    let m0p = image(w, "m0_plus", format!("M0+ ({band})"), M0)?;
+    let m0m = image(w, "m0_minus", format!("M0− ({band}, + receding)"), M0)?;
     if spec.m1 {
-        let (v, e) = w.image(out("m1"), "value")?;
-        w.image_figure(out("m1"), &v, &e, &format!("{name}: M1 ({band})"), "Hz × fraction of emitted power")?;
+        image(w, "m1", format!("M1 ({band})"), "Hz × fraction of emitted power")?;
     }
     if spec.by_class {
         for cname in CLASS_NAMES {
             for (what, sign) in [("m0_plus", "+"), ("m0_minus", "−")] {
-                let o = out(&format!("{what}_{cname}"));
-                let (v, e) = w.image(o, "value")?;
-                w.image_figure(o, &v, &e, &format!("{name}: M0{sign}, {} ({band})", cname.replace('_', " ")), M0)?;
+                let title = format!("M0{sign}, {} ({band})", cname.replace('_', " "));
+                image(w, &format!("{what}_{cname}"), title, M0)?;
             }
         }
     }
@@ -65,8 +69,9 @@ pub fn write_ldh(
     let (f_lo, f_hi) = if spec.flip_sign { (-axis.f_max, -axis.f_min) } else { (axis.f_min, axis.f_max) };
     let width = axis.bin_width();
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
+    let frequency_file = format!("{name}_roi_frequency_hz.npy");
     if !spec.rois.is_empty() || spec.pixel_spectra {
-        w.npy("ldh_frequency_hz.npy".into(), &[bins], &centres)?;
+        w.npy(frequency_file.clone(), &[bins], &centres)?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
@@ -105,7 +110,7 @@ pub fn write_ldh(
         info.insert("spectrum_file".into(), json!(o.file));
         info.insert("out_of_range".into(), Value::Object(out_of_range));
         if let Some(s) = speckle.get(r) {
-            info.insert("speckle".into(), write_speckle(w, spec, &roi.name, s)?);
+            info.insert("speckle".into(), write_speckle(w, spec, name, &roi.name, s)?);
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
@@ -148,7 +153,7 @@ pub fn write_ldh(
             "f_max_hz": f_hi,
             "bins": bins,
             "bin_width_hz": width,
-            "frequency_file": "ldh_frequency_hz.npy",
+            "frequency_file": frequency_file,
             "channels": channel_names,
             "units": "fraction of emitted power per bin (no window kernel)",
         },
@@ -168,11 +173,11 @@ fn median(v: impl Iterator<Item = f64>) -> f64 {
     if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
 }
 
-/// The per-pixel speckle files and their summary: window 0 as the frame (`m0_{plus,minus}_speckle`
-/// `.npy` and `.png`, as the M0± images), all windows (`_windows.npy`, windows × ny × nx), the
-/// expectation `m0_plus_speckle_expected.npy` (band sums of `S`), and how `S`'s binning
-/// approximation compares with the exact images `m0p`, `m0m` (as written: M0− with the set-up's
-/// sign).
+/// The per-pixel speckle files of the camera `name` and their summary: window 0 as the frame
+/// (`NAME_m0_{plus,minus}_speckle` `.npy` and `.png`, as the M0± images), all windows
+/// (`_windows.npy`, windows × ny × nx), the expectation `NAME_m0_plus_speckle_expected.npy` (band
+/// sums of `S`), and how `S`'s binning approximation compares with the exact images `m0p`, `m0m`
+/// (as written: M0− with the set-up's sign).
 fn write_pixel_speckle(
     w: &mut Writer,
     name: &str,
@@ -184,32 +189,38 @@ fn write_pixel_speckle(
     let (nx, ny, windows) = (s.nx, s.ny, s.windows);
     let pixels = nx * ny;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
+    // Drawn per tally pixel (row 0 = the lowest y); written, and compared with the images `m0p`
+    // and `m0m`, with row 0 = the largest y, window by window.
+    let top_first = |v: &[f64]| -> Vec<f64> { v.chunks(pixels.max(1)).flat_map(|im| rows_reversed(im, nx)).collect() };
     let signed = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| sign * x).collect() };
-    let plus = &s.m0_plus[..pixels];
-    let minus = signed(&s.m0_minus[..pixels]);
-    w.npy("m0_plus_speckle.npy".into(), &[ny, nx], plus)?;
-    w.npy("m0_minus_speckle.npy".into(), &[ny, nx], &minus)?;
-    w.npy("m0_plus_speckle_windows.npy".into(), &[windows, ny, nx], &s.m0_plus)?;
-    w.npy("m0_minus_speckle_windows.npy".into(), &[windows, ny, nx], &signed(&s.m0_minus))?;
-    w.npy("m0_plus_speckle_expected.npy".into(), &[ny, nx], &s.expected_m0_plus)?;
+    let (all_plus, all_minus) = (top_first(&s.m0_plus), signed(&top_first(&s.m0_minus)));
+    let (expected_plus, contrast) = (top_first(&s.expected_m0_plus), top_first(&s.contrast));
+    let plus = &all_plus[..pixels];
+    let minus = &all_minus[..pixels];
+    let file = |what: &str| format!("{name}_{what}");
+    w.npy(file("m0_plus_speckle.npy"), &[ny, nx], plus)?;
+    w.npy(file("m0_minus_speckle.npy"), &[ny, nx], minus)?;
+    w.npy(file("m0_plus_speckle_windows.npy"), &[windows, ny, nx], &all_plus)?;
+    w.npy(file("m0_minus_speckle_windows.npy"), &[windows, ny, nx], &all_minus)?;
+    w.npy(file("m0_plus_speckle_expected.npy"), &[ny, nx], &expected_plus)?;
     let band = format!("{}–{} kHz", spec.band.0 / 1e3, spec.band.1 / 1e3);
-    let grid = w.registry.expect(&format!("{}.m0_plus", name));
-    for (what, values, sign) in [("m0_plus", plus, "+"), ("m0_minus", &minus[..], "−")] {
-        let title = format!("{}: M0{sign}, single window ({band})", name);
+    let grid = w.registry.expect(&format!("{name}.m0_plus"));
+    for (what, values, sign) in [("m0_plus", plus, "+"), ("m0_minus", minus, "−")] {
+        let title = format!("{name}: M0{sign}, single window ({band})");
         let p = super::figures::image_panel(grid, values, &title, "fraction of emitted power", sign == "−");
-        w.figure(&format!("{}_{what}_speckle", name), &ImageFigure { panels: vec![p] })?;
+        w.figure(&file(&format!("{what}_speckle")), &ImageFigure { panels: vec![p] })?;
     }
     // The binning approximation: E M0± = band sums of S against the exact images.
     let total = |v: &[f64]| v.iter().sum::<f64>();
     let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
     let relative = |a: f64, b: f64| ratio(a, b) - 1.0;
     let mean_plus: Vec<f64> =
-        (0..pixels).map(|p| (0..windows).map(|j| s.m0_plus[j * pixels + p]).sum::<f64>() / windows as f64).collect();
-    let per_pixel = median((0..pixels).filter(|&p| m0p[p] > 0.0).map(|p| (s.expected_m0_plus[p] / m0p[p] - 1.0).abs()));
+        (0..pixels).map(|p| (0..windows).map(|j| all_plus[j * pixels + p]).sum::<f64>() / windows as f64).collect();
+    let per_pixel = median((0..pixels).filter(|&p| m0p[p] > 0.0).map(|p| (expected_plus[p] / m0p[p] - 1.0).abs()));
     // Measured single-window contrast of M0+ per pixel (over the windows) against the closed form.
     let measured = (windows > 1).then(|| {
-        median((0..pixels).filter(|&p| s.contrast[p].is_finite()).map(|p| {
-            let v: Vec<f64> = (0..windows).map(|j| s.m0_plus[j * pixels + p]).collect();
+        median((0..pixels).filter(|&p| contrast[p].is_finite()).map(|p| {
+            let v: Vec<f64> = (0..windows).map(|j| all_plus[j * pixels + p]).collect();
             let m = total(&v) / windows as f64;
             let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (windows - 1) as f64;
             var.sqrt() / m
@@ -231,7 +242,7 @@ fn write_pixel_speckle(
                 relative(sign * total(&s.expected_m0_minus), total(m0m)),
             "expected_m0_plus_median_pixel_relative_difference": per_pixel,
             "expected_m0_plus_pixel_absolute_difference_over_total":
-                ratio(s.expected_m0_plus.iter().zip(m0p).map(|(e, m)| (e - m).abs()).sum::<f64>(), total(m0p)),
+                ratio(expected_plus.iter().zip(m0p).map(|(e, m)| (e - m).abs()).sum::<f64>(), total(m0p)),
             "mean_over_windows_m0_plus_total_relative_difference": relative(total(&mean_plus), total(m0p)),
             "out_of_axis_fraction": if power > 0.0 { s.out_of_range / power } else { f64::NAN },
         },
@@ -240,28 +251,31 @@ fn write_pixel_speckle(
             "median_measured": measured,
         },
         "files": {
-            "m0_plus": "m0_plus_speckle.npy",
-            "m0_minus": "m0_minus_speckle.npy",
-            "m0_plus_windows": "m0_plus_speckle_windows.npy",
-            "m0_minus_windows": "m0_minus_speckle_windows.npy",
-            "m0_plus_expected": "m0_plus_speckle_expected.npy",
+            "m0_plus": file("m0_plus_speckle.npy"),
+            "m0_minus": file("m0_minus_speckle.npy"),
+            "m0_plus_windows": file("m0_plus_speckle_windows.npy"),
+            "m0_minus_windows": file("m0_minus_speckle_windows.npy"),
+            "m0_plus_expected": file("m0_plus_speckle_expected.npy"),
         },
     }))
 }
 
-/// Speckle files of one ROI and their summary: the expected periodogram and single windows of
-/// both algorithms (`.npy`), and the single-window M0± statistics.
-fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> Result<Value> {
+/// Speckle files of the ROI `roi` of the camera `name` and their summary: the expected
+/// periodogram and single windows of both algorithms (`.npy`), and the single-window M0±
+/// statistics.
+fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiSpeckle) -> Result<Value> {
     let n = spec.stft.samples();
     let prep = |v: &[f64]| -> Vec<f64> {
         if spec.flip_sign { v.chunks_exact(n).flat_map(mirror_fftshift).collect() } else { v.to_vec() }
     };
     let windows = s.algorithm1.len() / n.max(1);
     let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
-    w.npy("stft_frequency_hz.npy".into(), &[n], &freqs)?;
-    w.npy(format!("roi_{name}_periodogram.npy"), &[n], &prep(&s.expected))?;
-    w.npy(format!("roi_{name}_speckle_algorithm1.npy"), &[windows, n], &prep(&s.algorithm1))?;
-    w.npy(format!("roi_{name}_speckle_algorithm2.npy"), &[windows, n], &prep(&s.algorithm2))?;
+    let file = |what: &str| format!("{name}_roi_{roi}_{what}.npy");
+    let frequency_file = format!("{name}_stft_frequency_hz.npy");
+    w.npy(frequency_file.clone(), &[n], &freqs)?;
+    w.npy(file("periodogram"), &[n], &prep(&s.expected))?;
+    w.npy(file("speckle_algorithm1"), &[windows, n], &prep(&s.algorithm1))?;
+    w.npy(file("speckle_algorithm2"), &[windows, n], &prep(&s.algorithm2))?;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows
@@ -296,10 +310,10 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, s: &RoiSpeckle) -> 
         "seconds_algorithm1": s.seconds_algorithm1,
         "seconds_algorithm2": s.seconds_algorithm2,
         "files": {
-            "frequency": "stft_frequency_hz.npy",
-            "expected": format!("roi_{name}_periodogram.npy"),
-            "algorithm1": format!("roi_{name}_speckle_algorithm1.npy"),
-            "algorithm2": format!("roi_{name}_speckle_algorithm2.npy"),
+            "frequency": frequency_file,
+            "expected": file("periodogram"),
+            "algorithm1": file("speckle_algorithm1"),
+            "algorithm2": file("speckle_algorithm2"),
         },
     }))
 }

@@ -29,8 +29,9 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
     let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
-    w.npy("range_m.npy".into(), &[gates], &range)?;
-    w.npy("frequency_hz.npy".into(), &[bins], &freq)?;
+    let file = |what: &str| format!("{name}_{what}");
+    w.npy(file("range_m.npy"), &[gates], &range)?;
+    w.npy(file("frequency_hz.npy"), &[bins], &freq)?;
     let mut files = serde_json::Map::new();
     // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
     let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());
@@ -97,15 +98,16 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         csv.push('\n');
         table.push(Value::Object(row));
     }
-    w.put("gates.csv".into(), csv.into_bytes())?;
+    w.put(file("gates.csv"), csv.into_bytes())?;
     Ok(json!({
         "range_m": range,
         "frequency_hz": freq,
-        "range_file": "range_m.npy",
-        "frequency_file": "frequency_hz.npy",
+        "range_file": file("range_m.npy"),
+        "frequency_file": file("frequency_hz.npy"),
+        "gates_file": file("gates.csv"),
         "spectra": Value::Object(files),
-        "figures": if w.figures {
-            json!([format!("{name}_range_doppler.png"), format!("{name}_gate_spectra.png")])
+        "plots": if w.figures {
+            json!([file("range_doppler.png"), file("gate_spectra.png")])
         } else {
             json!([])
         },

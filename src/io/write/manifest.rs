@@ -2,7 +2,7 @@
 //! time, run statistics, every scalar estimate with its standard error) plus, per detector, its
 //! outputs as its [`Registry`](crate::output::Registry) declares them: spectra (`.npy`, with
 //! per-bin standard errors and the frequency axis), FMCW range and velocity estimates with a chirp
-//! (`fmcw_estimates.csv`, see [`super::fmcw`]), images (`.exr`, `.npy`), an LDH camera's maps and
+//! (`NAME_fmcw_estimates.csv`, see [`super::fmcw`]), images (`.exr`, `.npy`), an LDH camera's maps and
 //! a lidar receiver's range–Doppler spectra. Data files are written first and the manifest last,
 //! each atomically, through a [`DirWriter`]: the directory holds this run's files only, or is
 //! marked incomplete.
@@ -199,8 +199,6 @@ pub fn write_run(
     let mut det_estimates = BTreeMap::new();
     let mut det_info = BTreeMap::new();
     let mut out_of_range_total = 0.0;
-    let mut fmcw_rows: Vec<String> = Vec::new();
-    let mut fmcw_any = false;
     for (i, d) in exp.detectors.iter().enumerate() {
         let mut de = BTreeMap::new();
         let power = w.estimate(w.output(&format!("{}.detected_power", d.name)));
@@ -225,9 +223,9 @@ pub fn write_run(
                     out_of_range_total += oor;
                 }
                 if let Some(entry) = super::fmcw::detector_entry(exp, out, i, &mut de) {
-                    fmcw_any = true;
+                    let rows: Vec<String> = entry.row.into_iter().collect();
+                    w.put(super::fmcw::csv_file(&d.name), super::fmcw::csv(&rows).into_bytes())?;
                     info.fmcw = Some(entry.info);
-                    fmcw_rows.extend(entry.row);
                 }
                 if let Some(im) = &s.image {
                     let o = w.output(&format!("{}.image", d.name));
@@ -260,9 +258,6 @@ pub fn write_run(
         w.rest(i, &mut de)?;
         det_estimates.insert(d.name.clone(), Entry::Group(de));
         det_info.insert(d.name.clone(), info);
-    }
-    if fmcw_any {
-        w.put(super::fmcw::CSV_FILE.into(), super::fmcw::csv(&fmcw_rows).into_bytes())?;
     }
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
     drop(w);

@@ -44,8 +44,9 @@ pub enum Entry {
     Group(BTreeMap<String, Entry>),
 }
 
-/// The layout of every image file.
-pub const IMAGE_LAYOUT: &str = "rows = y (ascending), columns = x (ascending)";
+/// The layout of every image file (`.npy`, `.exr`, `.png`): as an image viewer and
+/// `plt.imshow` show it ([`Output::values`] makes it).
+pub const IMAGE_LAYOUT: &str = "rows = y descending (row 0 = top = largest y), columns = x ascending";
 
 /// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
 pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
@@ -149,13 +150,14 @@ impl<'a, 'p> Writer<'a, 'p> {
         Ok((v, e))
     }
 
-    /// An image output as `.npy` files and an `.exr` whose channels are `channel` and
-    /// `stderr`; returns its values and standard errors.
+    /// An image output as `.npy` files and an `.exr` whose channels are `channel` (what it
+    /// holds: `intensity`, `m0_plus`, …) and `channel_stderr`; returns its values and standard
+    /// errors (row 0 = the largest `y`, as written).
     pub fn image(&mut self, o: &Output, channel: &str) -> Result<(Vec<f64>, Vec<f64>)> {
         let Kind::Image { nx, ny, .. } = o.kind else { unreachable!("{} is declared an image", o.name) };
         let (v, e) = self.array(o)?;
         let name = format!("{}.exr", o.file.trim_end_matches(".npy"));
-        let exr = exr_bytes(nx, ny, &[(channel, &v), ("stderr", &e)])
+        let exr = exr_bytes(nx, ny, &[(channel, &v), (&format!("{channel}_stderr"), &e)])
             .map_err(|m| Error::Write { path: name.clone().into(), source: std::io::Error::other(m) })?;
         self.put(name, exr)?;
         if o.primary {
