@@ -356,7 +356,10 @@ fn lidar_scan_and_fmcw_files() {
     let pointings: Vec<String> =
         scan_json["pointings"].as_array().unwrap().iter().map(|p| p["run"].as_str().unwrap().to_string()).collect();
     assert_eq!(pointings, ["pointing_00", "pointing_01", "pointing_02", "pointing_03"]);
-    let mut top: BTreeSet<String> = ["scan.json", "vad.csv"].iter().map(|s| s.to_string()).collect();
+    let mut top: BTreeSet<String> = ["scan.json", "vad.csv", "vad_wind_profile.png", "vad_wind_profile.svg"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     top.extend(pointings.iter().cloned());
     assert_eq!(listing(&scan), top);
     for p in &pointings {
@@ -373,7 +376,9 @@ fn lidar_scan_and_fmcw_files() {
     let dir = tmp.path().join("fmcw");
     ohd(tmp.path(), &["run", target.to_str().unwrap(), "--samples", "3000", "--quiet", "--out", dir.to_str().unwrap()]);
     let (m, files) = check_run_dir(&dir, "receiver");
-    for f in ["receiver_frequency_hz.npy", "receiver_up_spectrum.npy", "receiver_down_spectrum.npy"] {
+    for f in
+        ["receiver_frequency_hz.npy", "receiver_up_spectrum.npy", "receiver_down_spectrum.npy", "receiver_spectra.png"]
+    {
         assert!(files.contains(f), "{f} not written: {files:?}");
     }
     assert_eq!(m["detectors"]["receiver"]["fmcw"]["file"], "receiver_fmcw_estimates.csv");
