@@ -110,7 +110,8 @@ pub fn write_ldh(
         info.insert("spectrum_file".into(), json!(o.file));
         info.insert("out_of_range".into(), Value::Object(out_of_range));
         if let Some(s) = speckle.get(r) {
-            info.insert("speckle".into(), write_speckle(w, spec, name, &roi.name, s)?);
+            // The windows' frequency axis is the same for every ROI: one file.
+            info.insert("speckle".into(), write_speckle(w, spec, name, &roi.name, s, r == 0)?);
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
@@ -262,8 +263,8 @@ fn write_pixel_speckle(
 
 /// Speckle files of the ROI `roi` of the camera `name` and their summary: the expected
 /// periodogram and single windows of both algorithms (`.npy`), and the single-window M0±
-/// statistics.
-fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiSpeckle) -> Result<Value> {
+/// statistics; the windows' frequency axis too when `axis`.
+fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiSpeckle, axis: bool) -> Result<Value> {
     let n = spec.stft.samples();
     let prep = |v: &[f64]| -> Vec<f64> {
         if spec.flip_sign { v.chunks_exact(n).flat_map(mirror_fftshift).collect() } else { v.to_vec() }
@@ -272,7 +273,9 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiS
     let freqs: Vec<f64> = (0..n).map(|k| spec.stft.bin_frequency(k)).collect();
     let file = |what: &str| format!("{name}_roi_{roi}_{what}.npy");
     let frequency_file = format!("{name}_stft_frequency_hz.npy");
-    w.npy(frequency_file.clone(), &[n], &freqs)?;
+    if axis {
+        w.npy(frequency_file.clone(), &[n], &freqs)?;
+    }
     w.npy(file("periodogram"), &[n], &prep(&s.expected))?;
     w.npy(file("speckle_algorithm1"), &[windows, n], &prep(&s.algorithm1))?;
     w.npy(file("speckle_algorithm2"), &[windows, n], &prep(&s.algorithm2))?;
