@@ -182,6 +182,13 @@ struct KernelModel {
     /// `(c_0 + 2Σc_d)/(2Σc_d ω² d²)`: what the kernel adds to a line's apparent width², for
     /// starting points only.
     s2: f64,
+    /// `cos(dωk)` and `sin(dωk)` for lags `d = 1 … M − 1` (row `d − 1`) at every bin `k`: the
+    /// parameter-free half of `cos d(θ_μ − ωk)`, so that a profile is a few multiply–adds per
+    /// lag and bin instead of a `sin_cos` and a rotation chain per bin (the profile is where the
+    /// fits spend their time).
+    cos: Vec<f64>,
+    sin: Vec<f64>,
+    bins: usize,
 }
 
 impl KernelModel {
@@ -195,7 +202,17 @@ impl KernelModel {
         let curvature: f64 = 2.0 * c.iter().enumerate().map(|(d, c)| c * (omega * d as f64).powi(2)).sum::<f64>();
         // A flat kernel (one sample) has no peak: the widest start, the axis.
         let s2 = if curvature > 0.0 && peak > 0.0 { peak / curvature } else { (bins * bins) as f64 };
-        KernelModel { c, omega, gamma, s2 }
+        let lags = c.len().saturating_sub(1);
+        let (mut cos, mut sin) = (vec![0.0; lags * bins], vec![0.0; lags * bins]);
+        for d in 1..=lags {
+            let row = (d - 1) * bins;
+            for k in 0..bins {
+                let (sn, cs) = (omega * (d * k) as f64).sin_cos();
+                cos[row + k] = cs;
+                sin[row + k] = sn;
+            }
+        }
+        KernelModel { c, omega, gamma, s2, cos, sin, bins }
     }
 
     /// A unit-power component's value at its centre, and its derivative in `s²`.
@@ -485,6 +502,28 @@ struct Problem<'a> {
     max_iterations: usize,
 }
 
+/// One component at every bin ([`Problem::profile`]): its value and (if asked) its derivatives in
+/// its mean and width parameter.
+struct Profile {
+    g: Vec<f64>,
+    d_mu: Vec<f64>,
+    d_width: Vec<f64>,
+}
+
+/// `Σ a_k b_k` in four interleaved partial sums, which the compiler turns into vector
+/// instructions (a single running sum is a serial chain it may not reorder).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
 /// Where Levenberg–Marquardt stopped.
 struct Solution {
     params: Vec<f64>,
@@ -675,57 +714,73 @@ impl<'a> Problem<'a> {
         if self.fit_floor { p[p.len() - 1] } else { self.fixed_floor }
     }
 
-    /// Component `j` at every bin: its value `g` and its derivatives in its mean and in its
-    /// width parameter (`∂g/∂ln A = g` for both models).
+    /// Component `j` at every bin: its value `g` and, with `derivatives`, its derivatives in its
+    /// mean and in its width parameter (`∂g/∂ln A = g` for both models).
     /// Gaussian: `∂g/∂μ = g·(x − μ)/s²`, `∂g/∂ln s = g·(x − μ)²/s²`.
     /// Kernel, with `a_d = P·c_d·e^{−γ s² d²}` and `θ = ω(μ − x)`:
-    /// `g = P c_0 + 2Σ a_d cos dθ`, `∂g/∂μ = −2Σ a_d ω d sin dθ`, `∂g/∂s² = −2Σ a_d γ d² cos dθ`.
-    fn profile(&self, p: &[f64], j: usize) -> Vec<[f64; 3]> {
+    /// `g = P c_0 + 2Σ a_d cos dθ`, `∂g/∂μ = −2Σ a_d ω d sin dθ`, `∂g/∂s² = −2Σ a_d γ d² cos dθ`,
+    /// with `cos dθ = cos dωμ·cos dωx + sin dωμ·sin dωx` and
+    /// `sin dθ = sin dωμ·cos dωx − cos dωμ·sin dωx` on the kernel's tables.
+    fn profile(&self, p: &[f64], j: usize, derivatives: bool) -> Profile {
         let (ln_a, mu, width) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+        let bins = self.y.len();
+        let mut out = Profile {
+            g: vec![0.0; bins],
+            d_mu: if derivatives { vec![0.0; bins] } else { Vec::new() },
+            d_width: if derivatives { vec![0.0; bins] } else { Vec::new() },
+        };
         match &self.kernel {
             None => {
                 let inv_s = (-width).exp();
-                (0..self.y.len())
-                    .map(|k| {
-                        let u = (k as f64 - mu) * inv_s;
-                        let g = (ln_a - 0.5 * u * u).exp();
-                        [g, g * u * inv_s, g * u * u]
-                    })
-                    .collect()
+                for k in 0..bins {
+                    let u = (k as f64 - mu) * inv_s;
+                    let e = ln_a - 0.5 * u * u;
+                    // exp underflows to exactly 0 below −745.2: skip it (most bins, a narrow line).
+                    if e < -746.0 {
+                        continue;
+                    }
+                    let g = e.exp();
+                    out.g[k] = g;
+                    if derivatives {
+                        out.d_mu[k] = g * u * inv_s;
+                        out.d_width[k] = g * u * u;
+                    }
+                }
             }
             Some(km) => {
+                debug_assert_eq!(km.bins, bins);
                 let amp = ln_a.exp();
-                let a: Vec<f64> =
-                    km.c.iter()
-                        .enumerate()
-                        .map(|(d, c)| 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp())
-                        .collect();
-                (0..self.y.len())
-                    .map(|k| {
-                        let (sin1, cos1) = (km.omega * (mu - k as f64)).sin_cos();
-                        let (mut sin, mut cos) = (0.0, 1.0);
-                        let (mut g, mut dmu, mut dv) = (amp * km.c[0], 0.0, 0.0);
-                        for (d, a) in a.iter().enumerate().skip(1) {
-                            // (cos, sin) of dθ from (d − 1)θ by one rotation.
-                            (cos, sin) = (cos * cos1 - sin * sin1, sin * cos1 + cos * sin1);
-                            let d = d as f64;
-                            g += a * cos;
-                            dmu -= a * km.omega * d * sin;
-                            dv -= a * km.gamma * d * d * cos;
+                out.g.iter_mut().for_each(|g| *g = amp * km.c[0]);
+                for (d, c) in km.c.iter().enumerate().skip(1) {
+                    let a = 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp();
+                    let (s_mu, c_mu) = (km.omega * d as f64 * mu).sin_cos();
+                    let (alpha, beta) = (a * c_mu, a * s_mu);
+                    let row = (d - 1) * bins..d * bins;
+                    let (cos, sin) = (&km.cos[row.clone()], &km.sin[row]);
+                    for ((g, cs), sn) in out.g.iter_mut().zip(cos).zip(sin) {
+                        *g += alpha * cs + beta * sn;
+                    }
+                    if derivatives {
+                        let (wd, gd2) = (km.omega * d as f64, km.gamma * (d * d) as f64);
+                        let (mc, ms) = (-wd * beta, wd * alpha);
+                        let (vc, vs) = (-gd2 * alpha, -gd2 * beta);
+                        for (((dm, dv), cs), sn) in out.d_mu.iter_mut().zip(out.d_width.iter_mut()).zip(cos).zip(sin) {
+                            *dm += mc * cs + ms * sn;
+                            *dv += vc * cs + vs * sn;
                         }
-                        [g, dmu, dv]
-                    })
-                    .collect()
+                    }
+                }
             }
         }
+        out
     }
 
     /// `S` at every bin.
     fn values(&self, p: &[f64]) -> Vec<f64> {
         let mut s = vec![self.floor(p); self.y.len()];
         for j in 0..self.components(p) {
-            for (v, g) in s.iter_mut().zip(self.profile(p, j)) {
-                *v += g[0];
+            for (v, g) in s.iter_mut().zip(self.profile(p, j, false).g) {
+                *v += g;
             }
         }
         s
@@ -737,37 +792,34 @@ impl<'a> Problem<'a> {
     }
 
     /// The normal matrix `JᵀWJ` and gradient `JᵀW·r` (`r = y − S`) at `p`, row-major, from the
-    /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`.
+    /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`: the weighted Jacobian by columns,
+    /// then each entry one dot product ([`dot`], which vectorises).
     fn normal_equations(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let n = p.len();
-        let m = self.components(p);
-        let profiles: Vec<Vec<[f64; 3]>> = (0..m).map(|j| self.profile(p, j)).collect();
-        let mut ata = vec![0.0; n * n];
-        let mut atr = vec![0.0; n];
-        let mut row = vec![0.0; n];
-        for (k, (&y, &w)) in self.y.iter().zip(&self.w).enumerate() {
-            let mut model = self.floor(p);
-            for (j, prof) in profiles.iter().enumerate() {
-                let [g, d_mu, d_width] = prof[k];
-                model += g;
-                row[3 * j] = w * g;
-                row[3 * j + 1] = w * d_mu;
-                row[3 * j + 2] = w * d_width;
+        let bins = self.y.len();
+        let mut model = vec![self.floor(p); bins];
+        let mut columns: Vec<Vec<f64>> = Vec::with_capacity(n);
+        for j in 0..self.components(p) {
+            let prof = self.profile(p, j, true);
+            for (m, g) in model.iter_mut().zip(&prof.g) {
+                *m += g;
             }
-            if self.fit_floor {
-                row[n - 1] = w;
-            }
-            let r = w * (y - model);
-            for a in 0..n {
-                atr[a] += row[a] * r;
-                for b in 0..=a {
-                    ata[a * n + b] += row[a] * row[b];
-                }
+            for col in [prof.g, prof.d_mu, prof.d_width] {
+                columns.push(col.iter().zip(&self.w).map(|(v, w)| v * w).collect());
             }
         }
+        if self.fit_floor {
+            columns.push(self.w.clone());
+        }
+        let r: Vec<f64> = self.y.iter().zip(&self.w).zip(&model).map(|((y, w), m)| w * (y - m)).collect();
+        let mut ata = vec![0.0; n * n];
+        let mut atr = vec![0.0; n];
         for a in 0..n {
-            for b in 0..a {
-                ata[b * n + a] = ata[a * n + b];
+            atr[a] = dot(&columns[a], &r);
+            for b in 0..=a {
+                let v = dot(&columns[a], &columns[b]);
+                ata[a * n + b] = v;
+                ata[b * n + a] = v;
             }
         }
         (ata, atr)
