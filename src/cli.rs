@@ -350,7 +350,8 @@ impl Progress for Steps {
 /// `, post-processing 0.12 s (gate fits 0.11 s), writing 0.05 s`: where a run's time went after
 /// its transport (which the caller prints), so that the transport's time is not taken for the run's.
 fn after_transport(t: &ohd::io::write::manifest::Timing) -> String {
-    let fits = if t.gate_fit_seconds > 0.0 { format!(" (gate fits {:.2} s)", t.gate_fit_seconds) } else { String::new() };
+    let fits =
+        if t.gate_fit_seconds > 0.0 { format!(" (gate fits {:.2} s)", t.gate_fit_seconds) } else { String::new() };
     format!(", post-processing {:.2} s{fits}, writing {:.2} s", t.postprocess_seconds, t.writing_seconds)
 }
 

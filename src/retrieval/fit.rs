@@ -508,7 +508,12 @@ struct Profile {
     g: Vec<f64>,
     d_mu: Vec<f64>,
     d_width: Vec<f64>,
+    /// The bins outside which all three are 0.
+    support: std::ops::Range<usize>,
 }
+
+/// A plain Gaussian component is taken as 0 where it is below `e^{−GAUSS_TAIL}` of its peak.
+const GAUSS_TAIL: f64 = 80.0;
 
 /// `Σ a_k b_k` in four interleaved partial sums, which the compiler turns into vector
 /// instructions (a single running sum is a serial chain it may not reorder).
@@ -724,22 +729,35 @@ impl<'a> Problem<'a> {
     fn profile(&self, p: &[f64], j: usize, derivatives: bool) -> Profile {
         let (ln_a, mu, width) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
         let bins = self.y.len();
+        // With a kernel every bin starts at the lag-0 term `P·c_0` (filled once, not zeroed first).
+        let start = match &self.kernel {
+            None => 0.0,
+            Some(km) => ln_a.exp() * km.c[0],
+        };
         let mut out = Profile {
-            g: vec![0.0; bins],
+            g: vec![start; bins],
             d_mu: if derivatives { vec![0.0; bins] } else { Vec::new() },
             d_width: if derivatives { vec![0.0; bins] } else { Vec::new() },
+            support: 0..bins,
         };
         match &self.kernel {
             None => {
                 let inv_s = (-width).exp();
-                for k in 0..bins {
+                // Beyond |u|² = 2·GAUSS_TAIL the line is below e^{−GAUSS_TAIL} ≈ 2e-35 of its peak:
+                // zero to far below the round-off of any bin it shares with the peak, and skipped.
+                let reach = (2.0 * GAUSS_TAIL).sqrt() / inv_s;
+                let (lo, hi) = if reach.is_finite() && mu.is_finite() {
+                    (
+                        (mu - reach).ceil().clamp(0.0, bins as f64) as usize,
+                        ((mu + reach).floor() + 1.0).clamp(0.0, bins as f64) as usize,
+                    )
+                } else {
+                    (0, bins)
+                };
+                out.support = lo..hi.max(lo);
+                for k in out.support.clone() {
                     let u = (k as f64 - mu) * inv_s;
-                    let e = ln_a - 0.5 * u * u;
-                    // exp underflows to exactly 0 below −745.2: skip it (most bins, a narrow line).
-                    if e < -746.0 {
-                        continue;
-                    }
-                    let g = e.exp();
+                    let g = (ln_a - 0.5 * u * u).exp();
                     out.g[k] = g;
                     if derivatives {
                         out.d_mu[k] = g * u * inv_s;
@@ -750,23 +768,27 @@ impl<'a> Problem<'a> {
             Some(km) => {
                 debug_assert_eq!(km.bins, bins);
                 let amp = ln_a.exp();
-                out.g.iter_mut().for_each(|g| *g = amp * km.c[0]);
                 for (d, c) in km.c.iter().enumerate().skip(1) {
                     let a = 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp();
                     let (s_mu, c_mu) = (km.omega * d as f64 * mu).sin_cos();
                     let (alpha, beta) = (a * c_mu, a * s_mu);
                     let row = (d - 1) * bins..d * bins;
                     let (cos, sin) = (&km.cos[row.clone()], &km.sin[row]);
-                    for ((g, cs), sn) in out.g.iter_mut().zip(cos).zip(sin) {
-                        *g += alpha * cs + beta * sn;
-                    }
                     if derivatives {
                         let (wd, gd2) = (km.omega * d as f64, km.gamma * (d * d) as f64);
                         let (mc, ms) = (-wd * beta, wd * alpha);
                         let (vc, vs) = (-gd2 * alpha, -gd2 * beta);
-                        for (((dm, dv), cs), sn) in out.d_mu.iter_mut().zip(out.d_width.iter_mut()).zip(cos).zip(sin) {
+                        // One pass over the tables for the value and both derivatives.
+                        for ((((g, dm), dv), cs), sn) in
+                            out.g.iter_mut().zip(out.d_mu.iter_mut()).zip(out.d_width.iter_mut()).zip(cos).zip(sin)
+                        {
+                            *g += alpha * cs + beta * sn;
                             *dm += mc * cs + ms * sn;
                             *dv += vc * cs + vs * sn;
+                        }
+                    } else {
+                        for ((g, cs), sn) in out.g.iter_mut().zip(cos).zip(sin) {
+                            *g += alpha * cs + beta * sn;
                         }
                     }
                 }
@@ -799,8 +821,12 @@ impl<'a> Problem<'a> {
         let bins = self.y.len();
         let mut model = vec![self.floor(p); bins];
         let mut columns: Vec<Vec<f64>> = Vec::with_capacity(n);
+        // Outside every component's support the Jacobian's rows are 0 unless the floor is fitted:
+        // those bins add nothing to JᵀWJ or JᵀWr.
+        let (mut lo, mut hi) = if self.fit_floor { (0, bins) } else { (bins, 0) };
         for j in 0..self.components(p) {
             let prof = self.profile(p, j, true);
+            (lo, hi) = (lo.min(prof.support.start), hi.max(prof.support.end));
             for (m, g) in model.iter_mut().zip(&prof.g) {
                 *m += g;
             }
@@ -811,13 +837,20 @@ impl<'a> Problem<'a> {
         if self.fit_floor {
             columns.push(self.w.clone());
         }
-        let r: Vec<f64> = self.y.iter().zip(&self.w).zip(&model).map(|((y, w), m)| w * (y - m)).collect();
+        let span = lo..hi.max(lo);
+        let r: Vec<f64> = self.y[span.clone()]
+            .iter()
+            .zip(&self.w[span.clone()])
+            .zip(&model[span.clone()])
+            .map(|((y, w), m)| w * (y - m))
+            .collect();
+        let cols: Vec<&[f64]> = columns.iter().map(|c| &c[span.clone()]).collect();
         let mut ata = vec![0.0; n * n];
         let mut atr = vec![0.0; n];
         for a in 0..n {
-            atr[a] = dot(&columns[a], &r);
+            atr[a] = dot(cols[a], &r);
             for b in 0..=a {
-                let v = dot(&columns[a], &columns[b]);
+                let v = dot(cols[a], cols[b]);
                 ata[a * n + b] = v;
                 ata[b * n + a] = v;
             }

@@ -36,7 +36,8 @@ pub fn retrieve_gates(
     threads: usize,
     progress: &dyn Progress,
 ) -> Vec<GateRetrieval> {
-    let (total, lags) = (registry.expect(&format!("{name}.range_doppler")), registry.expect(&format!("{name}.lag_sums")));
+    let (total, lags) =
+        (registry.expect(&format!("{name}.range_doppler")), registry.expect(&format!("{name}.lag_sums")));
     let bins = spec.fft_points;
     // The total channel's gate energies (lag 0): the echo density that shapes each gate's kernel.
     let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lags.slots.start + spec.lag_slot(0, g, 0)]).collect();
