@@ -215,6 +215,25 @@ impl KernelModel {
         KernelModel { c, omega, gamma, s2, cos, sin, bins }
     }
 
+    /// A component `(ln P, μ, s²)` as coefficients of the basis `1, cos dωk, sin dωk`
+    /// (`d = 1 … M − 1`, [`LagSpace`]): per basis function, the coefficient of the component's
+    /// value and of its derivatives, `[g, ∂g/∂μ, ∂g/∂s²]` (`∂g/∂ln P = g`).
+    fn component(&self, ln_p: f64, mu: f64, v: f64) -> Vec<[f64; 3]> {
+        let lags = self.c.len();
+        let amp = ln_p.exp();
+        let mut out = vec![[0.0; 3]; 2 * lags - 1];
+        out[0] = [amp * self.c[0], 0.0, 0.0];
+        for (d, c) in self.c.iter().enumerate().skip(1) {
+            let a = 2.0 * amp * c * (-self.gamma * v * (d * d) as f64).exp();
+            let (s_mu, c_mu) = (self.omega * d as f64 * mu).sin_cos();
+            let (alpha, beta) = (a * c_mu, a * s_mu);
+            let (wd, gd2) = (self.omega * d as f64, self.gamma * (d * d) as f64);
+            out[d] = [alpha, -wd * beta, -gd2 * alpha];
+            out[lags - 1 + d] = [beta, wd * alpha, -gd2 * beta];
+        }
+        out
+    }
+
     /// A unit-power component's value at its centre, and its derivative in `s²`.
     fn peak(&self, v: f64) -> (f64, f64) {
         let (mut value, mut dv) = (self.c[0], 0.0);
@@ -496,6 +515,9 @@ struct Problem<'a> {
     ln_s_min: f64,
     /// The gate kernel the components are seen through, if any.
     kernel: Option<KernelModel>,
+    /// With a kernel: χ² and the normal equations in the space of the kernel's basis functions
+    /// ([`LagSpace`]), built at first use (`None` inside when its Gram matrix is singular).
+    lag_space: std::cell::OnceCell<Option<LagSpace>>,
     /// With a kernel, the smallest `s²` allowed (bins²): `min_sigma_hz²`.
     v_min: f64,
     /// [`FitOptions::max_iterations`].
@@ -510,6 +532,69 @@ struct Profile {
     d_width: Vec<f64>,
     /// The bins outside which all three are 0.
     support: std::ops::Range<usize>,
+}
+
+/// The kernel model in the space of its `2M − 1` basis functions `T = [1, cos dωk, sin dωk]`
+/// (`d = 1 … M − 1`): every model is `S = T·c` (a component's coefficients are the lag terms
+/// `P c_0`, `a_d cos dωμ`, `a_d sin dωμ`, the floor adds to the first), and so is every column of
+/// its Jacobian. With the Gram matrix `G = TᵀW²T = LLᵀ` and `c_y` the weighted projection of the
+/// data `y` on `T`, `χ²(c) = ‖y − Tc_y‖²_W + ‖Lᵀ(c_y − c)‖²` exactly (the residual of the
+/// projection is W-orthogonal to `T`): χ² and the normal equations cost `O(M²)` instead of
+/// `O(M·bins)`, and the only sum over bins, the projection's residual, is taken once per problem.
+/// Both terms are sums of squares (no cancellation between large numbers).
+struct LagSpace {
+    dim: usize,
+    /// `L`, row-major lower triangle.
+    l: Vec<f64>,
+    /// `c_y`.
+    cy: Vec<f64>,
+    /// `‖y − T·c_y‖²_W`.
+    perp: f64,
+}
+
+impl LagSpace {
+    /// `None` when `G` is not numerically positive definite (fewer bins than basis functions,
+    /// or weights that do not separate them): the fit then sums over bins.
+    fn new(km: &KernelModel, y: &[f64], w: &[f64]) -> Option<LagSpace> {
+        let (bins, lags) = (y.len(), km.c.len());
+        let dim = 2 * lags - 1;
+        let basis = |i: usize| -> &[f64] {
+            if i < lags { &km.cos[(i - 1) * bins..i * bins] } else { &km.sin[(i - lags) * bins..(i - lags + 1) * bins] }
+        };
+        let u: Vec<Vec<f64>> = (0..dim)
+            .map(|i| if i == 0 { w.to_vec() } else { basis(i).iter().zip(w).map(|(t, w)| t * w).collect() })
+            .collect();
+        let wy: Vec<f64> = y.iter().zip(w).map(|(y, w)| y * w).collect();
+        let mut g = vec![0.0; dim * dim];
+        for a in 0..dim {
+            for b in 0..=a {
+                let v = dot(&u[a], &u[b]);
+                g[a * dim + b] = v;
+                g[b * dim + a] = v;
+            }
+        }
+        let b: Vec<f64> = u.iter().map(|ui| dot(ui, &wy)).collect();
+        let l = cholesky(&g, dim)?;
+        let cy = cholesky_solve(&l, dim, &b);
+        let mut resid = wy;
+        for (i, ui) in u.iter().enumerate() {
+            resid.iter_mut().zip(ui).for_each(|(r, t)| *r -= cy[i] * t);
+        }
+        let perp = resid.iter().map(|r| r * r).sum::<f64>();
+        (perp.is_finite() && cy.iter().all(|c| c.is_finite())).then_some(LagSpace { dim, l, cy, perp })
+    }
+
+    /// `Lᵀx`.
+    fn whiten(&self, x: &[f64]) -> Vec<f64> {
+        let n = self.dim;
+        (0..n).map(|i| (i..n).map(|m| self.l[m * n + i] * x[m]).sum()).collect()
+    }
+
+    /// `Lᵀ(c_y − c)`.
+    fn whitened_residual(&self, c: &[f64]) -> Vec<f64> {
+        let d: Vec<f64> = self.cy.iter().zip(c).map(|(a, b)| a - b).collect();
+        self.whiten(&d)
+    }
 }
 
 /// A plain Gaussian component is taken as 0 where it is below `e^{−GAUSS_TAIL}` of its peak.
@@ -697,6 +782,7 @@ impl<'a> Problem<'a> {
             fit_floor,
             ln_s_min: s_min_bins.ln(),
             kernel: None,
+            lag_space: std::cell::OnceCell::new(),
             v_min: 0.0,
             max_iterations: FitOptions::default().max_iterations,
         }
@@ -809,6 +895,11 @@ impl<'a> Problem<'a> {
     }
 
     fn chi2(&self, p: &[f64]) -> f64 {
+        if let Some((km, ls)) = self.lag() {
+            let e = ls.whitened_residual(&self.coefficients(km, p));
+            let c = ls.perp + e.iter().map(|v| v * v).sum::<f64>();
+            return if c.is_finite() { c } else { f64::INFINITY };
+        }
         let c: f64 = self.y.iter().zip(&self.w).zip(self.values(p)).map(|((y, w), m)| (w * (y - m)).powi(2)).sum();
         if c.is_finite() { c } else { f64::INFINITY }
     }
@@ -817,6 +908,9 @@ impl<'a> Problem<'a> {
     /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`: the weighted Jacobian by columns,
     /// then each entry one dot product ([`dot`], which vectorises).
     fn normal_equations(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        if let Some((km, ls)) = self.lag() {
+            return self.lag_normal_equations(km, ls, p);
+        }
         let n = p.len();
         let bins = self.y.len();
         let mut model = vec![self.floor(p); bins];
@@ -851,6 +945,59 @@ impl<'a> Problem<'a> {
             atr[a] = dot(cols[a], &r);
             for b in 0..=a {
                 let v = dot(cols[a], cols[b]);
+                ata[a * n + b] = v;
+                ata[b * n + a] = v;
+            }
+        }
+        (ata, atr)
+    }
+
+    /// The kernel and its [`LagSpace`] for this problem's data, if there is a kernel and the
+    /// space's Gram matrix is positive definite.
+    fn lag(&self) -> Option<(&KernelModel, &LagSpace)> {
+        let km = self.kernel.as_ref()?;
+        let ls = self.lag_space.get_or_init(|| LagSpace::new(km, self.y, &self.w)).as_ref()?;
+        Some((km, ls))
+    }
+
+    /// The model `S` at `p` as coefficients of the kernel's basis ([`LagSpace`]).
+    fn coefficients(&self, km: &KernelModel, p: &[f64]) -> Vec<f64> {
+        let lags = km.c.len();
+        let mut c = vec![0.0; 2 * lags - 1];
+        c[0] = self.floor(p);
+        for j in 0..self.components(p) {
+            for (i, v) in km.component(p[3 * j], p[3 * j + 1], p[3 * j + 2]).into_iter().enumerate() {
+                c[i] += v[0];
+            }
+        }
+        c
+    }
+
+    /// [`Problem::normal_equations`] in the kernel's basis: with `C` the basis coefficients of
+    /// each column of the Jacobian and `G = LLᵀ`, `JᵀWJ = (LᵀC)ᵀ(LᵀC)` and
+    /// `JᵀWr = (LᵀC)ᵀ·Lᵀ(c_y − c)`.
+    fn lag_normal_equations(&self, km: &KernelModel, ls: &LagSpace, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let n = p.len();
+        let dim = ls.dim;
+        let mut columns: Vec<Vec<f64>> = vec![vec![0.0; dim]; n];
+        for j in 0..self.components(p) {
+            for (i, v) in km.component(p[3 * j], p[3 * j + 1], p[3 * j + 2]).into_iter().enumerate() {
+                for (t, x) in v.into_iter().enumerate() {
+                    columns[3 * j + t][i] = x;
+                }
+            }
+        }
+        if self.fit_floor {
+            columns[n - 1][0] = 1.0;
+        }
+        let e: Vec<Vec<f64>> = columns.iter().map(|c| ls.whiten(c)).collect();
+        let r = ls.whitened_residual(&self.coefficients(km, p));
+        let mut ata = vec![0.0; n * n];
+        let mut atr = vec![0.0; n];
+        for a in 0..n {
+            atr[a] = dot(&e[a], &r);
+            for b in 0..=a {
+                let v = dot(&e[a], &e[b]);
                 ata[a * n + b] = v;
                 ata[b * n + a] = v;
             }
