@@ -482,9 +482,10 @@ fn gaussian_smooth(y: &[f64], sigma: f64) -> Vec<f64> {
     (0..y.len())
         .map(|k| {
             let (lo, hi) = (k.saturating_sub(reach), (k + reach).min(y.len() - 1));
+            // Bins lo..=hi in ascending order: below k with weights reach…1, then k…hi with 0….
             let (mut sum, mut norm) = (0.0, 0.0);
-            for (j, v) in y.iter().enumerate().take(hi + 1).skip(lo) {
-                let w = weights[j.abs_diff(k)];
+            let below = y[lo..k].iter().zip(weights[1..=k - lo].iter().rev());
+            for (v, w) in below.chain(y[k..=hi].iter().zip(&weights[..=hi - k])) {
                 sum += w * v;
                 norm += w;
             }
@@ -599,6 +600,8 @@ impl LagSpace {
 
 /// A plain Gaussian component is taken as 0 where it is below `e^{−GAUSS_TAIL}` of its peak.
 const GAUSS_TAIL: f64 = 80.0;
+/// Bins between exact evaluations of a plain Gaussian component (products in between).
+const GAUSS_RESTART: usize = 32;
 
 /// `Σ a_k b_k` in four interleaved partial sums, which the compiler turns into vector
 /// instructions (a single running sum is a serial chain it may not reorder).
@@ -815,17 +818,7 @@ impl<'a> Problem<'a> {
     fn profile(&self, p: &[f64], j: usize, derivatives: bool) -> Profile {
         let (ln_a, mu, width) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
         let bins = self.y.len();
-        // With a kernel every bin starts at the lag-0 term `P·c_0` (filled once, not zeroed first).
-        let start = match &self.kernel {
-            None => 0.0,
-            Some(km) => ln_a.exp() * km.c[0],
-        };
-        let mut out = Profile {
-            g: vec![start; bins],
-            d_mu: if derivatives { vec![0.0; bins] } else { Vec::new() },
-            d_width: if derivatives { vec![0.0; bins] } else { Vec::new() },
-            support: 0..bins,
-        };
+        let derivative = |len: usize| if derivatives { vec![0.0; len] } else { Vec::new() };
         match &self.kernel {
             None => {
                 let inv_s = (-width).exp();
@@ -840,20 +833,45 @@ impl<'a> Problem<'a> {
                 } else {
                     (0, bins)
                 };
-                out.support = lo..hi.max(lo);
-                for k in out.support.clone() {
-                    let u = (k as f64 - mu) * inv_s;
-                    let g = (ln_a - 0.5 * u * u).exp();
-                    out.g[k] = g;
+                let len = hi.max(lo) - lo;
+                let mut out = Profile {
+                    g: vec![0.0; len],
+                    d_mu: derivative(len),
+                    d_width: derivative(len),
+                    support: lo..lo + len,
+                };
+                // g(k + 1) = g(k)·r(k) with r(k) = e^{−u h − h²/2} and r(k + 1) = r(k)·e^{−h²}
+                // (h = 1/s): two products per bin instead of an exp, restarted from exact values
+                // every GAUSS_RESTART bins so that the products' round-off stays ≲ 1e-13.
+                let q = (-inv_s * inv_s).exp();
+                let (mut g, mut r) = (0.0, 0.0);
+                for i in 0..len {
+                    let u = ((lo + i) as f64 - mu) * inv_s;
+                    if i % GAUSS_RESTART == 0 {
+                        g = (ln_a - 0.5 * u * u).exp();
+                        r = (-u * inv_s - 0.5 * inv_s * inv_s).exp();
+                    } else {
+                        g *= r;
+                        r *= q;
+                    }
+                    out.g[i] = g;
                     if derivatives {
-                        out.d_mu[k] = g * u * inv_s;
-                        out.d_width[k] = g * u * u;
+                        out.d_mu[i] = g * u * inv_s;
+                        out.d_width[i] = g * u * u;
                     }
                 }
+                out
             }
             Some(km) => {
                 debug_assert_eq!(km.bins, bins);
                 let amp = ln_a.exp();
+                // Every bin starts at the lag-0 term `P·c_0`.
+                let mut out = Profile {
+                    g: vec![amp * km.c[0]; bins],
+                    d_mu: derivative(bins),
+                    d_width: derivative(bins),
+                    support: 0..bins,
+                };
                 for (d, c) in km.c.iter().enumerate().skip(1) {
                     let a = 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp();
                     let (s_mu, c_mu) = (km.omega * d as f64 * mu).sin_cos();
@@ -878,16 +896,17 @@ impl<'a> Problem<'a> {
                         }
                     }
                 }
+                out
             }
         }
-        out
     }
 
     /// `S` at every bin.
     fn values(&self, p: &[f64]) -> Vec<f64> {
         let mut s = vec![self.floor(p); self.y.len()];
         for j in 0..self.components(p) {
-            for (v, g) in s.iter_mut().zip(self.profile(p, j, false).g) {
+            let prof = self.profile(p, j, false);
+            for (v, g) in s[prof.support].iter_mut().zip(prof.g) {
                 *v += g;
             }
         }
@@ -918,27 +937,29 @@ impl<'a> Problem<'a> {
         // Outside every component's support the Jacobian's rows are 0 unless the floor is fitted:
         // those bins add nothing to JᵀWJ or JᵀWr.
         let (mut lo, mut hi) = if self.fit_floor { (0, bins) } else { (bins, 0) };
-        for j in 0..self.components(p) {
-            let prof = self.profile(p, j, true);
+        let profiles: Vec<Profile> = (0..self.components(p)).map(|j| self.profile(p, j, true)).collect();
+        for prof in &profiles {
             (lo, hi) = (lo.min(prof.support.start), hi.max(prof.support.end));
-            for (m, g) in model.iter_mut().zip(&prof.g) {
+            for (m, g) in model[prof.support.clone()].iter_mut().zip(&prof.g) {
                 *m += g;
             }
-            for col in [prof.g, prof.d_mu, prof.d_width] {
-                columns.push(col.iter().zip(&self.w).map(|(v, w)| v * w).collect());
+        }
+        let span = lo..hi.max(lo);
+        let w = &self.w[span.clone()];
+        for prof in &profiles {
+            let (at, end) = (prof.support.start - span.start, prof.support.end - span.start);
+            for col in [&prof.g, &prof.d_mu, &prof.d_width] {
+                let inside = col.iter().zip(&w[at..end]).map(|(v, w)| v * w);
+                let zeros = |n: usize| std::iter::repeat_n(0.0, n);
+                columns.push(zeros(at).chain(inside).chain(zeros(span.len() - end)).collect());
             }
         }
         if self.fit_floor {
-            columns.push(self.w.clone());
+            columns.push(w.to_vec());
         }
-        let span = lo..hi.max(lo);
-        let r: Vec<f64> = self.y[span.clone()]
-            .iter()
-            .zip(&self.w[span.clone()])
-            .zip(&model[span.clone()])
-            .map(|((y, w), m)| w * (y - m))
-            .collect();
-        let cols: Vec<&[f64]> = columns.iter().map(|c| &c[span.clone()]).collect();
+        let r: Vec<f64> =
+            self.y[span.clone()].iter().zip(w).zip(&model[span.clone()]).map(|((y, w), m)| w * (y - m)).collect();
+        let cols: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
         let mut ata = vec![0.0; n * n];
         let mut atr = vec![0.0; n];
         for a in 0..n {
