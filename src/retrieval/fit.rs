@@ -1455,6 +1455,47 @@ mod tests {
     }
 
     #[test]
+    fn kernel_basis_chi2_and_normal_equations_are_the_sums_over_bins() {
+        // The fit's χ² and normal equations through the kernel's basis (LagSpace) against the
+        // same sums taken bin by bin (the basis disabled), away from the minimum, at s² = 0 and
+        // with a fitted floor: equal to round-off.
+        let (kernel, axis) = (gate_kernel(), gate_axis());
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let y = lag_sum_spectrum(&kernel, &axis, 0.01, &[(3.0, hz(1.0), hz(0.3)), (1.0, hz(-2.0), hz(1.5))]);
+        let stderr: Vec<f64> = (0..y.len()).map(|k| 0.005 + 1e-4 * (k as f64 - 100.0).abs()).collect();
+        for floor in [Floor::Fitted, Floor::Fixed(0.01)] {
+            let problem = |basis: bool| {
+                let mut p = Problem::new(&y, Some(&stderr), floor, S_MIN_BINS);
+                p.kernel = Some(KernelModel::new(&kernel, axis.bin_width(), axis.bins));
+                if !basis {
+                    assert!(p.lag_space.set(None).is_ok());
+                }
+                p
+            };
+            let (fast, slow) = (problem(true), problem(false));
+            assert!(fast.lag().is_some() && slow.lag().is_none());
+            for mut p in
+                [vec![1.2, 135.0, 3.0, 0.1, 112.0, 150.0, 0.013], vec![0.9, 140.3, 0.0, -0.5, 100.0, 80.0, 0.0]]
+            {
+                if floor != Floor::Fitted {
+                    p.pop();
+                }
+                let (a, b) = (fast.chi2(&p), slow.chi2(&p));
+                assert!((a / b - 1.0).abs() < 1e-10, "χ² {a} vs {b}");
+                let ((ata_f, atr_f), (ata_s, atr_s)) = (fast.normal_equations(&p), slow.normal_equations(&p));
+                let scale = ata_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (x, y) in ata_f.iter().zip(&ata_s) {
+                    assert!((x - y).abs() < 1e-10 * scale, "JᵀWJ {x} vs {y}");
+                }
+                let scale = atr_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (x, y) in atr_f.iter().zip(&atr_s) {
+                    assert!((x - y).abs() < 1e-9 * scale, "JᵀWr {x} vs {y}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn kernel_periodogram_is_the_lag_sum_spectrum_and_sums_to_its_power() {
         let (kernel, axis) = (gate_kernel(), gate_axis());
         let (p, mu, s) = (2.5, 1.7e6, 0.4e6);

@@ -237,7 +237,8 @@ pub fn write_run_with(
             DetectorKind::Surface(_) => Vec::new(),
         })
         .collect();
-    let gate_fit_seconds = t.elapsed().as_secs_f64();
+    // 0 without a lidar receiver (nothing was fitted).
+    let gate_fit_seconds = if retrievals.iter().any(|r| !r.is_empty()) { t.elapsed().as_secs_f64() } else { 0.0 };
     let t = std::time::Instant::now();
     let mut writer = DirWriter::begin(dir, super::dir::Output::Run, &[])?;
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put(&name, &bytes) };
