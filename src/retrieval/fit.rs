@@ -478,18 +478,13 @@ fn moment_start(axis: &FrequencyAxis, signal: &[f64]) -> Result<(f64, f64, f64),
 /// renormalised over the bins inside the axis near its ends).
 fn gaussian_smooth(y: &[f64], sigma: f64) -> Vec<f64> {
     let reach = (4.0 * sigma).ceil() as usize;
-    let weights: Vec<f64> = (0..=reach).map(|d| (-0.5 * (d as f64 / sigma).powi(2)).exp()).collect();
+    // The kernel over offsets −reach…reach; bin j weighs full[j + reach − k] at bin k.
+    let full: Vec<f64> = (0..=2 * reach).map(|i| (-0.5 * ((i as f64 - reach as f64) / sigma).powi(2)).exp()).collect();
     (0..y.len())
         .map(|k| {
             let (lo, hi) = (k.saturating_sub(reach), (k + reach).min(y.len() - 1));
-            // Bins lo..=hi in ascending order: below k with weights reach…1, then k…hi with 0….
-            let (mut sum, mut norm) = (0.0, 0.0);
-            let below = y[lo..k].iter().zip(weights[1..=k - lo].iter().rev());
-            for (v, w) in below.chain(y[k..=hi].iter().zip(&weights[..=hi - k])) {
-                sum += w * v;
-                norm += w;
-            }
-            sum / norm
+            let w = &full[lo + reach - k..=hi + reach - k];
+            dot(&y[lo..=hi], w) / w.iter().sum::<f64>()
         })
         .collect()
 }
