@@ -204,16 +204,12 @@ impl KernelModel {
         let s2 = if curvature > 0.0 && peak > 0.0 { peak / curvature } else { (bins * bins) as f64 };
         let lags = c.len().saturating_sub(1);
         let (mut cos, mut sin) = (vec![0.0; lags * bins], vec![0.0; lags * bins]);
-        // Row 1 exactly; row d as row d − 1 rotated by row 1 (round-off ≲ d ulp, M ≤ tens).
-        for k in 0..bins {
-            (sin[k], cos[k]) = (omega * k as f64).sin_cos();
-        }
-        for d in 2..=lags {
-            let (prev, row) = ((d - 2) * bins, (d - 1) * bins);
+        for d in 1..=lags {
+            let row = (d - 1) * bins;
             for k in 0..bins {
-                let (c1, s1, c, s) = (cos[k], sin[k], cos[prev + k], sin[prev + k]);
-                cos[row + k] = c * c1 - s * s1;
-                sin[row + k] = s * c1 + c * s1;
+                let (sn, cs) = (omega * (d * k) as f64).sin_cos();
+                cos[row + k] = cs;
+                sin[row + k] = sn;
             }
         }
         KernelModel { c, omega, gamma, s2, cos, sin, bins }
@@ -227,12 +223,9 @@ impl KernelModel {
         let amp = ln_p.exp();
         let mut out = vec![[0.0; 3]; 2 * lags - 1];
         out[0] = [amp * self.c[0], 0.0, 0.0];
-        // cos dωμ, sin dωμ by rotations of the d = 1 pair.
-        let (s1, c1) = (self.omega * mu).sin_cos();
-        let (mut s_mu, mut c_mu) = (0.0, 1.0);
         for (d, c) in self.c.iter().enumerate().skip(1) {
             let a = 2.0 * amp * c * (-self.gamma * v * (d * d) as f64).exp();
-            (c_mu, s_mu) = (c_mu * c1 - s_mu * s1, s_mu * c1 + c_mu * s1);
+            let (s_mu, c_mu) = (self.omega * d as f64 * mu).sin_cos();
             let (alpha, beta) = (a * c_mu, a * s_mu);
             let (wd, gd2) = (self.omega * d as f64, self.gamma * (d * d) as f64);
             out[d] = [alpha, -wd * beta, -gd2 * alpha];
