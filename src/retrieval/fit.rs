@@ -182,6 +182,13 @@ struct KernelModel {
     /// `(c_0 + 2Σc_d)/(2Σc_d ω² d²)`: what the kernel adds to a line's apparent width², for
     /// starting points only.
     s2: f64,
+    /// `cos(dωk)` and `sin(dωk)` for lags `d = 1 … M − 1` (row `d − 1`) at every bin `k`: the
+    /// parameter-free half of `cos d(θ_μ − ωk)`, so that a profile is a few multiply–adds per
+    /// lag and bin instead of a `sin_cos` and a rotation chain per bin (the profile is where the
+    /// fits spend their time).
+    cos: Vec<f64>,
+    sin: Vec<f64>,
+    bins: usize,
 }
 
 impl KernelModel {
@@ -195,7 +202,36 @@ impl KernelModel {
         let curvature: f64 = 2.0 * c.iter().enumerate().map(|(d, c)| c * (omega * d as f64).powi(2)).sum::<f64>();
         // A flat kernel (one sample) has no peak: the widest start, the axis.
         let s2 = if curvature > 0.0 && peak > 0.0 { peak / curvature } else { (bins * bins) as f64 };
-        KernelModel { c, omega, gamma, s2 }
+        let lags = c.len().saturating_sub(1);
+        let (mut cos, mut sin) = (vec![0.0; lags * bins], vec![0.0; lags * bins]);
+        for d in 1..=lags {
+            let row = (d - 1) * bins;
+            for k in 0..bins {
+                let (sn, cs) = (omega * (d * k) as f64).sin_cos();
+                cos[row + k] = cs;
+                sin[row + k] = sn;
+            }
+        }
+        KernelModel { c, omega, gamma, s2, cos, sin, bins }
+    }
+
+    /// A component `(ln P, μ, s²)` as coefficients of the basis `1, cos dωk, sin dωk`
+    /// (`d = 1 … M − 1`, [`LagSpace`]): per basis function, the coefficient of the component's
+    /// value and of its derivatives, `[g, ∂g/∂μ, ∂g/∂s²]` (`∂g/∂ln P = g`).
+    fn component(&self, ln_p: f64, mu: f64, v: f64) -> Vec<[f64; 3]> {
+        let lags = self.c.len();
+        let amp = ln_p.exp();
+        let mut out = vec![[0.0; 3]; 2 * lags - 1];
+        out[0] = [amp * self.c[0], 0.0, 0.0];
+        for (d, c) in self.c.iter().enumerate().skip(1) {
+            let a = 2.0 * amp * c * (-self.gamma * v * (d * d) as f64).exp();
+            let (s_mu, c_mu) = (self.omega * d as f64 * mu).sin_cos();
+            let (alpha, beta) = (a * c_mu, a * s_mu);
+            let (wd, gd2) = (self.omega * d as f64, self.gamma * (d * d) as f64);
+            out[d] = [alpha, -wd * beta, -gd2 * alpha];
+            out[lags - 1 + d] = [beta, wd * alpha, -gd2 * beta];
+        }
+        out
     }
 
     /// A unit-power component's value at its centre, and its derivative in `s²`.
@@ -442,17 +478,13 @@ fn moment_start(axis: &FrequencyAxis, signal: &[f64]) -> Result<(f64, f64, f64),
 /// renormalised over the bins inside the axis near its ends).
 fn gaussian_smooth(y: &[f64], sigma: f64) -> Vec<f64> {
     let reach = (4.0 * sigma).ceil() as usize;
-    let weights: Vec<f64> = (0..=reach).map(|d| (-0.5 * (d as f64 / sigma).powi(2)).exp()).collect();
+    // The kernel over offsets −reach…reach; bin j weighs full[j + reach − k] at bin k.
+    let full: Vec<f64> = (0..=2 * reach).map(|i| (-0.5 * ((i as f64 - reach as f64) / sigma).powi(2)).exp()).collect();
     (0..y.len())
         .map(|k| {
             let (lo, hi) = (k.saturating_sub(reach), (k + reach).min(y.len() - 1));
-            let (mut sum, mut norm) = (0.0, 0.0);
-            for (j, v) in y.iter().enumerate().take(hi + 1).skip(lo) {
-                let w = weights[j.abs_diff(k)];
-                sum += w * v;
-                norm += w;
-            }
-            sum / norm
+            let w = &full[lo + reach - k..=hi + reach - k];
+            dot(&y[lo..=hi], w) / w.iter().sum::<f64>()
         })
         .collect()
 }
@@ -479,10 +511,105 @@ struct Problem<'a> {
     ln_s_min: f64,
     /// The gate kernel the components are seen through, if any.
     kernel: Option<KernelModel>,
+    /// With a kernel: χ² and the normal equations in the space of the kernel's basis functions
+    /// ([`LagSpace`]), built at first use (`None` inside when its Gram matrix is singular).
+    lag_space: std::cell::OnceCell<Option<LagSpace>>,
     /// With a kernel, the smallest `s²` allowed (bins²): `min_sigma_hz²`.
     v_min: f64,
     /// [`FitOptions::max_iterations`].
     max_iterations: usize,
+}
+
+/// One component at every bin ([`Problem::profile`]): its value and (if asked) its derivatives in
+/// its mean and width parameter.
+struct Profile {
+    g: Vec<f64>,
+    d_mu: Vec<f64>,
+    d_width: Vec<f64>,
+    /// The bins outside which all three are 0.
+    support: std::ops::Range<usize>,
+}
+
+/// The kernel model in the space of its `2M − 1` basis functions `T = [1, cos dωk, sin dωk]`
+/// (`d = 1 … M − 1`): every model is `S = T·c` (a component's coefficients are the lag terms
+/// `P c_0`, `a_d cos dωμ`, `a_d sin dωμ`, the floor adds to the first), and so is every column of
+/// its Jacobian. With the Gram matrix `G = TᵀW²T = LLᵀ` and `c_y` the weighted projection of the
+/// data `y` on `T`, `χ²(c) = ‖y − Tc_y‖²_W + ‖Lᵀ(c_y − c)‖²` exactly (the residual of the
+/// projection is W-orthogonal to `T`): χ² and the normal equations cost `O(M²)` instead of
+/// `O(M·bins)`, and the only sum over bins, the projection's residual, is taken once per problem.
+/// Both terms are sums of squares (no cancellation between large numbers).
+struct LagSpace {
+    dim: usize,
+    /// `L`, row-major lower triangle.
+    l: Vec<f64>,
+    /// `c_y`.
+    cy: Vec<f64>,
+    /// `‖y − T·c_y‖²_W`.
+    perp: f64,
+}
+
+impl LagSpace {
+    /// `None` when `G` is not numerically positive definite (fewer bins than basis functions,
+    /// or weights that do not separate them): the fit then sums over bins.
+    fn new(km: &KernelModel, y: &[f64], w: &[f64]) -> Option<LagSpace> {
+        let (bins, lags) = (y.len(), km.c.len());
+        let dim = 2 * lags - 1;
+        let basis = |i: usize| -> &[f64] {
+            if i < lags { &km.cos[(i - 1) * bins..i * bins] } else { &km.sin[(i - lags) * bins..(i - lags + 1) * bins] }
+        };
+        let u: Vec<Vec<f64>> = (0..dim)
+            .map(|i| if i == 0 { w.to_vec() } else { basis(i).iter().zip(w).map(|(t, w)| t * w).collect() })
+            .collect();
+        let wy: Vec<f64> = y.iter().zip(w).map(|(y, w)| y * w).collect();
+        let mut g = vec![0.0; dim * dim];
+        for a in 0..dim {
+            for b in 0..=a {
+                let v = dot(&u[a], &u[b]);
+                g[a * dim + b] = v;
+                g[b * dim + a] = v;
+            }
+        }
+        let b: Vec<f64> = u.iter().map(|ui| dot(ui, &wy)).collect();
+        let l = cholesky(&g, dim)?;
+        let cy = cholesky_solve(&l, dim, &b);
+        let mut resid = wy;
+        for (i, ui) in u.iter().enumerate() {
+            resid.iter_mut().zip(ui).for_each(|(r, t)| *r -= cy[i] * t);
+        }
+        let perp = resid.iter().map(|r| r * r).sum::<f64>();
+        (perp.is_finite() && cy.iter().all(|c| c.is_finite())).then_some(LagSpace { dim, l, cy, perp })
+    }
+
+    /// `Lᵀx`.
+    fn whiten(&self, x: &[f64]) -> Vec<f64> {
+        let n = self.dim;
+        (0..n).map(|i| (i..n).map(|m| self.l[m * n + i] * x[m]).sum()).collect()
+    }
+
+    /// `Lᵀ(c_y − c)`.
+    fn whitened_residual(&self, c: &[f64]) -> Vec<f64> {
+        let d: Vec<f64> = self.cy.iter().zip(c).map(|(a, b)| a - b).collect();
+        self.whiten(&d)
+    }
+}
+
+/// A plain Gaussian component is taken as 0 where it is below `e^{−GAUSS_TAIL}` of its peak.
+const GAUSS_TAIL: f64 = 80.0;
+/// Bins between exact evaluations of a plain Gaussian component (products in between).
+const GAUSS_RESTART: usize = 32;
+
+/// `Σ a_k b_k` in four interleaved partial sums, which the compiler turns into vector
+/// instructions (a single running sum is a serial chain it may not reorder).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Where Levenberg–Marquardt stopped.
@@ -653,6 +780,7 @@ impl<'a> Problem<'a> {
             fit_floor,
             ln_s_min: s_min_bins.ln(),
             kernel: None,
+            lag_space: std::cell::OnceCell::new(),
             v_min: 0.0,
             max_iterations: FitOptions::default().max_iterations,
         }
@@ -675,47 +803,95 @@ impl<'a> Problem<'a> {
         if self.fit_floor { p[p.len() - 1] } else { self.fixed_floor }
     }
 
-    /// Component `j` at every bin: its value `g` and its derivatives in its mean and in its
-    /// width parameter (`∂g/∂ln A = g` for both models).
+    /// Component `j` at every bin: its value `g` and, with `derivatives`, its derivatives in its
+    /// mean and in its width parameter (`∂g/∂ln A = g` for both models).
     /// Gaussian: `∂g/∂μ = g·(x − μ)/s²`, `∂g/∂ln s = g·(x − μ)²/s²`.
     /// Kernel, with `a_d = P·c_d·e^{−γ s² d²}` and `θ = ω(μ − x)`:
-    /// `g = P c_0 + 2Σ a_d cos dθ`, `∂g/∂μ = −2Σ a_d ω d sin dθ`, `∂g/∂s² = −2Σ a_d γ d² cos dθ`.
-    fn profile(&self, p: &[f64], j: usize) -> Vec<[f64; 3]> {
+    /// `g = P c_0 + 2Σ a_d cos dθ`, `∂g/∂μ = −2Σ a_d ω d sin dθ`, `∂g/∂s² = −2Σ a_d γ d² cos dθ`,
+    /// with `cos dθ = cos dωμ·cos dωx + sin dωμ·sin dωx` and
+    /// `sin dθ = sin dωμ·cos dωx − cos dωμ·sin dωx` on the kernel's tables.
+    fn profile(&self, p: &[f64], j: usize, derivatives: bool) -> Profile {
         let (ln_a, mu, width) = (p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+        let bins = self.y.len();
+        let derivative = |len: usize| if derivatives { vec![0.0; len] } else { Vec::new() };
         match &self.kernel {
             None => {
                 let inv_s = (-width).exp();
-                (0..self.y.len())
-                    .map(|k| {
-                        let u = (k as f64 - mu) * inv_s;
-                        let g = (ln_a - 0.5 * u * u).exp();
-                        [g, g * u * inv_s, g * u * u]
-                    })
-                    .collect()
+                // Beyond |u|² = 2·GAUSS_TAIL the line is below e^{−GAUSS_TAIL} ≈ 2e-35 of its peak:
+                // zero to far below the round-off of any bin it shares with the peak, and skipped.
+                let reach = (2.0 * GAUSS_TAIL).sqrt() / inv_s;
+                let (lo, hi) = if reach.is_finite() && mu.is_finite() {
+                    (
+                        (mu - reach).ceil().clamp(0.0, bins as f64) as usize,
+                        ((mu + reach).floor() + 1.0).clamp(0.0, bins as f64) as usize,
+                    )
+                } else {
+                    (0, bins)
+                };
+                let len = hi.max(lo) - lo;
+                let mut out = Profile {
+                    g: vec![0.0; len],
+                    d_mu: derivative(len),
+                    d_width: derivative(len),
+                    support: lo..lo + len,
+                };
+                // g(k + 1) = g(k)·r(k) with r(k) = e^{−u h − h²/2} and r(k + 1) = r(k)·e^{−h²}
+                // (h = 1/s): two products per bin instead of an exp, restarted from exact values
+                // every GAUSS_RESTART bins so that the products' round-off stays ≲ 1e-13.
+                let q = (-inv_s * inv_s).exp();
+                let (mut g, mut r) = (0.0, 0.0);
+                for i in 0..len {
+                    let u = ((lo + i) as f64 - mu) * inv_s;
+                    if i % GAUSS_RESTART == 0 {
+                        g = (ln_a - 0.5 * u * u).exp();
+                        r = (-u * inv_s - 0.5 * inv_s * inv_s).exp();
+                    } else {
+                        g *= r;
+                        r *= q;
+                    }
+                    out.g[i] = g;
+                    if derivatives {
+                        out.d_mu[i] = g * u * inv_s;
+                        out.d_width[i] = g * u * u;
+                    }
+                }
+                out
             }
             Some(km) => {
+                debug_assert_eq!(km.bins, bins);
                 let amp = ln_a.exp();
-                let a: Vec<f64> =
-                    km.c.iter()
-                        .enumerate()
-                        .map(|(d, c)| 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp())
-                        .collect();
-                (0..self.y.len())
-                    .map(|k| {
-                        let (sin1, cos1) = (km.omega * (mu - k as f64)).sin_cos();
-                        let (mut sin, mut cos) = (0.0, 1.0);
-                        let (mut g, mut dmu, mut dv) = (amp * km.c[0], 0.0, 0.0);
-                        for (d, a) in a.iter().enumerate().skip(1) {
-                            // (cos, sin) of dθ from (d − 1)θ by one rotation.
-                            (cos, sin) = (cos * cos1 - sin * sin1, sin * cos1 + cos * sin1);
-                            let d = d as f64;
-                            g += a * cos;
-                            dmu -= a * km.omega * d * sin;
-                            dv -= a * km.gamma * d * d * cos;
+                // Every bin starts at the lag-0 term `P·c_0`.
+                let mut out = Profile {
+                    g: vec![amp * km.c[0]; bins],
+                    d_mu: derivative(bins),
+                    d_width: derivative(bins),
+                    support: 0..bins,
+                };
+                for (d, c) in km.c.iter().enumerate().skip(1) {
+                    let a = 2.0 * amp * c * (-km.gamma * width * (d * d) as f64).exp();
+                    let (s_mu, c_mu) = (km.omega * d as f64 * mu).sin_cos();
+                    let (alpha, beta) = (a * c_mu, a * s_mu);
+                    let row = (d - 1) * bins..d * bins;
+                    let (cos, sin) = (&km.cos[row.clone()], &km.sin[row]);
+                    if derivatives {
+                        let (wd, gd2) = (km.omega * d as f64, km.gamma * (d * d) as f64);
+                        let (mc, ms) = (-wd * beta, wd * alpha);
+                        let (vc, vs) = (-gd2 * alpha, -gd2 * beta);
+                        // One pass over the tables for the value and both derivatives.
+                        for ((((g, dm), dv), cs), sn) in
+                            out.g.iter_mut().zip(out.d_mu.iter_mut()).zip(out.d_width.iter_mut()).zip(cos).zip(sin)
+                        {
+                            *g += alpha * cs + beta * sn;
+                            *dm += mc * cs + ms * sn;
+                            *dv += vc * cs + vs * sn;
                         }
-                        [g, dmu, dv]
-                    })
-                    .collect()
+                    } else {
+                        for ((g, cs), sn) in out.g.iter_mut().zip(cos).zip(sin) {
+                            *g += alpha * cs + beta * sn;
+                        }
+                    }
+                }
+                out
             }
         }
     }
@@ -724,50 +900,122 @@ impl<'a> Problem<'a> {
     fn values(&self, p: &[f64]) -> Vec<f64> {
         let mut s = vec![self.floor(p); self.y.len()];
         for j in 0..self.components(p) {
-            for (v, g) in s.iter_mut().zip(self.profile(p, j)) {
-                *v += g[0];
+            let prof = self.profile(p, j, false);
+            for (v, g) in s[prof.support].iter_mut().zip(prof.g) {
+                *v += g;
             }
         }
         s
     }
 
     fn chi2(&self, p: &[f64]) -> f64 {
+        if let Some((km, ls)) = self.lag() {
+            let e = ls.whitened_residual(&self.coefficients(km, p));
+            let c = ls.perp + e.iter().map(|v| v * v).sum::<f64>();
+            return if c.is_finite() { c } else { f64::INFINITY };
+        }
         let c: f64 = self.y.iter().zip(&self.w).zip(self.values(p)).map(|((y, w), m)| (w * (y - m)).powi(2)).sum();
         if c.is_finite() { c } else { f64::INFINITY }
     }
 
     /// The normal matrix `JᵀWJ` and gradient `JᵀW·r` (`r = y − S`) at `p`, row-major, from the
-    /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`.
+    /// components' [`profile`](Self::profile)s and `∂S/∂b = 1`: the weighted Jacobian by columns,
+    /// then each entry one dot product ([`dot`], which vectorises).
     fn normal_equations(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        if let Some((km, ls)) = self.lag() {
+            return self.lag_normal_equations(km, ls, p);
+        }
         let n = p.len();
-        let m = self.components(p);
-        let profiles: Vec<Vec<[f64; 3]>> = (0..m).map(|j| self.profile(p, j)).collect();
+        let bins = self.y.len();
+        let mut model = vec![self.floor(p); bins];
+        let mut columns: Vec<Vec<f64>> = Vec::with_capacity(n);
+        // Outside every component's support the Jacobian's rows are 0 unless the floor is fitted:
+        // those bins add nothing to JᵀWJ or JᵀWr.
+        let (mut lo, mut hi) = if self.fit_floor { (0, bins) } else { (bins, 0) };
+        let profiles: Vec<Profile> = (0..self.components(p)).map(|j| self.profile(p, j, true)).collect();
+        for prof in &profiles {
+            (lo, hi) = (lo.min(prof.support.start), hi.max(prof.support.end));
+            for (m, g) in model[prof.support.clone()].iter_mut().zip(&prof.g) {
+                *m += g;
+            }
+        }
+        let span = lo..hi.max(lo);
+        let w = &self.w[span.clone()];
+        for prof in &profiles {
+            let (at, end) = (prof.support.start - span.start, prof.support.end - span.start);
+            for col in [&prof.g, &prof.d_mu, &prof.d_width] {
+                let inside = col.iter().zip(&w[at..end]).map(|(v, w)| v * w);
+                let zeros = |n: usize| std::iter::repeat_n(0.0, n);
+                columns.push(zeros(at).chain(inside).chain(zeros(span.len() - end)).collect());
+            }
+        }
+        if self.fit_floor {
+            columns.push(w.to_vec());
+        }
+        let r: Vec<f64> =
+            self.y[span.clone()].iter().zip(w).zip(&model[span.clone()]).map(|((y, w), m)| w * (y - m)).collect();
+        let cols: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
         let mut ata = vec![0.0; n * n];
         let mut atr = vec![0.0; n];
-        let mut row = vec![0.0; n];
-        for (k, (&y, &w)) in self.y.iter().zip(&self.w).enumerate() {
-            let mut model = self.floor(p);
-            for (j, prof) in profiles.iter().enumerate() {
-                let [g, d_mu, d_width] = prof[k];
-                model += g;
-                row[3 * j] = w * g;
-                row[3 * j + 1] = w * d_mu;
-                row[3 * j + 2] = w * d_width;
+        for a in 0..n {
+            atr[a] = dot(cols[a], &r);
+            for b in 0..=a {
+                let v = dot(cols[a], cols[b]);
+                ata[a * n + b] = v;
+                ata[b * n + a] = v;
             }
-            if self.fit_floor {
-                row[n - 1] = w;
+        }
+        (ata, atr)
+    }
+
+    /// The kernel and its [`LagSpace`] for this problem's data, if there is a kernel and the
+    /// space's Gram matrix is positive definite.
+    fn lag(&self) -> Option<(&KernelModel, &LagSpace)> {
+        let km = self.kernel.as_ref()?;
+        let ls = self.lag_space.get_or_init(|| LagSpace::new(km, self.y, &self.w)).as_ref()?;
+        Some((km, ls))
+    }
+
+    /// The model `S` at `p` as coefficients of the kernel's basis ([`LagSpace`]).
+    fn coefficients(&self, km: &KernelModel, p: &[f64]) -> Vec<f64> {
+        let lags = km.c.len();
+        let mut c = vec![0.0; 2 * lags - 1];
+        c[0] = self.floor(p);
+        for j in 0..self.components(p) {
+            for (i, v) in km.component(p[3 * j], p[3 * j + 1], p[3 * j + 2]).into_iter().enumerate() {
+                c[i] += v[0];
             }
-            let r = w * (y - model);
-            for a in 0..n {
-                atr[a] += row[a] * r;
-                for b in 0..=a {
-                    ata[a * n + b] += row[a] * row[b];
+        }
+        c
+    }
+
+    /// [`Problem::normal_equations`] in the kernel's basis: with `C` the basis coefficients of
+    /// each column of the Jacobian and `G = LLᵀ`, `JᵀWJ = (LᵀC)ᵀ(LᵀC)` and
+    /// `JᵀWr = (LᵀC)ᵀ·Lᵀ(c_y − c)`.
+    fn lag_normal_equations(&self, km: &KernelModel, ls: &LagSpace, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let n = p.len();
+        let dim = ls.dim;
+        let mut columns: Vec<Vec<f64>> = vec![vec![0.0; dim]; n];
+        for j in 0..self.components(p) {
+            for (i, v) in km.component(p[3 * j], p[3 * j + 1], p[3 * j + 2]).into_iter().enumerate() {
+                for (t, x) in v.into_iter().enumerate() {
+                    columns[3 * j + t][i] = x;
                 }
             }
         }
+        if self.fit_floor {
+            columns[n - 1][0] = 1.0;
+        }
+        let e: Vec<Vec<f64>> = columns.iter().map(|c| ls.whiten(c)).collect();
+        let r = ls.whitened_residual(&self.coefficients(km, p));
+        let mut ata = vec![0.0; n * n];
+        let mut atr = vec![0.0; n];
         for a in 0..n {
-            for b in 0..a {
-                ata[b * n + a] = ata[a * n + b];
+            atr[a] = dot(&e[a], &r);
+            for b in 0..=a {
+                let v = dot(&e[a], &e[b]);
+                ata[a * n + b] = v;
+                ata[b * n + a] = v;
             }
         }
         (ata, atr)
@@ -1197,6 +1445,47 @@ mod tests {
                 lo[i] -= h;
                 let numeric = -0.5 * (problem.chi2(&hi) - problem.chi2(&lo)) / (2.0 * h);
                 assert!((atr[i] - numeric).abs() < 1e-6 * numeric.abs().max(1.0), "p{i}: {} vs {numeric}", atr[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn kernel_basis_chi2_and_normal_equations_are_the_sums_over_bins() {
+        // The fit's χ² and normal equations through the kernel's basis (LagSpace) against the
+        // same sums taken bin by bin (the basis disabled), away from the minimum, at s² = 0 and
+        // with a fitted floor: equal to round-off.
+        let (kernel, axis) = (gate_kernel(), gate_axis());
+        let hz = |v| doppler_frequency(v, LAMBDA);
+        let y = lag_sum_spectrum(&kernel, &axis, 0.01, &[(3.0, hz(1.0), hz(0.3)), (1.0, hz(-2.0), hz(1.5))]);
+        let stderr: Vec<f64> = (0..y.len()).map(|k| 0.005 + 1e-4 * (k as f64 - 100.0).abs()).collect();
+        for floor in [Floor::Fitted, Floor::Fixed(0.01)] {
+            let problem = |basis: bool| {
+                let mut p = Problem::new(&y, Some(&stderr), floor, S_MIN_BINS);
+                p.kernel = Some(KernelModel::new(&kernel, axis.bin_width(), axis.bins));
+                if !basis {
+                    assert!(p.lag_space.set(None).is_ok());
+                }
+                p
+            };
+            let (fast, slow) = (problem(true), problem(false));
+            assert!(fast.lag().is_some() && slow.lag().is_none());
+            for mut p in
+                [vec![1.2, 135.0, 3.0, 0.1, 112.0, 150.0, 0.013], vec![0.9, 140.3, 0.0, -0.5, 100.0, 80.0, 0.0]]
+            {
+                if floor != Floor::Fitted {
+                    p.pop();
+                }
+                let (a, b) = (fast.chi2(&p), slow.chi2(&p));
+                assert!((a / b - 1.0).abs() < 1e-10, "χ² {a} vs {b}");
+                let ((ata_f, atr_f), (ata_s, atr_s)) = (fast.normal_equations(&p), slow.normal_equations(&p));
+                let scale = ata_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (x, y) in ata_f.iter().zip(&ata_s) {
+                    assert!((x - y).abs() < 1e-10 * scale, "JᵀWJ {x} vs {y}");
+                }
+                let scale = atr_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (x, y) in atr_f.iter().zip(&atr_s) {
+                    assert!((x - y).abs() < 1e-9 * scale, "JᵀWr {x} vs {y}");
+                }
             }
         }
     }

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use crate::converge::Target;
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, Progress, RunOutput, RunState, Silent};
-use crate::io::write::manifest::{Invocation, write_run};
+use crate::io::write::manifest::{Invocation, Timing, write_run_with};
 use crate::scan::GateWind;
 use crate::source::Pointing;
 
@@ -97,6 +97,11 @@ pub trait Observer {
     fn progress(&self, _paths: u64, _target: Option<f64>) -> Box<dyn Progress + '_> {
         Box::new(Silent)
     }
+    /// A progress reporter for a run's post-processing (its total set to the steps, e.g. lidar
+    /// gates, once known); dropped when the run's outputs are written.
+    fn postprocess(&self) -> Box<dyn Progress + '_> {
+        Box::new(Silent)
+    }
     /// Something happened.
     fn event(&self, _event: Event<'_>) {}
 }
@@ -114,13 +119,13 @@ pub enum Event<'a> {
     /// A run continues from the checkpoint at `path`.
     Resuming { state: &'a RunState, path: &'a Path },
     /// A run (or one pointing of a scan) is complete and its outputs written into `dir`.
-    Written { exp: &'a Experiment, output: &'a RunOutput, dir: &'a Path },
+    Written { exp: &'a Experiment, output: &'a RunOutput, dir: &'a Path, timing: &'a Timing },
     /// The shards of a run (or of one pointing) are merged and its outputs written into `dir`.
-    Merged { exp: &'a Experiment, output: &'a RunOutput, dir: &'a Path, shards: usize },
+    Merged { exp: &'a Experiment, output: &'a RunOutput, dir: &'a Path, shards: usize, timing: &'a Timing },
     /// A shard file is written.
     ShardWritten(&'a ShardSummary),
     /// The VAD wind of a scan is written (`vad.csv` at `path`, `scan.json` beside it).
-    VadWritten { path: &'a Path },
+    VadWritten { path: &'a Path, timing: &'a Timing },
     /// A convergence study of a scan studies its first pointing only.
     StudyingFirstPointing(&'a Pointing),
 }
@@ -235,8 +240,8 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     for part in &parts {
         let output = simulate_part(part, &opts, true, obs)?;
         scan.writing(&req.dir, &parts, part)?;
-        write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
-        scan.add(part, &output);
+        let timing = write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
+        scan.add(part, &output, timing);
     }
     let vad = scan.finish(exp, inv.figures, obs)?;
     if opts.saving() {
@@ -298,15 +303,15 @@ fn write_part(
     opts: &RunOptions,
     keep: bool,
     obs: &dyn Observer,
-) -> Result<()> {
+) -> Result<Timing> {
     let (exp, dir, path) = (&part.exp, part.dir.as_path(), part.checkpoint());
-    write_run(dir, exp, output, config, inv)?;
+    let manifest = write_run_with(dir, exp, output, config, inv, &*obs.postprocess())?;
     if opts.saving() && keep {
         checkpoint::save_final(part, output)?;
     } else if opts.saving() {
         // The run is complete and written: its checkpoint has served.
         let _ = std::fs::remove_file(&path);
     }
-    obs.event(Event::Written { exp, output, dir });
-    Ok(())
+    obs.event(Event::Written { exp, output, dir, timing: &manifest.timing });
+    Ok(manifest.timing)
 }

@@ -9,6 +9,7 @@ use crate::error::Result;
 use crate::experiment::{Experiment, RunOutput};
 use crate::io::persist::{config_fingerprint, fingerprint};
 use crate::io::write::dir::{DirWriter, Output, VAD};
+use crate::io::write::manifest::Timing;
 use crate::scan::GateWind;
 
 /// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
@@ -68,6 +69,8 @@ pub(super) struct Scan {
     runs: Vec<String>,
     velocities: Vec<Vec<Option<f64>>>,
     ranges: Vec<f64>,
+    /// Each pointing's timing, in the order written.
+    timings: Vec<Timing>,
     /// The scan's directory, written from its first pointing's outputs on (marked incomplete
     /// until [`Scan::finish`]).
     out: Option<DirWriter>,
@@ -90,9 +93,10 @@ impl Scan {
         Ok(())
     }
 
-    /// Gather what the VAD needs of `part`'s output (nothing of a plain run).
-    pub(super) fn add(&mut self, part: &Part, output: &RunOutput) {
+    /// Gather what the VAD needs of `part`'s output and its `timing` (nothing of a plain run).
+    pub(super) fn add(&mut self, part: &Part, output: &RunOutput, timing: Timing) {
         let Some(i) = part.pointing else { return };
+        self.timings.push(timing);
         if let Some(v) = crate::scan::gate_peak_velocities(&part.exp, output) {
             self.velocities.push(v);
         }
@@ -115,8 +119,8 @@ impl Scan {
         if pointings.len() > 1 && self.velocities.len() == pointings.len() {
             let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
             let path = out.dir().join(VAD);
-            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates, figures)?;
-            obs.event(Event::VadWritten { path: &path });
+            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates, figures, &self.timings)?;
+            obs.event(Event::VadWritten { path: &path, timing: &Timing::sum(&self.timings) });
             return Ok(Some(gates));
         }
         out.finish(None)?;

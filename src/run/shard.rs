@@ -14,7 +14,7 @@ use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, RunOutput};
 use crate::io::persist::shard::{FILE_NAME, ShardHeader, ShardReader, ShardTrailer, ShardWriter};
-use crate::io::write::manifest::{Invocation, write_run};
+use crate::io::write::manifest::{Invocation, write_run_with};
 use crate::stats::{BatchAccumulator, RunStats};
 
 /// A shard written: part `index` of `count`, its batches of the run's `batches`, its paths and
@@ -112,9 +112,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) ->
         let count = shards.len();
         let output = fold(&part.exp, shards)?;
         scan.writing(out, &parts, part)?;
-        write_run(&part.dir, &part.exp, &output, &table, &inv)?;
-        obs.event(Event::Merged { exp: &part.exp, output: &output, dir: &part.dir, shards: count });
-        scan.add(part, &output);
+        let timing = write_run_with(&part.dir, &part.exp, &output, &table, &inv, &*obs.postprocess())?.timing;
+        obs.event(Event::Merged { exp: &part.exp, output: &output, dir: &part.dir, shards: count, timing: &timing });
+        scan.add(part, &output, timing);
         if parts.len() == 1 {
             last = Some(output);
         }

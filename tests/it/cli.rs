@@ -651,6 +651,21 @@ fn scans_shard_merge_and_resume_like_a_single_scan() {
     let whole = tmp.path().join("whole");
     let o = run(&base(&whole, "40000"));
     assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    // Where the time went, per pointing in its manifest and in scan.json, summed there.
+    let scan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(whole.join("scan.json")).unwrap()).unwrap();
+    let mut transport = 0.0;
+    for (i, p) in scan["pointings"].as_array().unwrap().iter().enumerate() {
+        let m = read_manifest(&whole.join(format!("pointing_{i:02}")));
+        assert_eq!(p["timing"], m["timing"], "pointing {i}");
+        let t = |k: &str| m["timing"][k].as_f64().unwrap();
+        assert_eq!(t("transport_seconds"), m["wall_seconds"].as_f64().unwrap());
+        assert!(t("gate_fit_seconds") > 0.0 && t("postprocess_seconds") >= t("gate_fit_seconds"), "{}", m["timing"]);
+        assert!(t("writing_seconds") > 0.0);
+        transport += t("transport_seconds");
+    }
+    let total = scan["timing"]["transport_seconds"].as_f64().unwrap();
+    assert!((total - transport).abs() <= 1e-12 * transport, "{total} vs {transport}");
     let shard = |i: u32| tmp.path().join(format!("shard{i}"));
     for i in 0..2 {
         let mut a = base(&shard(i), "40000");

@@ -4,15 +4,18 @@
 //! shot-noise SNR, the spectral moments and the one- or two-component fit of the total spectrum
 //! ([`retrieve_gate`]).
 
+use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use super::{Writer, estimate};
 use crate::detect::LidarSpec;
 use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::error::Result;
+use crate::experiment::Progress;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::lines::{Curve, LinePlot, PALETTE, db_range};
 use crate::io::figures::scale::{Colormap, db};
+use crate::output::Registry;
 use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
 
 /// Gates drawn in the gate-spectra figure (fewer if the receiver has fewer).
@@ -20,9 +23,43 @@ const PLOTTED_GATES: usize = 4;
 /// Dynamic range of the range–Doppler map below its peak, dB.
 const MAP_RANGE_DB: f64 = super::figures::DB_DEPTH;
 
-/// Write the receiver's outputs; returns the manifest entry (axes, files, noise model, per-gate
-/// energies and estimates).
-pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value> {
+/// What is read off every gate of the lidar receiver `name` ([`retrieve_gate`] on its total
+/// spectrum plus the shot-noise floor, through the gate's kernel for the run's gate energies):
+/// the run's post-processing, in gate order. The gates are independent, so they are retrieved in
+/// parallel on `threads` threads (results do not depend on the count) and `progress` advances by
+/// one per gate.
+pub fn retrieve_gates(
+    registry: &Registry,
+    mean: &[f64],
+    stderr: &[f64],
+    name: &str,
+    spec: &LidarSpec,
+    threads: usize,
+    progress: &dyn Progress,
+) -> Vec<GateRetrieval> {
+    let (total, lags) =
+        (registry.expect(&format!("{name}.range_doppler")), registry.expect(&format!("{name}.lag_sums")));
+    let bins = spec.fft_points;
+    // The total channel's gate energies (lag 0): the echo density that shapes each gate's kernel.
+    let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lags.slots.start + spec.lag_slot(0, g, 0)]).collect();
+    let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
+    let one = |g: usize| {
+        let o = total.slots.start + g * bins;
+        let kernel = spec.gate_kernel_in(g, &energies);
+        let r = retrieve_gate(axis.as_ref(), floor, spec.wavelength, &mean[o..o + bins], &stderr[o..o + bins], &kernel);
+        progress.advance(1);
+        r
+    };
+    let all = || (0..spec.gates).into_par_iter().map(one).collect();
+    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(all),
+        Err(_) => (0..spec.gates).map(one).collect(),
+    }
+}
+
+/// Write the receiver's outputs, with `retrievals` its gates' ([`retrieve_gates`]); returns the
+/// manifest entry (axes, files, noise model, per-gate energies and estimates).
+pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[GateRetrieval]) -> Result<Value> {
     let (reg, mean, se) = (w.registry, w.mean, w.stderr);
     let output = |name: &str| reg.expect(name);
     let (gates, bins, m) = (spec.gates, spec.fft_points, spec.gate_points);
@@ -58,9 +95,6 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         (mean[o], se[o])
     };
     let noise_energy = m as f64 * spec.noise_variance_per_sample();
-    // The total channel's gate energies: the echo density that shapes each gate's kernel.
-    let total_energies: Vec<f64> = (0..gates).map(|g| energy(0, g).0).collect();
-    let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
     let mut csv = String::from("gate,range_m");
     for name in LIDAR_CHANNELS {
         csv.push_str(&format!(",energy_{name},energy_{name}_stderr"));
@@ -91,10 +125,7 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec) -> Result<Value
         csv.push_str(&format!(",{snr:e},{snr_se:e},{snr_db:.3}"));
         row.insert("snr".into(), json!(estimate(snr, snr_se)));
         row.insert("snr_db".into(), json!(snr_db));
-        let (values, errors) = spectrum(0, g);
-        let kernel = spec.gate_kernel_in(g, &total_energies);
-        let gate = retrieve_gate(axis.as_ref(), floor, spec.wavelength, values, errors, &kernel);
-        gate_columns(&mut csv, &mut row, &gate, spec.wavelength);
+        gate_columns(&mut csv, &mut row, &retrievals[g], spec.wavelength);
         csv.push('\n');
         table.push(Value::Object(row));
     }

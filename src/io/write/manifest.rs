@@ -1,5 +1,5 @@
 //! Writing a finished run: `manifest.json` (version, config as run, seed, samples, threads, wall
-//! time, run statistics, every scalar estimate with its standard error) plus, per detector, its
+//! time and its split into transport, post-processing and writing, run statistics, every scalar estimate with its standard error) plus, per detector, its
 //! outputs as its [`Registry`](crate::output::Registry) declares them: spectra (`.npy`, with
 //! per-bin standard errors and the frequency axis), FMCW range and velocity estimates with a chirp
 //! (`NAME_fmcw_estimates.csv`, see [`super::fmcw`]), images (`.exr`, `.npy`), an LDH camera's maps and
@@ -17,9 +17,10 @@ use super::dir::DirWriter;
 use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
 use crate::detect::{DetectorKind, Scalar, Side};
 use crate::error::Result;
-use crate::experiment::{Experiment, RunOutput};
+use crate::experiment::{Experiment, Progress, RunOutput};
 use crate::io::formats::npy;
 use crate::output::{Kind, Output};
+use crate::retrieval::GateRetrieval;
 
 /// What the manifest records about how the run was invoked.
 #[derive(Debug, Clone)]
@@ -57,6 +58,7 @@ pub struct Manifest {
     pub target_error: Option<TargetEntry>,
     pub threads: usize,
     pub wall_seconds: f64,
+    pub timing: Timing,
     pub run_statistics: RunStatistics,
     /// Each named medium once.
     pub media: BTreeMap<String, MediumEntry>,
@@ -174,6 +176,33 @@ pub struct ImageEntry {
     pub units: &'static str,
 }
 
+/// Where a run's wall time went, seconds (`timing` in the manifest; like `wall_seconds`, the only
+/// fields that differ between runs of the same configuration and seed).
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Timing {
+    /// The Monte Carlo transport (`wall_seconds`; summed over the shards of a merged run).
+    pub transport_seconds: f64,
+    /// What the outputs need computed from the tallies after the transport: the LDH speckle and
+    /// the lidar gate fits.
+    pub postprocess_seconds: f64,
+    /// Of which the lidar gate fits ([`super::lidar::retrieve_gates`]).
+    pub gate_fit_seconds: f64,
+    /// Writing the files (figures included) and the manifest.
+    pub writing_seconds: f64,
+}
+
+impl Timing {
+    /// The sum of several runs' timings (a scan's pointings).
+    pub fn sum<'a>(all: impl IntoIterator<Item = &'a Timing>) -> Timing {
+        all.into_iter().fold(Timing::default(), |a, t| Timing {
+            transport_seconds: a.transport_seconds + t.transport_seconds,
+            postprocess_seconds: a.postprocess_seconds + t.postprocess_seconds,
+            gate_fit_seconds: a.gate_fit_seconds + t.gate_fit_seconds,
+            writing_seconds: a.writing_seconds + t.writing_seconds,
+        })
+    }
+}
+
 /// Write all outputs of `out` into `dir` (created if needed). Returns the manifest as written.
 pub fn write_run(
     dir: &Path,
@@ -181,6 +210,19 @@ pub fn write_run(
     out: &RunOutput,
     config: &toml::Table,
     inv: &Invocation,
+) -> Result<Manifest> {
+    write_run_with(dir, exp, out, config, inv, &crate::experiment::Silent)
+}
+
+/// [`write_run`], telling `progress` how far the post-processing is: its total set to the gates of
+/// every lidar receiver, advanced by one per gate fitted.
+pub fn write_run_with(
+    dir: &Path,
+    exp: &Experiment,
+    out: &RunOutput,
+    config: &toml::Table,
+    inv: &Invocation,
+    progress: &dyn Progress,
 ) -> Result<Manifest> {
     let stderr = out.estimates.stderr();
     // Non-finite estimates are a bug: refused before anything is written (issue 21, item 4).
@@ -190,6 +232,23 @@ pub fn write_run(
     let speckle = crate::post::speckle_of(exp, out);
     let pixel_speckle = crate::post::pixel_speckle_of(exp, out);
     let speckle_seconds = t.elapsed().as_secs_f64();
+    // The lidar gate fits, every receiver's gates in parallel.
+    let t = std::time::Instant::now();
+    progress.set_total(exp.detectors.iter().filter_map(|d| d.lidar()).map(|l| l.gates as u64).sum());
+    let (registry, mean, threads) = (&out.layout.registry, out.estimates.mean(), exp.plan.effective_threads());
+    let retrievals: Vec<Vec<GateRetrieval>> = exp
+        .detectors
+        .iter()
+        .map(|d| match &d.kind {
+            DetectorKind::Lidar(spec) => {
+                super::lidar::retrieve_gates(registry, mean, &stderr, &d.name, spec, threads, progress)
+            }
+            DetectorKind::Surface(_) => Vec::new(),
+        })
+        .collect();
+    // 0 without a lidar receiver (nothing was fitted).
+    let gate_fit_seconds = if retrievals.iter().any(|r| !r.is_empty()) { t.elapsed().as_secs_f64() } else { 0.0 };
+    let t = std::time::Instant::now();
     let mut writer = DirWriter::begin(dir, super::dir::Output::Run, &[])?;
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put(&name, &bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
@@ -252,7 +311,7 @@ pub fn write_run(
                 }
             }
             DetectorKind::Lidar(spec) => {
-                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec)?);
+                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, &retrievals[i])?);
             }
         }
         w.rest(i, &mut de)?;
@@ -303,6 +362,13 @@ pub fn write_run(
         }),
         threads: out.threads,
         wall_seconds: out.wall_seconds,
+        timing: Timing {
+            transport_seconds: out.wall_seconds,
+            postprocess_seconds: speckle_seconds + gate_fit_seconds,
+            gate_fit_seconds,
+            // Up to the manifest itself, whose writing is not timed (it holds the time).
+            writing_seconds: t.elapsed().as_secs_f64(),
+        },
         run_statistics: RunStatistics {
             paths: st.paths,
             scattering_events: st.scattering_events,

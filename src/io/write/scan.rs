@@ -5,19 +5,22 @@
 use serde_json::{Value, json};
 
 use super::dir::{DirWriter, SCAN, VAD, VAD_FIGURES};
+use super::manifest::Timing;
 use crate::error::Result;
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
 use crate::scan::GateWind;
 use crate::source::Pointing;
 
 /// Write `vad.csv` and (last) `scan.json` into the scan's directory `out`; `runs[i]` is the
-/// directory of pointing `i` (relative to it). Returns the JSON as written.
+/// directory of pointing `i` (relative to it) and `timings[i]` where its wall time went. Returns
+/// the JSON as written.
 pub fn write_scan(
     mut out: DirWriter,
     pointings: &[Pointing],
     runs: &[String],
     gates: &[GateWind],
     figures: bool,
+    timings: &[Timing],
 ) -> Result<Value> {
     let mut csv = String::from(
         "gate,range_m,height_m,u_east_m_per_s,v_north_m_per_s,w_up_m_per_s,u_stderr,v_stderr,w_stderr,\
@@ -82,12 +85,14 @@ pub fn write_scan(
         out.put(VAD_FIGURES[1], f.svg.as_bytes())?;
     }
     let scan = json!({
-        "pointings": pointings.iter().zip(runs).map(|(p, r)| json!({
+        "pointings": pointings.iter().zip(runs).enumerate().map(|(i, (p, r))| json!({
             "azimuth_deg": p.azimuth_deg,
             "elevation_deg": p.elevation_deg,
             "direction": p.direction.to_array(),
             "run": r,
+            "timing": timings.get(i),
         })).collect::<Vec<_>>(),
+        "timing": Timing::sum(timings),
         "frame": "x = east, y = north, z = up; azimuth clockwise from north; wind direction is where it blows from",
         "radial_velocity": "peak of each gate's expected spectrum (all orders), λ0·f/2, positive receding",
         "gates": table,
