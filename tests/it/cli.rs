@@ -977,7 +977,10 @@ fn output_directories_hold_one_complete_output() {
     let o = scan_run(&["source.pointings_deg=[[0, 60], [120, 60], [240, 60]]"]);
     assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
     let pointings = ["pointing_00", "pointing_01", "pointing_02", "pointing_03"];
-    assert_eq!(listing(&scan), [&pointings[..], &["scan.json", "vad.csv"]].concat());
+    assert_eq!(
+        listing(&scan),
+        [&pointings[..], &["scan.json", "vad.csv", "vad_wind_profile.png", "vad_wind_profile.svg"]].concat()
+    );
     assert_eq!(listing(&scan.join("pointing_03")), ["mine.txt"], "the earlier 4th pointing's files stay");
     let o = ohd(t, &["run", "--samples", "20000", "-q", "--out", path_str(&scan)]);
     assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
