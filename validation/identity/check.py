@@ -40,7 +40,7 @@ import ohdpy  # noqa: E402
 TIMING_KEY = re.compile(r"(seconds|per_second|wall|elapsed|^slope)")
 # Files that are drawn from timings (ohd converge's fits, table and figure), and the shard files
 # (intermediate, with their timings inside: the merged outputs are compared instead).
-TIMING_FILES = {"converge.csv", "converge.png", "shard.ohd"}
+TIMING_FILES = {"converge.csv", "converge.png", "converge.svg", "shard.ohd"}
 
 
 def cases(samples):
