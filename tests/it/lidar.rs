@@ -363,8 +363,9 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
         assert!((peak - f(&rows[g]["peak_velocity_m_per_s"])).abs() < 1e-12);
         assert_eq!(fields[col("fit_components")], rows[g]["fit"]["components"].to_string());
     }
-    assert_eq!(png_size(&dir.path().join("lidar_range_doppler.png")), (640, 560));
-    assert_eq!(png_size(&dir.path().join("lidar_gate_spectra.png")), (900, 560));
+    // One image panel and one line plot, at the figures' sizes.
+    assert_eq!(png_size(&dir.path().join("lidar_range_doppler.png")), ohd::io::figures::image::PANEL);
+    assert_eq!(png_size(&dir.path().join("lidar_gate_spectra.png")), ohd::io::figures::lines::SIZE);
 }
 
 #[test]
