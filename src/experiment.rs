@@ -98,6 +98,15 @@ pub struct TargetOutcome {
     pub max_samples: u64,
 }
 
+/// `f` run on a pool of `threads` threads (at least one) — post-processing in parallel with the
+/// run's thread count — or on the global pool if no pool can be made.
+pub fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(f),
+        Err(_) => f(),
+    }
+}
+
 /// How many rounds a run with `rounds` done at relative error `err` needs to reach `target`
 /// (errors fall as `1/√paths`), at least one more, at most `max_rounds`.
 /// Without an error estimate yet (a zero output) the run doubles.

@@ -225,10 +225,7 @@ pub fn synthesize_pixel_speckle(
             },
         )
     };
-    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
-        Ok(pool) => pool.install(|| work(&mut records)),
-        Err(_) => work(&mut records),
-    }
+    crate::experiment::on_threads(threads, || work(&mut records));
     let column = |c: usize| -> Vec<f64> { records.chunks_exact(record).map(|r| r[c]).collect() };
     let stack = |first: usize| -> Vec<f64> {
         (0..windows).flat_map(|j| records.chunks_exact(record).map(move |r| r[first + j])).collect()

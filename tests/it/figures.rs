@@ -5,6 +5,8 @@ use std::path::Path;
 
 use ohd::run::{Loaded, RunRequest, Unobserved, run};
 
+use crate::support::files::png_size;
+
 fn repo(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
 }
@@ -18,14 +20,6 @@ fn run_into(config: &str, dir: &Path, no_figures: bool, sets: &[&str]) -> Vec<St
     run(&loaded, &req, &Unobserved).expect("run written");
     let m: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
     m["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().to_string()).collect()
-}
-
-/// (width, height) of a PNG file.
-fn png_size(path: &Path) -> (u32, u32) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let reader = decoder.read_info().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let info = reader.info();
-    (info.width, info.height)
 }
 
 #[test]

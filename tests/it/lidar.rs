@@ -3,6 +3,7 @@
 //! spectral width 0.4413/τ_p; the per-gate estimates written at the end of a run (shot-noise SNR,
 //! moments, Gaussian fits) and the output files.
 
+use crate::support::files::png_size;
 use crate::support::lidar::{gate_lag_weight, hg_backscatter};
 use crate::support::run::{Run, run};
 use crate::support::stats::chi2_sf;
@@ -201,15 +202,6 @@ fn run_and_write(text: &str, sets: &[&str]) -> (Run, tempfile::TempDir, serde_js
     let entry = manifest["detectors"]["lidar"]["lidar"].clone();
     assert!(entry.is_object(), "no lidar entry in the manifest");
     (Run { exp, out }, dir, entry)
-}
-
-/// Width and height of a PNG file (and that it decodes).
-fn png_size(path: &std::path::Path) -> (u32, u32) {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info().expect("PNG header");
-    let mut buf = vec![0; reader.output_buffer_size().expect("buffer size")];
-    let info = reader.next_frame(&mut buf).expect("PNG data");
-    (info.width, info.height)
 }
 
 /// The fields of one CSV line (double-quoted fields may hold commas; `""` is a quote).

@@ -8,7 +8,7 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 
 use ohd::io::formats::npy;
 
@@ -18,14 +18,7 @@ fn repo() -> PathBuf {
 
 /// Run `ohd args…` in `cwd`; panics unless it exits 0.
 fn ohd(cwd: &Path, args: &[&str]) -> Output {
-    let o = Command::new(env!("CARGO_BIN_EXE_ohd"))
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .output()
-        .expect("ohd starts");
+    let o = crate::support::files::ohd(cwd, args);
     assert_eq!(o.status.code(), Some(0), "ohd {args:?}: {}", String::from_utf8_lossy(&o.stderr));
     o
 }

@@ -185,10 +185,7 @@ pub fn write_study(dir: &Path, study: &Study, config_source: &str, figures: bool
     let [csv_file, png_file, svg_file] = super::dir::CONVERGE_FILES;
     out.put(csv_file, csv(study).as_bytes())?;
     if figures {
-        let f = crate::io::figures::render(&plot(study))
-            .map_err(|m| Error::Write { path: dir.join(png_file), source: std::io::Error::other(m) })?;
-        out.put(png_file, &f.png)?;
-        out.put(svg_file, f.svg.as_bytes())?;
+        out.figure(png_file, svg_file, &plot(study))?;
     }
     let text = serde_json::to_string_pretty(&json(study, config_source)).expect("a JSON value serialises");
     out.finish(Some((super::dir::CONVERGE, text.as_bytes())))

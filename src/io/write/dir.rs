@@ -203,6 +203,13 @@ impl DirWriter {
         Ok(())
     }
 
+    /// The figure `d` as the files `png` and `svg`.
+    pub fn figure(&mut self, png: &str, svg: &str, d: &impl crate::io::figures::Draw) -> Result<()> {
+        let f = super::figures::drawn(d, self.dir.join(png))?;
+        self.put(png, &f.png)?;
+        self.put(svg, f.svg.as_bytes())
+    }
+
     /// The subdirectory `name` (a scan's pointing directory), noted in the marker: written and
     /// cleaned by its own writer.
     pub fn subdir(&mut self, name: &str) -> Result<PathBuf> {

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::io::figures::image::{ImageFigure, Panel, hsv};
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE, Span, VLine, db_range};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, db, quantile, sequential_range, symmetric_range};
-use crate::io::figures::{Draw, render};
+use crate::io::figures::{Draw, Figure, render};
 use crate::output::{Kind, Output, PixelErrors};
 
 /// Dynamic range of spectra and maps below their peak, dB.
@@ -25,14 +25,18 @@ pub fn stem(o: &Output) -> String {
     o.name.replace('.', "_")
 }
 
+/// `d` drawn; a failure is an error writing `path` (the PNG's).
+pub fn drawn(d: &impl Draw, path: std::path::PathBuf) -> Result<Figure> {
+    render(d).map_err(|m| Error::Write { path, source: std::io::Error::other(m) })
+}
+
 impl Writer<'_, '_> {
     /// Write `d` as `<stem>.png` and `<stem>.svg`, unless figures are off.
     pub fn figure(&mut self, stem: &str, d: &impl Draw) -> Result<()> {
         if !self.figures {
             return Ok(());
         }
-        let f = render(d)
-            .map_err(|m| Error::Write { path: format!("{stem}.png").into(), source: std::io::Error::other(m) })?;
+        let f = drawn(d, format!("{stem}.png").into())?;
         self.put(format!("{stem}.png"), f.png)?;
         self.put(format!("{stem}.svg"), f.svg.into_bytes())
     }

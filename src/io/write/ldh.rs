@@ -84,7 +84,7 @@ pub fn write_ldh(
         }
         // On the written axis: mirrored with the set-up's sign flipped.
         let o = roi_out("spectrum");
-        w.array(o)?;
+        let (v, e) = w.array(o)?;
         let mut out_of_range = Map::new();
         for (ch, chname) in channel_names.iter().enumerate() {
             let ((below, above), (below_se, above_se)) = (o.tails(w.mean, ch), o.tails(w.stderr, ch));
@@ -93,7 +93,6 @@ pub fn write_ldh(
                 json!({ "below": estimate(below, below_se), "above": estimate(above, above_se) }),
             );
         }
-        let (v, e) = o.values(w.mean, w.stderr);
         let channels: Vec<Channel> = channel_names
             .iter()
             .zip(v.chunks_exact(bins).zip(e.chunks_exact(bins)))

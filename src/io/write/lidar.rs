@@ -50,11 +50,7 @@ pub fn retrieve_gates(
         progress.advance(1);
         r
     };
-    let all = || (0..spec.gates).into_par_iter().map(one).collect();
-    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
-        Ok(pool) => pool.install(all),
-        Err(_) => (0..spec.gates).map(one).collect(),
-    }
+    crate::experiment::on_threads(threads, || (0..spec.gates).into_par_iter().map(one).collect())
 }
 
 /// Write the receiver's outputs, with `retrievals` its gates' ([`retrieve_gates`]); returns the

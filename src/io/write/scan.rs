@@ -77,12 +77,7 @@ pub fn write_scan(
     }
     out.put(VAD, csv.as_bytes())?;
     if figures {
-        let f = crate::io::figures::render(&wind_profile(gates)).map_err(|m| crate::error::Error::Write {
-            path: out.dir().join(VAD_FIGURES[0]),
-            source: std::io::Error::other(m),
-        })?;
-        out.put(VAD_FIGURES[0], &f.png)?;
-        out.put(VAD_FIGURES[1], f.svg.as_bytes())?;
+        out.figure(VAD_FIGURES[0], VAD_FIGURES[1], &wind_profile(gates))?;
     }
     let scan = json!({
         "pointings": pointings.iter().zip(runs).enumerate().map(|(i, (p, r))| json!({
