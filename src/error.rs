@@ -75,6 +75,10 @@ pub enum Error {
         "the run produced {count} non-finite value(s) (NaN or infinite) in {what}: its outputs are not written. A configuration value outside what validation checks is the likely cause; please report it with the configuration"
     )]
     NotFinite { what: String, count: usize },
+    /// A run stopped before its end because its caller asked ([`crate::experiment::Progress::cancelled`]:
+    /// Ctrl-C in the Python package); nothing is written.
+    #[error("the run was cancelled")]
+    Cancelled,
 }
 
 impl Error {

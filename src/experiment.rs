@@ -122,6 +122,12 @@ pub trait Progress: Sync {
     fn set_total(&self, _paths: u64) {}
     /// The estimated relative error of the main output, after each batch is folded in.
     fn error(&self, _relative: f64) {}
+    /// Whether the caller wants the run stopped (the Python package on Ctrl-C): checked as each
+    /// batch is handed over, which then fails with [`crate::error::Error::Cancelled`], and every
+    /// [`PROGRESS_EVERY`] paths inside a batch, which then ends early (its result is discarded).
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// No progress reporting.
@@ -290,6 +296,9 @@ impl<'a> BatchRunner<'a> {
             for b in range {
                 let sums = spare.pop().unwrap_or_else(|| Tallies::new(len));
                 let (sums, s, l) = exp.run_batch(b, sums, layout, beat, progress);
+                if progress.cancelled() {
+                    return Err(crate::error::Error::Cancelled);
+                }
                 sink(sums.sums(), s, l)?;
                 spare.push(sums);
             }
@@ -322,7 +331,11 @@ impl<'a> BatchRunner<'a> {
                 waiting.insert(b, sent.unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
                 while let Some((sums, s, l)) = waiting.remove(&handed) {
                     // On an error the batches already started finish (the scope waits for them)
-                    // and nothing more starts.
+                    // and nothing more starts. Cancellation is sticky, so a batch cut short by it
+                    // (see `Progress::cancelled`) is never handed over.
+                    if progress.cancelled() {
+                        return Err(crate::error::Error::Cancelled);
+                    }
                     sink(sums.sums(), s, l)?;
                     handed += 1;
                     if started < range.end {
@@ -633,8 +646,13 @@ impl Experiment {
             } else {
                 trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
             }
-            if forward_progress && (i + 1) % PROGRESS_EVERY == 0 {
-                progress.advance(PROGRESS_EVERY);
+            if (i + 1) % PROGRESS_EVERY == 0 {
+                if forward_progress {
+                    progress.advance(PROGRESS_EVERY);
+                }
+                if progress.cancelled() {
+                    return (sums, stats, lines);
+                }
             }
         }
         if forward_progress {
@@ -654,6 +672,9 @@ impl Experiment {
                     trace_camera_path::<DOPPLER, LENGTH>(&walk, cam, pixel, batch_weight, &mut rec, &mut rng);
                 }
                 done += spp;
+                if progress.cancelled() {
+                    return (sums, stats, lines);
+                }
                 let due = done * ppb / camera_total;
                 if due - reported >= PROGRESS_EVERY {
                     progress.advance(due - reported);

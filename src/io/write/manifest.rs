@@ -224,6 +224,40 @@ pub fn write_run_with(
     inv: &Invocation,
     progress: &dyn Progress,
 ) -> Result<Manifest> {
+    let open = || DirWriter::begin(dir, super::dir::Output::Run, &[]);
+    let (writer, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
+    writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
+    Ok(manifest)
+}
+
+/// [`write_run_with`] into memory: every file as `(name, bytes)` in the order written, the
+/// manifest last — the bytes `ohd run --out` writes (the manifest's timings aside), which
+/// [`super::memory::save`] writes into a directory as a run does.
+pub fn write_run_memory(
+    exp: &Experiment,
+    out: &RunOutput,
+    config: &toml::Table,
+    inv: &Invocation,
+    progress: &dyn Progress,
+) -> Result<(Manifest, Vec<(String, Vec<u8>)>)> {
+    let open = || Ok(super::memory::Memory::default());
+    let (memory, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
+    let mut files = memory.files;
+    files.push((super::dir::MANIFEST.to_string(), text.into_bytes()));
+    Ok((manifest, files))
+}
+
+/// The one writer of a run's outputs: checks and post-processing first, then the files into the
+/// sink `open` makes (a directory is opened only once nothing can fail before writing); returns
+/// the sink, the manifest and its text, for the caller to write last.
+fn write_run_to<S: super::Sink>(
+    open: impl FnOnce() -> Result<S>,
+    exp: &Experiment,
+    out: &RunOutput,
+    config: &toml::Table,
+    inv: &Invocation,
+    progress: &dyn Progress,
+) -> Result<(S, Manifest, String)> {
     let stderr = out.estimates.stderr();
     // Non-finite estimates are a bug: refused before anything is written (issue 21, item 4).
     super::check_finite(&out.layout.registry, out.estimates.mean(), &stderr)?;
@@ -249,8 +283,8 @@ pub fn write_run_with(
     // 0 without a lidar receiver (nothing was fitted).
     let gate_fit_seconds = if retrievals.iter().any(|r| !r.is_empty()) { t.elapsed().as_secs_f64() } else { 0.0 };
     let t = std::time::Instant::now();
-    let mut writer = DirWriter::begin(dir, super::dir::Output::Run, &[])?;
-    let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put(&name, &bytes) };
+    let mut writer = open()?;
+    let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put_file(name, bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
     w.figures = inv.figures;
     let mut estimates: BTreeMap<String, Entry> =
@@ -320,7 +354,7 @@ pub fn write_run_with(
     }
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
     drop(w);
-    let files = writer.written().to_vec();
+    let files = writer.written();
     if !det_estimates.is_empty() {
         estimates.insert("detectors".into(), Entry::Group(det_estimates));
     }
@@ -392,8 +426,7 @@ pub fn write_run_with(
         warnings: crate::post::warnings(exp, out),
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
-    writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
-    Ok(manifest)
+    Ok((writer, manifest, text))
 }
 
 /// A surface detector's spectra (every chirp, the total and its splits) with their frequency

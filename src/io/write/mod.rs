@@ -12,6 +12,7 @@ pub mod fmcw;
 pub mod ldh;
 pub mod lidar;
 pub mod manifest;
+pub mod memory;
 pub mod scan;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -50,6 +51,25 @@ pub const IMAGE_LAYOUT: &str = "rows = y descending (row 0 = top = largest y), c
 
 /// Where a file goes: `put(name, bytes)` writes it atomically and lists it in the manifest.
 pub type Put<'a> = dyn FnMut(String, Vec<u8>) -> Result<()> + 'a;
+
+/// Where a run's files go, in the order written: a directory ([`dir::DirWriter`], atomically)
+/// or memory ([`memory::Memory`], the Python package's results).
+pub trait Sink {
+    /// Write the file `name`.
+    fn put_file(&mut self, name: String, bytes: Vec<u8>) -> Result<()>;
+    /// The files written so far, in order (the manifest's `files`).
+    fn written(&self) -> Vec<String>;
+}
+
+impl Sink for dir::DirWriter {
+    fn put_file(&mut self, name: String, bytes: Vec<u8>) -> Result<()> {
+        self.put(&name, &bytes)
+    }
+
+    fn written(&self) -> Vec<String> {
+        dir::DirWriter::written(self).to_vec()
+    }
+}
 
 /// `file.npy` → `file_stderr.npy`.
 pub fn stderr_file(file: &str) -> String {
