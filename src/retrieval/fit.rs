@@ -344,7 +344,7 @@ pub fn fit_one_or_two(
     wavelength_m: f64,
     options: &FitOptions,
 ) -> Result<ModelChoice, RetrievalError> {
-    choose(Problem::validated(axis, values, stderr, wavelength_m, options, None)?, axis, wavelength_m, options)
+    fit_one_first(axis, values, stderr, wavelength_m, options, None).map(OneFit::choose)
 }
 
 /// [`fit_one_or_two`] with components seen through a gate's spectral kernel (module docs): each
@@ -360,24 +360,64 @@ pub fn fit_one_or_two_with_kernel(
     options: &FitOptions,
     kernel: &GateKernel,
 ) -> Result<ModelChoice, RetrievalError> {
-    let problem = Problem::validated(axis, values, stderr, wavelength_m, options, Some(kernel))?;
-    choose(problem, axis, wavelength_m, options)
+    fit_one_first(axis, values, stderr, wavelength_m, options, Some(kernel)).map(OneFit::choose)
 }
 
-/// The one- and two-component fits of `problem` and the F-test between them.
-fn choose(
-    problem: Problem<'_>,
-    axis: &FrequencyAxis,
+/// [`fit_one_or_two`] (`kernel` `None`) or [`fit_one_or_two_with_kernel`] stopped after the
+/// one-component fit, so that a caller comparing line shapes on their one-component fits
+/// ([`super::retrieve_gate`]) fits two components only in the shape it keeps: the other shape's
+/// two-component fit, the larger part of the work, would be thrown away. [`OneFit::choose`]
+/// finishes exactly as the whole function does (the same arithmetic, the same bits).
+pub fn fit_one_first<'a>(
+    axis: &'a FrequencyAxis,
+    values: &'a [f64],
+    stderr: Option<&[f64]>,
     wavelength_m: f64,
     options: &FitOptions,
-) -> Result<ModelChoice, RetrievalError> {
+    kernel: Option<&GateKernel>,
+) -> Result<OneFit<'a>, RetrievalError> {
+    let problem = Problem::validated(axis, values, stderr, wavelength_m, options, kernel)?;
     problem.check_points(1)?;
-    let one_solution = problem.fit_one(axis)?;
-    let one = problem.report(axis, &one_solution, wavelength_m)?;
-    let two = problem
-        .check_points(2)
-        .and_then(|()| problem.fit_two(axis, &one_solution))
-        .and_then(|s| problem.report(axis, &s, wavelength_m));
+    let solution = problem.fit_one(axis)?;
+    let one = problem.report(axis, &solution, wavelength_m)?;
+    Ok(OneFit { problem, axis, wavelength_m, selection_level: options.selection_level, solution, one })
+}
+
+/// A one-component fit that can go on to the choice between one and two components
+/// ([`fit_one_first`]).
+pub struct OneFit<'a> {
+    problem: Problem<'a>,
+    axis: &'a FrequencyAxis,
+    wavelength_m: f64,
+    selection_level: f64,
+    solution: Solution,
+    one: GaussianFit,
+}
+
+impl OneFit<'_> {
+    /// The one-component fit.
+    pub fn one(&self) -> &GaussianFit {
+        &self.one
+    }
+
+    /// The two-component fit and the F-test between the two ([`fit_one_or_two`]).
+    pub fn choose(self) -> ModelChoice {
+        let OneFit { problem, axis, wavelength_m, selection_level, solution, one } = self;
+        let two = problem
+            .check_points(2)
+            .and_then(|()| problem.fit_two(axis, &solution))
+            .and_then(|s| problem.report(axis, &s, wavelength_m));
+        choice(&problem, one, two, selection_level)
+    }
+}
+
+/// The F-test between the one- and two-component fits of `problem`.
+fn choice(
+    problem: &Problem<'_>,
+    one: GaussianFit,
+    two: Result<GaussianFit, RetrievalError>,
+    selection_level: f64,
+) -> ModelChoice {
     // A χ² decrease at the round-off level of χ² itself is no evidence (noiseless data).
     let resolution = 1e-20 * problem.y.iter().zip(&problem.w).map(|(y, w)| (y * w).powi(2)).sum::<f64>();
     let (f_statistic, p_value) = match &two {
@@ -392,8 +432,8 @@ fn choose(
         }
         _ => (0.0, 1.0),
     };
-    let components = if p_value < options.selection_level { 2 } else { 1 };
-    Ok(ModelChoice { components, one, two, f_statistic, p_value })
+    let components = if p_value < selection_level { 2 } else { 1 };
+    ModelChoice { components, one, two, f_statistic, p_value }
 }
 
 /// Fit `components` (1 or 2) Gaussians on a floor to `values` (one per bin of `axis`), weighted by

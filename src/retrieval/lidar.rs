@@ -14,9 +14,10 @@
 //! pulse's Gaussian, not a filled gate's kernel.
 
 use super::{
-    FitOptions, Floor, GateEstimate, GateKernel, ModelChoice, RetrievalError, fit_one_or_two,
-    fit_one_or_two_with_kernel, gate_estimates,
+    FitOptions, Floor, GateEstimate, GateKernel, ModelChoice, OneFit, RetrievalError, fit_one_first, gate_estimates,
 };
+#[cfg(doc)]
+use super::{fit_one_or_two, fit_one_or_two_with_kernel};
 use crate::spectrum::FrequencyAxis;
 
 /// Nominal level of the F-test that keeps a second Gaussian component in a gate fit. At the
@@ -75,7 +76,8 @@ impl LineShape {
 /// `Floor::Fixed(floor)` and the standard errors as weights, in two line shapes: Gaussian
 /// velocity spreads seen through `kernel` ([`fit_one_or_two_with_kernel`]) and plain Gaussians
 /// ([`fit_one_or_two`]). The shape whose one-component χ² is lower is kept (both have three
-/// parameters per component: the likelihood decides). The kernel is that of a filled gate; a
+/// parameters per component: the likelihood decides), and only it is fitted with two components
+/// ([`fit_one_first`]). The kernel is that of a filled gate; a
 /// thin layer inside a long gate shows the pulse's own Gaussian spectrum instead, and there the
 /// filled-gate kernel's sidelobes (the window's triangle) misfit by far. A shape whose fit fails
 /// gives way to the other.
@@ -129,13 +131,17 @@ pub fn retrieve_gate(
     let moments = gate_estimates(axis, &values, floor, wavelength);
     let options =
         FitOptions { floor: Floor::Fixed(floor), selection_level: FIT_SELECTION_LEVEL, ..FitOptions::default() };
-    let through = fit_one_or_two_with_kernel(axis, &values, se.as_deref(), wavelength, &options, kernel);
-    let plain = fit_one_or_two(axis, &values, se.as_deref(), wavelength, &options);
-    let (fit, line_shape) = match (through, plain) {
-        (Ok(k), Ok(p)) if p.one.chi2 < k.one.chi2 => (Ok(p), LineShape::Gaussian),
+    // The shapes are compared on their one-component fits; only the kept one goes on to two.
+    let (through, plain) = rayon::join(
+        || fit_one_first(axis, &values, se.as_deref(), wavelength, &options, Some(kernel)),
+        || fit_one_first(axis, &values, se.as_deref(), wavelength, &options, None),
+    );
+    let (kept, line_shape) = match (through, plain) {
+        (Ok(k), Ok(p)) if p.one().chi2 < k.one().chi2 => (Ok(p), LineShape::Gaussian),
         (Err(_), Ok(p)) => (Ok(p), LineShape::Gaussian),
         (k, _) => (k, LineShape::GateKernel),
     };
+    let fit = kept.map(OneFit::choose);
     GateRetrieval { noise_floor: floor, stderr_substituted: substituted, moments, fit, line_shape }
 }
 

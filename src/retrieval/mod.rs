@@ -33,8 +33,8 @@ mod special;
 pub mod vad;
 
 pub use fit::{
-    FitOptions, Floor, GateKernel, GaussComponent, GaussianFit, ModelChoice, fit_gaussians, fit_gaussians_with_kernel,
-    fit_one_or_two, fit_one_or_two_with_kernel,
+    FitOptions, Floor, GateKernel, GaussComponent, GaussianFit, ModelChoice, OneFit, fit_gaussians,
+    fit_gaussians_with_kernel, fit_one_first, fit_one_or_two, fit_one_or_two_with_kernel,
 };
 pub use fmcw::{FmcwEstimate, fmcw_estimates};
 pub use gate::{GateEstimate, MomentOptions, gate_estimates, gate_estimates_with};
