@@ -338,8 +338,86 @@ struct SizeResult {
 }
 
 /// Bulk optical properties of the ensemble `spec`, with its phase function tabulated at `theta`
-/// (radians). See the module documentation for the integrals.
+/// (radians). See the module documentation for the integrals. Inside [`with_cache`] a result is
+/// computed once per `(spec, theta)`.
 pub fn ensemble_optics(spec: &EnsembleSpec, theta: &[f64]) -> Result<EnsembleOptics, MieError> {
+    let Some(key) = cache::key(spec, theta) else {
+        return compute(spec, theta);
+    };
+    if let Some(hit) = cache::get(&key) {
+        return Ok(hit);
+    }
+    let e = compute(spec, theta)?;
+    cache::put(key, &e);
+    Ok(e)
+}
+
+/// Run `f` with [`ensemble_optics`] remembering its results (by the exact bits of its inputs),
+/// for callers that resolve many variants of one configuration (the Python package's sweep: a
+/// rain ensemble costs ≈ 1.7 s per resolution). Scopes nest; the cache empties when the last one
+/// ends, so a process that never calls this (the CLI) keeps nothing.
+pub fn with_cache<T>(f: impl FnOnce() -> T) -> T {
+    cache::enter();
+    struct Leave;
+    impl Drop for Leave {
+        fn drop(&mut self) {
+            cache::leave();
+        }
+    }
+    let _leave = Leave;
+    f()
+}
+
+mod cache {
+    use std::collections::HashMap;
+    use std::sync::Mutex;
+
+    use super::{EnsembleOptics, EnsembleSpec};
+
+    /// Open scopes and the results kept while any is open.
+    static CACHE: Mutex<(usize, Option<HashMap<String, EnsembleOptics>>)> = Mutex::new((0, None));
+
+    fn lock() -> std::sync::MutexGuard<'static, (usize, Option<HashMap<String, EnsembleOptics>>)> {
+        // A panic elsewhere while holding it leaves a consistent map: keep using it.
+        CACHE.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The key of `(spec, theta)` when a scope is open: `Debug` of the spec (floats print
+    /// shortest round-trip, so equal text is equal bits) and the angles' bits.
+    pub fn key(spec: &EnsembleSpec, theta: &[f64]) -> Option<String> {
+        if lock().0 == 0 {
+            return None;
+        }
+        let mut k = format!("{spec:?}|");
+        theta.iter().for_each(|t| k.push_str(&format!("{:x},", t.to_bits())));
+        Some(k)
+    }
+
+    pub fn get(key: &str) -> Option<EnsembleOptics> {
+        lock().1.as_ref()?.get(key).cloned()
+    }
+
+    pub fn put(key: String, e: &EnsembleOptics) {
+        let mut c = lock();
+        if c.0 > 0 {
+            c.1.get_or_insert_with(HashMap::new).insert(key, e.clone());
+        }
+    }
+
+    pub fn enter() {
+        lock().0 += 1;
+    }
+
+    pub fn leave() {
+        let mut c = lock();
+        c.0 -= 1;
+        if c.0 == 0 {
+            c.1 = None;
+        }
+    }
+}
+
+fn compute(spec: &EnsembleSpec, theta: &[f64]) -> Result<EnsembleOptics, MieError> {
     let n_particle = positive("n_particle", spec.n_particle)?;
     let k_particle = spec.k_particle;
     if !(k_particle.is_finite() && k_particle >= 0.0) {
@@ -522,5 +600,31 @@ mod tests {
         // Clipped by the range when the range is narrower.
         let (a, b) = support(&d, -0.001, 0.002);
         assert_eq!((a, b), (-0.001, 0.002));
+    }
+
+    /// Inside [`with_cache`] a repeated `(spec, theta)` is not recomputed (same result); a changed
+    /// input is; after the scope nothing is kept.
+    #[test]
+    fn cache_keeps_results_only_inside_its_scope() {
+        let spec = |radius| EnsembleSpec {
+            n_particle: 1.59,
+            k_particle: 0.0,
+            n_medium: 1.33,
+            wavelength: 633e-9,
+            distribution: SizeDistribution::Monodisperse { radius },
+            concentration: Some(Concentration::VolumeFraction(1e-3)),
+            packing: None,
+            size_points: DEFAULT_SIZE_POINTS,
+        };
+        let theta = angle_grid(64, 10.0);
+        let direct = ensemble_optics(&spec(0.5e-6), &theta).unwrap();
+        with_cache(|| {
+            assert_eq!(ensemble_optics(&spec(0.5e-6), &theta).unwrap(), direct);
+            let key = cache::key(&spec(0.5e-6), &theta).unwrap();
+            assert_eq!(cache::get(&key), Some(direct.clone()), "kept");
+            assert_eq!(ensemble_optics(&spec(0.5e-6), &theta).unwrap(), direct);
+            assert_ne!(ensemble_optics(&spec(0.6e-6), &theta).unwrap(), direct);
+        });
+        assert!(cache::key(&spec(0.5e-6), &theta).is_none());
     }
 }

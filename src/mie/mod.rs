@@ -19,7 +19,7 @@ pub mod solver;
 
 pub use ensemble::{
     Concentration, DEFAULT_SIZE_POINTS, EnsembleOptics, EnsembleSpec, Packing, SizeDistribution, angle_grid,
-    ensemble_optics,
+    ensemble_optics, with_cache,
 };
 pub use error::MieError;
 pub use quadrature::gauss_legendre;
