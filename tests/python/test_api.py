@@ -1,0 +1,277 @@
+"""The Python package `ohd` (python/): results identical to the CLI's, errors, dict configs,
+overrides, Ctrl-C, sweeps, stubs, and the example that redraws the README's figures.
+
+Needs the package installed (.ci/run installs it into its venv); skipped otherwise. The CLI is
+$OHD_BINARY (.ci/run passes the one `cargo test --profile ci` built), else a release build.
+"""
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ohd = pytest.importorskip("ohd")
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIGS = ROOT / "configs"
+
+
+@pytest.fixture(scope="module")
+def cli():
+    if os.environ.get("OHD_BINARY"):
+        binary = os.environ["OHD_BINARY"]
+    else:
+        sys.path.insert(0, str(ROOT / "validation"))
+        import ohdpy
+
+        binary = ohdpy.binary()
+
+    def run(*args, check=True):
+        p = subprocess.run([binary, *map(str, args)], capture_output=True, text=True)
+        if check:
+            assert p.returncode == 0, p.stderr
+        return p
+
+    return run
+
+
+def data_files(names):
+    """The files whose bytes do not depend on timing (the manifest and figures of timings do)."""
+    return sorted(n for n in names if n.endswith((".npy", ".exr", ".csv", ".png", ".svg")) and "converge" not in n)
+
+
+def assert_same_as_dir(result, d):
+    on_disk = sorted(p.name for p in d.iterdir())
+    assert sorted(result.files) == on_disk
+    names = data_files(on_disk)
+    assert names, on_disk
+    for name in names:
+        assert result.files[name] == (d / name).read_bytes(), name
+    m = json.loads((d / "manifest.json").read_text())
+    assert result.manifest["estimates"] == m["estimates"]
+    assert result.manifest["files"] == m["files"]
+
+
+def test_default_run_is_the_cli_run_byte_for_byte(cli, tmp_path):
+    cli("run", "--samples", 30000, "--seed", 7, "--out", tmp_path / "cli", "--quiet")
+    r = ohd.run(samples=30000, seed=7, progress=False)
+    assert_same_as_dir(r, tmp_path / "cli")
+    # save() writes what `ohd run --out` writes.
+    r.save(tmp_path / "py")
+    assert_same_as_dir(r, tmp_path / "py")
+    assert sorted(os.listdir(tmp_path / "py")) == sorted(os.listdir(tmp_path / "cli"))
+    # The arrays are the files' arrays, with their axes and units.
+    s = r["camera_spectrum"]
+    np.testing.assert_array_equal(s.values, np.load(tmp_path / "cli" / "camera_spectrum.npy"))
+    np.testing.assert_array_equal(s.stderr, np.load(tmp_path / "cli" / "camera_spectrum_stderr.npy"))
+    np.testing.assert_array_equal(s.axes["frequency_hz"], np.load(tmp_path / "cli" / "camera_frequency_hz.npy"))
+    assert s.units == "fraction of emitted power per bin"
+    img = r["camera_image"]
+    assert img.values.shape == (64, 64)
+    assert img.axes["x_m"][0] < img.axes["x_m"][-1] and img.axes["y_m"][0] > img.axes["y_m"][-1]  # row 0 = top
+    assert abs(img.axes["x_m"][0] - (-0.0004 + 0.0004 / 64)) < 1e-15
+    e = r.estimates["reflectance_diffuse"]
+    m = json.loads((tmp_path / "cli" / "manifest.json").read_text())
+    assert (e.value, e.stderr) == (m["estimates"]["reflectance_diffuse"]["value"], m["estimates"]["reflectance_diffuse"]["stderr"])
+    assert not s.values.flags.writeable  # a view of the result's bytes
+
+
+def test_ldh_camera_run_is_the_cli_run(cli, tmp_path):
+    cfg = CONFIGS / "retina_ldh.toml"
+    cli("run", cfg, "--samples", 20000, "--no-figures", "--out", tmp_path / "cli", "--quiet")
+    r = ohd.run(cfg, samples=20000, figures=False, progress=False)
+    assert_same_as_dir(r, tmp_path / "cli")
+    assert r["camera_m0_plus"].values.ndim == 2 and r["camera_m0_plus"].stderr is not None
+
+
+def test_scan_run_is_the_cli_scan(cli, tmp_path):
+    cfg = CONFIGS / "wind_sunny.toml"
+    cli("run", cfg, "--samples", 4000, "--no-figures", "--out", tmp_path / "cli", "--quiet")
+    r = ohd.run(cfg, samples=4000, figures=False, progress=False)
+    assert len(r.pointings) == 4
+    for i, p in enumerate(r.pointings):
+        assert_same_as_dir(p, tmp_path / "cli" / f"pointing_{i:02}")
+    assert r.files["vad.csv"] == (tmp_path / "cli" / "vad.csv").read_bytes()
+
+
+# The README's first experiment, as a dict.
+BLOOD_SLAB = {
+    "schema_version": 1,
+    "name": "blood_slab",
+    "run": {"samples": 20000},
+    "source": {"wavelength_nm": 785, "profile": "disk", "radius_mm": 0.2},
+    "media": {
+        "blood": {
+            "sigma_a_per_mm": 0.4,
+            "sigma_s_per_mm": 20,
+            "phase": {"type": "hg", "g": 0.985},
+            "velocity": {"type": "uniform", "velocity_mm_per_s": [0, 0, 2]},
+        }
+    },
+    "layers": [{"name": "blood", "thickness_mm": 1, "n": 1.4, "medium": "blood"}],
+    "detectors": [
+        {
+            "name": "camera",
+            "area": {"type": "rect", "size_mm": [0.8, 0.8]},
+            "acceptance_half_angle_deg": 30,
+            "include_specular": False,
+            "spectrum": {"f_min_khz": -10, "f_max_khz": 10, "bins": 101},
+            "image": {"pixels": [32, 32]},
+        }
+    ],
+}
+
+
+def test_dict_config_runs_as_its_toml_text(cli, tmp_path):
+    text = ohd.check(BLOOD_SLAB).toml
+    (tmp_path / "slab.toml").write_text(text)
+    a = ohd.run(BLOOD_SLAB, progress=False, figures=False)
+    b = ohd.run(text, progress=False, figures=False)
+    cli("run", tmp_path / "slab.toml", "--no-figures", "--out", tmp_path / "cli", "--quiet")
+    for name in data_files(a.files):
+        assert a.files[name] == b.files[name] == (tmp_path / "cli" / name).read_bytes(), name
+    assert a.manifest["name"] == "blood_slab"
+
+
+def test_overrides_as_dict_list_and_keywords_agree():
+    a = ohd.run(overrides={"run.samples": 10000, "run.seed": 3, "source.wavelength_nm": 780}, progress=False, figures=False)
+    b = ohd.run(overrides=["source.wavelength_nm=780"], samples=10000, seed=3, progress=False, figures=False)
+    c = ohd.run(samples=10000, seed=3, progress=False, figures=False)
+    assert a.files["camera_spectrum.npy"] == b.files["camera_spectrum.npy"]
+    assert a.files["camera_spectrum.npy"] != c.files["camera_spectrum.npy"]
+    assert a.manifest["overrides"] == ["run.samples=10000", "run.seed=3", "source.wavelength_nm=780"]
+    assert a.manifest["config"]["source"]["wavelength_nm"] == 780
+
+
+def test_config_errors_are_value_errors_with_the_key_and_the_cli_message(cli, tmp_path):
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(overrides={"layers.0.thickness_mm": -1})
+    assert isinstance(e.value, ValueError)
+    assert e.value.key.startswith("layers[0].thickness_mm"), e.value.key
+    p = cli("check", "--set", "layers.0.thickness_mm=-1", check=False)
+    assert p.returncode == 2
+    assert p.stderr.strip() == f"ohd: {e.value}"
+    # An unknown key in a dict names its path.
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(dict(BLOOD_SLAB, run={"samples": 10, "sample": 3}))
+    assert "run.sample" in e.value.key + str(e.value)
+    # A value Python has and TOML has not.
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(dict(BLOOD_SLAB, run={"samples": object()}))
+    assert e.value.key == "run.samples"
+    # TOML syntax errors.
+    with pytest.raises(ohd.ConfigError):
+        ohd.check("schema_version = = 1\n")
+    with pytest.raises(ValueError):
+        ohd.run(samples=-1)
+
+
+def test_file_errors_are_os_errors(tmp_path):
+    with pytest.raises(FileNotFoundError) as e:
+        ohd.run(tmp_path / "missing.toml")
+    assert "missing.toml" in str(e.value)
+    with pytest.raises(OSError):
+        ohd.check(tmp_path)  # a directory
+    (tmp_path / "file").write_text("x")
+    r = ohd.run(samples=1000, progress=False, figures=False)
+    with pytest.raises(OSError):
+        r.save(tmp_path / "file" / "out")
+    with pytest.raises(OSError):
+        ohd.run(samples=1000, progress=False, out=tmp_path / "file" / "out")
+
+
+def test_hostile_configs_raise_python_errors_never_panics():
+    """Inputs meant to break the parser and resolver (tests/configs/bad and a few more): every one
+    either resolves or raises a ValueError/OSError, never a panic or a crash."""
+    files = sorted((ROOT / "tests" / "configs").rglob("*.toml"))
+    assert files
+    texts = [f.read_text(errors="replace") for f in files]
+    texts += ["schema_version = 1\n" + "[a]" * 5000, "x = " + "[" * 100000, "schema_version = 1e999\n", "\x00"]
+    for text in texts:
+        try:
+            ohd.check(text if "\n" in text or "=" in text else text + "\n=")
+        except (ValueError, OSError):
+            pass
+
+
+def test_ctrl_c_raises_keyboard_interrupt_within_a_batch(tmp_path):
+    script = textwrap.dedent(
+        """
+        import os, signal, threading, time, ohd
+        threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+        t = time.monotonic()
+        try:
+            ohd.run(samples=10**9, progress=False, figures=False, out="out")
+        except KeyboardInterrupt:
+            print(time.monotonic() - t)
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    elapsed = float(p.stdout)
+    assert 1.0 <= elapsed < 2.0, elapsed  # one batch of 10⁹ paths is minutes
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_progress_callback_sees_the_run():
+    seen = []
+    ohd.run(samples=3_000_000, progress=lambda d, t: seen.append((d, t)), figures=False)
+    assert seen[-1] == (3_000_000, 3_000_000)
+    assert all(t == 3_000_000 and 0 <= d <= t for d, t in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_sweep_is_the_runs_one_by_one():
+    runs = ohd.sweep(None, "source.wavelength_nm", [780, 790], samples=10000, progress=False, figures=False)
+    assert [r.manifest["config"]["source"]["wavelength_nm"] for r in runs] == [780, 790]
+    one = ohd.run(overrides={"source.wavelength_nm": 790}, samples=10000, progress=False, figures=False)
+    assert runs[1].files["camera_spectrum.npy"] == one.files["camera_spectrum.npy"]
+    pts = ohd.sweep(BLOOD_SLAB, points=[{"run.seed": 1}, ["run.seed=2"]], progress=False, figures=False)
+    assert [r.manifest["seed"] for r in pts] == [1, 2]
+    with pytest.raises(ohd.ConfigError):
+        ohd.sweep(None, "run.samples", [10, -1], progress=False)
+
+
+def test_mie_is_ohd_mie(cli):
+    p = cli("mie", "--m-real", "1.33", "--x", "10")
+    want = json.loads(p.stdout)
+    got = ohd.mie(m_real=1.33, x=10, angles=64)
+    assert {k: got[k] for k in want} == want
+    assert got["theta_deg"].shape == got["phase_per_sr"].shape == (64,)
+    t = np.radians(got["theta_deg"])
+    y = got["phase_per_sr"] * np.sin(t)
+    integral = 2 * np.pi * np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t))  # trapezoids
+    assert abs(integral - 1) < 0.02
+    with pytest.raises(ValueError, match="x="):
+        ohd.mie(m_real=1.33, x=-1)
+
+
+def test_check_prints_what_ohd_check_prints(cli):
+    assert str(ohd.check(CONFIGS / "fmcw_target.toml")) == cli("check", CONFIGS / "fmcw_target.toml").stdout
+    assert str(ohd.check()) == cli("check").stdout
+
+
+def test_stubs_and_docs_are_installed():
+    pkg = Path(ohd.__file__).parent
+    for f in ("__init__.pyi", "_ohd.pyi", "py.typed"):
+        assert (pkg / f).is_file(), f
+    for f in (ohd.run, ohd.check, ohd.sweep, ohd.mie, ohd.converge, ohd.Result):
+        assert f.__doc__ and len(f.__doc__) > 80, f
+    assert "overrides" in ohd.run.__doc__ and "KeyboardInterrupt" in ohd.run.__doc__
+
+
+def test_example_redraws_the_readme_figures(tmp_path):
+    """python/examples/default_figure.py runs the default experiment and writes the README's two
+    figures: the same PNG bytes as media/readme/."""
+    script = ROOT / "python" / "examples" / "default_figure.py"
+    env = dict(os.environ, MPLBACKEND="Agg")
+    p = subprocess.run([sys.executable, str(script), str(tmp_path)], capture_output=True, text=True, env=env, timeout=600)
+    assert p.returncode == 0, p.stderr
+    for name in ("default_spectrum.png", "default_image.png"):
+        assert (tmp_path / name).read_bytes() == (ROOT / "media" / "readme" / name).read_bytes(), name
+    assert (tmp_path / "default_spectrum_matplotlib.png").stat().st_size > 10_000
