@@ -13,6 +13,7 @@ pub mod ldh;
 pub mod lidar;
 pub mod manifest;
 pub mod scan;
+pub mod tcorr;
 
 use std::collections::{BTreeMap, BTreeSet};
 
