@@ -31,17 +31,24 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
     let tails = [("below", estimate(below, below_se)), ("above", estimate(above, above_se))];
     de.insert("tpsf_out_of_range".into(), Entry::Group(tails.map(|(k, e)| (k.to_string(), Entry::Estimate(e))).into()));
     if w.figures {
-        let ns: Vec<f64> = centres.iter().map(|t| t * 1e9).collect();
+        // Picoseconds below 100 ns of axis: whole numbers label the ticks exactly.
+        let (scale, unit) = if spec.axis.f_max < 100e-9 { (1e12, "ps") } else { (1e9, "ns") };
+        let x: Vec<f64> = centres.iter().map(|t| t * scale).collect();
         let mut plot = LinePlot::new(
             format!("{name}: temporal point-spread function"),
-            "time of flight (ns)",
+            format!("time of flight ({unit})"),
             "power per time bin (fraction of emitted)",
         );
         plot.log_y = true;
-        plot.curves.push(band_curve("TPSF", ns, &v, &e, PALETTE[0]));
+        plot.curves.push(band_curve("TPSF", x, &v, &e, PALETTE[0]));
+        // Six decades below the peak: a band reaching zero would stretch the log axis to nothing.
+        let peak = v.iter().fold(0.0_f64, |m, &x| m.max(x));
+        if peak > 0.0 {
+            plot.y_range = Some((peak * 1e-6, peak * 2.0));
+        }
         plot.note = format!(
-            "band: ±σ; bin {:.4} ns; out of range: {below:.3e} before, {above:.3e} after",
-            spec.axis.bin_width() * 1e9
+            "band: ±σ; y: 6 decades below the peak; bin {:.3} {unit}; out of range: {below:.3e} before, {above:.3e} after",
+            spec.axis.bin_width() * scale
         );
         w.figure(&stem(o), &plot)?;
     }
@@ -56,7 +63,8 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
     });
     if let Some(o) = w.registry.get(&format!("{name}.time_gated_image")) {
         let (v, _) = w.array(o)?;
-        stack_figure(w, o, &v, &centres.iter().map(|t| format!("t = {:.3} ns", t * 1e9)).collect::<Vec<_>>())?;
+        let labels: Vec<String> = centres.iter().map(|t| format!("t = {:.3} ns", t * 1e9)).collect();
+        stack_figure(w, o, &v, &labels, "fraction of emitted power")?;
         entry["image_file"] = json!(o.file);
         entry["image_layout"] = json!("[time bin][row][col], row 0 = largest y");
     }
@@ -113,7 +121,7 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
         if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
             let (v, _) = w.array(o)?;
             let labels: Vec<String> = spec.exposures.iter().map(|t| format!("T = {:.3} ms", t * 1e3)).collect();
-            stack_figure(w, o, &v, &labels)?;
+            stack_figure(w, o, &v, &labels, "speckle contrast K")?;
             entry["image_file"] = json!(o.file);
             entry["image_layout"] = json!("[exposure][row][col], row 0 = largest y");
         }
@@ -129,8 +137,8 @@ fn band_curve(label: &str, x: Vec<f64>, v: &[f64], e: &[f64], color: [u8; 3]) ->
 }
 
 /// Up to [`STACK_PANELS`] layers of an image stack `o` (values `v` as written), each with its
-/// colour bar, titled by `labels`.
-fn stack_figure(w: &mut Writer, o: &Output, v: &[f64], labels: &[String]) -> Result<()> {
+/// colour bar in `unit`, titled by `labels`.
+fn stack_figure(w: &mut Writer, o: &Output, v: &[f64], labels: &[String], unit: &str) -> Result<()> {
     let Kind::ImageStack { layers, nx, ny, min, max } = o.kind else { return Ok(()) };
     if !w.figures || layers == 0 {
         return Ok(());
@@ -145,7 +153,7 @@ fn stack_figure(w: &mut Writer, o: &Output, v: &[f64], labels: &[String]) -> Res
         .into_iter()
         .map(|j| {
             let values = &v[j * nx * ny..(j + 1) * nx * ny];
-            image_panel(&layer, values, &labels[j], o.units.split(" (").next().unwrap_or(""), false)
+            image_panel(&layer, values, &labels[j], unit, false)
         })
         .collect();
     w.figure(&stem(o), &ImageFigure { panels })
