@@ -581,6 +581,18 @@ impl Display for Area {
                 let u = unit(LENGTH, 1, scale([center[0], center[1], radius]));
                 write!(f, "disk of radius {} about ({}, {}) {}", u.of(radius), u.num(center[0]), u.num(center[1]), u.0)
             }
+            Area::Annulus { center, inner, outer } => {
+                let u = unit(LENGTH, 1, scale([center[0], center[1], outer]));
+                write!(
+                    f,
+                    "annulus of radii {} to {} about ({}, {}) {}",
+                    u.of(inner),
+                    u.of(outer),
+                    u.num(center[0]),
+                    u.num(center[1]),
+                    u.0
+                )
+            }
             Area::Rect { min, max } => {
                 let u = unit(LENGTH, 1, scale(min.into_iter().chain(max)));
                 write!(

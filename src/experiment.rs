@@ -390,9 +390,10 @@ impl Experiment {
         self.scene.is_moving()
     }
 
-    /// Whether the walk needs the optical path length (a chirp, or range gates).
+    /// Whether the walk needs the optical path length (a chirp, range gates, or a time axis).
     pub fn needs_length(&self) -> bool {
-        self.source.chirp.is_some() || self.detectors.iter().any(|d| d.lidar().is_some())
+        self.source.chirp.is_some()
+            || self.detectors.iter().any(|d| d.lidar().is_some() || d.surface().is_some_and(|s| s.time.is_some()))
     }
 
     /// The detectors scored by next-event estimation.
@@ -685,7 +686,7 @@ impl Experiment {
         if !cameras.is_empty() {
             progress.advance(ppb - reported);
         }
-        layout.finish_batch(&self.detectors, sums.sums_mut());
+        layout.finish_batch(&self.detectors, sums.sums_mut(), ppb as f64);
         (sums, stats, lines)
     }
 }

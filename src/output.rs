@@ -76,6 +76,13 @@ pub enum Kind {
     /// A full spectrum in every pixel of an image: `[y][x][bin]`, its rows ordered as an
     /// [`Kind::Image`]'s.
     PixelSpectra { nx: usize, ny: usize, axis: FrequencyAxis, mirrored: bool },
+    /// A stack of `layers` images over one detector's pixels, `[layer][y][x]` (time gates of a
+    /// TPSF, exposure times of a speckle-contrast map); each layer's rows ordered as an
+    /// [`Kind::Image`]'s.
+    ImageStack { layers: usize, nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
+    /// Values along an axis that is not a frequency (a TPSF's time bins, g1 over the delay τ):
+    /// one row per channel; the writer of its detector writes the axis.
+    Curve,
     /// Range-gate spectra `[gate][bin]` of a lidar receiver, bins in fftshift order.
     RangeDoppler { gates: usize, bins: usize },
     /// Working tallies a detector derives its outputs from (a lidar's lag sums): no file.
@@ -179,6 +186,12 @@ impl Output {
     /// `v` with its image rows reversed (image-like outputs; unchanged otherwise). Its own
     /// inverse.
     fn flip_rows(&self, v: Vec<f64>) -> Vec<f64> {
+        if let Kind::ImageStack { nx, ny, .. } = self.kind {
+            if ny > 1 && v.len() % (nx * ny) == 0 {
+                return v.chunks_exact(nx * ny).flat_map(|layer| rows_reversed(layer, nx)).collect();
+            }
+            return v;
+        }
         match self.image_rows() {
             Some((ny, len)) if ny > 1 && v.len() == ny * len => rows_reversed(&v, len),
             _ => v,

@@ -10,9 +10,9 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 
 use super::units::{
-    Aperture, CameraFrequency, ChirpBandwidth, ChirpDuration, Coefficient, Degrees, Diffusivity, FieldOfView,
+    Aperture, CameraFrequency, ChirpBandwidth, ChirpDuration, Coefficient, Degrees, Delay, Diffusivity, FieldOfView,
     Frequency, Length, Metres, MetresPerSecond, NumberDensity, PulseEnergy, PulseWidth, Quantity, RainRate, SampleRate,
-    SmallAngle, SmallRadius, Speed, Temperature, Viscosity, Wavelength,
+    SmallAngle, SmallRadius, Speed, Temperature, TimeOfFlight, Viscosity, Wavelength,
 };
 
 /// The schema version this build reads.
@@ -564,6 +564,10 @@ pub struct DetectorSection {
     pub estimator: Option<EstimatorKind>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
+    /// A time axis: the temporal point-spread function (and time-gated images).
+    pub time: Option<TimeSection>,
+    /// g1(τ), g2(τ) and the speckle contrast K(T).
+    pub correlation: Option<CorrelationSection>,
     /// A laser Doppler holography camera over the image's pixels.
     pub ldh: Option<LdhSection>,
     /// A pulsed lidar receiver at the source (monostatic), with range gates.
@@ -701,6 +705,15 @@ pub enum AreaSection {
         #[serde(rename = "size_um", alias = "size_mm", alias = "size_m")]
         size: Option<Quantity<Length, [f64; 2]>>,
     },
+    /// A ring (a fibre bundle at a source–detector separation).
+    Annulus {
+        #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+        center: Option<Quantity<Length, [f64; 2]>>,
+        #[serde(rename = "inner_radius_um", alias = "inner_radius_mm", alias = "inner_radius_m")]
+        inner_radius: Option<Quantity<Length>>,
+        #[serde(rename = "outer_radius_um", alias = "outer_radius_mm", alias = "outer_radius_m")]
+        outer_radius: Option<Quantity<Length>>,
+    },
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -713,6 +726,35 @@ pub struct SpectrumSection {
     pub bins: Option<u64>,
     pub by_order: Option<u64>,
     pub by_doppler_events: Option<u64>,
+}
+
+/// `[detectors.time]`: time-of-flight bins over `[t_min, t_max)`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSection {
+    #[serde(rename = "t_min_ns")]
+    pub t_min: Option<Quantity<TimeOfFlight>>,
+    #[serde(rename = "t_max_ns")]
+    pub t_max: Option<Quantity<TimeOfFlight>>,
+    pub bins: Option<u64>,
+    /// Also gate the detector's image by the bins (`[bin, y, x]`).
+    pub image: Option<bool>,
+}
+
+/// `[detectors.correlation]`: delays log-spaced over `[tau_min, tau_max]`, β, exposure times.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CorrelationSection {
+    #[serde(rename = "tau_min_s", alias = "tau_min_ms", alias = "tau_min_us")]
+    pub tau_min: Option<Quantity<Delay>>,
+    #[serde(rename = "tau_max_s", alias = "tau_max_ms", alias = "tau_max_us")]
+    pub tau_max: Option<Quantity<Delay>>,
+    pub points: Option<u64>,
+    pub beta: Option<f64>,
+    #[serde(rename = "exposures_s", alias = "exposures_ms", alias = "exposures_us")]
+    pub exposures: Option<Quantity<Delay, Vec<f64>>>,
+    /// Also per pixel of the image (the speckle contrast map).
+    pub pixels: Option<bool>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

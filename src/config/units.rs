@@ -172,6 +172,10 @@ unit_sets! {
     Degrees: Angle = ["_deg"];
     ChirpDuration: Time = ["_s", "_ms", "_us"];
     PulseWidth: Time = ["_ns", "_us"];
+    /// A detector's time axis (times of flight).
+    TimeOfFlight: Time = ["_ns"];
+    /// Correlation delays and exposure times.
+    Delay: Time = ["_s", "_ms", "_us"];
     /// Frequencies of a detector's spectrum.
     Frequency: Frequency = ["_hz", "_khz", "_mhz", "_ghz"];
     /// Frequencies of a camera (frame rate, band, spectrum).
@@ -389,6 +393,8 @@ mod tests {
         check::<Degrees>();
         check::<ChirpDuration>();
         check::<PulseWidth>();
+        check::<TimeOfFlight>();
+        check::<Delay>();
         check::<Frequency>();
         check::<CameraFrequency>();
         check::<ChirpBandwidth>();

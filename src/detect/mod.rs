@@ -8,13 +8,17 @@
 //! or a lidar receiver's tallies. Each detector declares its named outputs in the
 //! [`crate::output::Registry`] as it lays them out ([`TallyLayout::new`]).
 
+pub mod correlation;
 pub mod ldh;
 pub mod lidar;
+pub mod time;
 
 use glam::DVec3;
 
+pub use correlation::{CorrelationLayout, CorrelationSpec};
 pub use ldh::{Detection, LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
 pub use lidar::{Echo, LidarLayout, LidarSpec};
+pub use time::{TimeLayout, TimeSpec};
 
 use crate::SPEED_OF_LIGHT;
 use crate::output::{Kind, Output, Registry, Slots};
@@ -43,6 +47,14 @@ pub enum Area {
         min: [f64; 2],
         max: [f64; 2],
     },
+    /// The ring `inner ≤ r ≤ outer` about `center`: a fibre ring at a source–detector separation
+    /// (every point at the same distance from a beam at the centre, so a diffuse measurement
+    /// collects all of them at once).
+    Annulus {
+        center: [f64; 2],
+        inner: f64,
+        outer: f64,
+    },
 }
 
 impl Area {
@@ -55,6 +67,11 @@ impl Area {
                 dx * dx + dy * dy <= radius * radius
             }
             Area::Rect { min, max } => min[0] <= x && x < max[0] && min[1] <= y && y < max[1],
+            Area::Annulus { center, inner, outer } => {
+                let (dx, dy) = (x - center[0], y - center[1]);
+                let r2 = dx * dx + dy * dy;
+                inner * inner <= r2 && r2 <= outer * outer
+            }
         }
     }
 
@@ -66,6 +83,9 @@ impl Area {
                 Some(([center[0] - radius, center[1] - radius], [center[0] + radius, center[1] + radius]))
             }
             Area::Rect { min, max } => Some((min, max)),
+            Area::Annulus { center, outer, .. } => {
+                Some(([center[0] - outer, center[1] - outer], [center[0] + outer, center[1] + outer]))
+            }
         }
     }
 }
@@ -128,6 +148,10 @@ pub struct Surface {
     pub include_specular: bool,
     pub spectrum: Option<SpectrumSpec>,
     pub image: Option<ImageSpec>,
+    /// A time axis: the TPSF (and time-gated images) ([`time`]).
+    pub time: Option<TimeSpec>,
+    /// g1, g2 and speckle contrast ([`correlation`]; boxed: read only where asked for).
+    pub correlation: Option<Box<CorrelationSpec>>,
     /// An LDH camera over the image's pixels (boxed: large, and read only by a camera).
     pub ldh: Option<Box<LdhSpec>>,
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
@@ -277,6 +301,13 @@ impl BeatModel {
         std::f64::consts::TAU * b * self.inv_wavelength * self.inv_wavelength
     }
 
+    /// The field correlation's decay rate `Γ = Σ D_k q_k² = (2π/λ0)² b` (s⁻¹) of a path with
+    /// Brownian sum `b`: `2π ×` [`brownian_hwhm`](Self::brownian_hwhm).
+    #[inline(always)]
+    pub fn brownian_rate(&self, b: f64) -> f64 {
+        std::f64::consts::TAU * self.brownian_hwhm(b)
+    }
+
     /// Number of spectra per detector: 1, or 2 (up, down) with a chirp.
     pub fn chirps(&self) -> usize {
         if self.chirp_per_metre.is_some() { 2 } else { 1 }
@@ -315,6 +346,8 @@ pub struct DetectorLayout {
     pub spectra: Option<(usize, usize)>,
     pub channels: usize,
     pub image: Option<usize>,
+    pub time: Option<TimeLayout>,
+    pub correlation: Option<CorrelationLayout>,
     pub ldh: Option<LdhLayout>,
     pub lidar: Option<LidarLayout>,
 }
@@ -342,11 +375,16 @@ impl TallyLayout {
     }
 
     /// Derive a finished batch's non-linear-in-layout outputs from its sums (the lidar gate
-    /// spectra from their lag sums), so that they get batch statistics like everything else.
-    pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64]) {
+    /// spectra from their lag sums, g1, g2 and K from the correlation sums), so that they get
+    /// batch statistics like everything else. `paths`: the batch's paths (the statistics divide
+    /// every tally by it, so a ratio is stored times it).
+    pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64], paths: f64) {
         for (d, lay) in detectors.iter().zip(&self.detectors) {
             if let (Some(spec), Some(ll)) = (d.lidar(), &lay.lidar) {
                 spec.finish_batch(ll, sums);
+            }
+            if let (Some(spec), Some(cl)) = (d.surface().and_then(|s| s.correlation.as_deref()), &lay.correlation) {
+                spec.finish_batch(cl, sums, lay.power, lay.image, paths);
             }
         }
     }
@@ -372,7 +410,16 @@ impl Detector {
                 vec![],
             )
         });
-        let mut lay = DetectorLayout { power, spectra: None, channels: 0, image: None, ldh: None, lidar: None };
+        let mut lay = DetectorLayout {
+            power,
+            spectra: None,
+            channels: 0,
+            image: None,
+            time: None,
+            correlation: None,
+            ldh: None,
+            lidar: None,
+        };
         match &self.kind {
             DetectorKind::Surface(s) => s.declare(i, &self.name, beat, reg, &mut lay),
             DetectorKind::Lidar(l) => lay.lidar = Some(l.declare(i, &self.name, reg)),
@@ -447,6 +494,12 @@ impl Surface {
                 budget_key: Some(im.budget_key(i)),
                 ..detector_output(i, format!("{name}.image"), im.kind(), Slots::contiguous(start, n), im.shape())
             });
+        }
+        if let Some(t) = &self.time {
+            lay.time = Some(t.declare(i, name, self.image.as_ref(), reg));
+        }
+        if let Some(c) = &self.correlation {
+            lay.correlation = Some(c.declare(i, name, self.image.as_ref(), reg));
         }
         if let (Some(ldh), Some(im)) = (&self.ldh, &self.image) {
             lay.ldh = Some(ldh.declare(i, name, im, reg));
@@ -672,6 +725,15 @@ impl Recorder<'_> {
         }
         if let (Some(px), Some(start)) = (pixel, lay.image) {
             self.acc[start + px] += w;
+        }
+        if let (Some(t), Some(tl)) = (&d.time, &lay.time) {
+            t.record(tl, self.acc, w, l, pixel);
+        }
+        if let (Some(c), Some(cl)) = (&d.correlation, &lay.correlation) {
+            // The Doppler frequency alone: a chirp's range term is not a motion of the field.
+            let f = e.dldt * self.beat.inv_wavelength;
+            let rate = if e.brownian > 0.0 { self.beat.brownian_rate(e.brownian) } else { 0.0 };
+            c.record(cl, self.acc, w, f, rate, pixel);
         }
         if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {
             // LDH uses a single-frequency laser (checked when resolving).

@@ -30,6 +30,7 @@ mod sampling;
 mod slab;
 mod speckle;
 mod stiff;
+mod tcorr;
 mod vdb;
 mod vdb_media;
 

@@ -82,6 +82,37 @@ GROUPS = [
         20_000,
     ),
     (
+        "time axis (vdH slab with a spectrum detector)",
+        [
+            ("no time axis", "vdh_spectrum.toml", []),
+            (
+                "TPSF, 100 bins over 0–0.05 ns: feature used",
+                "vdh_spectrum.toml",
+                ["detectors.0.time.t_min_ns=0", "detectors.0.time.t_max_ns=0.05", "detectors.0.time.bins=100"],
+            ),
+        ],
+        2_000_000,
+        100_000,
+    ),
+    (
+        "correlation (DCS semi-infinite, ring at 10 mm)",
+        [
+            ("power only", "dcs_semi_infinite.toml", []),
+            (
+                "g1, g2, K (41 delays, 5 exposures): feature used",
+                "dcs_semi_infinite.toml",
+                [
+                    "detectors.0.correlation.tau_min_s=1e-7",
+                    "detectors.0.correlation.tau_max_s=1e-2",
+                    "detectors.0.correlation.points=41",
+                    "detectors.0.correlation.exposures_s=[1e-6, 1e-5, 1e-4, 1e-3, 1e-2]",
+                ],
+            ),
+        ],
+        1_000_000,
+        50_000,
+    ),
+    (
         "LDH camera (retina scene, 128² pixels)",
         [
             ("M0± images only", "ldh_m0_only.toml", []),

@@ -7,8 +7,8 @@ use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
-    Area, Detector, DetectorKind, Estimator, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side, SpeckleSpec,
-    SpectrumSpec, Surface,
+    Area, CorrelationSpec, Detector, DetectorKind, Estimator, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side,
+    SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -376,6 +376,21 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                 let (min, max) = rectangle(&join(&path, "area"), center, size)?;
                 Area::Rect { min, max }
             }
+            AreaSection::Annulus { center, inner_radius, outer_radius } => {
+                let p = join(&path, "area");
+                let c = given_arr(&p, center)?.map_or([0.0; 2], |c| c.0);
+                let given_inner = require(&p, "inner_radius", inner_radius, "inner radius")?;
+                let inner_key = given_inner.1.rsplit('.').next().unwrap_or("").to_string();
+                let inner_value = given_inner.2;
+                let inner = non_negative(given_inner, "an inner radius")?;
+                let (o, op, ov) = require(&p, "outer_radius", outer_radius, "outer radius")?;
+                if !(o.is_finite() && o > inner) {
+                    let why =
+                        format!("expected an outer radius > the inner radius ({inner_key} = {})", shown(inner_value));
+                    return err(op, format!("= {}: {why}", shown(ov)));
+                }
+                Area::Annulus { center: c, inner, outer: o }
+            }
         };
         let spectrum = match &d.spectrum {
             None => None,
@@ -428,6 +443,14 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                 Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
             }
         };
+        let time = match &d.time {
+            None => None,
+            Some(t) => Some(resolve_time(&join(&path, "time"), t, image.is_some())?),
+        };
+        let correlation = match &d.correlation {
+            None => None,
+            Some(c) => Some(Box::new(resolve_correlation(&join(&path, "correlation"), c, image.is_some())?)),
+        };
         let next_event = d.next_event.unwrap_or(false);
         if next_event && side != Side::Top {
             return err(
@@ -445,6 +468,8 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             include_specular: d.include_specular.unwrap_or(true),
             spectrum,
             image,
+            time,
+            correlation,
             ldh: None,
             next_event,
             estimator,
@@ -464,4 +489,79 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
         out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
     }
     Ok(out)
+}
+
+/// `[detectors.time]`: bins of the time of flight over `[t_min, t_max)`.
+fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
+    let t0 = non_negative(require(p, "t_min", &t.t_min, "the start of the time axis")?, "a time of flight")?;
+    let t1 = require(p, "t_max", &t.t_max, "the end of the time axis")?;
+    let bins = t.bins.unwrap_or(100);
+    if !(1..=1_000_000).contains(&bins) {
+        return err(join(p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
+    }
+    let axis = FrequencyAxis::new(t0, t1.0, bins as usize).ok_or_else(|| {
+        ConfigError::new(t1.1.clone(), format!("= {} ns: expected t_max > t_min ({} ns)", shown(t1.2), t0 * 1e9))
+    })?;
+    let image = t.image.unwrap_or(false);
+    if image && !has_image {
+        return err(
+            join(p, "image"),
+            "= true: a time-gated image needs the detector's image (add [detectors.image] pixels = [nx, ny])",
+        );
+    }
+    Ok(TimeSpec { axis, image })
+}
+
+/// `[detectors.correlation]`: log-spaced delays, β, exposure times.
+fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<CorrelationSpec> {
+    let tau_min = positive(require(p, "tau_min", &c.tau_min, "the shortest delay")?, "a delay")?;
+    let tau_max = require(p, "tau_max", &c.tau_max, "the longest delay")?;
+    if !(tau_max.0.is_finite() && tau_max.0 > tau_min) {
+        return err(
+            tau_max.1,
+            format!("= {}: expected a longest delay > tau_min ({} s)", shown(tau_max.2), shown(tau_min)),
+        );
+    }
+    let points = c.points.unwrap_or(64);
+    if !(2..=10_000).contains(&points) {
+        return err(join(p, "points"), format!("= {points}: expected 2 to 10^4 delays"));
+    }
+    let beta = c.beta.unwrap_or(1.0);
+    if !(beta > 0.0 && beta <= 1.0) {
+        return err(join(p, "beta"), format!("= {}: expected a coherence factor β in (0, 1]", shown(beta)));
+    }
+    let mut exposures = Vec::new();
+    if let Some(q) = &c.exposures {
+        let key = join(p, &q.key);
+        for &v in &q.value {
+            let t = v * q.unit.factor;
+            if !(t > 0.0 && t <= tau_max.0 * (1.0 + 1e-12)) {
+                return err(
+                    key,
+                    format!(
+                        "= {:?}: expected exposure times in (0, tau_max = {} s] (K(T) needs g1 up to T)",
+                        q.value,
+                        shown(tau_max.0)
+                    ),
+                );
+            }
+            exposures.push(t.min(tau_max.0));
+        }
+    }
+    let pixels = c.pixels.unwrap_or(false);
+    if pixels && !has_image {
+        return err(
+            join(p, "pixels"),
+            "= true: per-pixel correlation needs the detector's image (add [detectors.image] pixels = [nx, ny])",
+        );
+    }
+    if pixels && exposures.is_empty() {
+        return err(join(p, "pixels"), "= true: per pixel only the speckle contrast is written: give exposures_ms");
+    }
+    Ok(CorrelationSpec {
+        tau: crate::detect::correlation::log_spaced(tau_min, tau_max.0, points as usize),
+        beta,
+        exposures,
+        pixels,
+    })
 }

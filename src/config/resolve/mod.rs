@@ -169,6 +169,8 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
                 ("estimator", d.estimator.is_some()),
                 ("spectrum", d.spectrum.is_some()),
                 ("image", d.image.is_some()),
+                ("time", d.time.is_some()),
+                ("correlation", d.correlation.is_some()),
                 ("ldh", d.ldh.is_some()),
             ];
             if let Some((key, _)) = given.iter().find(|g| g.1) {

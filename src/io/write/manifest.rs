@@ -147,6 +147,12 @@ pub struct DetectorEntry {
     pub fmcw: Option<Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image: Option<ImageEntry>,
+    /// The time axis of the TPSF ([`super::tcorr::write_time`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<Value>,
+    /// The delays, β and exposure times of g1, g2 and K ([`super::tcorr::write_correlation`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub correlation: Option<Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ldh: Option<Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -303,6 +309,8 @@ fn write_run_to<S: super::Sink>(
             spectrum: None,
             fmcw: None,
             image: None,
+            time: None,
+            correlation: None,
             ldh: None,
             lidar: None,
         };
@@ -331,6 +339,12 @@ fn write_run_to<S: super::Sink>(
                         layout: IMAGE_LAYOUT,
                         units: "fraction of emitted power per pixel",
                     });
+                }
+                if let Some(t) = &s.time {
+                    info.time = Some(super::tcorr::write_time(&mut w, &d.name, t, &mut de)?);
+                }
+                if let Some(c) = &s.correlation {
+                    info.correlation = Some(super::tcorr::write_correlation(&mut w, &d.name, c)?);
                 }
                 if let (Some(spec), Some(im)) = (&s.ldh, &s.image) {
                     info.ldh = Some(super::ldh::write_ldh(

@@ -14,6 +14,7 @@ pub mod lidar;
 pub mod manifest;
 pub mod memory;
 pub mod scan;
+pub mod tcorr;
 
 use std::collections::{BTreeMap, BTreeSet};
 
