@@ -5,6 +5,7 @@
 //! statistics in batch order, so the output does not depend on the number of threads.
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
+use crate::detect::volume::{VolumeGrid, VolumeTally};
 use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
@@ -72,6 +73,8 @@ pub struct Experiment {
     /// Analytic values of named outputs (`[reference]`), for `ohd converge`, in the tally's
     /// convention.
     pub references: Vec<(String, Vec<f64>)>,
+    /// The voxel grid of `[volume]` (`None`: no volume tally; the walk is compiled without it).
+    pub volume: Option<VolumeGrid>,
 }
 
 /// A stopping rule for [`Experiment::run_until`]: run whole rounds of the configured batches
@@ -369,7 +372,12 @@ impl Experiment {
     }
 
     pub fn tally_layout(&self) -> TallyLayout {
-        TallyLayout::new(&self.detectors, &self.beat_model())
+        let mut layout = TallyLayout::new(&self.detectors, &self.beat_model());
+        // After every detector's block: a volume tally moves no other output.
+        if let Some(v) = &self.volume {
+            v.declare(&mut layout.registry);
+        }
+        layout
     }
 
     /// Whether the walk needs the Doppler term (something moves).
@@ -619,23 +627,26 @@ impl Experiment {
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
         };
-        let walk =
-            WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee, shot: None };
+        let volume = self.volume.as_ref().map(|grid| VolumeTally { grid, slots: VolumeGrid::slots(&layout.registry) });
+        let walk = WalkContext {
+            scene: &self.scene,
+            source: &self.source,
+            settings: &self.plan.walk,
+            nee: &nee,
+            shot: None,
+            volume,
+        };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;
         let cameras = self.camera_targets();
         // Progress counts forward paths; with camera paths, which cost the most, it follows them.
         let forward_progress = cameras.is_empty();
-        for i in 0..ppb {
-            let mut rng = key.path(i);
-            if nee.is_empty() {
-                trace_path::<DOPPLER, LENGTH, false>(&walk, &mut rec, &mut rng);
-            } else {
-                trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
-            }
-            if forward_progress && (i + 1) % PROGRESS_EVERY == 0 {
-                progress.advance(PROGRESS_EVERY);
-            }
+        // One branch per batch on the volume tally, so that the walk without it runs the loop
+        // it ran before there was one.
+        if volume.is_some() {
+            forward_paths::<DOPPLER, LENGTH, true>(&walk, &mut rec, &key, ppb, forward_progress, progress);
+        } else {
+            forward_paths::<DOPPLER, LENGTH, false>(&walk, &mut rec, &key, ppb, forward_progress, progress);
         }
         if forward_progress {
             progress.advance(ppb % PROGRESS_EVERY);
@@ -666,5 +677,29 @@ impl Experiment {
         }
         layout.finish_batch(&self.detectors, sums.sums_mut());
         (sums, stats, lines)
+    }
+}
+
+/// The forward paths of a batch (`ppb` of them from `key`), with the volume tally (`VOLUME`) or
+/// without.
+#[inline(always)]
+fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool>(
+    walk: &WalkContext,
+    rec: &mut Recorder,
+    key: &StreamKey,
+    ppb: u64,
+    forward_progress: bool,
+    progress: &dyn Progress,
+) {
+    for i in 0..ppb {
+        let mut rng = key.path(i);
+        if walk.nee.is_empty() {
+            trace_path::<DOPPLER, LENGTH, false, VOLUME>(walk, rec, &mut rng);
+        } else {
+            trace_path::<DOPPLER, LENGTH, true, VOLUME>(walk, rec, &mut rng);
+        }
+        if forward_progress && (i + 1) % PROGRESS_EVERY == 0 {
+            progress.advance(PROGRESS_EVERY);
+        }
     }
 }

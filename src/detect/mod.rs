@@ -10,6 +10,7 @@
 
 pub mod ldh;
 pub mod lidar;
+pub mod volume;
 
 use glam::DVec3;
 

@@ -8,10 +8,12 @@
 //! packets without bias. Narrow-aperture detectors (lidar) will want next-event estimation later.
 //!
 //! The walk is compiled per scene kind: `DOPPLER = false` drops every velocity lookup (nothing
-//! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates).
+//! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates),
+//! `VOLUME = false` drops the volume tally's hooks (no `[volume]`).
 
 use glam::DVec3;
 
+use crate::detect::volume::VolumeTally;
 use crate::detect::{Escape, Recorder, Scalar, Shot, Side};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
@@ -49,7 +51,8 @@ impl Default for WalkSettings {
 /// What every path of a run walks through: the scene, the source, the walk's knobs and the
 /// detectors scored by next-event estimation (empty: none; the walk is then compiled without
 /// shadow rays, `NEE = false`). A camera path ([`trace_camera_path`]) also carries its pixel
-/// (`shot`; `None` for forward paths).
+/// (`shot`; `None` for forward paths). `volume`: the voxel grid forward paths score into
+/// (`[volume]`; read only by the walk compiled with `VOLUME = true`).
 #[derive(Debug, Clone, Copy)]
 pub struct WalkContext<'a> {
     pub scene: &'a Scene,
@@ -57,6 +60,7 @@ pub struct WalkContext<'a> {
     pub settings: &'a WalkSettings,
     pub nee: &'a [NeeTarget],
     pub shot: Option<Shot>,
+    pub volume: Option<VolumeTally<'a>>,
 }
 
 /// A real collision as the event loop hands it to [`collide`]: the medium collided in, its albedo
@@ -189,7 +193,7 @@ enum End {
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
+pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const VOLUME: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     rng: &mut PathRng,
@@ -232,7 +236,8 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk::<DOPPLER, LENGTH, NEE, false>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end =
+        walk::<DOPPLER, LENGTH, NEE, false, VOLUME>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
@@ -305,7 +310,8 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     };
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end = walk::<DOPPLER, LENGTH, false, true>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end =
+        walk::<DOPPLER, LENGTH, false, true, false>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
     *rng = local;
     rec.stats.work.camera_events += u64::from(s.order) + u64::from(end == End::Absorbed) + null_collisions;
     if end == End::Truncated {
@@ -322,8 +328,13 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
 /// once, the inner one runs once per event. In a layer without regions the free flight is
 /// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
 /// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
+///
+/// With `VOLUME` every straight piece of the path inside the stack (to a collision, to an
+/// interface, to depth) is scored into the volume tally's track lengths with the weight it is
+/// flown with, and every real collision's deposit and collision estimate before the collision
+/// is handled ([`VolumeTally`]).
 #[inline(always)]
-fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool>(
+fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool, const VOLUME: bool>(
     ctx: &WalkContext,
     s: &mut PathState,
     rng: &mut PathRng,
@@ -385,6 +396,11 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
                     Flight::Boundary { .. } => break,
                 }
             };
+            if VOLUME && let Some(v) = ctx.volume {
+                let p = s.pos + t * s.dir;
+                v.track(rec.acc, s.pos, s.dir, t, s.weight);
+                v.collision(rec.acc, p, s.weight, albedo, medium.sigma_t_at(p));
+            }
             if CAMERA {
                 s.pos += t * s.dir;
                 if LENGTH {
@@ -429,6 +445,11 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
         let down = s.dir.z > 0.0;
         let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
         let t_boundary = (plane - s.pos.z) / s.dir.z;
+        if VOLUME && let Some(v) = ctx.volume {
+            // To depth (t = ∞) the track is clipped to the grid's box.
+            let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
+            v.track(rec.acc, s.pos, s.dir, len, s.weight);
+        }
         if !t_boundary.is_finite() {
             // Only a semi-infinite last layer lets a path go to depth; an overflow towards a
             // finite plane (|dir.z| of order 1e-308) is a ray that never arrives.

@@ -32,6 +32,7 @@ mod speckle;
 mod stiff;
 mod vdb;
 mod vdb_media;
+mod volume;
 
 /// Every `.rs` file here is a module of this binary: a file not named above would compile into
 /// nothing and its tests would silently not run.

@@ -15,6 +15,7 @@ mod media;
 mod run;
 mod scene;
 mod source;
+mod volume;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -30,6 +31,7 @@ use self::detectors::{resolve_detectors, resolve_lidar};
 use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
+use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
 use crate::detect::DetectorKind;
@@ -195,6 +197,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         detectors,
         plan,
         references: Vec::new(),
+        volume: resolve_volume(f.volume.as_ref())?,
     };
     check_speckle_memory(&exp, &ctx.memory)?;
     check_memory(&exp, &ctx.memory)?;

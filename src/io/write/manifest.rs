@@ -70,6 +70,9 @@ pub struct Manifest {
     /// Per main image output: the median and 90th percentile of its per-pixel relative errors,
     /// and the file of the map.
     pub pixel_errors: BTreeMap<String, super::PixelErrorEntry>,
+    /// The volume tally's grid and files (`[volume]`; absent without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<super::volume::VolumeEntry>,
     /// Every file written, in order.
     pub files: Vec<String>,
     /// What the run could not get right ([`crate::post::warnings`]), `[]` when nothing.
@@ -318,6 +321,10 @@ pub fn write_run_with(
         det_estimates.insert(d.name.clone(), Entry::Group(de));
         det_info.insert(d.name.clone(), info);
     }
+    let volume = match &exp.volume {
+        Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
+        None => None,
+    };
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
     drop(w);
     let files = writer.written().to_vec();
@@ -388,6 +395,7 @@ pub fn write_run_with(
         estimates,
         detectors: det_info,
         pixel_errors,
+        volume,
         files,
         warnings: crate::post::warnings(exp, out),
     };

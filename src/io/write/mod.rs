@@ -13,6 +13,7 @@ pub mod ldh;
 pub mod lidar;
 pub mod manifest;
 pub mod scan;
+pub mod volume;
 
 use std::collections::{BTreeMap, BTreeSet};
 
