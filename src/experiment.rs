@@ -387,7 +387,9 @@ impl Experiment {
 
     /// Whether the walk needs the optical path length (a chirp, or range gates).
     pub fn needs_length(&self) -> bool {
-        self.source.chirp.is_some() || self.detectors.iter().any(|d| d.lidar().is_some())
+        self.source.chirp.is_some()
+            || self.detectors.iter().any(|d| d.lidar().is_some())
+            || self.plan.walk.gate.is_some()
     }
 
     /// The detectors scored by next-event estimation.
@@ -641,12 +643,22 @@ impl Experiment {
         let cameras = self.camera_targets();
         // Progress counts forward paths; with camera paths, which cost the most, it follows them.
         let forward_progress = cameras.is_empty();
-        // One branch per batch on the volume tally, so that the walk without it runs the loop
-        // it ran before there was one.
-        if volume.is_some() {
-            forward_paths::<DOPPLER, LENGTH, true>(&walk, &mut rec, &key, ppb, forward_progress, progress);
-        } else {
-            forward_paths::<DOPPLER, LENGTH, false>(&walk, &mut rec, &key, ppb, forward_progress, progress);
+        // One branch per batch on the volume tally and the time gate, so that the walk without
+        // them runs the loop it ran before there were any.
+        let gate = LENGTH && self.plan.walk.gate.is_some();
+        match (volume.is_some(), gate) {
+            (false, false) => {
+                forward_paths::<DOPPLER, LENGTH, false, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
+            (true, false) => {
+                forward_paths::<DOPPLER, LENGTH, true, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
+            (false, true) => {
+                forward_paths::<DOPPLER, LENGTH, false, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
+            (true, true) => {
+                forward_paths::<DOPPLER, LENGTH, true, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
         }
         if forward_progress {
             progress.advance(ppb % PROGRESS_EVERY);
@@ -681,9 +693,9 @@ impl Experiment {
 }
 
 /// The forward paths of a batch (`ppb` of them from `key`), with the volume tally (`VOLUME`) or
-/// without.
+/// without, with the time gate (`GATE`, only where `LENGTH`) or without.
 #[inline(always)]
-fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool>(
+fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
     walk: &WalkContext,
     rec: &mut Recorder,
     key: &StreamKey,
@@ -694,9 +706,9 @@ fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool>(
     for i in 0..ppb {
         let mut rng = key.path(i);
         if walk.nee.is_empty() {
-            trace_path::<DOPPLER, LENGTH, false, VOLUME>(walk, rec, &mut rng);
+            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE>(walk, rec, &mut rng);
         } else {
-            trace_path::<DOPPLER, LENGTH, true, VOLUME>(walk, rec, &mut rng);
+            trace_path::<DOPPLER, LENGTH, true, VOLUME, GATE>(walk, rec, &mut rng);
         }
         if forward_progress && (i + 1) % PROGRESS_EVERY == 0 {
             progress.advance(PROGRESS_EVERY);

@@ -166,6 +166,10 @@ pub struct RunSection {
     pub max_scattering_events: Option<u64>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
+    /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
+    /// / c from the emission point).
+    #[serde(rename = "time_gate_ns", alias = "time_gate_us")]
+    pub time_gate: Option<Quantity<PulseWidth, [f64; 2]>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -9,7 +9,8 @@
 //!
 //! The walk is compiled per scene kind: `DOPPLER = false` drops every velocity lookup (nothing
 //! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates),
-//! `VOLUME = false` drops the volume tally's hooks (no `[volume]`).
+//! `VOLUME = false` drops the volume tally's hooks (no `[volume]`), `GATE = false` the time gate's
+//! checks (no `run.time_gate_ns`; a gated walk also tracks the length).
 
 use glam::DVec3;
 
@@ -35,6 +36,10 @@ pub struct WalkSettings {
     pub roulette_survival: f64,
     /// Hard cap on real collisions per path (counted as truncated when reached).
     pub max_events: u32,
+    /// The time gate `run.time_gate_ns` as optical path lengths `[l0, l1]` (m; time of flight =
+    /// `l/c` from the emission point), `None`: no gate. Forward paths record only what happens
+    /// within it (escapes, deposits) and end at `l1` (as MCX); read only by walks that track `l`.
+    pub gate: Option<(f64, f64)>,
 }
 
 impl Default for WalkSettings {
@@ -44,6 +49,7 @@ impl Default for WalkSettings {
             roulette_threshold: 1e-4,
             roulette_survival: 0.1,
             max_events: 1_000_000,
+            gate: None,
         }
     }
 }
@@ -182,6 +188,8 @@ enum End {
     Absorbed,
     /// Lost the Russian roulette.
     Roulette,
+    /// Reached the end of the time gate (`WalkSettings::gate`): nothing after it is recorded.
+    Gated,
     /// Hit the event cap, runs parallel to the layers in a transparent semi-infinite layer, or
     /// is trapped by total internal reflection ([`MAX_REFLECTIONS_WITHOUT_COLLISION`]).
     Truncated,
@@ -193,7 +201,7 @@ enum End {
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const VOLUME: bool>(
+pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const VOLUME: bool, const GATE: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     rng: &mut PathRng,
@@ -220,7 +228,9 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, cons
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
     if r_sp > 0.0 {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
-        rec.escape(Side::Top, reflected.escape(true), scene.n_above);
+        if in_gate::<GATE>(ctx.settings, s.l) {
+            rec.escape(Side::Top, reflected.escape(true), scene.n_above);
+        }
         s.weight = 1.0 - r_sp;
         if s.weight <= 0.0 {
             return;
@@ -236,22 +246,34 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, cons
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end =
-        walk::<DOPPLER, LENGTH, NEE, false, VOLUME>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE>(
+        ctx,
+        &mut s,
+        &mut local,
+        &mut absorbed,
+        &mut null_collisions,
+        rec,
+    );
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
     rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
     match end {
-        End::Escaped { side, n_ambient } => rec.escape(side, s.escape(false), n_ambient),
+        End::Escaped { side, n_ambient } => {
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                rec.escape(side, s.escape(false), n_ambient);
+            }
+        }
+        // Depth is reached at t = ∞: beyond any gate.
+        End::ToDepth if GATE => {}
         End::ToDepth => {
             rec.add(Scalar::TransmittanceTotal, s.weight);
             if s.order == 0 {
                 rec.add(Scalar::TransmittanceUnscattered, s.weight);
             }
         }
-        End::Absorbed => {}
+        End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         End::Truncated => rec.stats.truncated_paths += 1,
     }
@@ -310,8 +332,14 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     };
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end =
-        walk::<DOPPLER, LENGTH, false, true, false>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, false, true, false, false>(
+        &ctx,
+        &mut s,
+        &mut local,
+        &mut absorbed,
+        &mut null_collisions,
+        rec,
+    );
     *rng = local;
     rec.stats.work.camera_events += u64::from(s.order) + u64::from(end == End::Absorbed) + null_collisions;
     if end == End::Truncated {
@@ -334,7 +362,14 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
 /// flown with, and every real collision's deposit and collision estimate before the collision
 /// is handled ([`VolumeTally`]).
 #[inline(always)]
-fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool, const VOLUME: bool>(
+fn walk<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const CAMERA: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+>(
     ctx: &WalkContext,
     s: &mut PathState,
     rng: &mut PathRng,
@@ -396,6 +431,17 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
                     Flight::Boundary { .. } => break,
                 }
             };
+            if GATE && let Some((l0, l1)) = settings.gate {
+                // The collision happens at `l`: after the gate the path ends unrecorded; before
+                // it the deposit `absorb` will add is taken back out of the absorbed weight.
+                let l = s.l + n * t;
+                if l > l1 {
+                    return End::Gated;
+                }
+                if l < l0 {
+                    *absorbed -= s.weight * (1.0 - albedo);
+                }
+            }
             if VOLUME && let Some(v) = ctx.volume {
                 let p = s.pos + t * s.dir;
                 v.track(rec.acc, s.pos, s.dir, t, s.weight);
@@ -445,6 +491,12 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
         let down = s.dir.z > 0.0;
         let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
         let t_boundary = (plane - s.pos.z) / s.dir.z;
+        if GATE
+            && let Some((_, l1)) = settings.gate
+            && s.l + n * t_boundary > l1
+        {
+            return End::Gated;
+        }
         if VOLUME && let Some(v) = ctx.volume {
             // To depth (t = ∞) the track is clipped to the grid's box.
             let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
@@ -765,6 +817,16 @@ fn connection_roulette(scene: &Scene, li: usize, s: &PathState, rng: &mut PathRn
         1.0 / q
     } else {
         0.0
+    }
+}
+
+/// Whether a path recorded at optical path length `l` is inside the time gate (always in walks
+/// compiled without one, `GATE = false`).
+#[inline(always)]
+fn in_gate<const GATE: bool>(settings: &WalkSettings, l: f64) -> bool {
+    match settings.gate {
+        Some((l0, l1)) if GATE => l0 <= l && l <= l1,
+        _ => true,
     }
 }
 

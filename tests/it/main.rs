@@ -30,6 +30,7 @@ mod sampling;
 mod slab;
 mod speckle;
 mod stiff;
+mod time_gate;
 mod vdb;
 mod vdb_media;
 mod volume;

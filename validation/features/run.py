@@ -100,6 +100,15 @@ GROUPS = [
         2_000_000,
         100_000,
     ),
+    (
+        "time gate (vdH slab)",
+        [
+            ("no gate", "vdh_plain.toml", []),
+            ("run.time_gate_ns = [0, 1e6] (path length tracked): feature used", "vdh_plain.toml", ["run.time_gate_ns=[0, 1e6]"]),
+        ],
+        2_000_000,
+        100_000,
+    ),
 ]
 
 BARE_PHOTONS = 2_000_000

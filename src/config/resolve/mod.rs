@@ -34,7 +34,7 @@ use self::source::resolve_source;
 use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
-use crate::detect::DetectorKind;
+use crate::detect::{DetectorKind, Estimator};
 use crate::error::ConfigError;
 use crate::experiment::Experiment;
 use crate::medium::grid::VoxelGrid;
@@ -188,6 +188,14 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         return err(
             format!("detectors[{i}].ldh"),
             "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
+        );
+    }
+    if plan.walk.gate.is_some()
+        && let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.estimator != Estimator::Forward))
+    {
+        return err(
+            format!("detectors[{i}].estimator"),
+            "a time gate (run.time_gate_ns) applies to the paths from the laser: use estimator = \"forward\"",
         );
     }
     let mut exp = Experiment {
