@@ -5,6 +5,7 @@
 //! statistics in batch order, so the output does not depend on the number of threads.
 //! The random walk is compiled once per scene kind (moving or not, path length needed or not).
 
+use crate::detect::volume::{VolumeGrid, VolumeTally};
 use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
 use crate::error::Result;
 use crate::medium::Scene;
@@ -72,6 +73,8 @@ pub struct Experiment {
     /// Analytic values of named outputs (`[reference]`), for `ohd converge`, in the tally's
     /// convention.
     pub references: Vec<(String, Vec<f64>)>,
+    /// The voxel grid of `[volume]` (`None`: no volume tally; the walk is compiled without it).
+    pub volume: Option<VolumeGrid>,
 }
 
 /// A stopping rule for [`Experiment::run_until`]: run whole rounds of the configured batches
@@ -382,7 +385,12 @@ impl Experiment {
     }
 
     pub fn tally_layout(&self) -> TallyLayout {
-        TallyLayout::new(&self.detectors, &self.beat_model())
+        let mut layout = TallyLayout::new(&self.detectors, &self.beat_model());
+        // After every detector's block: a volume tally moves no other output.
+        if let Some(v) = &self.volume {
+            v.declare(&mut layout.registry);
+        }
+        layout
     }
 
     /// Whether the walk needs the Doppler term (something moves).
@@ -394,6 +402,7 @@ impl Experiment {
     pub fn needs_length(&self) -> bool {
         self.source.chirp.is_some()
             || self.detectors.iter().any(|d| d.lidar().is_some() || d.surface().is_some_and(|s| s.time.is_some()))
+            || self.plan.walk.gate.is_some()
     }
 
     /// The detectors scored by next-event estimation.
@@ -633,28 +642,39 @@ impl Experiment {
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
         };
-        let walk =
-            WalkContext { scene: &self.scene, source: &self.source, settings: &self.plan.walk, nee: &nee, shot: None };
+        let volume = self.volume.as_ref().map(|grid| VolumeTally { grid, slots: VolumeGrid::slots(&layout.registry) });
+        let walk = WalkContext {
+            scene: &self.scene,
+            source: &self.source,
+            settings: &self.plan.walk,
+            nee: &nee,
+            shot: None,
+            volume,
+        };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;
         let cameras = self.camera_targets();
         // Progress counts forward paths; with camera paths, which cost the most, it follows them.
         let forward_progress = cameras.is_empty();
-        for i in 0..ppb {
-            let mut rng = key.path(i);
-            if nee.is_empty() {
-                trace_path::<DOPPLER, LENGTH, false>(&walk, &mut rec, &mut rng);
-            } else {
-                trace_path::<DOPPLER, LENGTH, true>(&walk, &mut rec, &mut rng);
+        // One branch per batch on the volume tally and the time gate, so that the walk without
+        // them runs the loop it ran before there were any.
+        let gate = LENGTH && self.plan.walk.gate.is_some();
+        let cancelled = match (volume.is_some(), gate) {
+            (false, false) => {
+                forward_paths::<DOPPLER, LENGTH, false, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
             }
-            if (i + 1) % PROGRESS_EVERY == 0 {
-                if forward_progress {
-                    progress.advance(PROGRESS_EVERY);
-                }
-                if progress.cancelled() {
-                    return (sums, stats, lines);
-                }
+            (true, false) => {
+                forward_paths::<DOPPLER, LENGTH, true, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
             }
+            (false, true) => {
+                forward_paths::<DOPPLER, LENGTH, false, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
+            (true, true) => {
+                forward_paths::<DOPPLER, LENGTH, true, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
+            }
+        };
+        if cancelled {
+            return (sums, stats, lines);
         }
         if forward_progress {
             progress.advance(ppb % PROGRESS_EVERY);
@@ -689,4 +709,35 @@ impl Experiment {
         layout.finish_batch(&self.detectors, sums.sums_mut(), ppb as f64);
         (sums, stats, lines)
     }
+}
+
+/// The forward paths of a batch (`ppb` of them from `key`), with the volume tally (`VOLUME`) or
+/// without, with the time gate (`GATE`, only where `LENGTH`) or without. Returns whether the
+/// caller cancelled the run ([`Progress::cancelled`]), checked every [`PROGRESS_EVERY`] paths.
+#[inline(always)]
+fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
+    walk: &WalkContext,
+    rec: &mut Recorder,
+    key: &StreamKey,
+    ppb: u64,
+    forward_progress: bool,
+    progress: &dyn Progress,
+) -> bool {
+    for i in 0..ppb {
+        let mut rng = key.path(i);
+        if walk.nee.is_empty() {
+            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE>(walk, rec, &mut rng);
+        } else {
+            trace_path::<DOPPLER, LENGTH, true, VOLUME, GATE>(walk, rec, &mut rng);
+        }
+        if (i + 1) % PROGRESS_EVERY == 0 {
+            if forward_progress {
+                progress.advance(PROGRESS_EVERY);
+            }
+            if progress.cancelled() {
+                return true;
+            }
+        }
+    }
+    false
 }

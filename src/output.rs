@@ -85,6 +85,9 @@ pub enum Kind {
     Curve,
     /// Range-gate spectra `[gate][bin]` of a lidar receiver, bins in fftshift order.
     RangeDoppler { gates: usize, bins: usize },
+    /// A voxel grid over the box `[min, max]` (m), `voxels = [nx, ny, nz]`, written `[nz, ny, nx]`
+    /// as tallied ([`crate::detect::volume::VOLUME_LAYOUT`]).
+    Volume { voxels: [usize; 3], min: [f64; 3], max: [f64; 3] },
     /// Working tallies a detector derives its outputs from (a lidar's lag sums): no file.
     Internal,
 }

@@ -44,6 +44,29 @@ pub struct ExperimentFile {
     /// `"camera.spectrum" = [...]`) that `ohd converge` measures errors against.
     #[serde(default)]
     pub reference: BTreeMap<String, ReferenceValue>,
+    /// A voxel grid scoring absorbed power and fluence inside the scene.
+    pub volume: Option<VolumeSection>,
+}
+
+/// `[volume]`: a box of the scene (`z` = depth) cut into `voxels = [nx, ny, nz]` voxels.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeSection {
+    #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+    pub center: Option<Quantity<Length, [f64; 3]>>,
+    #[serde(rename = "size_um", alias = "size_mm", alias = "size_m")]
+    pub size: Option<Quantity<Length, [f64; 3]>>,
+    pub voxels: Option<[i64; 3]>,
+    /// The fluence estimator(s): `"track_length"` (default), `"collision"` or `"both"`.
+    pub fluence: Option<FluenceKind>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FluenceKind {
+    TrackLength,
+    Collision,
+    Both,
 }
 
 /// A `[reference]` value: a number for a scalar output, an array for a spectrum or image
@@ -143,6 +166,10 @@ pub struct RunSection {
     pub max_scattering_events: Option<u64>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
+    /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
+    /// / c from the emission point).
+    #[serde(rename = "time_gate_ns", alias = "time_gate_us")]
+    pub time_gate: Option<Quantity<PulseWidth, [f64; 2]>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -12,6 +12,7 @@ pub mod correlation;
 pub mod ldh;
 pub mod lidar;
 pub mod time;
+pub mod volume;
 
 use glam::DVec3;
 

@@ -8,10 +8,13 @@
 //! packets without bias. Narrow-aperture detectors (lidar) will want next-event estimation later.
 //!
 //! The walk is compiled per scene kind: `DOPPLER = false` drops every velocity lookup (nothing
-//! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates).
+//! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates),
+//! `VOLUME = false` drops the volume tally's hooks (no `[volume]`), `GATE = false` the time gate's
+//! checks (no `run.time_gate_ns`; a gated walk also tracks the length).
 
 use glam::DVec3;
 
+use crate::detect::volume::VolumeTally;
 use crate::detect::{Escape, Recorder, Scalar, Shot, Side};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
@@ -33,6 +36,10 @@ pub struct WalkSettings {
     pub roulette_survival: f64,
     /// Hard cap on real collisions per path (counted as truncated when reached).
     pub max_events: u32,
+    /// The time gate `run.time_gate_ns` as optical path lengths `[l0, l1]` (m; time of flight =
+    /// `l/c` from the emission point), `None`: no gate. Forward paths record only what happens
+    /// within it (escapes, deposits) and end at `l1` (as MCX); read only by walks that track `l`.
+    pub gate: Option<(f64, f64)>,
 }
 
 impl Default for WalkSettings {
@@ -42,6 +49,7 @@ impl Default for WalkSettings {
             roulette_threshold: 1e-4,
             roulette_survival: 0.1,
             max_events: 1_000_000,
+            gate: None,
         }
     }
 }
@@ -49,7 +57,8 @@ impl Default for WalkSettings {
 /// What every path of a run walks through: the scene, the source, the walk's knobs and the
 /// detectors scored by next-event estimation (empty: none; the walk is then compiled without
 /// shadow rays, `NEE = false`). A camera path ([`trace_camera_path`]) also carries its pixel
-/// (`shot`; `None` for forward paths).
+/// (`shot`; `None` for forward paths). `volume`: the voxel grid forward paths score into
+/// (`[volume]`; read only by the walk compiled with `VOLUME = true`).
 #[derive(Debug, Clone, Copy)]
 pub struct WalkContext<'a> {
     pub scene: &'a Scene,
@@ -57,6 +66,7 @@ pub struct WalkContext<'a> {
     pub settings: &'a WalkSettings,
     pub nee: &'a [NeeTarget],
     pub shot: Option<Shot>,
+    pub volume: Option<VolumeTally<'a>>,
 }
 
 /// A real collision as the event loop hands it to [`collide`]: the medium collided in, its albedo
@@ -178,6 +188,8 @@ enum End {
     Absorbed,
     /// Lost the Russian roulette.
     Roulette,
+    /// Reached the end of the time gate (`WalkSettings::gate`): nothing after it is recorded.
+    Gated,
     /// Hit the event cap, runs parallel to the layers in a transparent semi-infinite layer, or
     /// is trapped by total internal reflection ([`MAX_REFLECTIONS_WITHOUT_COLLISION`]).
     Truncated,
@@ -189,7 +201,7 @@ enum End {
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
+pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const VOLUME: bool, const GATE: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     rng: &mut PathRng,
@@ -216,7 +228,9 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
     if r_sp > 0.0 {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
-        rec.escape(Side::Top, reflected.escape(true), scene.n_above);
+        if in_gate::<GATE>(ctx.settings, s.l) {
+            rec.escape(Side::Top, reflected.escape(true), scene.n_above);
+        }
         s.weight = 1.0 - r_sp;
         if s.weight <= 0.0 {
             return;
@@ -232,21 +246,34 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk::<DOPPLER, LENGTH, NEE, false>(ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE>(
+        ctx,
+        &mut s,
+        &mut local,
+        &mut absorbed,
+        &mut null_collisions,
+        rec,
+    );
     *rng = local;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
     rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
     match end {
-        End::Escaped { side, n_ambient } => rec.escape(side, s.escape(false), n_ambient),
+        End::Escaped { side, n_ambient } => {
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                rec.escape(side, s.escape(false), n_ambient);
+            }
+        }
+        // Depth is reached at t = ∞: beyond any gate.
+        End::ToDepth if GATE => {}
         End::ToDepth => {
             rec.add(Scalar::TransmittanceTotal, s.weight);
             if s.order == 0 {
                 rec.add(Scalar::TransmittanceUnscattered, s.weight);
             }
         }
-        End::Absorbed => {}
+        End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         End::Truncated => rec.stats.truncated_paths += 1,
     }
@@ -305,7 +332,14 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     };
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end = walk::<DOPPLER, LENGTH, false, true>(&ctx, &mut s, &mut local, &mut absorbed, &mut null_collisions, rec);
+    let end = walk::<DOPPLER, LENGTH, false, true, false, false>(
+        &ctx,
+        &mut s,
+        &mut local,
+        &mut absorbed,
+        &mut null_collisions,
+        rec,
+    );
     *rng = local;
     rec.stats.work.camera_events += u64::from(s.order) + u64::from(end == End::Absorbed) + null_collisions;
     if end == End::Truncated {
@@ -322,8 +356,20 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
 /// once, the inner one runs once per event. In a layer without regions the free flight is
 /// sampled right here, so the collision's medium is the hoisted one (no index, no bounds
 /// check, no [`Flight`] value in between); layers with regions go through [`free_flight`].
+///
+/// With `VOLUME` every straight piece of the path inside the stack (to a collision, to an
+/// interface, to depth) is scored into the volume tally's track lengths with the weight it is
+/// flown with, and every real collision's deposit and collision estimate before the collision
+/// is handled ([`VolumeTally`]).
 #[inline(always)]
-fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool>(
+fn walk<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const CAMERA: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+>(
     ctx: &WalkContext,
     s: &mut PathState,
     rng: &mut PathRng,
@@ -385,6 +431,22 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
                     Flight::Boundary { .. } => break,
                 }
             };
+            if GATE && let Some((l0, l1)) = settings.gate {
+                // The collision happens at `l`: after the gate the path ends unrecorded; before
+                // it the deposit `absorb` will add is taken back out of the absorbed weight.
+                let l = s.l + n * t;
+                if l > l1 {
+                    return End::Gated;
+                }
+                if l < l0 {
+                    *absorbed -= s.weight * (1.0 - albedo);
+                }
+            }
+            if VOLUME && let Some(v) = ctx.volume {
+                let p = s.pos + t * s.dir;
+                v.track(rec.acc, s.pos, s.dir, t, s.weight);
+                v.collision(rec.acc, p, s.weight, albedo, medium.sigma_t_at(p));
+            }
             if CAMERA {
                 s.pos += t * s.dir;
                 if LENGTH {
@@ -429,6 +491,17 @@ fn walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: 
         let down = s.dir.z > 0.0;
         let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
         let t_boundary = (plane - s.pos.z) / s.dir.z;
+        if GATE
+            && let Some((_, l1)) = settings.gate
+            && s.l + n * t_boundary > l1
+        {
+            return End::Gated;
+        }
+        if VOLUME && let Some(v) = ctx.volume {
+            // To depth (t = ∞) the track is clipped to the grid's box.
+            let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
+            v.track(rec.acc, s.pos, s.dir, len, s.weight);
+        }
         if !t_boundary.is_finite() {
             // Only a semi-infinite last layer lets a path go to depth; an overflow towards a
             // finite plane (|dir.z| of order 1e-308) is a ray that never arrives.
@@ -744,6 +817,16 @@ fn connection_roulette(scene: &Scene, li: usize, s: &PathState, rng: &mut PathRn
         1.0 / q
     } else {
         0.0
+    }
+}
+
+/// Whether a path recorded at optical path length `l` is inside the time gate (always in walks
+/// compiled without one, `GATE = false`).
+#[inline(always)]
+fn in_gate<const GATE: bool>(settings: &WalkSettings, l: f64) -> bool {
+    match settings.gate {
+        Some((l0, l1)) if GATE => l0 <= l && l <= l1,
+        _ => true,
     }
 }
 

@@ -31,8 +31,10 @@ mod slab;
 mod speckle;
 mod stiff;
 mod tcorr;
+mod time_gate;
 mod vdb;
 mod vdb_media;
+mod volume;
 
 /// Every `.rs` file here is a module of this binary: a file not named above would compile into
 /// nothing and its tests would silently not run.

@@ -121,6 +121,25 @@ GROUPS = [
         100_000,
         10_000,
     ),
+    (
+        "volume tally (vdH slab, 40 × 40 × 20 voxels)",
+        [
+            ("no [volume]", "vdh_plain.toml", []),
+            ("[volume], track-length fluence: feature used", "vdh_volume.toml", []),
+            ("[volume], both fluence estimators", "vdh_volume.toml", ["volume.fluence=\"both\""]),
+        ],
+        2_000_000,
+        100_000,
+    ),
+    (
+        "time gate (vdH slab)",
+        [
+            ("no gate", "vdh_plain.toml", []),
+            ("run.time_gate_ns = [0, 1e6] (path length tracked): feature used", "vdh_plain.toml", ["run.time_gate_ns=[0, 1e6]"]),
+        ],
+        2_000_000,
+        100_000,
+    ),
 ]
 
 BARE_PHOTONS = 2_000_000

@@ -15,6 +15,7 @@ mod media;
 mod run;
 mod scene;
 mod source;
+mod volume;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -30,9 +31,10 @@ use self::detectors::{resolve_detectors, resolve_lidar};
 use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
+use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
-use crate::detect::DetectorKind;
+use crate::detect::{DetectorKind, Estimator};
 use crate::error::ConfigError;
 use crate::experiment::Experiment;
 use crate::medium::grid::VoxelGrid;
@@ -190,6 +192,14 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
             "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
         );
     }
+    if plan.walk.gate.is_some()
+        && let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.estimator != Estimator::Forward))
+    {
+        return err(
+            format!("detectors[{i}].estimator"),
+            "a time gate (run.time_gate_ns) applies to the paths from the laser: use estimator = \"forward\"",
+        );
+    }
     let mut exp = Experiment {
         name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
         scene,
@@ -197,6 +207,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         detectors,
         plan,
         references: Vec::new(),
+        volume: resolve_volume(f.volume.as_ref())?,
     };
     check_speckle_memory(&exp, &ctx.memory)?;
     check_memory(&exp, &ctx.memory)?;

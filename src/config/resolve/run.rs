@@ -49,6 +49,20 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     if !(budget.is_finite() && budget > 0.0 && budget <= 1e6) {
         return err("run.memory_budget_gib", format!("= {budget}: expected a budget in (0, 10^6] GiB"));
     }
+    let gate = match &r.time_gate {
+        None => None,
+        Some(q) => {
+            let [t0, t1] = q.si();
+            if !(t0.is_finite() && t1.is_finite() && 0.0 <= t0 && t0 < t1) {
+                return err(
+                    format!("run.{}", q.key),
+                    format!("= {:?}: expected [t0, t1] with 0 ≤ t0 < t1, finite", q.value),
+                );
+            }
+            // As optical path lengths (the walk's `l`): time of flight = l / c.
+            Some((crate::SPEED_OF_LIGHT * t0, crate::SPEED_OF_LIGHT * t1))
+        }
+    };
     let paths_per_batch = samples.div_ceil(batches);
     Ok(RunPlan {
         requested_samples: samples,
@@ -56,7 +70,7 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         paths_per_batch,
         seed: r.seed.unwrap_or(1),
         threads: threads as usize,
-        walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32 },
+        walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32, gate },
         memory_budget: (budget * (1u64 << 30) as f64) as u64,
         camera_pixel_stride: 1,
         memory: Vec::new(),

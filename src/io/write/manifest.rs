@@ -70,6 +70,9 @@ pub struct Manifest {
     /// Per main image output: the median and 90th percentile of its per-pixel relative errors,
     /// and the file of the map.
     pub pixel_errors: BTreeMap<String, super::PixelErrorEntry>,
+    /// The volume tally's grid and files (`[volume]`; absent without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<super::volume::VolumeEntry>,
     /// Every file written, in order.
     pub files: Vec<String>,
     /// What the run could not get right ([`crate::post::warnings`]), `[]` when nothing.
@@ -366,6 +369,10 @@ fn write_run_to<S: super::Sink>(
         det_estimates.insert(d.name.clone(), Entry::Group(de));
         det_info.insert(d.name.clone(), info);
     }
+    let volume = match &exp.volume {
+        Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
+        None => None,
+    };
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
     drop(w);
     let files = writer.written();
@@ -436,6 +443,7 @@ fn write_run_to<S: super::Sink>(
         estimates,
         detectors: det_info,
         pixel_errors,
+        volume,
         files,
         warnings: crate::post::warnings(exp, out),
     };

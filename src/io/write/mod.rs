@@ -15,6 +15,7 @@ pub mod manifest;
 pub mod memory;
 pub mod scan;
 pub mod tcorr;
+pub mod volume;
 
 use std::collections::{BTreeMap, BTreeSet};
 

@@ -1,0 +1,37 @@
+//! `[volume]`: the voxel grid of a volume tally ([`crate::detect::volume`]).
+
+use glam::DVec3;
+
+use super::{R, err, require_arr};
+use crate::config::schema::{FluenceKind, VolumeSection};
+use crate::detect::volume::{FluenceEstimator, VolumeGrid};
+
+/// The most voxels a grid may have (each estimate is 8 bytes a voxel in the tallies, times the
+/// batches in flight; the memory budget counts them too).
+const MAX_VOXELS: i64 = 1 << 28;
+
+pub(super) fn resolve_volume(v: Option<&VolumeSection>) -> R<Option<VolumeGrid>> {
+    let Some(v) = v else { return Ok(None) };
+    let p = "volume";
+    let (c, _) = require_arr(p, "center", &v.center, "the box's center")?;
+    let (sz, sp) = require_arr(p, "size", &v.size, "the box's edge lengths")?;
+    if sz.iter().any(|&x| x <= 0.0) {
+        return err(sp, format!("= {sz:?} m: expected three edge lengths > 0"));
+    }
+    let Some(n) = v.voxels else {
+        return err(p, "missing voxels: give voxels = [nx, ny, nz] (voxels along x, y and z)");
+    };
+    if n.iter().any(|&k| k < 1) || n.iter().try_fold(1i64, |a, &k| a.checked_mul(k)).is_none_or(|t| t > MAX_VOXELS) {
+        return err(
+            "volume.voxels",
+            format!("= {n:?}: expected three counts ≥ 1 with a product of at most {MAX_VOXELS} (2^28)"),
+        );
+    }
+    let fluence = match v.fluence.unwrap_or(FluenceKind::TrackLength) {
+        FluenceKind::TrackLength => FluenceEstimator::TrackLength,
+        FluenceKind::Collision => FluenceEstimator::Collision,
+        FluenceKind::Both => FluenceEstimator::Both,
+    };
+    let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
+    Ok(Some(VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence)))
+}
