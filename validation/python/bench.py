@@ -10,6 +10,12 @@
 2. Memory of a result of configs/retina_ldh.toml (the LDH camera): the bytes it holds (its files)
    and the process's resident-memory growth from making it.
 
+Measured 2026-11-24 on the shared 2-core machine (load ≈ 5 from other builds, so ±5 % noise), CLI
+and package both of the `ci` profile, 7 runs each: CLI min 3.680 s, median 3.932 s; `ohd.run()`
+min 3.656 s (−0.7 %), median 3.731 s (−5.1 %); with `save()` min 3.835 s (+4.2 %), median 3.892 s
+(−1.0 %). A retina_ldh result (2·10⁵ paths, figures on): 67 files, 16.4 MiB held (10.8 MiB of
+them .npy, which the arrays view without a copy), resident memory +11.0 MiB.
+
 Needs the package installed (pip install ./python). The binary is --binary, else $OHD_BINARY,
 else a release build (validation/ohdpy.py).
 """
