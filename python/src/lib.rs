@@ -18,7 +18,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
-pyo3::create_exception!(_ohd, ConfigError, PyValueError, "An invalid experiment description (`.key`: the key path).");
+pyo3::create_exception!(ohd, ConfigError, PyValueError, "An invalid experiment description (`.key`: the key path).");
 
 /// How often the thread holding the GIL looks for Ctrl-C and reports progress while a run goes on.
 const POLL: Duration = Duration::from_millis(50);
