@@ -63,7 +63,8 @@ class Output:
     `values` and `stderr` (None where the run writes no standard errors) are read-only views of
     the file's bytes; `axes` maps an axis name to its coordinates (`frequency_hz`: bin centres in
     Hz; `x_m`, `y_m`: pixel centres in m, `y_m` descending as the image rows; others as the
-    manifest names them); `units` is the manifest's unit of the values, if it states one.
+    manifest names them: `range_m`, gate centres of a lidar map's rows); `units` is the manifest's
+    unit of the values, if it states one.
     """
 
     def __init__(self, name: str, values: np.ndarray, stderr: Optional[np.ndarray], axes: Dict[str, np.ndarray], units: Optional[str]):
@@ -141,7 +142,9 @@ class Result:
             axes: Dict[str, np.ndarray] = {}
             units = None
             for prefix, key, group in groups:
-                if not stem.startswith(prefix) or key not in stem[len(prefix):]:
+                # A detector's group ("spectrum", "image", "lidar", …) describes the outputs
+                # named after it or whose file it names.
+                if not stem.startswith(prefix) or (key not in stem[len(prefix):] and f'"{name}"' not in json.dumps(group)):
                     continue
                 units = group.get("units", units)
                 for k, v in group.items():

@@ -18,7 +18,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
-pyo3::create_exception!(_ohd, ConfigError, PyValueError, "An invalid experiment description (`.key`: the key path).");
+pyo3::create_exception!(ohd, ConfigError, PyValueError, "An invalid experiment description (`.key`: the key path).");
 
 /// How often the thread holding the GIL looks for Ctrl-C and reports progress while a run goes on.
 const POLL: Duration = Duration::from_millis(50);
@@ -133,13 +133,17 @@ fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<String> {
                 // An inline table: `--set` parses `v = {…}`.
                 let doc = toml::to_string(&toml::Table::from_iter([("v".to_string(), toml::Value::Table(t))]))
                     .map_err(|e| PyValueError::new_err(e.to_string()))?;
-                let inline: toml::Table = doc.parse().map_err(|e: toml::de::Error| PyValueError::new_err(e.to_string()))?;
+                let inline: toml::Table =
+                    doc.parse().map_err(|e: toml::de::Error| PyValueError::new_err(e.to_string()))?;
                 inline["v"].to_string()
             }
             other => other.to_string(),
         })
     })
 }
+
+/// A run's files `(name, bytes)`, the manifest last.
+type Files = Vec<(String, Py<PyBytes>)>;
 
 /// A configuration read and resolved (`ohd.check` prints it).
 #[pyclass(frozen, module = "ohd._ohd")]
@@ -184,14 +188,20 @@ impl Experiment {
 
     /// Run it; returns `(manifest JSON text, [(file name, bytes)])`, the manifest last.
     #[pyo3(signature = (figures, report=None))]
-    fn run(&self, py: Python<'_>, figures: bool, report: Option<Py<PyAny>>) -> PyResult<(String, Vec<(String, Py<PyBytes>)>)> {
+    fn run(&self, py: Python<'_>, figures: bool, report: Option<Py<PyAny>>) -> PyResult<(String, Files)> {
         let loaded = &self.loaded;
         let exp = &loaded.exp;
         let (manifest, files) = watched(py, exp.plan.samples(), report.as_ref(), |progress| {
             let output = exp.run_resumable(progress, None, None, None)?;
             let inv = ohd::io::write::manifest::Invocation { figures, ..loaded.invocation() };
-            let (_, files) =
-                ohd::io::write::manifest::write_run_memory(exp, &output, &loaded.table, &inv, &ohd::experiment::Silent)?;
+            let (_, memory) = ohd::io::write::manifest::write_run_memory(
+                exp,
+                &output,
+                &loaded.table,
+                &inv,
+                &ohd::experiment::Silent,
+            )?;
+            let files = memory.files;
             let manifest = files.last().map(|(_, b)| String::from_utf8_lossy(b).into_owned()).unwrap_or_default();
             Ok((manifest, files))
         })?;
@@ -320,16 +330,16 @@ fn watched<T: Send>(
 /// assignments, applied in order.
 #[pyfunction]
 #[pyo3(signature = (kind, config, overrides, origin=None))]
-fn load(
-    kind: &str,
-    config: &Bound<'_, PyAny>,
-    overrides: Vec<String>,
-    origin: Option<String>,
-) -> PyResult<Experiment> {
+fn load(kind: &str, config: &Bound<'_, PyAny>, overrides: Vec<String>, origin: Option<String>) -> PyResult<Experiment> {
     guarded(|| load_one(kind, config, &overrides, origin))
 }
 
-fn load_one(kind: &str, config: &Bound<'_, PyAny>, overrides: &[String], origin: Option<String>) -> PyResult<Experiment> {
+fn load_one(
+    kind: &str,
+    config: &Bound<'_, PyAny>,
+    overrides: &[String],
+    origin: Option<String>,
+) -> PyResult<Experiment> {
     let loaded = match kind {
         "default" => Loaded::read(None, overrides).map_err(to_py)?,
         "path" => {
@@ -346,7 +356,15 @@ fn load_one(kind: &str, config: &Bound<'_, PyAny>, overrides: &[String], origin:
             let origin = origin.unwrap_or_else(|| format!("<{kind}>"));
             let (table, exp) = ohd::config::load(&text, &origin, overrides).map_err(|e| to_py(e.into()))?;
             let stem = "experiment".to_string();
-            Loaded { text, origin: origin.clone(), stem, source_path: origin, overrides: overrides.to_vec(), table, exp }
+            Loaded {
+                text,
+                origin: origin.clone(),
+                stem,
+                source_path: origin,
+                overrides: overrides.to_vec(),
+                table,
+                exp,
+            }
         }
         other => return Err(PyValueError::new_err(format!("unknown configuration kind {other:?}"))),
     };

@@ -97,6 +97,10 @@ def test_scan_run_is_the_cli_scan(cli, tmp_path):
     for i, p in enumerate(r.pointings):
         assert_same_as_dir(p, tmp_path / "cli" / f"pointing_{i:02}")
     assert r.files["vad.csv"] == (tmp_path / "cli" / "vad.csv").read_bytes()
+    m = r.pointings[0]["lidar_range_doppler"]
+    assert m.axes["range_m"].shape == (m.values.shape[0],) and m.axes["frequency_hz"].shape == (m.values.shape[1],)
+    np.testing.assert_array_equal(m.axes["range_m"], np.load(tmp_path / "cli" / "pointing_00" / "lidar_range_m.npy"))
+    assert m.units.startswith("fraction of the pulse energy")
 
 
 # The README's first experiment, as a dict.
@@ -275,3 +279,11 @@ def test_example_redraws_the_readme_figures(tmp_path):
     for name in ("default_spectrum.png", "default_image.png"):
         assert (tmp_path / name).read_bytes() == (ROOT / "media" / "readme" / name).read_bytes(), name
     assert (tmp_path / "default_spectrum_matplotlib.png").stat().st_size > 10_000
+
+
+def test_converge_writes_the_study(tmp_path):
+    study = ohd.converge(out=tmp_path / "c", samples=40_000, rungs=2, budget_seconds=60, figures=False)
+    assert (tmp_path / "c" / "converge.csv").is_file()
+    assert study["log"] and isinstance(study, dict)
+    with pytest.raises(ohd.ConfigError):
+        ohd.converge(out=tmp_path / "d", overrides={"run.samples": -1}, samples=1000, rungs=2)

@@ -240,7 +240,7 @@ pub fn write_run_with(
 }
 
 /// [`write_run_with`] into memory: every file as `(name, bytes)` in the order written, the
-/// manifest last — the bytes `ohd run --out` writes (the manifest's timings aside), which
+/// manifest last ([`super::memory::Memory::files`]) — the bytes `ohd run --out` writes (the manifest's timings aside), which
 /// [`super::memory::save`] writes into a directory as a run does.
 pub fn write_run_memory(
     exp: &Experiment,
@@ -248,12 +248,11 @@ pub fn write_run_memory(
     config: &toml::Table,
     inv: &Invocation,
     progress: &dyn Progress,
-) -> Result<(Manifest, Vec<(String, Vec<u8>)>)> {
+) -> Result<(Manifest, super::memory::Memory)> {
     let open = || Ok(super::memory::Memory::default());
-    let (memory, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
-    let mut files = memory.files;
-    files.push((super::dir::MANIFEST.to_string(), text.into_bytes()));
-    Ok((manifest, files))
+    let (mut memory, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
+    memory.files.push((super::dir::MANIFEST.to_string(), text.into_bytes()));
+    Ok((manifest, memory))
 }
 
 /// The one writer of a run's outputs: checks and post-processing first, then the files into the
