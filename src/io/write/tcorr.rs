@@ -130,13 +130,6 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
             w.figure(&stem(ok), &plot)?;
         }
         entry["exposure_file"] = json!(exposure_file);
-        if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
-            let (v, _) = w.array(o)?;
-            let labels: Vec<String> = spec.exposures.iter().map(|t| format!("T = {:.3} ms", t * 1e3)).collect();
-            stack_figure(w, o, &v, &labels, "speckle contrast K")?;
-            entry["image_file"] = json!(o.file);
-            entry["image_layout"] = json!("[exposure][row][col], row 0 = largest y");
-        }
     }
     Ok(entry)
 }
