@@ -756,6 +756,29 @@ impl Display for Detector {
         if let Some(i) = &d.image {
             write!(f, "\n  {i}")?;
         }
+        if let Some(t) = &d.time {
+            let u = unit(TIME, 0, t.axis.f_max);
+            write!(f, "\n  TPSF: {} time-of-flight bins over {}", t.axis.bins, u.range(t.axis.f_min, t.axis.f_max))?;
+            if t.image {
+                write!(f, ", and a time-gated image")?;
+            }
+        }
+        if let Some(c) = &d.correlation {
+            let (lo, hi) = (c.tau[0], c.tau[c.tau.len() - 1]);
+            let (ul, uh) = (unit(TIME, 0, lo), unit(TIME, 0, hi));
+            write!(
+                f,
+                "\n  g1, g2 at {} delays from {} to {} (log-spaced), β = {}",
+                c.tau.len(),
+                ul.of(lo),
+                uh.of(hi),
+                num(c.beta)
+            )?;
+            if !c.exposures.is_empty() {
+                let times: Vec<String> = c.exposures.iter().map(|&t| unit(TIME, 0, t).of(t)).collect();
+                write!(f, "; speckle contrast K at T = {}", times.join(", "))?;
+            }
+        }
         if let Some(l) = &d.ldh {
             write!(f, "\n  {l}")?;
         }

@@ -76,9 +76,8 @@ pub enum Kind {
     /// A full spectrum in every pixel of an image: `[y][x][bin]`, its rows ordered as an
     /// [`Kind::Image`]'s.
     PixelSpectra { nx: usize, ny: usize, axis: FrequencyAxis, mirrored: bool },
-    /// A stack of `layers` images over one detector's pixels, `[layer][y][x]` (time gates of a
-    /// TPSF, exposure times of a speckle-contrast map); each layer's rows ordered as an
-    /// [`Kind::Image`]'s.
+    /// A stack of `layers` images over one detector's pixels, `[layer][y][x]` (the time gates of
+    /// a TPSF); each layer's rows ordered as an [`Kind::Image`]'s.
     ImageStack { layers: usize, nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
     /// Values along an axis that is not a frequency (a TPSF's time bins, g1 over the delay τ):
     /// one row per channel; the writer of its detector writes the axis.

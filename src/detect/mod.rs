@@ -385,7 +385,7 @@ impl TallyLayout {
                 spec.finish_batch(ll, sums);
             }
             if let (Some(spec), Some(cl)) = (d.surface().and_then(|s| s.correlation.as_deref()), &lay.correlation) {
-                spec.finish_batch(cl, sums, lay.power, lay.image, paths);
+                spec.finish_batch(cl, sums, lay.power, paths);
             }
         }
     }
@@ -500,7 +500,7 @@ impl Surface {
             lay.time = Some(t.declare(i, name, self.image.as_ref(), reg));
         }
         if let Some(c) = &self.correlation {
-            lay.correlation = Some(c.declare(i, name, self.image.as_ref(), reg));
+            lay.correlation = Some(c.declare(i, name, reg));
         }
         if let (Some(ldh), Some(im)) = (&self.ldh, &self.image) {
             lay.ldh = Some(ldh.declare(i, name, im, reg));
@@ -734,7 +734,7 @@ impl Recorder<'_> {
             // The Doppler frequency alone: a chirp's range term is not a motion of the field.
             let f = e.dldt * self.beat.inv_wavelength;
             let rate = if e.brownian > 0.0 { self.beat.brownian_rate(e.brownian) } else { 0.0 };
-            c.record(cl, self.acc, w, f, rate, pixel);
+            c.record(cl, self.acc, w, f, rate);
         }
         if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {
             // LDH uses a single-frequency laser (checked when resolving).

@@ -449,7 +449,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
         };
         let correlation = match &d.correlation {
             None => None,
-            Some(c) => Some(Box::new(resolve_correlation(&join(&path, "correlation"), c, image.is_some())?)),
+            Some(c) => Some(Box::new(resolve_correlation(&join(&path, "correlation"), c)?)),
         };
         let next_event = d.next_event.unwrap_or(false);
         if next_event && side != Side::Top {
@@ -513,7 +513,7 @@ fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
 }
 
 /// `[detectors.correlation]`: log-spaced delays, β, exposure times.
-fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<CorrelationSpec> {
+fn resolve_correlation(p: &str, c: &CorrelationSection) -> R<CorrelationSpec> {
     let tau_min = positive(require(p, "tau_min", &c.tau_min, "the shortest delay")?, "a delay")?;
     let tau_max = require(p, "tau_max", &c.tau_max, "the longest delay")?;
     if !(tau_max.0.is_finite() && tau_max.0 > tau_min) {
@@ -548,20 +548,9 @@ fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<Co
             exposures.push(t.min(tau_max.0));
         }
     }
-    let pixels = c.pixels.unwrap_or(false);
-    if pixels && !has_image {
-        return err(
-            join(p, "pixels"),
-            "= true: per-pixel correlation needs the detector's image (add [detectors.image] pixels = [nx, ny])",
-        );
-    }
-    if pixels && exposures.is_empty() {
-        return err(join(p, "pixels"), "= true: per pixel only the speckle contrast is written: give exposures_ms");
-    }
     Ok(CorrelationSpec {
         tau: crate::detect::correlation::log_spaced(tau_min, tau_max.0, points as usize),
         beta,
         exposures,
-        pixels,
     })
 }

@@ -114,17 +114,22 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
             c.y_err = Some(ke);
             c.mark = Mark::LineMarkers;
             plot.curves.push(c);
-            plot.note = format!("error bars: ±σ; β = {}", spec.beta);
+            // The long-exposure law K ∝ T^−½, through the longest exposure, for comparison.
+            let (t_last, k_last) = (spec.exposures[nt - 1], k[nt - 1]);
+            if nt > 1 && k_last > 0.0 {
+                let law: Vec<f64> = spec.exposures.iter().map(|t| k_last * (t_last / t).sqrt()).collect();
+                let mut c = Curve::line("∝ T^−½", spec.exposures.clone(), law, PALETTE[6]);
+                c.mark = Mark::Dashed;
+                plot.curves.push(c);
+            }
+            let lo = k.iter().copied().filter(|&x| x > 0.0).fold(f64::INFINITY, f64::min);
+            if lo.is_finite() {
+                plot.y_range = Some((0.5 * lo, 1.5 * spec.beta.sqrt().max(k[0])));
+            }
+            plot.note = format!("error bars: ±σ; β = {} (K → √β as T → 0)", spec.beta);
             w.figure(&stem(ok), &plot)?;
         }
         entry["exposure_file"] = json!(exposure_file);
-        if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
-            let (v, _) = w.array(o)?;
-            let labels: Vec<String> = spec.exposures.iter().map(|t| format!("T = {:.3} ms", t * 1e3)).collect();
-            stack_figure(w, o, &v, &labels, "speckle contrast K")?;
-            entry["image_file"] = json!(o.file);
-            entry["image_layout"] = json!("[exposure][row][col], row 0 = largest y");
-        }
     }
     Ok(entry)
 }
