@@ -584,8 +584,10 @@ impl Experiment {
         lines: Vec<RecordedLine>,
         wall_seconds: f64,
     ) -> RunOutput {
+        let mut estimates = estimates;
         let batches = estimates.batches() as u64;
         let layout = self.tally_layout();
+        layout.finish_run(&self.detectors, &mut estimates);
         let main = layout.registry.main();
         let main_output = (main.name.clone(), main.relative_error(&estimates));
         RunOutput {

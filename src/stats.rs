@@ -115,6 +115,18 @@ impl BatchAccumulator {
         q.max(0.0) / (b - 1.0) / b
     }
 
+    /// The estimated variance of the mean of estimate `i` (0 with fewer than two batches).
+    pub fn variance(&self, i: usize) -> f64 {
+        if self.batches < 2 { 0.0 } else { self.variance_of_mean(self.m2[i]) }
+    }
+
+    /// Replace the value of estimate `i` by `value`, keeping its spread over the batches (a
+    /// derived output whose run-level value is not the mean of its per-batch values; see
+    /// `detect::TallyLayout::finish_run`).
+    pub fn set_mean(&mut self, i: usize, value: f64) {
+        self.mean[i] = value;
+    }
+
     /// Standard error of each estimate (0 with fewer than two batches).
     pub fn stderr(&self) -> Vec<f64> {
         if self.batches < 2 {

@@ -391,6 +391,21 @@ impl TallyLayout {
     }
 }
 
+impl TallyLayout {
+    /// Replace the run-level values of outputs that are non-linear in the tallies by the same
+    /// function of the run's means (g1, g2 and K from the correlation sums), keeping the spread
+    /// of their per-batch values as their standard errors. Applied once, when a run's batches are
+    /// all folded in ([`crate::experiment::Experiment::finish`]), whatever the threads, shards or
+    /// resumes.
+    pub fn finish_run(&self, detectors: &[Detector], estimates: &mut crate::stats::BatchAccumulator) {
+        for (d, lay) in detectors.iter().zip(&self.detectors) {
+            if let (Some(spec), Some(cl)) = (d.surface().and_then(|s| s.correlation.as_deref()), &lay.correlation) {
+                spec.finish_run(cl, estimates, lay.power);
+            }
+        }
+    }
+}
+
 /// An output of detector `i` with [`Output::new`]'s defaults, for struct update syntax.
 pub(crate) fn detector_output(i: usize, name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Output {
     Output { detector: Some(i), ..Output::new(name, kind, slots, shape) }
