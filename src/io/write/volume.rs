@@ -59,6 +59,9 @@ pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<Vo
     })
 }
 
+/// The largest width-to-depth ratio (or its inverse) of a slice drawn true to scale.
+const MAX_ASPECT: f64 = 3.0;
+
 /// The x–z slice of `v` (as written) at the row of `y`, on a log scale: `SLICE_DECADES`
 /// decades up to the 99.5th percentile of the slice's positive values; zero voxels grey. Axes in
 /// mm, depth downwards.
@@ -90,5 +93,12 @@ pub fn slice_figure(g: &VolumeGrid, v: &[f64], y: f64, title: &str, unit: &str) 
         1e3 * (g.min.y + (iy as f64 + 0.5) * g.edge().y),
         100.0 * TOP_QUANTILE
     );
+    // True to scale unless the box is far wider than deep or the reverse: a thin slab's slice
+    // drawn to scale is a strip a few pixels high (and its colour bar too short for its label).
+    let aspect = (g.max.x - g.min.x) / (g.max.z - g.min.z);
+    if !(1.0 / MAX_ASPECT..=MAX_ASPECT).contains(&aspect) {
+        p.equal = false;
+        p.y_label = "depth z (mm, not to scale)".into();
+    }
     ImageFigure { panels: vec![p] }
 }
