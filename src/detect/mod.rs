@@ -302,13 +302,6 @@ impl BeatModel {
         std::f64::consts::TAU * b * self.inv_wavelength * self.inv_wavelength
     }
 
-    /// The field correlation's decay rate `Γ = Σ D_k q_k² = (2π/λ0)² b` (s⁻¹) of a path with
-    /// Brownian sum `b`: `2π ×` [`brownian_hwhm`](Self::brownian_hwhm).
-    #[inline(always)]
-    pub fn brownian_rate(&self, b: f64) -> f64 {
-        std::f64::consts::TAU * self.brownian_hwhm(b)
-    }
-
     /// Number of spectra per detector: 1, or 2 (up, down) with a chirp.
     pub fn chirps(&self) -> usize {
         if self.chirp_per_metre.is_some() { 2 } else { 1 }
@@ -384,25 +377,32 @@ impl TallyLayout {
             if let (Some(spec), Some(ll)) = (d.lidar(), &lay.lidar) {
                 spec.finish_batch(ll, sums);
             }
-            if let (Some(spec), Some(cl)) = (d.surface().and_then(|s| s.correlation.as_deref()), &lay.correlation) {
-                spec.finish_batch(cl, sums, lay.power, paths);
-            }
+        }
+        for (spec, cl, power) in self.correlations(detectors) {
+            spec.finish_batch(cl, sums, power, paths);
         }
     }
-}
 
-impl TallyLayout {
     /// Replace the run-level values of outputs that are non-linear in the tallies by the same
     /// function of the run's means (g1, g2 and K from the correlation sums), keeping the spread
     /// of their per-batch values as their standard errors. Applied once, when a run's batches are
     /// all folded in ([`crate::experiment::Experiment::finish`]), whatever the threads, shards or
     /// resumes.
     pub fn finish_run(&self, detectors: &[Detector], estimates: &mut crate::stats::BatchAccumulator) {
-        for (d, lay) in detectors.iter().zip(&self.detectors) {
-            if let (Some(spec), Some(cl)) = (d.surface().and_then(|s| s.correlation.as_deref()), &lay.correlation) {
-                spec.finish_run(cl, estimates, lay.power);
-            }
+        for (spec, cl, power) in self.correlations(detectors) {
+            spec.finish_run(cl, estimates, power);
         }
+    }
+
+    /// Each detector with correlation outputs: its spec, their layout and its power's slot.
+    fn correlations<'a>(
+        &'a self,
+        detectors: &'a [Detector],
+    ) -> impl Iterator<Item = (&'a CorrelationSpec, &'a CorrelationLayout, usize)> {
+        detectors
+            .iter()
+            .zip(&self.detectors)
+            .filter_map(|(d, lay)| Some((d.surface()?.correlation.as_deref()?, lay.correlation.as_ref()?, lay.power)))
     }
 }
 
@@ -748,7 +748,8 @@ impl Recorder<'_> {
         if let (Some(c), Some(cl)) = (&d.correlation, &lay.correlation) {
             // The Doppler frequency alone: a chirp's range term is not a motion of the field.
             let f = e.dldt * self.beat.inv_wavelength;
-            let rate = if e.brownian > 0.0 { self.beat.brownian_rate(e.brownian) } else { 0.0 };
+            // Γ = 2π × the line's half-width.
+            let rate = std::f64::consts::TAU * gamma;
             c.record(cl, self.acc, w, f, rate);
         }
         if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {

@@ -4,7 +4,7 @@
 
 use ohd::detect::Scalar;
 
-use crate::support::run::run;
+use crate::support::run::{Run, run};
 use crate::support::stats::assert_within_sigma;
 
 const VDH: &str = include_str!("../../validation/vdh_slab.toml");
@@ -21,6 +21,22 @@ fn a_gate_wider_than_every_path_changes_nothing() {
     }
 }
 
+/// The purely absorbing Fresnel slab of the closed forms below (σs = 0, σa = 2.5/mm, 0.2 mm,
+/// n = 1.5 in air, no roulette), run with the gate override `gate`.
+fn absorbing_slab(gate: &str) -> Run {
+    run(
+        VDH,
+        &[
+            "media.slab.sigma_s_per_cm=0",
+            "media.slab.sigma_a_per_cm=25",
+            "layers.0.n=1.5",
+            "run.samples=400000",
+            "run.roulette_threshold=0",
+            gate,
+        ],
+    )
+}
+
 #[test]
 fn gated_absorbing_slab_matches_its_closed_form() {
     // σs = 0, n = 1.5 in air, d = 0.2 mm, τ = σa d = 0.5, normal incidence. The light inside
@@ -33,17 +49,7 @@ fn gated_absorbing_slab_matches_its_closed_form() {
     let l1 = 0.45e-3;
     let t1_ns = l1 / ohd::SPEED_OF_LIGHT * 1e9;
     let gate = format!("run.time_gate_ns=[0, {t1_ns}]");
-    let r = run(
-        VDH,
-        &[
-            "media.slab.sigma_s_per_cm=0",
-            "media.slab.sigma_a_per_cm=25",
-            "layers.0.n=1.5",
-            "run.samples=400000",
-            "run.roulette_threshold=0",
-            &gate,
-        ],
-    );
+    let r = absorbing_slab(&gate);
     let (n, tau) = (1.5f64, 0.5f64);
     let r0 = ((n - 1.0) / (n + 1.0)).powi(2);
     let t = (1.0 - r0).powi(2) * (-tau).exp();
@@ -67,17 +73,7 @@ fn a_gate_starting_late_drops_the_early_light() {
     let l0 = 0.45e-3;
     let t0_ns = l0 / ohd::SPEED_OF_LIGHT * 1e9;
     let gate = format!("run.time_gate_ns=[{t0_ns}, 1e6]");
-    let r = run(
-        VDH,
-        &[
-            "media.slab.sigma_s_per_cm=0",
-            "media.slab.sigma_a_per_cm=25",
-            "layers.0.n=1.5",
-            "run.samples=400000",
-            "run.roulette_threshold=0",
-            &gate,
-        ],
-    );
+    let r = absorbing_slab(&gate);
     let (n, tau) = (1.5f64, 0.5f64);
     let r0 = ((n - 1.0) / (n + 1.0)).powi(2);
     let q = 1.0 - r0 * r0 * (-2.0 * tau).exp();
