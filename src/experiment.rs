@@ -390,6 +390,10 @@ impl Experiment {
         if let Some(v) = &self.volume {
             v.declare(&mut layout.registry);
         }
+        // Last, so that a run without lateral bounds lays out what it did before.
+        if self.scene.lateral.is_some() {
+            layout.declare_lateral();
+        }
         layout
     }
 
@@ -661,19 +665,71 @@ impl Experiment {
         // One branch per batch on the volume tally and the time gate, so that the walk without
         // them runs the loop it ran before there were any.
         let gate = LENGTH && self.plan.walk.gate.is_some();
-        let cancelled = match (volume.is_some(), gate) {
-            (false, false) => {
-                forward_paths::<DOPPLER, LENGTH, false, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
-            }
-            (true, false) => {
-                forward_paths::<DOPPLER, LENGTH, true, false>(&walk, &mut rec, &key, ppb, forward_progress, progress)
-            }
-            (false, true) => {
-                forward_paths::<DOPPLER, LENGTH, false, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
-            }
-            (true, true) => {
-                forward_paths::<DOPPLER, LENGTH, true, true>(&walk, &mut rec, &key, ppb, forward_progress, progress)
-            }
+        let cancelled = match (volume.is_some(), gate, self.scene.lateral.is_some()) {
+            (false, false, false) => forward_paths::<DOPPLER, LENGTH, false, false, false>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (true, false, false) => forward_paths::<DOPPLER, LENGTH, true, false, false>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (false, true, false) => forward_paths::<DOPPLER, LENGTH, false, true, false>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (true, true, false) => forward_paths::<DOPPLER, LENGTH, true, true, false>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (false, false, true) => forward_paths::<DOPPLER, LENGTH, false, false, true>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (true, false, true) => forward_paths::<DOPPLER, LENGTH, true, false, true>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (false, true, true) => forward_paths::<DOPPLER, LENGTH, false, true, true>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
+            (true, true, true) => forward_paths::<DOPPLER, LENGTH, true, true, true>(
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            ),
         };
         if cancelled {
             return (sums, stats, lines);
@@ -714,10 +770,11 @@ impl Experiment {
 }
 
 /// The forward paths of a batch (`ppb` of them from `key`), with the volume tally (`VOLUME`) or
-/// without, with the time gate (`GATE`, only where `LENGTH`) or without. Returns whether the
+/// without, with the time gate (`GATE`, only where `LENGTH`) or without, in a box phantom
+/// (`LATERAL`, never with next-event targets) or in infinite layers. Returns whether the
 /// caller cancelled the run ([`Progress::cancelled`]), checked every [`PROGRESS_EVERY`] paths.
 #[inline(always)]
-fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
+fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, const GATE: bool, const LATERAL: bool>(
     walk: &WalkContext,
     rec: &mut Recorder,
     key: &StreamKey,
@@ -727,10 +784,13 @@ fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, co
 ) -> bool {
     for i in 0..ppb {
         let mut rng = key.path(i);
-        if walk.nee.is_empty() {
-            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE>(walk, rec, &mut rng);
+        if LATERAL {
+            // (Resolve refuses next-event targets in a box.)
+            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE, true>(walk, rec, &mut rng);
+        } else if walk.nee.is_empty() {
+            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE, false>(walk, rec, &mut rng);
         } else {
-            trace_path::<DOPPLER, LENGTH, true, VOLUME, GATE>(walk, rec, &mut rng);
+            trace_path::<DOPPLER, LENGTH, true, VOLUME, GATE, false>(walk, rec, &mut rng);
         }
         if (i + 1) % PROGRESS_EVERY == 0 {
             if forward_progress {
