@@ -1,8 +1,8 @@
 //! Correlation outputs of a surface detector: the normalised field autocorrelation g1(τ), the
 //! intensity autocorrelation g2(τ) = 1 + β|g1(τ)|² (diffuse correlation spectroscopy) and the
 //! speckle contrast K(T) of exposure times T (laser speckle contrast imaging), for the detector's
-//! total (its area: K over a spatial window is a detector over that window) and, optionally, K
-//! for every pixel of its image.
+//! total (its area: K over a spatial window is a detector over that window), optionally K for
+//! every pixel of its image, and on an LDH camera all three per ROI.
 //!
 //! **Per path, exactly.** A detected path of weight `w`, Doppler beat frequency `f = (dl/dt)/λ0`
 //! and Brownian sum `b = Σ D_k n_k² |Δ_k|²` ([`super::Escape::brownian`]) has the field
@@ -41,6 +41,8 @@
 //! (test `pixel_contrast_is_unbiased_and_does_not_depend_on_the_batch_count`). A pixel with too
 //! few paths for a defined |g1|² (fewer than 3 groups, the unbiased P² or a replicate's not
 //! positive) is NaN. Only K is written per pixel (g2 would cost delays × pixels more; LSCI reads K).
+//! On an LDH camera every ROI is such a unit too (its paths those landing in its rectangle), with
+//! g1, g2 and K written.
 //!
 //! **Speckle contrast** `K²(T) = (2β/T)∫₀ᵀ(1 − τ/T)|g1(τ)|²dτ` (Bandyopadhyay et al. 2005, Rev.
 //! Sci. Instrum. 76, 093110, Eq. 5) is integrated over the tallied `|g1|²` on the τ grid, with
