@@ -788,6 +788,12 @@ impl Display for Detector {
             if !c.exposures.is_empty() {
                 let times: Vec<String> = c.exposures.iter().map(|&t| unit(TIME, 0, t).of(t)).collect();
                 write!(f, "; speckle contrast K at T = {}", times.join(", "))?;
+                if c.pixels {
+                    write!(f, ", per pixel")?;
+                }
+            }
+            if !c.rois.is_empty() {
+                write!(f, "; also per ROI ({})", c.rois.len())?;
             }
         }
         if let Some(l) = &d.ldh {

@@ -736,7 +736,7 @@ impl Experiment {
         if !cameras.is_empty() {
             progress.advance(ppb - reported);
         }
-        layout.finish_batch(&self.detectors, sums.sums_mut(), ppb as f64);
+        layout.finish_batch(&self.detectors, sums.sums_mut(), batch);
         (sums, stats, lines)
     }
 }

@@ -118,6 +118,10 @@ pub struct Output {
     /// The configuration key its memory grows with and the value given, for the memory budget
     /// (`("detectors[0].spectrum.bins", "= 256")`).
     pub budget_key: Option<(String, String)>,
+    /// NaN marks a value left undefined (a correlation estimate from too few paths, documented
+    /// with the output): the finiteness check of the written outputs lets NaN through, not
+    /// infinities.
+    pub undefined_nan: bool,
 }
 
 impl Output {
@@ -136,6 +140,7 @@ impl Output {
             sign: 1.0,
             primary: false,
             budget_key: None,
+            undefined_nan: false,
         }
     }
 
@@ -317,7 +322,9 @@ impl Registry {
     /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
     /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
     /// (up-chirp) spectrum, else its image, else its power; without detectors the diffuse
-    /// reflectance.
+    /// reflectance. Never g1, g2 or K: their values and σ exist only once the run's batches are
+    /// all in (`detect::TallyLayout::finish_run`), while this error is read off the batches as
+    /// they come; a correlation detector's power is what their noise follows.
     pub fn main(&self) -> &Output {
         let first: Vec<&Output> = self.named().filter(|o| o.detector == Some(0)).collect();
         let pick = |what: &str| first.iter().copied().find(|o| o.name.rsplit_once('.').is_some_and(|(_, w)| w == what));

@@ -109,10 +109,11 @@ impl BatchAccumulator {
     }
 
     /// Variance of the mean of one estimate from its sum of squared deviations `q` (two or more
-    /// batches): `q/((B − 1)B)`.
+    /// batches): `q/((B − 1)B)`; NaN stays NaN (an undefined variance set by
+    /// [`set_variance`](Self::set_variance)).
     fn variance_of_mean(&self, q: f64) -> f64 {
         let b = self.batches as f64;
-        q.max(0.0) / (b - 1.0) / b
+        if q.is_nan() { q } else { q.max(0.0) / (b - 1.0) / b }
     }
 
     /// The estimated variance of the mean of estimate `i` (0 with fewer than two batches).
@@ -125,6 +126,15 @@ impl BatchAccumulator {
     /// `detect::TallyLayout::finish_run`).
     pub fn set_mean(&mut self, i: usize, value: f64) {
         self.mean[i] = value;
+    }
+
+    /// Give estimate `i` the variance of its mean `var` (a derived output whose standard error is
+    /// not its per-batch spread, e.g. a jackknife's; with two or more batches).
+    pub fn set_variance(&mut self, i: usize, var: f64) {
+        let b = self.batches as f64;
+        if self.batches >= 2 {
+            self.m2[i] = var * (b - 1.0) * b;
+        }
     }
 
     /// Standard error of each estimate (0 with fewer than two batches).

@@ -794,6 +794,8 @@ pub struct CorrelationSection {
     pub beta: Option<f64>,
     #[serde(rename = "exposures_s", alias = "exposures_ms", alias = "exposures_us")]
     pub exposures: Option<Quantity<Delay, Vec<f64>>>,
+    /// Also per pixel of the image (the speckle contrast image).
+    pub pixels: Option<bool>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

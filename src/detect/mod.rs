@@ -388,23 +388,23 @@ impl TallyLayout {
     }
 
     /// Derive a finished batch's non-linear-in-layout outputs from its sums (the lidar gate
-    /// spectra from their lag sums, g1, g2 and K from the correlation sums), so that they get
-    /// batch statistics like everything else. `paths`: the batch's paths (the statistics divide
-    /// every tally by it, so a ratio is stored times it).
-    pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64], paths: f64) {
+    /// spectra from their lag sums), so that they get batch statistics like everything else, and
+    /// file its correlation sums under the group of batch number `batch` (the jackknife of
+    /// [`finish_run`](Self::finish_run)).
+    pub fn finish_batch(&self, detectors: &[Detector], sums: &mut [f64], batch: u64) {
         for (d, lay) in detectors.iter().zip(&self.detectors) {
             if let (Some(spec), Some(ll)) = (d.lidar(), &lay.lidar) {
                 spec.finish_batch(ll, sums);
             }
         }
         for (spec, cl, power) in self.correlations(detectors) {
-            spec.finish_batch(cl, sums, power, paths);
+            spec.finish_batch(cl, sums, power, batch);
         }
     }
 
     /// Replace the run-level values of outputs that are non-linear in the tallies by the same
-    /// function of the run's means (g1, g2 and K from the correlation sums), keeping the spread
-    /// of their per-batch values as their standard errors. Applied once, when a run's batches are
+    /// function of the run's means (g1, g2 and K from the correlation sums), with their
+    /// jackknife standard errors over groups of batches. Applied once, when a run's batches are
     /// all folded in ([`crate::experiment::Experiment::finish`]), whatever the threads, shards or
     /// resumes.
     pub fn finish_run(&self, detectors: &[Detector], estimates: &mut crate::stats::BatchAccumulator) {
@@ -534,7 +534,7 @@ impl Surface {
             lay.time = Some(t.declare(i, name, self.image.as_ref(), reg));
         }
         if let Some(c) = &self.correlation {
-            lay.correlation = Some(c.declare(i, name, reg));
+            lay.correlation = Some(c.declare(i, name, self.image.as_ref(), reg));
         }
         if let (Some(ldh), Some(im)) = (&self.ldh, &self.image) {
             lay.ldh = Some(ldh.declare(i, name, im, reg));
@@ -777,7 +777,7 @@ impl Recorder<'_> {
             let f = e.dldt * self.beat.inv_wavelength;
             // Γ = 2π × the line's half-width.
             let rate = std::f64::consts::TAU * gamma;
-            c.record(cl, self.acc, w, f, rate);
+            c.record(cl, self.acc, w, f, rate, pixel, (x, y));
         }
         if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {
             // LDH uses a single-frequency laser (checked when resolving).

@@ -113,6 +113,34 @@ GROUPS = [
         50_000,
     ),
     (
+        "speckle contrast per pixel (uniform field, 16 × 16 camera)",
+        [
+            ("intensity image only", "lsci_camera.toml", []),
+            (
+                "K of the camera (41 delays, 4 exposures)",
+                "lsci_camera.toml",
+                [
+                    "detectors.0.correlation.tau_min_s=1e-7",
+                    "detectors.0.correlation.tau_max_s=1e-2",
+                    "detectors.0.correlation.points=41",
+                    "detectors.0.correlation.exposures_s=[1e-5, 1e-4, 1e-3, 1e-2]",
+                ],
+            ),
+            (
+                "K per pixel too: feature used",
+                "lsci_camera.toml",
+                [
+                    "detectors.0.correlation.tau_min_s=1e-7",
+                    "detectors.0.correlation.tau_max_s=1e-2",
+                    "detectors.0.correlation.points=41",
+                    "detectors.0.correlation.exposures_s=[1e-5, 1e-4, 1e-3, 1e-2]",
+                ] + ["detectors.0.correlation.pixels=true"],
+            ),
+        ],
+        500_000,
+        25_000,
+    ),
+    (
         "LDH camera (retina scene, 128² pixels)",
         [
             ("M0± images only", "ldh_m0_only.toml", []),

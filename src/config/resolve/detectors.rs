@@ -449,7 +449,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
         };
         let correlation = match &d.correlation {
             None => None,
-            Some(c) => Some(Box::new(resolve_correlation(&join(&path, "correlation"), c)?)),
+            Some(c) => Some(Box::new(resolve_correlation(&join(&path, "correlation"), c, image.is_some())?)),
         };
         let next_event = d.next_event.unwrap_or(false);
         if next_event && side != Side::Top {
@@ -486,6 +486,10 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             surface.ldh = Some(Box::new(resolve_ldh(&p, l, &im)?));
             surface.next_event = true;
         }
+        // Correlation on an LDH camera: also per ROI.
+        if let (Some(c), Some(l)) = (surface.correlation.as_mut(), surface.ldh.as_ref()) {
+            c.rois = l.rois.clone();
+        }
         out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
     }
     Ok(out)
@@ -513,7 +517,7 @@ fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
 }
 
 /// `[detectors.correlation]`: log-spaced delays, β, exposure times.
-fn resolve_correlation(p: &str, c: &CorrelationSection) -> R<CorrelationSpec> {
+fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<CorrelationSpec> {
     let tau_min = positive(require(p, "tau_min", &c.tau_min, "the shortest delay")?, "a delay")?;
     let tau_max = require(p, "tau_max", &c.tau_max, "the longest delay")?;
     if !(tau_max.0.is_finite() && tau_max.0 > tau_min) {
@@ -548,9 +552,21 @@ fn resolve_correlation(p: &str, c: &CorrelationSection) -> R<CorrelationSpec> {
             exposures.push(t.min(tau_max.0));
         }
     }
+    let pixels = c.pixels.unwrap_or(false);
+    if pixels && !has_image {
+        return err(
+            join(p, "pixels"),
+            "= true: per-pixel correlation needs the detector's image (add [detectors.image] pixels = [nx, ny])",
+        );
+    }
+    if pixels && exposures.is_empty() {
+        return err(join(p, "pixels"), "= true: per pixel the speckle contrast is written: give exposures_ms");
+    }
     Ok(CorrelationSpec {
         tau: crate::detect::correlation::log_spaced(tau_min, tau_max.0, points as usize),
         beta,
         exposures,
+        pixels,
+        rois: Vec::new(),
     })
 }

@@ -81,13 +81,15 @@ pub fn stderr_file(file: &str) -> String {
 /// The last line of defence against non-finite outputs (issue 21, item 4): validation refuses
 /// what cannot give finite output, so a NaN or an infinity in a run's estimates or standard errors
 /// is a bug, and the run fails (exit status 1) naming the first output that holds one, before any
-/// file is written, rather than write it silently. Every written output is checked, its
+/// file is written, rather than write it silently (NaN is let through where an output documents it
+/// as undefined: [`crate::output::Output::undefined_nan`]). Every written output is checked, its
 /// out-of-range tallies included; internal ones (a lidar's lag sums) are not written, and show in
 /// the outputs made from them.
 pub fn check_finite(registry: &Registry, mean: &[f64], stderr: &[f64]) -> Result<()> {
     for o in registry.outputs.iter().filter(|o| o.kind != Kind::Internal) {
         let slots = o.slots.start..o.slots.start + o.slots.footprint();
-        let count = |v: &[f64]| v[slots.clone()].iter().filter(|x| !x.is_finite()).count();
+        let bad = |x: &f64| if o.undefined_nan { x.is_infinite() } else { !x.is_finite() };
+        let count = |v: &[f64]| v[slots.clone()].iter().filter(|x| bad(x)).count();
         let (values, errors) = (count(mean), count(stderr));
         if values + errors > 0 {
             let what = format!(
@@ -254,6 +256,7 @@ mod tests {
             sign: -1.0,
             primary: false,
             budget_key: None,
+            undefined_nan: false,
         };
         let start = reg.take(4);
         let image = Kind::Image { nx: 2, ny: 1, min: [0.0; 2], max: [1.0; 2] };

@@ -77,8 +77,48 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
     let n = spec.tau.len();
     let tau_file = format!("{name}_tau_s.npy");
     w.npy(tau_file.clone(), &[n], &spec.tau)?;
-    let (g1, g1e) = w.array(w.output(&format!("{name}.g1")))?;
-    let o2 = w.output(&format!("{name}.g2"));
+    curves(w, name, spec)?;
+    let mut entry = json!({
+        "tau_file": tau_file,
+        "points": n,
+        "beta": spec.beta,
+        "g1_layout": "[0] real part, [1] imaginary part, per delay",
+        "normalisation": "over the run: ratios of the run's means, |g1|² unbiased in numerator and denominator; σ: jackknife over 16 groups of batches",
+    });
+    if !spec.exposures.is_empty() {
+        let nt = spec.exposures.len();
+        let exposure_file = format!("{name}_exposure_s.npy");
+        w.npy(exposure_file.clone(), &[nt], &spec.exposures)?;
+        entry["exposure_file"] = json!(exposure_file);
+        if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
+            contrast_image_figure(w, o, spec)?;
+            entry["image_file"] = json!(o.file);
+            entry["image_layout"] = json!("[exposure][row][col], row 0 = largest y; NaN: too few paths");
+        }
+    }
+    if !spec.rois.is_empty() {
+        let mut rois = serde_json::Map::new();
+        for roi in &spec.rois {
+            let key = format!("{name}.roi_{}", roi.name);
+            curves(w, &key, spec)?;
+            let file = |what: &str| json!(format!("{name}_roi_{}_{what}.npy", roi.name));
+            let mut e = json!({ "g1_file": file("g1"), "g2_file": file("g2") });
+            if !spec.exposures.is_empty() {
+                e["speckle_contrast_file"] = file("speckle_contrast");
+            }
+            rois.insert(roi.name.clone(), e);
+        }
+        entry["rois"] = Value::Object(rois);
+    }
+    Ok(entry)
+}
+
+/// g1, g2 and K (`<key>.g1`, `.g2`, `.speckle_contrast`: a detector's or an ROI's) as files and
+/// figures.
+fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec) -> Result<()> {
+    let (n, name) = (spec.tau.len(), key.replace('.', " "));
+    let (g1, g1e) = w.array(w.output(&format!("{key}.g1")))?;
+    let o2 = w.output(&format!("{key}.g2"));
     let (g2, g2e) = w.array(o2)?;
     if w.figures {
         let mut plot =
@@ -90,21 +130,12 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
         }
         let g2m1: Vec<f64> = g2.iter().map(|g| g - 1.0).collect();
         plot.curves.push(band_curve(&format!("g2 − 1 (β = {})", spec.beta), spec.tau.clone(), &g2m1, &g2e, PALETTE[1]));
-        plot.note = "band: ±σ (from the batches)".into();
+        plot.note = "band: ±σ (jackknife over groups of batches)".into();
         w.figure(&stem(o2), &plot)?;
     }
-    let mut entry = json!({
-        "tau_file": tau_file,
-        "points": n,
-        "beta": spec.beta,
-        "g1_layout": "[0] real part, [1] imaginary part, per delay",
-        "normalisation": "per batch: the sums over the batch's detected power; σ from the batches",
-    });
     if !spec.exposures.is_empty() {
         let nt = spec.exposures.len();
-        let exposure_file = format!("{name}_exposure_s.npy");
-        w.npy(exposure_file.clone(), &[nt], &spec.exposures)?;
-        let ok = w.output(&format!("{name}.speckle_contrast"));
+        let ok = w.output(&format!("{key}.speckle_contrast"));
         let (k, ke) = w.array(ok)?;
         if w.figures {
             let mut plot = LinePlot::new(format!("{name}: speckle contrast"), "exposure time T (s)", "K");
@@ -129,9 +160,28 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
             plot.note = format!("error bars: ±σ; β = {} (K → √β as T → 0)", spec.beta);
             w.figure(&stem(ok), &plot)?;
         }
-        entry["exposure_file"] = json!(exposure_file);
     }
-    Ok(entry)
+    Ok(())
+}
+
+/// The speckle contrast image `o` at the middle exposure, with its σ beside it (NaN pixels —
+/// too few paths for a defined |g1|² or σ — grey in both).
+fn contrast_image_figure(w: &mut Writer, o: &Output, spec: &CorrelationSpec) -> Result<()> {
+    let Kind::ImageStack { layers, nx, ny, min, max } = o.kind else { return Ok(()) };
+    let (v, e) = w.array(o)?;
+    if !w.figures || layers == 0 {
+        return Ok(());
+    }
+    let j = layers / 2;
+    let layer = Output { kind: Kind::Image { nx, ny, min, max }, ..o.clone() };
+    let (k, ke) = (&v[j * nx * ny..(j + 1) * nx * ny], &e[j * nx * ny..(j + 1) * nx * ny]);
+    let undefined = k.iter().filter(|x| !x.is_finite()).count();
+    let title = format!("K at T = {:.3} ms", spec.exposures[j] * 1e3);
+    let mut kp = image_panel(&layer, k, &title, "speckle contrast K", false);
+    kp.caption = format!("0 to the 99.5th percentile; grey: too few paths ({undefined})");
+    let mut ep = image_panel(&layer, ke, "σ(K), jackknife", "σ(K)", false);
+    ep.caption = format!("0 to the 99.5th percentile; grey: undefined ({undefined})");
+    w.figure(&stem(o), &ImageFigure { panels: vec![kp, ep] })
 }
 
 /// A curve with a ±σ band.
