@@ -59,6 +59,8 @@ pub struct VolumeSection {
     pub voxels: Option<[i64; 3]>,
     /// The fluence estimator(s): `"track_length"` (default), `"collision"` or `"both"`.
     pub fluence: Option<FluenceKind>,
+    /// `[volume.time]`: time-of-flight bins, the keys of `[detectors.time]` (`image` refused).
+    pub time: Option<TimeSection>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
