@@ -61,6 +61,8 @@ pub struct VolumeSection {
     pub fluence: Option<FluenceKind>,
     /// `[volume.time]`: time-of-flight bins, the keys of `[detectors.time]` (`image` refused).
     pub time: Option<TimeSection>,
+    /// Also write the untimed volumes as an OpenVDB file (`volume.vdb`).
+    pub vdb: Option<bool>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

@@ -99,6 +99,8 @@ pub struct VolumeGrid {
     pub time: Option<FrequencyAxis>,
     /// The time axis as optical lengths (m): what the walk's `l` is binned on.
     length_axis: Option<FrequencyAxis>,
+    /// Also write `volume.vdb` (`volume.vdb = true`).
+    pub vdb: bool,
     /// Voxel edges, m.
     edge: DVec3,
     inv_edge: DVec3,
@@ -138,6 +140,7 @@ impl VolumeGrid {
             fluence,
             time: None,
             length_axis: None,
+            vdb: false,
             edge,
             inv_edge: n / (max - min),
             inv_volume: 1.0 / edge.element_product(),

@@ -473,3 +473,67 @@ fn time_resolved_fluence_matches_time_domain_diffusion() {
         }
     }
 }
+
+#[test]
+fn openvdb_file_round_trips_through_our_reader() {
+    // `volume.vdb = true`: every untimed volume and its σ as a FloatGrid of `volume.vdb`, read
+    // back by our reader (`ohd::io::formats::vdb`): the voxel size and transform (voxel centre
+    // (i, j, k) at the box's min corner + (i + ½, j + ½, k + ½)·edge), the values (the `.npy`'s as
+    // f32, index j counting up from the smallest y), non-zero voxels active, zero ones inactive
+    // and equal to the background 0. (OpenVDB 10 itself, pyopenvdb, reads the same file to the
+    // same values: `validation/vdb/check_volume_vdb.py`.)
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("v.toml");
+    std::fs::write(&cfg, SEMI).unwrap();
+    let sets =
+        ["volume.voxels=[24, 20, 20]", "volume.size_mm=[12, 10, 10]", "volume.center_mm=[1, -1, 5]", "volume.vdb=true"];
+    let mut args = vec!["run", "-q", "v.toml", "--samples", "3000", "--out", "o"];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    let o = crate::support::files::ohd(tmp.path(), &args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dir = tmp.path().join("o");
+    let (nx, ny, nz) = (24usize, 20usize, 20usize);
+    let (h, min) = (0.5e-3, [-5e-3, -6e-3, 0.0]);
+    let names: Vec<String> =
+        ohd::io::formats::vdb::grids(dir.join("volume.vdb")).unwrap().into_iter().map(|g| g.name).collect();
+    // SEMI scores both fluence estimators.
+    let all = [
+        "fluence_track",
+        "fluence_track_stderr",
+        "fluence_collision",
+        "fluence_collision_stderr",
+        "absorbed",
+        "absorbed_stderr",
+    ];
+    assert_eq!(names, all);
+    for name in all {
+        let file = format!("volume_{name}.npy");
+        let (shape, v) = ohd::io::formats::npy::from_bytes(&std::fs::read(dir.join(&file)).unwrap()).unwrap();
+        assert_eq!(shape, vec![nz, ny, nx]);
+        let g = ohd::io::formats::vdb::read_float(dir.join("volume.vdb"), Some(name)).unwrap();
+        let t = g.grid.transform;
+        assert!((t.voxel_size - glam::DVec3::splat(h)).abs().max_element() < 1e-15, "{name}: {:?}", t.voxel_size);
+        let centre0 = glam::DVec3::from_array(min) + glam::DVec3::splat(0.5 * h);
+        assert!((t.translation - centre0).abs().max_element() < 1e-15, "{name}: {:?}", t.translation);
+        let mut active = 0u64;
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let want = v[(k * ny + (ny - 1 - j)) * nx + i] as f32;
+                    let ijk = [i as i32, j as i32, k as i32];
+                    assert_eq!(g.grid.get(ijk), want, "{name} at {ijk:?}");
+                    assert_eq!(g.active.contains(ijk), want != 0.0, "{name} at {ijk:?}: active iff non-zero");
+                    active += u64::from(want != 0.0);
+                }
+            }
+        }
+        assert!(active > 100, "{name}: {active} active voxels");
+        assert_eq!(g.active_voxel_count, active);
+        assert_eq!(g.grid.background, 0.0);
+    }
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    assert!(m["files"].as_array().unwrap().iter().any(|f| f == "volume.vdb"));
+    assert!(m["volume"]["vdb_layout"].as_str().unwrap().contains("index (i, j, k)"));
+}

@@ -34,7 +34,8 @@ pub(super) fn resolve_volume(v: Option<&VolumeSection>) -> R<Option<VolumeGrid>>
         FluenceKind::Both => FluenceEstimator::Both,
     };
     let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
-    let grid = VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence);
+    let mut grid = VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence);
+    grid.vdb = v.vdb.unwrap_or(false);
     let Some(t) = &v.time else { return Ok(Some(grid)) };
     if t.image.is_some() {
         return err("volume.time.image", "is a detector's key (its time-gated image): a volume tally has no image");

@@ -10,6 +10,7 @@ use crate::detect::volume::{VOLUME_LAYOUT, VOLUME_TIME_LAYOUT, VolumeGrid};
 use crate::error::Result;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, quantile};
+use crate::io::formats::vdb_write::{self, DenseFloatGrid};
 use crate::spectrum::FrequencyAxis;
 
 /// Decades of the log colour scale below its top.
@@ -25,11 +26,59 @@ pub struct VolumeEntry {
     pub z_range_m: [f64; 2],
     pub voxel_volume_m3: f64,
     pub layout: &'static str,
+    /// With `volume.vdb = true`: how `volume.vdb`'s index space maps to the scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vdb_layout: Option<&'static str>,
     /// With `[volume.time]`: the time bins of the `_time` files.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<VolumeTimeEntry>,
     /// Per file: its units.
     pub files: std::collections::BTreeMap<String, &'static str>,
+}
+
+/// The OpenVDB file of `volume.vdb = true`.
+pub const VDB_FILE: &str = "volume.vdb";
+
+/// How `volume.vdb`'s grids map to the scene.
+pub const VDB_LAYOUT: &str = "FloatGrids named as the .npy files without volume_ and .npy (fluence_track, fluence_track_stderr, absorbed, …); index (i, j, k) = voxel (ix, iy, iz) counted from the box's min corner along x, y, z (not the .npy's descending rows); world = ohd's scene coordinates in m (z = depth, downwards), voxel centre (i, j, k) at min + (i + ½, j + ½, k + ½)·edge (ScaleTranslateMap); zero voxels inactive (background 0)";
+
+/// Write the untimed volumes and their standard errors as `FloatGrid`s of one OpenVDB file
+/// ([`VDB_LAYOUT`]).
+fn write_vdb(w: &mut Writer, grid: &VolumeGrid) -> Result<()> {
+    let [nx, ny, nz] = grid.voxels;
+    // Written rows are y descending: index j = ny − 1 − row.
+    let reorder = |v: &[f64]| -> Vec<f32> {
+        let mut out = vec![0.0f32; v.len()];
+        for k in 0..nz {
+            for j in 0..ny {
+                let row = ny - 1 - j;
+                for i in 0..nx {
+                    out[(k * ny + j) * nx + i] = v[(k * ny + row) * nx + i] as f32;
+                }
+            }
+        }
+        out
+    };
+    let mut volumes = Vec::new();
+    for what in ["fluence_track", "fluence_collision", "absorbed"] {
+        let Some(o) = w.registry.get(&format!("volume.{what}")) else { continue };
+        let (v, e) = o.values(w.mean, w.stderr);
+        volumes.push((what.to_string(), o.units, reorder(&v)));
+        volumes.push((format!("{what}_stderr"), o.units, reorder(&e)));
+    }
+    let edge = grid.edge();
+    let grids: Vec<DenseFloatGrid> = volumes
+        .iter()
+        .map(|(name, units, values)| DenseFloatGrid {
+            name,
+            units,
+            dims: grid.voxels,
+            values,
+            voxel_size: edge,
+            origin: grid.min + 0.5 * edge,
+        })
+        .collect();
+    w.put(VDB_FILE.to_string(), vdb_write::to_bytes(&grids, concat!("ohd ", env!("CARGO_PKG_VERSION"))))
 }
 
 /// The manifest's `volume.time`: `bins` equal bins over `[t_min_s, t_max_s)`.
@@ -74,6 +123,10 @@ pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<Vo
         let fig = time_slices_figure(grid, &axis, &v, beam_y, what.replace('_', " ").as_str(), unit);
         w.figure(&super::figures::stem(o), &fig)?;
     }
+    if grid.vdb {
+        write_vdb(w, grid)?;
+        files.insert(VDB_FILE.to_string(), "OpenVDB FloatGrids of the untimed volumes and their σ (see the layout)");
+    }
     let e = grid.edge();
     Ok(VolumeEntry {
         voxels: grid.voxels,
@@ -82,6 +135,7 @@ pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<Vo
         z_range_m: [grid.min.z, grid.max.z],
         voxel_volume_m3: e.x * e.y * e.z,
         layout: VOLUME_LAYOUT,
+        vdb_layout: grid.vdb.then_some(VDB_LAYOUT),
         time: grid.time.map(|a| VolumeTimeEntry {
             t_min_s: a.f_min,
             t_max_s: a.f_max,
