@@ -506,8 +506,12 @@ struct Figures {
 fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
     let (mean, se) = (output.estimates.mean(), output.estimates.stderr());
     let outputs = exp.outputs();
-    let scalars = ["reflectance_specular", "reflectance_diffuse", "transmittance_total", "absorbed_fraction"]
-        .iter()
+    // A box phantom's side faces after the transmittance (its name only where it is declared).
+    let lateral = exp.scene.lateral.map(|_| ohd::detect::LATERAL_SCALAR);
+    let scalars = ["reflectance_specular", "reflectance_diffuse", "transmittance_total"]
+        .into_iter()
+        .chain(lateral)
+        .chain(["absorbed_fraction"])
         .map(|k| match outputs.iter().find(|o| o.name == *k) {
             Some(o) => (k.to_string(), mean[o.slots.start], se[o.slots.start]),
             None => (k.to_string(), f64::NAN, f64::NAN),

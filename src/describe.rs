@@ -499,6 +499,17 @@ impl Display for Shape {
 impl Display for Scene {
     fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
         write!(f, "ambient: n = {} above, {} below", num(self.n_above), num(self.n_below))?;
+        if let Some(b) = &self.lateral {
+            write!(
+                f,
+                "\nlateral: a box x ∈ [{}, {}] mm, y ∈ [{}, {}] mm, n = {} beside",
+                num(b.x.0 * 1e3),
+                num(b.x.1 * 1e3),
+                num(b.y.0 * 1e3),
+                num(b.y.1 * 1e3),
+                num(b.n_outside)
+            )?;
+        }
         write!(f, "\nmedia:")?;
         let mut names: Vec<&str> = Vec::new();
         for m in &self.media {

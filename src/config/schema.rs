@@ -46,6 +46,20 @@ pub struct ExperimentFile {
     pub reference: BTreeMap<String, ReferenceValue>,
     /// A voxel grid scoring absorbed power and fluence inside the scene.
     pub volume: Option<VolumeSection>,
+    /// Lateral bounds: the stack cut to a box phantom.
+    pub lateral: Option<LateralSection>,
+}
+
+/// `[lateral]`: the layer stack cut to `x ∈ [x0, x1]`, `y ∈ [y0, y1]`, its side faces against
+/// a clear medium of index `n_outside` (default `ambient.n_above`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LateralSection {
+    #[serde(rename = "x_um", alias = "x_mm", alias = "x_m")]
+    pub x: Option<Quantity<Length, [f64; 2]>>,
+    #[serde(rename = "y_um", alias = "y_mm", alias = "y_m")]
+    pub y: Option<Quantity<Length, [f64; 2]>>,
+    pub n_outside: Option<f64>,
 }
 
 /// `[volume]`: a box of the scene (`z` = depth) cut into `voxels = [nx, ny, nz]` voxels.

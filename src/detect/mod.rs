@@ -279,6 +279,10 @@ impl Scalar {
     }
 }
 
+/// Name of the scalar output of a box phantom (`[lateral]`): the fraction of the emitted power
+/// that leaves through its side faces.
+pub const LATERAL_SCALAR: &str = "transmittance_lateral";
+
 /// How beat frequencies are computed from `l` and `dl/dt`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BeatModel {
@@ -330,6 +334,9 @@ impl BeatModel {
 pub struct TallyLayout {
     pub registry: Registry,
     pub detectors: Vec<DetectorLayout>,
+    /// The slot of `transmittance_lateral` (the weight leaving a box phantom through its side
+    /// faces), declared only with `[lateral]` ([`TallyLayout::declare_lateral`]).
+    pub lateral: Option<usize>,
 }
 
 /// Offsets of one detector's block.
@@ -360,7 +367,19 @@ impl TallyLayout {
             });
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
-        TallyLayout { registry: reg, detectors: layouts }
+        TallyLayout { registry: reg, detectors: layouts, lateral: None }
+    }
+
+    /// Declare the scalar `transmittance_lateral` of a box phantom in the next slot.
+    pub fn declare_lateral(&mut self) {
+        let slot = self.registry.take(1);
+        let name = LATERAL_SCALAR;
+        self.registry.declare(Output {
+            file: format!("/estimates/{name}/value"),
+            primary: true,
+            ..Output::new(name.to_string(), Kind::Scalar, Slots::contiguous(slot, 1), Vec::new())
+        });
+        self.lateral = Some(slot);
     }
 
     /// Length of the tally vector.
@@ -606,6 +625,14 @@ impl Recorder<'_> {
     #[inline(always)]
     pub fn add(&mut self, s: Scalar, w: f64) {
         self.acc[s as usize] += w;
+    }
+
+    /// A path leaving a box phantom through a side face with weight `w`.
+    #[inline]
+    pub fn lateral(&mut self, w: f64) {
+        if let Some(i) = self.layout.lateral {
+            self.acc[i] += w;
+        }
     }
 
     /// A path leaving the stack through `side` into ambient index `n_ambient`.

@@ -54,8 +54,43 @@ pub struct Region {
     pub layer: usize,
 }
 
+/// Lateral bounds of the stack (`[lateral]`): every layer cut to `x0 ≤ x ≤ x1`, `y0 ≤ y ≤ y1`,
+/// a box phantom whose four side faces look onto a non-scattering medium of index `n_outside`.
+/// A path that crosses a side face ends there (counted in `transmittance_lateral`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lateral {
+    pub x: (f64, f64),
+    pub y: (f64, f64),
+    pub n_outside: f64,
+}
+
+impl Lateral {
+    /// Whether `(x, y)` lies within the bounds (faces included).
+    #[inline]
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        self.x.0 <= x && x <= self.x.1 && self.y.0 <= y && y <= self.y.1
+    }
+
+    /// From `pos` inside the bounds along `dir`: the distance to the side face ahead (≥ 0; ∞
+    /// for a vertical ray) and its axis (0: an x face, 1: a y face).
+    #[inline(always)]
+    pub fn exit(&self, pos: DVec3, dir: DVec3) -> (f64, usize) {
+        let ahead = |p: f64, d: f64, (lo, hi): (f64, f64)| {
+            if d > 0.0 {
+                (hi - p) / d
+            } else if d < 0.0 {
+                (lo - p) / d
+            } else {
+                f64::INFINITY
+            }
+        };
+        let (tx, ty) = (ahead(pos.x, dir.x, self.x), ahead(pos.y, dir.y, self.y));
+        if tx <= ty { (tx.max(0.0), 0) } else { (ty.max(0.0), 1) }
+    }
+}
+
 /// Everything light travels through. Outside the stack are non-scattering half-spaces with
-/// indices `n_above` (z < 0) and `n_below`.
+/// indices `n_above` (z < 0) and `n_below`; with `lateral`, the stack is a box.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
     pub layers: Vec<Layer>,
@@ -63,6 +98,9 @@ pub struct Scene {
     pub media: Vec<Medium>,
     pub n_above: f64,
     pub n_below: f64,
+    /// The box's side faces (`None`: layers of infinite extent; the walk is compiled without
+    /// them).
+    pub lateral: Option<Lateral>,
 }
 
 impl Scene {

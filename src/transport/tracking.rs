@@ -91,16 +91,7 @@ pub fn free_flight(
     null_collisions: &mut u64,
 ) -> Flight {
     let LayerRay { scene, layer, .. } = ray;
-    if layer.heterogeneous {
-        let scale = match tracking {
-            Tracking::Analytic => 1.0,
-            Tracking::Delta { majorant_scale } => majorant_scale,
-        };
-        let (flight, advanced) = heterogeneous(&ray, dz / abs_dir_z, scale, rng.clone(), null_collisions);
-        *rng = advanced;
-        return flight;
-    }
-    if layer.regions.is_empty() {
+    if !layer.heterogeneous && layer.regions.is_empty() {
         let t = rng.exponential() * scene.media[layer.medium].inv_sigma_t();
         return if t * abs_dir_z < dz {
             Flight::Collision { t, medium: layer.medium }
@@ -108,7 +99,37 @@ pub fn free_flight(
             Flight::Boundary { t: dz / abs_dir_z }
         };
     }
-    let t_boundary = dz / abs_dir_z;
+    free_flight_to(ray, dz / abs_dir_z, tracking, rng, null_collisions)
+}
+
+/// [`free_flight`] to a boundary `t_boundary` away along the ray (the nearer of the plane ahead
+/// and a side face of a box phantom, [`crate::medium::Lateral`]).
+#[inline(always)]
+pub fn free_flight_to(
+    ray: LayerRay,
+    t_boundary: f64,
+    tracking: Tracking,
+    rng: &mut PathRng,
+    null_collisions: &mut u64,
+) -> Flight {
+    let LayerRay { scene, layer, .. } = ray;
+    if layer.heterogeneous {
+        let scale = match tracking {
+            Tracking::Analytic => 1.0,
+            Tracking::Delta { majorant_scale } => majorant_scale,
+        };
+        let (flight, advanced) = heterogeneous(&ray, t_boundary, scale, rng.clone(), null_collisions);
+        *rng = advanced;
+        return flight;
+    }
+    if layer.regions.is_empty() {
+        let t = rng.exponential() * scene.media[layer.medium].inv_sigma_t();
+        return if t < t_boundary {
+            Flight::Collision { t, medium: layer.medium }
+        } else {
+            Flight::Boundary { t: t_boundary }
+        };
+    }
     // The outlined trackers never see `rng` itself (see `PathRng`): the analytic one needs one
     // optical depth, drawn here, and delta tracking works on the generator passed by value.
     match tracking {

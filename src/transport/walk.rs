@@ -10,7 +10,8 @@
 //! The walk is compiled per scene kind: `DOPPLER = false` drops every velocity lookup (nothing
 //! moves), `LENGTH = false` drops the optical-path-length bookkeeping (no chirp, no gates),
 //! `VOLUME = false` drops the volume tally's hooks (no `[volume]`), `GATE = false` the time gate's
-//! checks (no `run.time_gate_ns`; a gated walk also tracks the length).
+//! checks (no `run.time_gate_ns`; a gated walk also tracks the length), `LATERAL = false` the
+//! side faces of a box phantom (no `[lateral]`: the layers are infinite slabs).
 
 use glam::DVec3;
 
@@ -24,7 +25,7 @@ use crate::source::Source;
 use super::camera::CameraTarget;
 use super::fresnel;
 use super::nee::NeeTarget;
-use super::tracking::{Flight, LayerRay, Tracking, free_flight};
+use super::tracking::{Flight, LayerRay, Tracking, free_flight, free_flight_to};
 
 /// Knobs of the random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -182,6 +183,8 @@ pub fn doppler_increment(n: f64, v: DVec3, dir_in_minus_out: DVec3) -> f64 {
 enum End {
     /// Left the stack through `side` into the ambient medium of index `n_ambient`.
     Escaped { side: Side, n_ambient: f64 },
+    /// Left a box phantom through one of its side faces.
+    Lateral,
     /// Went down through a transparent semi-infinite last layer: transmitted to depth.
     ToDepth,
     /// Lost all its weight at a collision (albedo 0).
@@ -201,7 +204,14 @@ enum End {
 /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
 /// vector and counters out of the event loop frees registers there and removes a bounds-checked
 /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const VOLUME: bool, const GATE: bool>(
+pub fn trace_path<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+    const LATERAL: bool,
+>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     rng: &mut PathRng,
@@ -246,7 +256,7 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, cons
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE>(
+    let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(
         ctx,
         &mut s,
         &mut local,
@@ -263,6 +273,11 @@ pub fn trace_path<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, cons
         End::Escaped { side, n_ambient } => {
             if in_gate::<GATE>(ctx.settings, s.l) {
                 rec.escape(side, s.escape(false), n_ambient);
+            }
+        }
+        End::Lateral => {
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                rec.lateral(s.weight);
             }
         }
         // Depth is reached at t = ∞: beyond any gate.
@@ -332,7 +347,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     };
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end = walk::<DOPPLER, LENGTH, false, true, false, false>(
+    let end = walk::<DOPPLER, LENGTH, false, true, false, false, false>(
         &ctx,
         &mut s,
         &mut local,
@@ -361,6 +376,12 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
 /// interface, to depth) is scored into the volume tally's track lengths with the weight it is
 /// flown with, and every real collision's deposit and collision estimate before the collision
 /// is handled ([`VolumeTally`]).
+///
+/// With `LATERAL` the layers end at the side faces of a box phantom (`Scene::lateral`): a
+/// flight that would leave the box stops at the face ahead, where Fresnel's law against
+/// `n_outside` reflects the path back in or lets it out (`End::Lateral`). Shadow rays and
+/// camera paths are not run in a box (refused at resolve time), so `NEE` and `CAMERA` never
+/// come with it.
 #[inline(always)]
 fn walk<
     const DOPPLER: bool,
@@ -369,6 +390,7 @@ fn walk<
     const CAMERA: bool,
     const VOLUME: bool,
     const GATE: bool,
+    const LATERAL: bool,
 >(
     ctx: &WalkContext,
     s: &mut PathState,
@@ -378,6 +400,11 @@ fn walk<
     rec: &mut Recorder,
 ) -> End {
     let WalkContext { scene, settings, .. } = *ctx;
+    // The box's bounds (read only by the walk compiled with `LATERAL`).
+    let bounds = match scene.lateral {
+        Some(b) if LATERAL => b,
+        _ => crate::medium::Lateral { x: (0.0, 0.0), y: (0.0, 0.0), n_outside: 1.0 },
+    };
     let mut li = 0usize;
     let (mut reflected_at, mut reflections) = (u32::MAX, 0u32);
     // The next event count at which `collide` looks at the event cap and renormalises.
@@ -412,18 +439,23 @@ fn walk<
                 if !(z_top <= z && z < z_bottom) {
                     break;
                 }
+                if LATERAL && !bounds.contains(s.pos.x + t * s.dir.x, s.pos.y + t * s.dir.y) {
+                    break;
+                }
                 (t, fill, fill.albedo())
             } else {
                 // Distance along z to the boundary plane ahead (either one for a horizontal ray).
                 let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
-                match free_flight(
-                    LayerRay { scene, layer, pos: s.pos, dir: s.dir },
-                    dz,
-                    s.dir.z.abs(),
-                    settings.tracking,
-                    rng,
-                    null_collisions,
-                ) {
+                let ray = LayerRay { scene, layer, pos: s.pos, dir: s.dir };
+                let flight = if LATERAL {
+                    // The nearer of the plane ahead and the side face ahead (`min` takes the face
+                    // for a horizontal ray, whose distance to the plane is ∞ or NaN).
+                    let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs());
+                    free_flight_to(ray, t_end, settings.tracking, rng, null_collisions)
+                } else {
+                    free_flight(ray, dz, s.dir.z.abs(), settings.tracking, rng, null_collisions)
+                };
+                match flight {
                     Flight::Collision { t, medium } => {
                         let m = &scene.media[medium];
                         (t, m, if albedo_grid { m.albedo_at(s.pos + t * s.dir) } else { m.albedo() })
@@ -499,6 +531,26 @@ fn walk<
         let down = s.dir.z > 0.0;
         let (plane, next) = if down { (z_bottom, li + 1) } else { (z_top, li.wrapping_sub(1)) };
         let t_boundary = (plane - s.pos.z) / s.dir.z;
+        if LATERAL {
+            let (t_side, axis) = bounds.exit(s.pos, s.dir);
+            // The side face comes first, or the ray is horizontal (`t_boundary` −∞ or NaN; +∞
+            // is a way to depth, taken unless a face comes first).
+            if t_side < t_boundary || t_boundary.is_nan() || t_boundary < 0.0 {
+                match side_face::<LENGTH, VOLUME, GATE>(ctx, s, t_side, axis, n, bounds, rng, rec) {
+                    Some(end) => return end,
+                    None => {
+                        if s.order != reflected_at {
+                            (reflected_at, reflections) = (s.order, 0);
+                        }
+                        reflections += 1;
+                        if reflections > MAX_REFLECTIONS_WITHOUT_COLLISION {
+                            return End::Truncated;
+                        }
+                        continue;
+                    }
+                }
+            }
+        }
         if VOLUME && let Some(v) = ctx.volume {
             // To depth (t = ∞) the track is clipped to the grid's box (and to the gate's end).
             let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
@@ -558,6 +610,58 @@ fn walk<
         }
         li = next;
     }
+}
+
+/// The path `s` in a layer of index `n` reaches the side face `axis` (0: x, 1: y) of the box
+/// `b`, `t` away: the gate, the volume tally's track, then Fresnel against `b.n_outside` at
+/// incidence `|dir·normal|` (unpolarised, as at the layer interfaces). `None`: reflected back in
+/// (the normal component of `dir` reversed); else how the path ended.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn side_face<const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    s: &mut PathState,
+    t: f64,
+    axis: usize,
+    n: f64,
+    b: crate::medium::Lateral,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) -> Option<End> {
+    if VOLUME && let Some(v) = ctx.volume {
+        // Clipped to the gate's end if the path ends there.
+        v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+    }
+    if GATE
+        && let Some((_, l1)) = ctx.settings.gate
+        && s.l + n * t > l1
+    {
+        return Some(End::Gated);
+    }
+    if !t.is_finite() {
+        return Some(End::Truncated);
+    }
+    if LENGTH {
+        s.l += n * t;
+    }
+    s.pos += t * s.dir;
+    // On the face exactly, so that the next flight starts inside.
+    let (lo, hi) = if axis == 0 { b.x } else { b.y };
+    let outward = s.dir[axis] > 0.0;
+    s.pos[axis] = if outward { hi } else { lo };
+    let (r, cos_t) = fresnel::reflectance(n, b.n_outside, s.dir[axis].abs());
+    if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
+        s.dir[axis] = -s.dir[axis];
+        return None;
+    }
+    // Refracted out (Snell across the face's normal; nothing records the direction, but the
+    // state stays a physical one).
+    if n != b.n_outside {
+        let eta = n / b.n_outside;
+        s.dir *= eta;
+        s.dir[axis] = cos_t.copysign(if outward { 1.0 } else { -1.0 });
+    }
+    Some(End::Lateral)
 }
 
 /// A real collision `v` of `s` at distance `t`: absorption weighting, a new direction, the

@@ -207,6 +207,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
         media: vec![m],
         n_above: 1.0,
         n_below: 1.0,
+        lateral: None,
     };
     scene.update_layers();
     (scene, ramp)

@@ -16,6 +16,7 @@ mod figures;
 mod fmcw;
 mod grid;
 mod hostile;
+mod lateral;
 mod ldh;
 mod lidar;
 mod mie;

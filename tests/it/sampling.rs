@@ -99,6 +99,7 @@ fn piecewise_scene() -> Scene {
         media: vec![medium("base", 1000.0), medium("dense", 4000.0), medium("void", 0.0)],
         n_above: 1.0,
         n_below: 1.0,
+        lateral: None,
     }
 }
 

@@ -122,6 +122,16 @@ GROUPS = [
         10_000,
     ),
     (
+        "lateral bounds (vdH slab)",
+        [
+            ("no [lateral]", "vdh_plain.toml", []),
+            ("[lateral] 1 m wide, faces never reached: feature used", "vdh_lateral.toml", []),
+            ("[lateral] ±0.5 mm, n_outside = 1.4: faces reached", "vdh_lateral.toml", ["lateral.x_mm=[-0.5, 0.5]", "lateral.y_mm=[-0.5, 0.5]", "lateral.n_outside=1.4"]),
+        ],
+        2_000_000,
+        100_000,
+    ),
+    (
         "volume tally (vdH slab, 40 × 40 × 20 voxels)",
         [
             ("no [volume]", "vdh_plain.toml", []),

@@ -11,6 +11,7 @@
 mod density;
 mod detectors;
 mod flow;
+mod lateral;
 mod media;
 mod run;
 mod scene;
@@ -28,6 +29,7 @@ pub use self::detectors::{
     LDH_DEFAULT_BAND_HZ, LDH_DEFAULT_FRAME_RATE_HZ, LDH_DEFAULT_SPECKLE_WINDOWS, LDH_DEFAULT_WINDOW_SAMPLES,
 };
 use self::detectors::{resolve_detectors, resolve_lidar};
+use self::lateral::resolve_lateral;
 use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
@@ -200,6 +202,8 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
             "a time gate (run.time_gate_ns) applies to the paths from the laser: use estimator = \"forward\"",
         );
     }
+    let mut scene = scene;
+    scene.lateral = resolve_lateral(f.lateral.as_ref(), n_above, &source, &detectors)?;
     let mut exp = Experiment {
         name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
         scene,

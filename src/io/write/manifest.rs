@@ -15,7 +15,7 @@ use serde_json::Value;
 
 use super::dir::DirWriter;
 use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
-use crate::detect::{DetectorKind, Scalar, Side};
+use crate::detect::{DetectorKind, LATERAL_SCALAR, Scalar, Side};
 use crate::error::Result;
 use crate::experiment::{Experiment, Progress, RunOutput};
 use crate::io::formats::npy;
@@ -297,6 +297,9 @@ fn write_run_to<S: super::Sink>(
     w.figures = inv.figures;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
+    if out.layout.lateral.is_some() {
+        estimates.insert(LATERAL_SCALAR.to_string(), Entry::Estimate(w.estimate(w.output(LATERAL_SCALAR))));
+    }
     let mut det_estimates = BTreeMap::new();
     let mut det_info = BTreeMap::new();
     let mut out_of_range_total = 0.0;
