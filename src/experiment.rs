@@ -407,6 +407,7 @@ impl Experiment {
         self.source.chirp.is_some()
             || self.detectors.iter().any(|d| d.lidar().is_some() || d.surface().is_some_and(|s| s.time.is_some()))
             || self.plan.walk.gate.is_some()
+            || self.volume.as_ref().is_some_and(|v| v.time.is_some())
     }
 
     /// The detectors scored by next-event estimation.
@@ -648,7 +649,11 @@ impl Experiment {
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
         };
-        let volume = self.volume.as_ref().map(|grid| VolumeTally { grid, slots: VolumeGrid::slots(&layout.registry) });
+        let volume = self.volume.as_ref().map(|grid| VolumeTally {
+            grid,
+            slots: VolumeGrid::slots(&layout.registry),
+            gate: self.plan.walk.gate,
+        });
         let walk = WalkContext {
             scene: &self.scene,
             source: &self.source,

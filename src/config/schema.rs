@@ -73,6 +73,10 @@ pub struct VolumeSection {
     pub voxels: Option<[i64; 3]>,
     /// The fluence estimator(s): `"track_length"` (default), `"collision"` or `"both"`.
     pub fluence: Option<FluenceKind>,
+    /// `[volume.time]`: time-of-flight bins, the keys of `[detectors.time]` (`image` refused).
+    pub time: Option<TimeSection>,
+    /// Also write the untimed volumes as an OpenVDB file (`volume.vdb`).
+    pub vdb: Option<bool>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]

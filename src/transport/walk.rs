@@ -463,21 +463,29 @@ fn walk<
                     Flight::Boundary { .. } => break,
                 }
             };
+            let mut before_gate = false;
             if GATE && let Some((l0, l1)) = settings.gate {
-                // The collision happens at `l`: after the gate the path ends unrecorded; before
-                // it the deposit `absorb` will add is taken back out of the absorbed weight.
+                // The collision happens at `l`: after the gate the path ends unrecorded (its
+                // track scored up to `l1`); before it the deposit `absorb` will add is taken back
+                // out of the absorbed weight (and the volume tally's).
                 let l = s.l + n * t;
                 if l > l1 {
+                    if VOLUME && let Some(v) = ctx.volume {
+                        v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+                    }
                     return End::Gated;
                 }
                 if l < l0 {
                     *absorbed -= s.weight * (1.0 - albedo);
+                    before_gate = true;
                 }
             }
             if VOLUME && let Some(v) = ctx.volume {
                 let p = s.pos + t * s.dir;
-                v.track(rec.acc, s.pos, s.dir, t, s.weight);
-                v.collision(rec.acc, p, s.weight, albedo, medium.sigma_t_at(p));
+                v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+                if !before_gate {
+                    v.collision(rec.acc, p, s.l + n * t, s.weight, albedo, medium.sigma_t_at(p));
+                }
             }
             if CAMERA {
                 s.pos += t * s.dir;
@@ -543,16 +551,16 @@ fn walk<
                 }
             }
         }
+        if VOLUME && let Some(v) = ctx.volume {
+            // To depth (t = ∞) the track is clipped to the grid's box (and to the gate's end).
+            let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
+            v.track::<GATE>(rec.acc, s.pos, s.dir, len, s.weight, s.l, n);
+        }
         if GATE
             && let Some((_, l1)) = settings.gate
             && s.l + n * t_boundary > l1
         {
             return End::Gated;
-        }
-        if VOLUME && let Some(v) = ctx.volume {
-            // To depth (t = ∞) the track is clipped to the grid's box.
-            let len = if t_boundary.is_finite() { t_boundary } else { f64::INFINITY };
-            v.track(rec.acc, s.pos, s.dir, len, s.weight);
         }
         if !t_boundary.is_finite() {
             // Only a semi-infinite last layer lets a path go to depth; an overflow towards a
@@ -620,14 +628,15 @@ fn side_face<const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
     rng: &mut PathRng,
     rec: &mut Recorder,
 ) -> Option<End> {
+    if VOLUME && let Some(v) = ctx.volume {
+        // Clipped to the gate's end if the path ends there.
+        v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+    }
     if GATE
         && let Some((_, l1)) = ctx.settings.gate
         && s.l + n * t > l1
     {
         return Some(End::Gated);
-    }
-    if VOLUME && let Some(v) = ctx.volume {
-        v.track(rec.acc, s.pos, s.dir, t, s.weight);
     }
     if !t.is_finite() {
         return Some(End::Truncated);

@@ -165,6 +165,11 @@ GROUPS = [
             ("no [volume]", "vdh_plain.toml", []),
             ("[volume], track-length fluence: feature used", "vdh_volume.toml", []),
             ("[volume], both fluence estimators", "vdh_volume.toml", ["volume.fluence=\"both\""]),
+            (
+                "[volume] + [volume.time], 20 bins over 0–10 ps",
+                "vdh_volume.toml",
+                ["volume.time.t_min_ns=0", "volume.time.t_max_ns=0.01", "volume.time.bins=20"],
+            ),
         ],
         2_000_000,
         100_000,

@@ -496,7 +496,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
 }
 
 /// `[detectors.time]`: bins of the time of flight over `[t_min, t_max)`.
-fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
+pub(super) fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
     let t0 = non_negative(require(p, "t_min", &t.t_min, "the start of the time axis")?, "a time of flight")?;
     let t1 = require(p, "t_max", &t.t_max, "the end of the time axis")?;
     let bins = t.bins.unwrap_or(100);

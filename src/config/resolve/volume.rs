@@ -2,12 +2,13 @@
 
 use glam::DVec3;
 
+use super::detectors::resolve_time;
 use super::{R, err, require_arr};
 use crate::config::schema::{FluenceKind, VolumeSection};
 use crate::detect::volume::{FluenceEstimator, VolumeGrid};
 
-/// The most voxels a grid may have (each estimate is 8 bytes a voxel in the tallies, times the
-/// batches in flight; the memory budget counts them too).
+/// The most voxels a grid may have, time bins included (each estimate is 8 bytes a voxel and bin
+/// in the tallies, times the batches in flight; the memory budget counts them too).
 const MAX_VOXELS: i64 = 1 << 28;
 
 pub(super) fn resolve_volume(v: Option<&VolumeSection>) -> R<Option<VolumeGrid>> {
@@ -33,5 +34,24 @@ pub(super) fn resolve_volume(v: Option<&VolumeSection>) -> R<Option<VolumeGrid>>
         FluenceKind::Both => FluenceEstimator::Both,
     };
     let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
-    Ok(Some(VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence)))
+    let mut grid = VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence);
+    grid.vdb = v.vdb.unwrap_or(false);
+    let Some(t) = &v.time else { return Ok(Some(grid)) };
+    if t.image.is_some() {
+        return err("volume.time.image", "is a detector's key (its time-gated image): a volume tally has no image");
+    }
+    let spec = resolve_time("volume.time", t, false)?;
+    let total = grid.count() as i64 * spec.axis.bins as i64;
+    if total > MAX_VOXELS {
+        return err(
+            "volume.time.bins",
+            format!(
+                "= {}: {} voxels × {} bins = {total} exceeds {MAX_VOXELS} (2^28) values per estimate: fewer bins or voxels",
+                spec.axis.bins,
+                grid.count(),
+                spec.axis.bins
+            ),
+        );
+    }
+    Ok(Some(grid.with_time(spec.axis)))
 }
