@@ -120,10 +120,15 @@ pub fn superscript(e: i32) -> String {
 /// A tick label for `v` on an axis whose ticks are `step` apart: as few decimals as the step
 /// needs, scientific for very large or small numbers.
 pub fn tick_label(v: f64, step: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        return if v.is_finite() { "0".into() } else { String::new() };
+    if !v.is_finite() {
+        return String::new();
     }
+    // A tick meant to be 0 can come out as a rounding residue of the axis range (−5.6e-17 on
+    // an axis from −0.6 to 0.6): far below the step, it is 0.
     let a = v.abs();
+    if v == 0.0 || (step > 0.0 && step.is_finite() && a < 1e-9 * step) {
+        return "0".into();
+    }
     if !(1e-3..1e5).contains(&a) {
         let s = format!("{v:.1e}");
         return s.replace(".0e", "e");
@@ -141,6 +146,14 @@ pub fn db(v: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_rounding_residue_at_zero_is_labelled_zero() {
+        assert_eq!(tick_label(-5.551115123125783e-17, 0.2), "0");
+        assert_eq!(tick_label(0.0, 0.2), "0");
+        assert_eq!(tick_label(0.2, 0.2), "0.2");
+        assert_eq!(tick_label(3e-9, 1e-9), "3e-9");
+    }
 
     #[test]
     fn fireflies_do_not_set_the_scale() {

@@ -139,10 +139,11 @@ fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec) -> Result<()> {
         let (k, ke) = w.array(ok)?;
         if w.figures {
             let mut plot = LinePlot::new(format!("{name}: speckle contrast"), "exposure time T (s)", "K");
+            // K lies in [0, √β], often within one decade: a linear y axis labels it (a log axis
+            // showed a single tick).
             plot.log_x = true;
-            plot.log_y = true;
             let mut c = Curve::line("K(T)", spec.exposures.clone(), k.clone(), PALETTE[0]);
-            c.y_err = Some(ke);
+            c.y_err = Some(ke.clone());
             c.mark = Mark::LineMarkers;
             plot.curves.push(c);
             // The long-exposure law K ∝ T^−½, through the longest exposure, for comparison.
@@ -153,10 +154,8 @@ fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec) -> Result<()> {
                 c.mark = Mark::Dashed;
                 plot.curves.push(c);
             }
-            let lo = k.iter().copied().filter(|&x| x > 0.0).fold(f64::INFINITY, f64::min);
-            if lo.is_finite() {
-                plot.y_range = Some((0.5 * lo, 1.5 * spec.beta.sqrt().max(k[0])));
-            }
+            let top = k.iter().zip(&ke).map(|(k, e)| k + e).filter(|x| x.is_finite()).fold(spec.beta.sqrt(), f64::max);
+            plot.y_range = Some((0.0, 1.05 * top));
             plot.note = format!("error bars: ±σ; β = {} (K → √β as T → 0)", spec.beta);
             w.figure(&stem(ok), &plot)?;
         }
