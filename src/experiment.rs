@@ -667,46 +667,20 @@ impl Experiment {
         let cameras = self.camera_targets();
         // Progress counts forward paths; with camera paths, which cost the most, it follows them.
         let forward_progress = cameras.is_empty();
-        // One branch per batch on the volume tally and the time gate, so that the walk without
-        // them runs the loop it ran before there were any.
         let gate = LENGTH && self.plan.walk.gate.is_some();
         let cancelled = if self.scene.lateral.is_some() {
             lateral_forward_paths::<DOPPLER, LENGTH>(volume.is_some(), gate, &walk, &mut rec, &key, ppb, progress)
         } else {
-            match (volume.is_some(), gate) {
-                (false, false) => forward_paths::<DOPPLER, LENGTH, false, false, false>(
-                    &walk,
-                    &mut rec,
-                    &key,
-                    ppb,
-                    forward_progress,
-                    progress,
-                ),
-                (true, false) => forward_paths::<DOPPLER, LENGTH, true, false, false>(
-                    &walk,
-                    &mut rec,
-                    &key,
-                    ppb,
-                    forward_progress,
-                    progress,
-                ),
-                (false, true) => forward_paths::<DOPPLER, LENGTH, false, true, false>(
-                    &walk,
-                    &mut rec,
-                    &key,
-                    ppb,
-                    forward_progress,
-                    progress,
-                ),
-                (true, true) => forward_paths::<DOPPLER, LENGTH, true, true, false>(
-                    &walk,
-                    &mut rec,
-                    &key,
-                    ppb,
-                    forward_progress,
-                    progress,
-                ),
-            }
+            forward_paths_by::<DOPPLER, LENGTH, false>(
+                volume.is_some(),
+                gate,
+                &walk,
+                &mut rec,
+                &key,
+                ppb,
+                forward_progress,
+                progress,
+            )
         };
         if cancelled {
             return (sums, stats, lines);
@@ -761,11 +735,30 @@ fn lateral_forward_paths<const DOPPLER: bool, const LENGTH: bool>(
     ppb: u64,
     progress: &dyn Progress,
 ) -> bool {
+    forward_paths_by::<DOPPLER, LENGTH, true>(volume, gate, walk, rec, key, ppb, true, progress)
+}
+
+/// [`forward_paths`] compiled for the batch's volume tally (`volume`) and time gate (`gate`):
+/// one branch per batch, so that the walk without them runs the loop it ran before there were
+/// any.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn forward_paths_by<const DOPPLER: bool, const LENGTH: bool, const LATERAL: bool>(
+    volume: bool,
+    gate: bool,
+    walk: &WalkContext,
+    rec: &mut Recorder,
+    key: &StreamKey,
+    ppb: u64,
+    forward_progress: bool,
+    progress: &dyn Progress,
+) -> bool {
+    let (fp, p) = (forward_progress, progress);
     match (volume, gate) {
-        (false, false) => forward_paths::<DOPPLER, LENGTH, false, false, true>(walk, rec, key, ppb, true, progress),
-        (true, false) => forward_paths::<DOPPLER, LENGTH, true, false, true>(walk, rec, key, ppb, true, progress),
-        (false, true) => forward_paths::<DOPPLER, LENGTH, false, true, true>(walk, rec, key, ppb, true, progress),
-        (true, true) => forward_paths::<DOPPLER, LENGTH, true, true, true>(walk, rec, key, ppb, true, progress),
+        (false, false) => forward_paths::<DOPPLER, LENGTH, false, false, LATERAL>(walk, rec, key, ppb, fp, p),
+        (true, false) => forward_paths::<DOPPLER, LENGTH, true, false, LATERAL>(walk, rec, key, ppb, fp, p),
+        (false, true) => forward_paths::<DOPPLER, LENGTH, false, true, LATERAL>(walk, rec, key, ppb, fp, p),
+        (true, true) => forward_paths::<DOPPLER, LENGTH, true, true, LATERAL>(walk, rec, key, ppb, fp, p),
     }
 }
 

@@ -53,7 +53,7 @@
 //! points per decade (5·10⁻⁴ at 16) (test `contrast_quadrature_error_on_a_mixture`). Where `|g1|²` is not positive at
 //! both ends of a piece (noise, or a zero of an oscillating Doppler g1) the piece is linear.
 
-use super::{ImageSpec, Roi, detector_output};
+use super::{ImageSpec, Roi, detector_output, image_stack_output};
 use crate::output::{Kind, Output, Registry, Slots};
 use crate::stats::BatchAccumulator;
 
@@ -218,13 +218,7 @@ impl CorrelationSpec {
                 undefined_nan: true,
                 budget_key: key,
                 units: "1 (speckle contrast K per exposure time and pixel; NaN: too few paths)",
-                ..detector_output(
-                    i,
-                    format!("{name}.speckle_contrast_image"),
-                    Kind::ImageStack { layers: nt, nx: im.nx, ny: im.ny, min: im.min, max: im.max },
-                    Slots::contiguous(c, nt * pixels),
-                    vec![nt, im.ny, im.nx],
-                )
+                ..image_stack_output(i, format!("{name}.speckle_contrast_image"), im, nt, c)
             });
             pixel_contrast = Some(c);
         }

@@ -430,6 +430,18 @@ pub(crate) fn detector_output(i: usize, name: String, kind: Kind, slots: Slots, 
     Output { detector: Some(i), ..Output::new(name, kind, slots, shape) }
 }
 
+/// Detector `i`'s output `name`: a `[layers][row][col]` stack of its image `im`, contiguous from
+/// slot `start` (time-gated images, per-pixel speckle contrast).
+pub(crate) fn image_stack_output(i: usize, name: String, im: &ImageSpec, layers: usize, start: usize) -> Output {
+    detector_output(
+        i,
+        name,
+        Kind::ImageStack { layers, nx: im.nx, ny: im.ny, min: im.min, max: im.max },
+        Slots::contiguous(start, layers * im.nx * im.ny),
+        vec![layers, im.ny, im.nx],
+    )
+}
+
 impl Detector {
     /// Lay out detector `i`'s tallies from `reg`'s end and declare its outputs.
     fn declare(&self, i: usize, beat: &BeatModel, reg: &mut Registry) -> DetectorLayout {

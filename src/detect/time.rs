@@ -8,7 +8,7 @@
 //! spectrum's, so its bins plus both tallies sum to the detector's power of the same paths. The
 //! walk tracks `l` only when some detector asks for a time axis ([`crate::experiment`]).
 
-use super::{ImageSpec, detector_output};
+use super::{ImageSpec, detector_output, image_stack_output};
 use crate::SPEED_OF_LIGHT;
 use crate::output::{Kind, Output, Registry, Slots};
 use crate::spectrum::{FrequencyAxis, Slot};
@@ -52,13 +52,7 @@ impl TimeSpec {
                     file: format!("{name}_time_gated_image.npy"),
                     budget_key: Some((format!("detectors[{i}].time.image"), format!("= true ({bins} gates)"))),
                     units: "fraction of emitted power per pixel and time bin",
-                    ..detector_output(
-                        i,
-                        format!("{name}.time_gated_image"),
-                        Kind::ImageStack { layers: bins, nx: im.nx, ny: im.ny, min: im.min, max: im.max },
-                        Slots::contiguous(start, bins * pixels),
-                        vec![bins, im.ny, im.nx],
-                    )
+                    ..image_stack_output(i, format!("{name}.time_gated_image"), im, bins, start)
                 });
                 (Some(start), pixels)
             }

@@ -319,19 +319,12 @@ fn gated_image_sums_to_the_image() {
     assert!((gated / image - 1.0).abs() < 1e-12 && image > 0.0, "{gated} vs {image}");
 }
 
-/// Random flow is in each path's own Doppler frequency: single backscattering (albedo 10⁻⁶, a
-/// 0.5° cone) from particles with a Gaussian random velocity of σ_v per component drawn per event
-/// gives `f = 2v_z/λ0 ~ N(0, σ_f²)`, `σ_f = 2σ_v/λ0`, so `g1(τ) = exp(−2π²σ_f²τ²)` (real): the
-/// characteristic function of the Gaussian, met by the estimate in σ.
-#[test]
-fn random_flow_gives_the_gaussian_characteristic_function() {
-    let text = r#"
+/// Single backscattering (albedo 10⁻⁶) from particles with a Gaussian random velocity, σ_v =
+/// 1 mm/s per component, seen straight back through a 0.5° cone: each path's frequency is
+/// f = 2v_z/λ0 (λ0 = 800 nm). The tests add `[run]` and `[detectors.correlation]`.
+const RANDOM_FLOW: &str = r#"
 schema_version = 1
 name = "random_flow"
-[run]
-samples = 40_000
-seed = 8
-batches = 32
 [source]
 wavelength_nm = 800
 profile = "pencil"
@@ -352,18 +345,37 @@ name = "back"
 acceptance_half_angle_deg = 0.5
 next_event = true
 include_specular = false
+"#;
+
+/// g1 of `RANDOM_FLOW`: f ~ N(0, σ_f²), σ_f = 2σ_v/λ0, so g1(τ) = exp(−2π²σ_f²τ²).
+fn random_flow_g1(tau: f64) -> f64 {
+    let sigma_f = 2.0 * 1e-3 / 800e-9;
+    (-2.0 * PI * PI * sigma_f * sigma_f * tau * tau).exp()
+}
+
+/// Random flow is in each path's own Doppler frequency: single backscattering (albedo 10⁻⁶, a
+/// 0.5° cone) from particles with a Gaussian random velocity of σ_v per component drawn per event
+/// gives `f = 2v_z/λ0 ~ N(0, σ_f²)`, `σ_f = 2σ_v/λ0`, so `g1(τ) = exp(−2π²σ_f²τ²)` (real): the
+/// characteristic function of the Gaussian, met by the estimate in σ.
+#[test]
+fn random_flow_gives_the_gaussian_characteristic_function() {
+    let text = format!(
+        r#"{RANDOM_FLOW}[run]
+samples = 40_000
+seed = 8
+batches = 32
 [detectors.correlation]
 tau_min_s = 1e-5
 tau_max_s = 1e-3
 points = 9
-"#;
-    let r = run(text, &[]);
+"#
+    );
+    let r = run(&text, &[]);
     let (g1, g1e) = outputs(&r, "back.g1");
-    let sigma_f = 2.0 * 1e-3 / 800e-9;
     let mut chi2 = 0.0;
     for k in 0..9 {
         let t = 1e-5 * 10f64.powf(k as f64 / 4.0);
-        let want = (-2.0 * PI * PI * sigma_f * sigma_f * t * t).exp();
+        let want = random_flow_g1(t);
         let z = (g1[k] - want) / g1e[k];
         chi2 += z * z;
         println!(
@@ -525,43 +537,21 @@ fn pixels_without_enough_paths_are_nan() {
 /// ratio is far from linear).
 #[test]
 fn correlation_sigma_matches_closed_form_residuals_and_the_spread_of_seeds() {
-    let text = r#"
-schema_version = 1
-name = "random_flow_sigma"
-[run]
+    let text = format!(
+        r#"{RANDOM_FLOW}[run]
 samples = 40_000
 seed = 1
 batches = 400
-[source]
-wavelength_nm = 800
-profile = "pencil"
-position_mm = [0, 0, 0]
-direction = [0, 0, 1]
-[media.m]
-sigma_a_per_mm = 1000
-sigma_s_per_mm = 1e-3
-phase = { type = "isotropic" }
-motion = { dispersion_mm_per_s = 1 }
-[[layers]]
-name = "m"
-thickness_mm = 2
-n = 1.0
-medium = "m"
-[[detectors]]
-name = "back"
-acceptance_half_angle_deg = 0.5
-next_event = true
-include_specular = false
 [detectors.correlation]
 tau_min_s = 1e-5
 tau_max_s = 1e-3
 points = 25
 beta = 1.0
 exposures_s = [3e-5, 6e-5, 1e-4, 2e-4, 5e-4, 1e-3]
-"#;
-    let sigma_f = 2.0 * 1e-3 / 800e-9;
+"#
+    );
     let tau: Vec<f64> = (0..25).map(|k| 1e-5 * 10f64.powf(k as f64 / 12.0)).collect();
-    let g1_exact: Vec<f64> = tau.iter().map(|t| (-2.0 * PI * PI * sigma_f * sigma_f * t * t).exp()).collect();
+    let g1_exact: Vec<f64> = tau.iter().map(|&t| random_flow_g1(t)).collect();
     let g1sq: Vec<f64> = g1_exact.iter().map(|g| g * g).collect();
     let exposures = [3e-5, 6e-5, 1e-4, 2e-4, 5e-4, 1e-3];
     let k_exact: Vec<f64> =
@@ -571,7 +561,7 @@ exposures_s = [3e-5, 6e-5, 1e-4, 2e-4, 5e-4, 1e-3]
     let (mut g1_runs, mut k_runs) = (Vec::new(), Vec::new());
     let (mut g1_se, mut k_se) = (vec![0.0; 25], vec![0.0; 6]);
     for seed in 1..=seeds {
-        let r = run(text, &[&format!("run.seed={seed}")]);
+        let r = run(&text, &[&format!("run.seed={seed}")]);
         let (g1, g1e) = outputs(&r, "back.g1");
         let (k, ke) = outputs(&r, "back.speckle_contrast");
         for i in 0..25 {

@@ -50,19 +50,7 @@ fn absorbed_voxels_sum_to_the_absorbed_fraction() {
     // A 1 mm slab between mismatched indices (Fresnel at both faces) inside a box 2 m wide: every
     // deposit of every path lands in a voxel, so the voxels add up to the scalar of the same
     // paths and batches, up to the order of the additions.
-    let r = run(
-        SEMI,
-        &[
-            "layers.0.thickness_mm=1",
-            "layers.0.n=1.4",
-            "media.tissue.sigma_s_per_mm=10",
-            "media.tissue.sigma_a_per_mm=0.5",
-            "volume.center_mm=[0, 0, 0.5]",
-            "volume.size_mm=[2000, 2000, 1.2]",
-            "volume.voxels=[5, 4, 3]",
-            "run.samples=20000",
-        ],
-    );
+    let r = run(SEMI, &SLAB);
     let (a, _) = r.scalar(Scalar::AbsorbedFraction);
     let (v, _) = volume(&r, "absorbed");
     let sum: f64 = v.iter().sum();
