@@ -1,8 +1,9 @@
 //! Argument parsing and the `run` / `check` commands.
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
@@ -12,6 +13,35 @@ use ohd::experiment::{Experiment, Progress, RunOutput};
 use ohd::retrieval::{FmcwEstimate, RetrievalError};
 use ohd::run::converge::{ConvergeRequest, StudyWritten};
 use ohd::run::{Event, Loaded, Observer, RunRequest};
+
+/// Whether writing to standard output or standard error failed (a closed pipe, a full disk;
+/// issue 33: `ohd check > /dev/full` and `ohd run 2>/dev/full` panicked): the command goes on and
+/// writes its outputs, then exits with status 1.
+static STREAM_FAILED: AtomicBool = AtomicBool::new(false);
+
+/// Write `args` (and a newline if `line`) to the stream `w` and flush it; a failure is noted in
+/// [`STREAM_FAILED`], never a panic.
+fn emit(mut w: impl Write, args: std::fmt::Arguments<'_>, line: bool) {
+    let end: &[u8] = if line { b"\n" } else { b"" };
+    if w.write_fmt(args).and_then(|()| w.write_all(end)).and_then(|()| w.flush()).is_err() {
+        STREAM_FAILED.store(true, Ordering::Relaxed);
+    }
+}
+
+/// A line on standard error (messages, the run report).
+macro_rules! say {
+    ($($t:tt)*) => { emit(std::io::stderr(), format_args!($($t)*), true) };
+}
+
+/// A line on standard output (what a command prints as its result: `check`, `mie`).
+macro_rules! out {
+    ($($t:tt)*) => { emit(std::io::stdout(), format_args!($($t)*), true) };
+}
+
+/// Text on standard output, as it is.
+macro_rules! out_part {
+    ($($t:tt)*) => { emit(std::io::stdout(), format_args!($($t)*), false) };
+}
 
 #[derive(Parser)]
 #[command(
@@ -271,7 +301,7 @@ fn mie(a: &MieArgs) -> Result<(), Error> {
         ohd::io::write_atomic(path, text.as_bytes())?;
     }
     let json = serde_json::json!({ "x": x, "qext": q.qext, "qsca": q.qsca, "qback": q.qback, "g": q.g });
-    println!("{json}");
+    out!("{json}");
     Ok(())
 }
 
@@ -365,11 +395,14 @@ fn after_transport(t: &ohd::io::write::manifest::Timing) -> String {
 }
 
 fn fail(e: &Error) -> ExitCode {
-    eprintln!("ohd: {e}");
+    say!("ohd: {e}");
     ExitCode::from(if e.is_input_error() { 2 } else { 1 })
 }
 
 pub fn main() -> ExitCode {
+    // A file-size limit (`ulimit -f`) makes a write fail with EFBIG, reported as a write error
+    // (exit 1, the directory marked incomplete), instead of killing the process by SIGXFSZ.
+    let _ = signal_hook::flag::register(signal_hook::consts::SIGXFSZ, std::sync::Arc::new(AtomicBool::new(false)));
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Mie(a) => mie(&a),
@@ -387,8 +420,8 @@ pub fn main() -> ExitCode {
             converge(&req, quiet)
         }
         Command::Check { config, set } => Loaded::read(config.as_deref(), &set).map(|l| {
-            println!("experiment \"{}\" from {}: valid", l.exp.name, l.origin);
-            print!("{}", l.exp);
+            out!("experiment \"{}\" from {}: valid", l.exp.name, l.origin);
+            out_part!("{}", l.exp);
         }),
         Command::Run(a) => run(a),
         Command::Merge { dirs, out, no_figures } => {
@@ -396,6 +429,14 @@ pub fn main() -> ExitCode {
         }
     };
     match result {
+        Ok(()) if STREAM_FAILED.load(Ordering::Relaxed) => {
+            // Said where it can still be said (stderr may be the stream that failed).
+            let _ = writeln!(
+                std::io::stderr(),
+                "ohd: standard output or standard error could not be written (closed or full): messages were lost; the files were written"
+            );
+            ExitCode::from(1)
+        }
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(&e),
     }
@@ -441,13 +482,13 @@ impl Observer for Terminal {
     fn event(&self, event: Event<'_>) {
         match event {
             Event::Pointing { index, pointing: p } => {
-                eprintln!("ohd: pointing {index}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
+                say!("ohd: pointing {index}: azimuth {}°, elevation {}°", p.azimuth_deg, p.elevation_deg);
             }
             Event::Resuming { state, path } => {
-                eprintln!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
+                say!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
             }
             Event::Written { exp, output, dir, timing } => {
-                eprintln!(
+                say!(
                     "ohd: {} paths in {:.2} s ({:.0} paths/ms){} → {}",
                     output.samples(),
                     output.wall_seconds,
@@ -458,7 +499,7 @@ impl Observer for Terminal {
                 report(exp, output);
             }
             Event::Merged { exp, output, dir, shards, timing } => {
-                eprintln!(
+                say!(
                     "ohd: merged {shards} shards ({} batches){} → {}",
                     output.batches,
                     after_transport(timing),
@@ -466,7 +507,7 @@ impl Observer for Terminal {
                 );
                 report(exp, output);
             }
-            Event::ShardWritten(s) => eprintln!(
+            Event::ShardWritten(s) => say!(
                 "ohd: shard {}/{}: batches {}..{} of {}, {} paths in {:.2} s → {}",
                 s.index,
                 s.count,
@@ -478,18 +519,11 @@ impl Observer for Terminal {
                 s.path.display()
             ),
             Event::VadWritten { path, timing } => {
-                eprintln!("ohd: VAD wind per gate → {}", path.display());
-                eprintln!(
-                    "ohd: the scan's time: transport {:.2} s{}",
-                    timing.transport_seconds,
-                    after_transport(timing)
-                );
+                say!("ohd: VAD wind per gate → {}", path.display());
+                say!("ohd: the scan's time: transport {:.2} s{}", timing.transport_seconds, after_transport(timing));
             }
             Event::StudyingFirstPointing(p) => {
-                eprintln!(
-                    "ohd converge: a scan: studying its first pointing ({}°, {}°)",
-                    p.azimuth_deg, p.elevation_deg
-                );
+                say!("ohd converge: a scan: studying its first pointing ({}°, {}°)", p.azimuth_deg, p.elevation_deg);
             }
         }
     }
@@ -527,10 +561,10 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 /// written run, on stderr.
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
-    eprintln!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
+    say!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
     for d in &exp.detectors {
         if let Some(a) = d.surface().and_then(|s| s.auto) {
-            eprintln!(
+            say!(
                 "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
                 d.name,
                 d.surface().map_or("forward", |s| s.estimator.name()),
@@ -547,7 +581,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             } else {
                 String::new()
             };
-            eprintln!(
+            say!(
                 "  {}: per-pixel relative error median {:.1}%, p90 {:.1}%{blank}",
                 o.name,
                 100.0 * pe.median,
@@ -557,14 +591,14 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
     if let Some(t) = &output.target {
         if t.met {
-            eprintln!(
+            say!(
                 "  target error {:.4}% met after {} round(s) of {} paths",
                 100.0 * t.target,
                 t.rounds,
                 exp.plan.samples()
             );
         } else {
-            eprintln!(
+            say!(
                 "ohd: warning: target error {:.4}% not met: stopped at --max-samples {} ({} rounds)",
                 100.0 * t.target,
                 t.max_samples,
@@ -574,36 +608,36 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
     let f = figures(exp, output);
     for (k, v, s) in &f.scalars {
-        eprintln!("  {k:<24} {v:.6} ± {s:.6}");
+        say!("  {k:<24} {v:.6} ± {s:.6}");
     }
     for (name, result) in &f.fmcw {
         if let Ok(e) = result {
-            eprintln!(
+            say!(
                 "  {name}: FMCW range {:.4} m, radial velocity {:+.4} m/s (bins {:.4} m, {:.4} m/s)",
-                e.range_m, e.radial_velocity_m_per_s, e.range_bin_m, e.velocity_bin_m_per_s
+                e.range_m,
+                e.radial_velocity_m_per_s,
+                e.range_bin_m,
+                e.velocity_bin_m_per_s
             );
         }
         if let Some(note) = ohd::io::write::fmcw::note(result) {
-            eprintln!("  {name}: FMCW {note}");
+            say!("  {name}: FMCW {note}");
         }
     }
     // Last, where they are seen: what the run could not get right (also in the manifest).
     for w in ohd::post::warnings(exp, output) {
-        eprintln!("ohd: warning: {}", w.message);
+        say!("ohd: warning: {}", w.message);
     }
 }
 
 /// `ohd converge`: the study, then a table of its outputs on stderr.
 fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
     let StudyWritten { study, dir } = ohd::run::converge::converge(req, &Terminal { quiet }, &mut StderrLog { quiet })?;
-    eprintln!("ohd converge: → {}", dir.display());
-    eprintln!(
-        "  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}",
-        "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio"
-    );
+    say!("ohd converge: → {}", dir.display());
+    say!("  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}", "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio");
     let fmt = |v: Option<f64>| v.map_or("—".to_string(), |t| format!("{t:.3e}"));
     for o in &study.outputs {
-        eprintln!(
+        say!(
             "  {:<28} {:>9} {:>7.3} {:>12} {:>12} {:>8.3}{}",
             o.output.name,
             o.reference_kind,
@@ -615,7 +649,7 @@ fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
         );
     }
     for (name, why) in &study.skipped {
-        eprintln!("  {name:<28} skipped: {why}");
+        say!("  {name:<28} skipped: {why}");
     }
     Ok(())
 }
@@ -628,7 +662,7 @@ struct StderrLog {
 impl StudyLog for StderrLog {
     fn line(&mut self, text: &str) {
         if !self.quiet {
-            eprintln!("ohd converge: {text}");
+            say!("ohd converge: {text}");
         }
     }
 

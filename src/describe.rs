@@ -855,10 +855,11 @@ impl Display for Experiment {
         let parts: String = self.plan.memory.iter().map(|b| format!(", {} {:.1} MiB", b.what, mib(b.bytes))).collect();
         writeln!(
             f,
-            "memory estimate: {:.1} MiB: {:.1} MiB of tallies{parts} (budget {:.1} GiB)",
+            "memory estimate: {:.1} MiB: {:.1} MiB of tallies{parts} (budget {:.1} GiB{})",
             mib(self.memory_total()),
             mib(self.memory_estimate()),
-            self.plan.memory_budget as f64 / (1u64 << 30) as f64
+            self.plan.memory_budget as f64 / (1u64 << 30) as f64,
+            self.plan.memory_limited_by.map_or(String::new(), |l| format!(", lowered by {l}"))
         )
     }
 }

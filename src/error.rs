@@ -63,6 +63,11 @@ pub enum Error {
     /// A file that could not be written (exit status 1).
     #[error("cannot write {path}: {source}")]
     Write { path: PathBuf, source: std::io::Error },
+    /// A path ohd will not write, replace or remove (exit status 2: it is input): outside the
+    /// output directory, through a link planted there, not a regular file, or a directory
+    /// unusable as the output directory or in use by another ohd ([`crate::io::outdir`]).
+    #[error("{}: {why}", path.display())]
+    Refused { path: PathBuf, why: String },
     /// An OpenVDB file that cannot be read (exit status 2: it is input).
     #[error(transparent)]
     Vdb(#[from] VdbError),
@@ -84,7 +89,7 @@ pub enum Error {
 impl Error {
     /// Whether the error is the user's input (exit status 2) rather than a failure to run.
     pub fn is_input_error(&self) -> bool {
-        matches!(self, Error::Config(_) | Error::Read { .. } | Error::Vdb(_) | Error::Input(_))
+        matches!(self, Error::Config(_) | Error::Read { .. } | Error::Refused { .. } | Error::Vdb(_) | Error::Input(_))
     }
 }
 

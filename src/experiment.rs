@@ -26,8 +26,12 @@ pub struct RunPlan {
     /// Worker threads; 0 = all available cores.
     pub threads: usize,
     pub walk: WalkSettings,
-    /// Largest [`Experiment::memory_estimate`] accepted, bytes (`run.memory_budget_gib`).
+    /// Largest [`Experiment::memory_estimate`] accepted, bytes (`run.memory_budget_gib`, or less
+    /// under a limit of the process: `memory_limited_by`).
     pub memory_budget: u64,
+    /// The process's memory limit that lowered `memory_budget` below `run.memory_budget_gib`
+    /// ([`crate::sys::memory_limit`]), if one did.
+    pub memory_limited_by: Option<&'static str>,
     /// Camera paths are traced from every `camera_pixel_stride`-th pixel only: 1, but in the
     /// pilot of `estimator = "auto"` ([`crate::pilot`]).
     pub camera_pixel_stride: usize,

@@ -106,6 +106,7 @@ pub mod scan;
 pub mod source;
 pub mod spectrum;
 pub mod stats;
+pub mod sys;
 pub mod transport;
 
 /// Speed of light in vacuum, m/s (exact, SI).

@@ -35,6 +35,7 @@ fn to_py(e: Error) -> PyErr {
             err
         }
         Error::Read { path, source } | Error::Write { path, source } => os_error(text, Some(path), &source),
+        Error::Refused { path, .. } => os_error(text, Some(path), &std::io::Error::other("refused")),
         Error::Vdb(v) => os_error(text, Some(v.path), &std::io::Error::from(std::io::ErrorKind::InvalidData)),
         Error::Input(_) => PyValueError::new_err(text),
         Error::Cancelled => PyKeyboardInterrupt::new_err(text),

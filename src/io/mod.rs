@@ -5,93 +5,72 @@
 //! * [`write`](mod@write): a finished run's outputs, as its output registry declares them, and the manifest;
 //! * [`figures`]: PNG previews and plots;
 //! * [`persist`]: runs in progress, as shard and checkpoint files (one binary codec);
-//! * [`write_atomic`]: every output file is written to a temporary name and renamed into place
-//!   (and [`remove_stale_temporaries`] removes those a killed ohd left);
+//! * [`outdir`]: the directories ohd writes into, held open and locked; every output file is
+//!   written to a temporary name created exclusively and renamed into place ([`write_atomic`]
+//!   for a lone file; [`remove_stale_temporaries`] removes those a killed ohd left);
 //! * [`read_limited`]: every input file is read with a size limit (issue 21: a path to
 //!   `/dev/zero` read gigabytes before failing).
 
 pub mod figures;
 pub mod formats;
+pub mod outdir;
 pub mod persist;
 pub mod write;
 
 use std::io::Read;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 
-/// The temporary name `path` is written under before it is renamed into place: hidden, in the
-/// same directory (so the rename is atomic), and per process.
-pub(crate) fn temporary_path(path: &Path) -> PathBuf {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    dir.join(format!(".{name}.tmp-{}", std::process::id()))
-}
-
-/// The name `.NAME.tmp-PID` of a temporary file ([`temporary_path`]) as `(NAME, PID)`.
+/// The name `.NAME.tmp-PID-RANDOM` of a temporary file ([`outdir::OutDir::temporary`]; before
+/// issue 33 `.NAME.tmp-PID`) as `(NAME, PID)`.
 fn temporary_of(file: &str) -> Option<(&str, u32)> {
-    let (name, pid) = file.strip_prefix('.')?.rsplit_once(".tmp-")?;
+    let (name, tail) = file.strip_prefix('.')?.rsplit_once(".tmp-")?;
+    let pid = tail.split_once('-').map_or(tail, |(pid, random)| {
+        if random.len() == 16 && random.bytes().all(|b| b.is_ascii_hexdigit()) { pid } else { "" }
+    });
     let digits = !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());
     Some((name, pid.parse().ok().filter(|_| digits)?))
 }
 
-/// Remove the temporary files `.NAME.tmp-PID` in `dir` of the names `NAME` that `ours` accepts,
-/// which a killed ohd left (another process's: this one's are being written). A missing `dir` is
-/// no error.
-pub fn remove_stale_temporaries(dir: &Path, ours: impl Fn(&str) -> bool) -> Result<()> {
-    remove_matching(dir, |file| temporary_of(file).is_some_and(|(name, pid)| pid != std::process::id() && ours(name)))
-}
+/// The probe files of `ohd` before issue 33 (`.ohd-write-probe-PID`); today's probe is a
+/// temporary file of the name [`PROBE`].
+const OLD_PROBE: &str = ".ohd-write-probe-";
 
-/// The probe file [`crate::run::check_writable`] creates (and removes) in `dir`.
-pub(crate) fn probe_path(dir: &Path) -> PathBuf {
-    dir.join(format!("{PROBE}{}", std::process::id()))
-}
+/// The name of the probe [`outdir::OutDir::create`] writes (as a temporary file) and removes.
+pub(crate) const PROBE: &str = "ohd-probe";
 
-const PROBE: &str = ".ohd-write-probe-";
-
-/// Remove the probe files another (killed) ohd left in `dir`.
-pub(crate) fn remove_stale_probes(dir: &Path) -> Result<()> {
-    let own = format!("{}", std::process::id());
-    remove_matching(dir, |file| {
-        file.strip_prefix(PROBE).is_some_and(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()) && p != own)
-    })
-}
-
-/// Remove the files of `dir` whose names `matches` accepts.
-fn remove_matching(dir: &Path, matches: impl Fn(&str) -> bool) -> Result<()> {
-    let entries = match std::fs::read_dir(dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(source) => return Err(Error::Write { path: dir.to_path_buf(), source }),
-    };
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        if name.to_str().is_some_and(&matches) && entry.file_type().is_ok_and(|t| t.is_file()) {
-            let path = entry.path();
-            match std::fs::remove_file(&path) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::Write { path, source: e }),
-                _ => {}
-            }
+/// Remove the temporary files `.NAME.tmp-…` in `dir` of the names `NAME` that `ours` accepts,
+/// and the probes, which a killed ohd left (another process's: this one's are being written).
+/// A missing `dir` is no error.
+pub fn remove_stale_temporaries(dir: &outdir::OutDir, ours: impl Fn(&str) -> bool) -> Result<()> {
+    let me = std::process::id();
+    let old_probe =
+        |f: &str| f.strip_prefix(OLD_PROBE).is_some_and(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()));
+    for file in dir.files()? {
+        let stale = temporary_of(&file).is_some_and(|(name, pid)| pid != me && (name == PROBE || ours(name)));
+        if stale || old_probe(&file) {
+            dir.remove_file(&file)?;
         }
     }
     Ok(())
 }
 
-/// Write `bytes` to `path` atomically: readers see the old file or the complete new one.
+/// Write `bytes` to the file `path` atomically (readers see the old file or the complete new
+/// one), in its existing directory: a temporary file created exclusively beside it, renamed over
+/// it. An existing `path` that is not a regular file (a device, a FIFO, a directory, or a link to
+/// one) is refused, not replaced (issue 33: `ohd mie --table /dev/full` replaced the device).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let tmp = temporary_path(path);
-    let werr = |source| Error::Write { path: path.to_path_buf(), source };
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(werr)
+    let name = path.file_name().and_then(|n| n.to_str()).filter(|n| outdir::plain_name(n));
+    let Some(name) = name.filter(|_| !path.ends_with("..") && !path.as_os_str().to_string_lossy().ends_with('/'))
+    else {
+        return Err(Error::Refused {
+            path: path.to_path_buf(),
+            why: "not a file name: expected a path to a file".into(),
+        });
+    };
+    // (The working directory for a bare file name: shown as the name alone.)
+    outdir::OutDir::existing(path.parent().unwrap_or(Path::new("")))?.write_atomic(name, bytes)
 }
 
 /// A byte count for messages: `64 MiB`, `4 GiB`, `1.5 KiB`, `12 bytes`.

@@ -6,28 +6,27 @@
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use super::Part;
-use crate::error::{Error, Result};
+use super::{CHECKPOINT, Part};
+use crate::error::Result;
 use crate::experiment::{Checkpoint, RunOutput, RunState};
+use crate::io::outdir::OutDir;
 
 /// Saves a part's state into its checkpoint file every `every`.
 #[derive(Debug)]
 pub struct FileCheckpoint {
-    path: std::path::PathBuf,
+    dir: OutDir,
     fingerprint: u64,
     every: Duration,
     last: Mutex<Instant>,
 }
 
 impl FileCheckpoint {
-    /// Checkpoints of `part` every `seconds` (≥ 0), its directory created (and the temporary
-    /// checkpoint files a killed ohd left there removed).
+    /// Checkpoints of `part` every `seconds` (≥ 0) (the temporary checkpoint files a killed ohd
+    /// left in its directory removed).
     pub fn new(part: &Part, seconds: f64) -> Result<Self> {
-        create_dir(part)?;
-        let name = part.checkpoint().file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        crate::io::remove_stale_temporaries(&part.dir, |n| n == name)?;
+        crate::io::remove_stale_temporaries(&part.dir, |n| n == CHECKPOINT)?;
         Ok(FileCheckpoint {
-            path: part.checkpoint(),
+            dir: part.dir.clone(),
             fingerprint: part.fingerprint,
             // An interval beyond `Duration`'s range (≈ 5.8·10¹¹ years) never comes due.
             every: Duration::try_from_secs_f64(seconds).unwrap_or(Duration::MAX),
@@ -42,7 +41,7 @@ impl Checkpoint for FileCheckpoint {
     }
 
     fn save(&self, state: &RunState) -> Result<()> {
-        crate::io::persist::checkpoint::write(&self.path, self.fingerprint, state)?;
+        crate::io::persist::checkpoint::write(&self.dir, CHECKPOINT, self.fingerprint, state)?;
         if let Ok(mut t) = self.last.lock() {
             *t = Instant::now();
         }
@@ -50,12 +49,7 @@ impl Checkpoint for FileCheckpoint {
     }
 }
 
-fn create_dir(part: &Part) -> Result<()> {
-    std::fs::create_dir_all(&part.dir).map_err(|source| Error::Write { path: part.dir.clone(), source })
-}
-
 /// Save the finished `output` of `part` as its checkpoint: resumed, it finishes at once.
 pub fn save_final(part: &Part, output: &RunOutput) -> Result<()> {
-    create_dir(part)?;
-    crate::io::persist::checkpoint::write(&part.checkpoint(), part.fingerprint, &output.final_state())
+    crate::io::persist::checkpoint::write(&part.dir, CHECKPOINT, part.fingerprint, &output.final_state())
 }

@@ -50,6 +50,9 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
     }
     let loaded = Loaded::read(req.config.as_deref(), &req.overrides)?;
     let dir = req.out.clone().unwrap_or_else(|| loaded.default_dir("_converge"));
+    // The directory, locked for the whole study: found unusable now, not after it.
+    let out = crate::io::outdir::OutDir::create(&dir)?;
+    crate::io::write::dir::DirWriter::check(&out, crate::io::write::dir::Output::Study)?;
     let Loaded { mut exp, origin, .. } = loaded;
     let smallest = exp.plan.batches << (req.rungs - 1);
     if let Some(n) = req.samples
@@ -76,6 +79,6 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
     };
     let exp = crate::pilot::decide(&exp);
     let study = crate::converge::study(&exp, refs, &opts, log);
-    crate::io::write::converge::write_study(&dir, &study, &origin, !req.no_figures)?;
+    crate::io::write::converge::write_study(&out, &study, &origin, !req.no_figures)?;
     Ok(StudyWritten { study, dir })
 }

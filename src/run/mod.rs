@@ -18,12 +18,14 @@ use std::path::{Path, PathBuf};
 use crate::converge::Target;
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, Progress, RunOutput, RunState, Silent};
+use crate::io::outdir::OutDir;
+use crate::io::write::dir::{DirWriter, Output};
 use crate::io::write::manifest::{Invocation, Timing, write_run_with};
 use crate::scan::GateWind;
 use crate::source::Pointing;
 
 use checkpoint::FileCheckpoint;
-pub use scan::{Part, parts, pointing_dir, pointing_name};
+pub use scan::{CHECKPOINT, Part, parts, pointing_dir, pointing_name};
 pub use shard::{ShardSummary, merge, run_shard};
 
 /// Longest experiment name kept in a default output directory's name, characters.
@@ -71,16 +73,19 @@ impl Loaded {
     }
 
     /// The default output directory: `out/<name><suffix>` from the experiment's `name` (as run,
-    /// after `--set`), or from the file's stem when it has none. A name is free text: characters
-    /// other than letters, digits, `_` and `-` become `_`, so that it stays one folder in `out/`.
+    /// after `--set`), or from the file's stem when it has none. Both are free text: characters
+    /// other than letters, digits, `_` and `-` become `_`, so that it stays one folder in `out/`
+    /// (issue 33: a file `..toml` named the directory `out/..`).
     pub fn default_dir(&self, suffix: &str) -> PathBuf {
-        let name = self.table.get("name").and_then(toml::Value::as_str).map(|n| {
+        let folder = |n: &str| -> String {
             n.chars()
                 .take(MAX_FOLDER_NAME)
                 .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
                 .collect()
-        });
-        let name = name.filter(|n: &String| !n.is_empty()).unwrap_or_else(|| self.stem.clone());
+        };
+        let name = self.table.get("name").and_then(toml::Value::as_str).map(folder);
+        let name = name.filter(|n| !n.is_empty()).unwrap_or_else(|| folder(&self.stem));
+        let name = if name.is_empty() { "experiment".to_string() } else { name };
         PathBuf::from("out").join(format!("{name}{suffix}"))
     }
 
@@ -194,24 +199,12 @@ impl RunOptions {
     }
 }
 
-/// Whether outputs can be written into `dir`, found before any path is traced (issue 21: an
-/// unwritable `--out` was found after the whole simulation): a probe file is created and removed
-/// in `dir`, or, if `dir` does not exist yet, in its nearest existing ancestor (where it would be
-/// created). Nothing is left behind.
-pub fn check_writable(dir: &std::path::Path) -> Result<()> {
-    let mut at = dir;
-    while !at.as_os_str().is_empty() && !at.exists() {
-        at = at.parent().unwrap_or(std::path::Path::new(""));
-    }
-    let at = if at.as_os_str().is_empty() { std::path::Path::new(".") } else { at };
-    let unwritable = |source| Error::Write { path: dir.to_path_buf(), source };
-    if !at.is_dir() {
-        return Err(unwritable(std::io::Error::other(format!("{} is not a directory", at.display()))));
-    }
-    let probe = crate::io::probe_path(at);
-    std::fs::File::create(&probe).map_err(unwritable)?;
-    let _ = std::fs::remove_file(&probe);
-    Ok(())
+/// Whether outputs can be written into `dir`, found before any path is traced (issues 21 and 33:
+/// an unwritable `--out` was found after the whole simulation): the directory is created if
+/// missing, opened, locked and probed ([`OutDir::create`]), then released. An error is an input
+/// error naming `dir`.
+pub fn check_writable(dir: &Path) -> Result<()> {
+    OutDir::create(dir).map(drop)
 }
 
 /// Run `loaded` as `req` asks: one run, or every pointing of a scan and then its VAD wind, or
@@ -222,8 +215,10 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     if let Some(s) = req.checkpoint_seconds.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         return Err(Error::Input(format!("--checkpoint-seconds {s}: expected a time ≥ 0 s")));
     }
-    check_writable(&req.dir)?;
-    let parts = parts(exp, &loaded.table, &req.dir);
+    // The directory, locked for the whole run; every path written is inside it.
+    let out = OutDir::create(&req.dir)?;
+    DirWriter::check(&out, Output::Run)?;
+    let parts = parts(exp, &loaded.table, &out)?;
     if let Some((index, count)) = req.shard {
         let shards = parts.iter().map(|part| run_shard(loaded, part, index, count, obs)).collect::<Result<_>>()?;
         return Ok(Finished::Shards(shards));
@@ -239,14 +234,14 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     let mut scan = scan::Scan::default();
     for part in &parts {
         let output = simulate_part(part, &opts, true, obs)?;
-        scan.writing(&req.dir, &parts, part)?;
+        scan.writing(&out, &parts, part)?;
         let timing = write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
         scan.add(part, &output, timing);
     }
     let vad = scan.finish(exp, inv.figures, obs)?;
     if opts.saving() {
         // The whole scan is written: the pointings' checkpoints have served.
-        parts.iter().for_each(|p| drop(std::fs::remove_file(p.checkpoint())));
+        parts.iter().for_each(|p| drop(p.dir.remove_file(CHECKPOINT)));
     }
     Ok(Finished::Scan { pointings: parts.len(), vad })
 }
@@ -304,14 +299,14 @@ fn write_part(
     keep: bool,
     obs: &dyn Observer,
 ) -> Result<Timing> {
-    let (exp, dir, path) = (&part.exp, part.dir.as_path(), part.checkpoint());
-    let manifest = write_run_with(dir, exp, output, config, inv, &*obs.postprocess())?;
+    let exp = &part.exp;
+    let manifest = write_run_with(&part.dir, exp, output, config, inv, &*obs.postprocess())?;
     if opts.saving() && keep {
         checkpoint::save_final(part, output)?;
     } else if opts.saving() {
         // The run is complete and written: its checkpoint has served.
-        let _ = std::fs::remove_file(&path);
+        let _ = part.dir.remove_file(CHECKPOINT);
     }
-    obs.event(Event::Written { exp, output, dir, timing: &manifest.timing });
+    obs.event(Event::Written { exp, output, dir: part.dir.path(), timing: &manifest.timing });
     Ok(manifest.timing)
 }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use super::{Event, Observer};
 use crate::error::Result;
 use crate::experiment::{Experiment, RunOutput};
+use crate::io::outdir::OutDir;
 use crate::io::persist::{config_fingerprint, fingerprint};
 use crate::io::write::dir::{DirWriter, Output, VAD};
 use crate::io::write::manifest::Timing;
@@ -16,7 +17,8 @@ use crate::scan::GateWind;
 #[derive(Debug, Clone)]
 pub struct Part {
     pub exp: Experiment,
-    pub dir: PathBuf,
+    /// The output directory (locked), or a scan's pointing directory inside it.
+    pub dir: OutDir,
     /// Of the configuration as run and the pointing: a checkpoint or shard of one pointing is
     /// never taken for another's.
     pub fingerprint: u64,
@@ -27,9 +29,12 @@ pub struct Part {
 impl Part {
     /// Where the part's checkpoint is saved.
     pub fn checkpoint(&self) -> PathBuf {
-        self.dir.join("checkpoint.ohd")
+        self.dir.path().join(CHECKPOINT)
     }
 }
+
+/// The name of a part's checkpoint file in its directory.
+pub const CHECKPOINT: &str = "checkpoint.ohd";
 
 /// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
 pub fn pointing_name(i: usize) -> String {
@@ -42,24 +47,23 @@ pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
 }
 
 /// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
-/// pointing into `dir/pointing_NN`; each with its `estimator = "auto"` decided by a pilot
-/// ([`crate::pilot`], deterministic: every shard and every resume decides the same).
-pub fn parts(exp: &Experiment, table: &toml::Table, dir: &Path) -> Vec<Part> {
+/// pointing into `dir/pointing_NN` (a pointing directory that exists as anything but a directory,
+/// a link included, is refused now, before any work); each with its `estimator = "auto"` decided
+/// by a pilot ([`crate::pilot`], deterministic: every shard and every resume decides the same).
+pub fn parts(exp: &Experiment, table: &toml::Table, dir: &OutDir) -> Result<Vec<Part>> {
     let fp = config_fingerprint(table);
     if exp.source.pointings.len() <= 1 {
-        return vec![Part { exp: crate::pilot::decide(exp), dir: dir.to_path_buf(), fingerprint: fp, pointing: None }];
+        return Ok(vec![Part { exp: crate::pilot::decide(exp), dir: dir.clone(), fingerprint: fp, pointing: None }]);
     }
-    exp.source
-        .pointings
-        .iter()
-        .enumerate()
-        .map(|(i, p)| Part {
+    let pointing = |(i, p): (usize, &crate::source::Pointing)| {
+        Ok(Part {
             exp: crate::pilot::decide(&exp.pointed(p)),
-            dir: pointing_dir(dir, i),
+            dir: dir.sub(&pointing_name(i))?,
             fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
             pointing: Some(i),
         })
-        .collect()
+    };
+    exp.source.pointings.iter().enumerate().map(pointing).collect()
 }
 
 /// A scan's per-pointing results, gathered for the VAD wind per range gate, and its directory
@@ -81,7 +85,7 @@ impl Scan {
     /// at the first, begin writing the scan's directory (marked incomplete; what an earlier output
     /// left there removed, but this scan's pointing directories, which each pointing's writer
     /// cleans), and note the pointing's directory in it. Nothing for a plain run.
-    pub(super) fn writing(&mut self, dir: &Path, parts: &[Part], part: &Part) -> Result<()> {
+    pub(super) fn writing(&mut self, dir: &OutDir, parts: &[Part], part: &Part) -> Result<()> {
         let Some(i) = part.pointing else { return Ok(()) };
         if self.out.is_none() {
             let keep: Vec<String> = parts.iter().filter_map(|p| p.pointing).map(pointing_name).collect();

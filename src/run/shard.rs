@@ -13,7 +13,9 @@ use super::{Event, Finished, Loaded, Observer, Part, parts, pointing_dir};
 use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, RunOutput};
+use crate::io::outdir::OutDir;
 use crate::io::persist::shard::{FILE_NAME, ShardHeader, ShardReader, ShardTrailer, ShardWriter};
+use crate::io::write::dir::{DirWriter, Output};
 use crate::io::write::manifest::{Invocation, write_run_with};
 use crate::stats::{BatchAccumulator, RunStats};
 
@@ -54,12 +56,11 @@ pub fn run_shard(loaded: &Loaded, part: &Part, index: u64, count: u64, obs: &dyn
         // Results do not depend on the thread count: the merged run does not record one shard's.
         overrides: loaded.overrides.iter().filter(|s| !s.starts_with("run.threads=")).cloned().collect(),
     };
-    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     // The temporary shard file of a killed `ohd run --shard` is its own.
     crate::io::remove_stale_temporaries(dir, |n| n == FILE_NAME)?;
-    let path = dir.join(FILE_NAME);
+    let path = dir.path().join(FILE_NAME);
     let start = std::time::Instant::now();
-    let mut writer = ShardWriter::create(&path, &header)?;
+    let mut writer = ShardWriter::create(dir, FILE_NAME, &header)?;
     let mut trailer = ShardTrailer { threads: exp.plan.effective_threads() as u64, ..Default::default() };
     let mut sink = |sums: &[f64], stats: RunStats, lines: Vec<RecordedLine>| {
         trailer.stats.merge(&stats);
@@ -86,6 +87,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) ->
     let Some(first) = dirs.first() else {
         return Err(Error::Input("no shard directories given".into()));
     };
+    // The directory, locked for the whole merge: found unusable now, before the shards are read.
+    let out = OutDir::create(out)?;
+    DirWriter::check(&out, Output::Run)?;
     // A scan's shards are per pointing: DIR/pointing_NN/shard.ohd.
     let head = [first.join(FILE_NAME), pointing_dir(first, 0).join(FILE_NAME)]
         .into_iter()
@@ -97,7 +101,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) ->
         .map_err(|e| Error::invalid_file(&head, format!("the configuration it records does not load: {e}")))?;
     let inv = Invocation { config_source: h.config_source, overrides: h.overrides, figures };
     let mut scan = Scan::default();
-    let parts = parts(&exp, &table, out);
+    let parts = parts(&exp, &table, &out)?;
     let mut last = None;
     for part in &parts {
         let sub = |d: &PathBuf| part.pointing.map_or_else(|| d.clone(), |i| pointing_dir(d, i));
@@ -111,9 +115,10 @@ pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) ->
         }
         let count = shards.len();
         let output = fold(&part.exp, shards)?;
-        scan.writing(out, &parts, part)?;
+        scan.writing(&out, &parts, part)?;
         let timing = write_run_with(&part.dir, &part.exp, &output, &table, &inv, &*obs.postprocess())?.timing;
-        obs.event(Event::Merged { exp: &part.exp, output: &output, dir: &part.dir, shards: count, timing: &timing });
+        let dir = part.dir.path();
+        obs.event(Event::Merged { exp: &part.exp, output: &output, dir, shards: count, timing: &timing });
         scan.add(part, &output, timing);
         if parts.len() == 1 {
             last = Some(output);

@@ -752,7 +752,11 @@ fn input_files_are_read_within_a_limit() {
         std::fs::File::create(&p).unwrap().set_len(size).unwrap();
         p
     };
-    let zero = Path::new("/dev/zero");
+    // An endless file of the test's own (never the machine's /dev/zero).
+    let special = crate::support::special::special();
+    let zero = special.endless();
+    let zero_str = path_str(zero);
+    let kind = if special.zero.is_some() { "a character device" } else { "a FIFO" };
     let big_config = sparse("big.toml", (64 << 20) + 1);
     let out = t.join("out");
     let refused = |args: &[&str], expect: &[&str]| {
@@ -766,16 +770,16 @@ fn input_files_are_read_within_a_limit() {
         assert!(start.elapsed().as_secs() < 20, "{args:?} took {:?}", start.elapsed());
         assert!(!out.exists(), "{args:?} wrote output");
     };
-    refused(&["check", "/dev/zero"], &["/dev/zero", "not a regular file (a character device)", "configuration file"]);
-    refused(&["run", "/dev/zero", "--out", path_str(&out)], &["/dev/zero", "not a regular file"]);
+    refused(&["check", zero_str], &[zero_str, &format!("not a regular file ({kind})"), "configuration file"]);
+    refused(&["run", zero_str, "--out", path_str(&out)], &[zero_str, "not a regular file"]);
     refused(&["check", path_str(&big_config)], &["big.toml", "67108865 bytes, above the limit of 67108864 bytes"]);
     refused(&["check", path_str(t)], &["not a regular file (a directory)"]);
 
     // A phase table and a VDB file named by a configuration.
     let table = std::fs::read_to_string(repo().join("tests/configs/bad/table_missing_file.toml")).unwrap();
     let config = t.join("table.toml");
-    std::fs::write(&config, table.replace("no_such_table.phase.toml", "/dev/zero")).unwrap();
-    refused(&["check", path_str(&config)], &["media.m.phase.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, table.replace("no_such_table.phase.toml", zero_str)).unwrap();
+    refused(&["check", path_str(&config)], &["media.m.phase.file", zero_str, "not a regular file"]);
     std::fs::write(&config, table.replace("no_such_table.phase.toml", "big.phase.toml")).unwrap();
     sparse("big.phase.toml", (64 << 20) + 1);
     refused(
@@ -784,8 +788,8 @@ fn input_files_are_read_within_a_limit() {
     );
     let vdb = std::fs::read_to_string(repo().join("tests/configs/bad/vdb_missing_file.toml")).unwrap();
     let config = t.join("vdb.toml");
-    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "/dev/zero")).unwrap();
-    refused(&["check", path_str(&config)], &["media.tissue.density.file", "/dev/zero", "not a regular file"]);
+    std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", zero_str)).unwrap();
+    refused(&["check", path_str(&config)], &["media.tissue.density.file", zero_str, "not a regular file"]);
     std::fs::write(&config, vdb.replace("../../fixtures/vdb_media/no_such.vdb", "big.vdb")).unwrap();
     sparse("big.vdb", (4 << 30) + 1);
     refused(

@@ -146,7 +146,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         base,
         wavelength: source.wavelength,
         files: GridFiles::default(),
-        memory: Memory::new(plan.memory_budget),
+        memory: Memory::new(plan.memory_budget, plan.memory_limited_by),
         scene_copies: 1 + source.pointings.len().max(1) as u64,
     };
     let scene = resolve_scene(f, n_above, n_below, &ctx)?;
@@ -330,6 +330,8 @@ struct Ctx<'a> {
 /// the detectors' settings) are not counted.
 struct Memory {
     budget: u64,
+    /// The process's limit that lowered the budget, if one did.
+    limited_by: Option<&'static str>,
     blocks: std::cell::RefCell<Vec<crate::experiment::MemoryBlock>>,
 }
 
@@ -345,8 +347,8 @@ fn bytes_shown(bytes: u64) -> String {
 }
 
 impl Memory {
-    fn new(budget: u64) -> Self {
-        Memory { budget, blocks: Default::default() }
+    fn new(budget: u64, limited_by: Option<&'static str>) -> Self {
+        Memory { budget, limited_by, blocks: Default::default() }
     }
 
     /// Bytes counted so far.
@@ -381,7 +383,14 @@ impl Memory {
         let digits = if gib >= 0.095 { 1 } else { (2 - gib.log10().floor() as i32).max(1) as usize };
         let gib = format!("{gib:.digits$}");
         let gib = if digits > 1 { gib.trim_end_matches('0').to_string() } else { gib };
-        Some(format!("{counted} above the memory budget of {gib} GiB (run.memory_budget_gib)"))
+        let key = match self.limited_by {
+            Some(limit) => format!(
+                "run.memory_budget_gib, lowered to {:.0} % of what {limit} leaves this process",
+                100.0 * crate::sys::SHARE
+            ),
+            None => "run.memory_budget_gib".into(),
+        };
+        Some(format!("{counted} above the memory budget of {gib} GiB ({key})"))
     }
 
     /// Count `bytes` for `what` (named for `ohd check` and messages), asked for by the key `key`

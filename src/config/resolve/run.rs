@@ -49,6 +49,14 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     if !(budget.is_finite() && budget > 0.0 && budget <= 1e6) {
         return err("run.memory_budget_gib", format!("= {budget}: expected a budget in (0, 10^6] GiB"));
     }
+    // Never more than the process may still take (a default of 8 GiB under `ulimit -v 2G` let an
+    // image be allocated until the allocator aborted): a tighter limit lowers the budget, and the
+    // memory check names it.
+    let configured = (budget * (1u64 << 30) as f64) as u64;
+    let (memory_budget, memory_limited_by) = match crate::sys::memory_limit() {
+        Some(l) if l.available < configured => (l.available, Some(l.source)),
+        _ => (configured, None),
+    };
     let gate = match &r.time_gate {
         None => None,
         Some(q) => {
@@ -71,7 +79,8 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         seed: r.seed.unwrap_or(1),
         threads: threads as usize,
         walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32, gate },
-        memory_budget: (budget * (1u64 << 30) as f64) as u64,
+        memory_budget,
+        memory_limited_by,
         camera_pixel_stride: 1,
         memory: Vec::new(),
     })

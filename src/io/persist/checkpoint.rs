@@ -56,9 +56,9 @@ pub fn from_bytes(bytes: &[u8]) -> Option<(u64, RunState)> {
     Some((fp, RunState { estimates, stats, lines, next, end, err, elapsed }))
 }
 
-/// Write the checkpoint of `s` to `path`, atomically.
-pub fn write(path: &Path, fp: u64, s: &RunState) -> Result<()> {
-    crate::io::write_atomic(path, &to_bytes(fp, s))
+/// Write the checkpoint of `s` to the file `name` of `dir`, atomically.
+pub fn write(dir: &crate::io::outdir::OutDir, name: &str, fp: u64, s: &RunState) -> Result<()> {
+    dir.write_atomic(name, &to_bytes(fp, s))
 }
 
 /// Largest checkpoint of an experiment with `tallies` tallies and the memory budget `budget`

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use super::binary::{Reader, Writer};
 use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
+use crate::io::outdir::{OutDir, Temporary};
 use crate::stats::RunStats;
 
 const MAGIC: &[u8; 8] = b"OHDSHRD\x02";
@@ -115,28 +116,22 @@ fn parse_trailer(bytes: &[u8]) -> Option<ShardTrailer> {
 }
 
 /// Writes a shard file batch by batch (so a shard holds one batch's tallies in memory, not its
-/// part's), to a temporary name that [`finish`](Self::finish) renames; dropped unfinished, the
+/// part's), to a temporary file that [`finish`](Self::finish) renames; dropped unfinished, the
 /// temporary file is removed.
 pub struct ShardWriter {
     file: BufWriter<File>,
     crc: crc32fast::Hasher,
-    tmp: PathBuf,
+    tmp: Temporary,
     path: PathBuf,
-    finished: bool,
 }
 
 impl ShardWriter {
-    pub fn create(path: &Path, header: &ShardHeader) -> Result<Self> {
-        let tmp = crate::io::temporary_path(path);
-        let werr = |source| Error::Write { path: path.to_path_buf(), source };
-        let file = File::create(&tmp).map_err(werr)?;
-        let mut w = ShardWriter {
-            file: BufWriter::new(file),
-            crc: crc32fast::Hasher::new(),
-            tmp,
-            path: path.to_path_buf(),
-            finished: false,
-        };
+    /// A shard file `name` in `dir`.
+    pub fn create(dir: &OutDir, name: &str, header: &ShardHeader) -> Result<Self> {
+        let mut tmp = dir.temporary(name)?;
+        let path = tmp.path().to_path_buf();
+        let file = tmp.file().try_clone().map_err(|source| Error::Write { path: path.clone(), source })?;
+        let mut w = ShardWriter { file: BufWriter::new(file), crc: crc32fast::Hasher::new(), tmp, path };
         w.put(MAGIC)?;
         w.put(&header_bytes(header))?;
         Ok(w)
@@ -158,20 +153,8 @@ impl ShardWriter {
         self.put(&trailer_bytes(trailer))?;
         let crc = self.crc.clone().finalize();
         self.put(&crc.to_le_bytes())?;
-        let werr = |source| Error::Write { path: self.path.clone(), source };
-        self.file.flush().map_err(werr)?;
-        self.file.get_ref().sync_all().map_err(werr)?;
-        std::fs::rename(&self.tmp, &self.path).map_err(werr)?;
-        self.finished = true;
-        Ok(())
-    }
-}
-
-impl Drop for ShardWriter {
-    fn drop(&mut self) {
-        if !self.finished {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
+        self.file.flush().map_err(|source| Error::Write { path: self.path.clone(), source })?;
+        self.tmp.commit().map(drop)
     }
 }
 
@@ -297,7 +280,8 @@ mod tests {
     fn round_trip_and_corruption() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(FILE_NAME);
-        let mut w = ShardWriter::create(&path, &header()).unwrap();
+        let out = OutDir::create(dir.path()).unwrap();
+        let mut w = ShardWriter::create(&out, FILE_NAME, &header()).unwrap();
         w.batch(&[1.0, 2.0, 3.0]).unwrap();
         w.batch(&[4.0, -0.5, 6.25]).unwrap();
         let t = ShardTrailer {
@@ -337,6 +321,7 @@ mod tests {
             std::fs::write(&cut, &flipped).unwrap();
             assert!(read_all(&cut).is_err(), "a shard with byte {i} flipped was read");
         }
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file is left");
+        drop(out);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file or lock is left");
     }
 }

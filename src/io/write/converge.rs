@@ -14,6 +14,7 @@ use crate::error::{Error, Result};
 use super::dir::DirWriter;
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
 use crate::io::formats::npy;
+use crate::io::outdir::OutDir;
 
 /// The agreement band of measured to self-reported error (issue 7).
 pub const SIGMA_RATIO_BAND: (f64, f64) = (0.5, 2.0);
@@ -180,7 +181,7 @@ pub fn plot(study: &Study) -> LinePlot {
 /// Write `converge.csv`, the figure `converge.png`/`.svg` (if `figures`) and (last)
 /// `converge.json` into `dir`, atomically,
 /// through a [`DirWriter`] (an earlier study there is replaced; a run stays).
-pub fn write_study(dir: &Path, study: &Study, config_source: &str, figures: bool) -> Result<()> {
+pub fn write_study(dir: &OutDir, study: &Study, config_source: &str, figures: bool) -> Result<()> {
     let mut out = DirWriter::begin(dir, super::dir::Output::Study, &[])?;
     let [csv_file, png_file, svg_file] = super::dir::CONVERGE_FILES;
     out.put(csv_file, csv(study).as_bytes())?;

@@ -18,15 +18,20 @@
 //! files of those names (`.NAME.tmp-PID`, left by a killed process) and an earlier scan's
 //! pointing directories, each cleaned the same way and then removed if empty. Files of other
 //! programs stay, and so do checkpoints and shards (runs resume and merge from them).
+//!
+//! Everything is written, replaced and removed through the directory held open
+//! ([`OutDir`]: plain names only, no link followed). A record or marker that lists a name with a
+//! path in it (`/`, `..`, an absolute path) is refused, and nothing is removed (issue 33).
 
 use std::collections::BTreeSet;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::Value;
 
 use crate::error::{Error, Result};
-use crate::io::{remove_stale_temporaries, write_atomic};
+use crate::io::outdir::{LOCK, OutDir, plain_name};
+use crate::io::remove_stale_temporaries;
 
 /// The marker of a directory being written, or whose writing was interrupted.
 pub const MARKER: &str = "ohd_incomplete.txt";
@@ -51,7 +56,7 @@ const MAX_RECORD_BYTES: u64 = 256 << 20;
 const EXTENSIONS: [&str; 6] = ["npy", "exr", "png", "svg", "csv", "json"];
 
 /// Files ohd writes under fixed names besides outputs, whose temporary files are its own.
-const OWN_FILES: [&str; 3] = [MARKER, "checkpoint.ohd", "shard.ohd"];
+const OWN_FILES: [&str; 4] = [MARKER, "checkpoint.ohd", "shard.ohd", LOCK];
 
 /// What is written into a directory, and so what it replaces there.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -83,83 +88,86 @@ struct Earlier {
 
 impl Earlier {
     /// The files and pointing directories that `dir`'s records of an `output` and its marker list
-    /// (a record that is not ohd's — no `ohd_version`, not a scan's — lists nothing).
-    fn find(dir: &Path, output: Output) -> Earlier {
+    /// (a record that is not ohd's — no `ohd_version`, not a scan's — lists nothing). A listed
+    /// name with a path in it (`a/b`, `..`, `/etc/x`) is refused, naming the record.
+    fn find(dir: &Path, output: Output) -> Result<Earlier> {
         let mut e = Earlier::default();
         let json = |name: &str| -> Option<Value> {
             let bytes = crate::io::read_limited(&dir.join(name), MAX_RECORD_BYTES, "an ohd record").ok()?;
             serde_json::from_slice(&bytes).ok()
         };
+        let listed = |record: &str, names: &mut dyn Iterator<Item = &str>| -> Result<Vec<String>> {
+            names
+                .map(|n| match plain_name(n.strip_suffix('/').unwrap_or(n)) {
+                    true => Ok(n.to_string()),
+                    false => Err(Error::Refused {
+                        path: dir.join(record),
+                        why: format!(
+                            "lists {:?}, not a plain name in this directory: ohd removes only its own files here (edit or remove the file)",
+                            crate::error::shorten(n, crate::error::SHOWN_WORD)
+                        ),
+                    }),
+                })
+                .collect()
+        };
         let run = output == Output::Run;
         if let Some(m) = json(MANIFEST).filter(|m| run && m.get("ohd_version").is_some()) {
             let files = m.get("files").and_then(Value::as_array).into_iter().flatten();
-            e.files.extend(files.filter_map(Value::as_str).map(str::to_string));
+            e.files.extend(listed(MANIFEST, &mut files.filter_map(Value::as_str))?);
             e.files.insert(MANIFEST.into());
         }
         if let Some(s) = json(SCAN).filter(|s| run && s.get("gates").is_some()) {
             let pointings = s.get("pointings").and_then(Value::as_array).into_iter().flatten();
-            e.dirs.extend(pointings.filter_map(|p| p.get("run").and_then(Value::as_str)).map(str::to_string));
+            e.dirs.extend(listed(SCAN, &mut pointings.filter_map(|p| p.get("run").and_then(Value::as_str)))?);
             e.files.extend([SCAN, VAD].iter().chain(&VAD_FIGURES).map(|s| s.to_string()));
         }
         if !run && json(CONVERGE).is_some_and(|c| c.get("ohd_version").is_some()) {
             e.files.extend(CONVERGE_FILES.iter().chain([&CONVERGE]).map(|s| s.to_string()));
         }
         let marker = crate::io::read_text_limited(&dir.join(MARKER), MAX_RECORD_BYTES, "an ohd marker");
-        for line in marker.iter().flat_map(|t| t.lines()).filter(|l| !l.starts_with('#')) {
+        let mut lines = marker.iter().flat_map(|t| t.lines()).filter(|l| !l.starts_with('#'));
+        for line in listed(MARKER, &mut lines)? {
             match line.strip_suffix('/') {
                 Some(d) => e.dirs.insert(d.to_string()),
-                None => e.files.insert(line.to_string()),
+                None => e.files.insert(line),
             };
         }
         e.files.retain(|f| output_file(f));
         e.dirs.retain(|d| pointing_dir(d));
-        e
+        Ok(e)
     }
 
     /// Remove the listed files of `dir` (the records first: from then on nothing claims the
     /// directory complete) and their temporary files and those of ohd's fixed names.
-    fn remove_files(&self, dir: &Path) -> Result<()> {
+    fn remove_files(&self, dir: &OutDir) -> Result<()> {
         let records = [MANIFEST, SCAN, CONVERGE];
         let (first, rest): (Vec<&String>, Vec<&String>) =
             self.files.iter().partition(|f| records.contains(&f.as_str()));
         for name in first.into_iter().chain(rest) {
-            remove_file(&dir.join(name))?;
+            dir.remove_file(name)?;
         }
-        remove_stale_temporaries(dir, |n| self.files.contains(n) || OWN_FILES.contains(&n))?;
-        crate::io::remove_stale_probes(dir)
-    }
-}
-
-/// Remove `path` if it is a file (not a directory); a missing file is no error.
-fn remove_file(path: &Path) -> Result<()> {
-    match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() => Ok(()),
-        Ok(_) => std::fs::remove_file(path).map_err(|source| Error::Write { path: path.to_path_buf(), source }),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(source) => Err(Error::Write { path: path.to_path_buf(), source }),
+        remove_stale_temporaries(dir, |n| self.files.contains(n) || OWN_FILES.contains(&n))
     }
 }
 
 /// Writes one command's outputs into a directory: see the module docs.
 #[derive(Debug)]
 pub struct DirWriter {
-    dir: PathBuf,
+    dir: OutDir,
     marker: std::fs::File,
     written: Vec<String>,
 }
 
 impl DirWriter {
-    /// Begin writing an `output` into `dir` (created if needed): mark it incomplete, then remove
-    /// what an earlier output of its kind and an interrupted one left there — except the pointing
-    /// directories `keep`, which the caller writes (and cleans) itself.
-    pub fn begin(dir: &Path, output: Output, keep: &[String]) -> Result<DirWriter> {
-        let werr = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| Error::Write { path, source }
-        };
-        std::fs::create_dir_all(dir).map_err(werr(dir))?;
-        let mut earlier = Earlier::find(dir, output);
+    /// Begin writing an `output` into `dir`: mark it incomplete, then remove what an earlier
+    /// output of its kind and an interrupted one left there — except the pointing directories
+    /// `keep`, which the caller writes (and cleans) itself. What the earlier records list is
+    /// checked before anything is removed (a listed name with a path in it, or a pointing
+    /// directory that is a link, is refused).
+    pub fn begin(dir: &OutDir, output: Output, keep: &[String]) -> Result<DirWriter> {
+        let mut earlier = Earlier::find(dir.path(), output)?;
         earlier.dirs.retain(|d| !keep.contains(d));
+        let subs = earlier.dirs.iter().map(|d| dir.sub(d)).collect::<Result<Vec<_>>>()?;
         let mut text = format!(
             "# ohd (process {}) is writing into this directory, or was interrupted while it wrote: until\n\
              # this file is gone, the files here are not one complete output. Running ohd into this\n\
@@ -168,53 +176,62 @@ impl DirWriter {
         );
         earlier.files.iter().for_each(|f| text.push_str(&format!("{f}\n")));
         earlier.dirs.iter().for_each(|d| text.push_str(&format!("{d}/\n")));
-        let marker_path = dir.join(MARKER);
-        write_atomic(&marker_path, text.as_bytes())?;
+        let mut marker = dir.temporary(MARKER)?;
+        marker.write(text.as_bytes())?;
+        let marker = marker.commit()?;
         earlier.remove_files(dir)?;
-        for d in &earlier.dirs {
-            let sub = dir.join(d);
-            // A directory, not a link to one elsewhere.
-            if std::fs::symlink_metadata(&sub).is_ok_and(|m| m.is_dir()) {
-                Earlier { dirs: BTreeSet::new(), ..Earlier::find(&sub, Output::Run) }.remove_files(&sub)?;
-                remove_file(&sub.join(MARKER))?;
+        for (name, sub) in earlier.dirs.iter().zip(subs) {
+            // Only a directory ohd made (a link was refused above; one planted since is not
+            // followed: `sub`'s operations open it without following links).
+            if dir.kind(name)? == Some(rustix::fs::FileType::Directory) {
+                Earlier { dirs: BTreeSet::new(), ..Earlier::find(sub.path(), Output::Run)? }.remove_files(&sub)?;
+                sub.remove_file(MARKER)?;
                 // Only once empty: a checkpoint, a shard or another program's file keeps it.
-                let _ = std::fs::remove_dir(&sub);
+                sub.remove_if_empty();
             }
         }
-        let marker = std::fs::OpenOptions::new().append(true).open(&marker_path).map_err(werr(&marker_path))?;
-        Ok(DirWriter { dir: dir.to_path_buf(), marker, written: Vec::new() })
+        Ok(DirWriter { dir: dir.clone(), marker, written: Vec::new() })
+    }
+
+    /// Check, before any work, what [`DirWriter::begin`] will find in `dir` for an `output`: the
+    /// earlier records and marker list no path, and their pointing directories are directories
+    /// (so that a run is not refused for them after its simulation).
+    pub fn check(dir: &OutDir, output: Output) -> Result<()> {
+        let earlier = Earlier::find(dir.path(), output)?;
+        earlier.dirs.iter().try_for_each(|d| dir.sub(d).map(drop))
     }
 
     /// The directory written into.
     pub fn dir(&self) -> &Path {
-        &self.dir
+        self.dir.path()
     }
 
     /// Note `name` in the marker (`name/` for a directory) before it is written.
     fn note(&mut self, name: &str) -> Result<()> {
-        writeln!(self.marker, "{name}").map_err(|source| Error::Write { path: self.dir.join(MARKER), source })
+        writeln!(self.marker, "{name}").map_err(|source| Error::Write { path: self.dir.path().join(MARKER), source })
     }
 
     /// Write the file `name` (noted in the marker first), atomically.
     pub fn put(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
         self.note(name)?;
-        write_atomic(&self.dir.join(name), bytes)?;
+        self.dir.write_atomic(name, bytes)?;
         self.written.push(name.to_string());
         Ok(())
     }
 
     /// The figure `d` as the files `png` and `svg`.
     pub fn figure(&mut self, png: &str, svg: &str, d: &impl crate::io::figures::Draw) -> Result<()> {
-        let f = super::figures::drawn(d, self.dir.join(png))?;
+        let f = super::figures::drawn(d, self.dir.path().join(png))?;
         self.put(png, &f.png)?;
         self.put(svg, f.svg.as_bytes())
     }
 
     /// The subdirectory `name` (a scan's pointing directory), noted in the marker: written and
     /// cleaned by its own writer.
-    pub fn subdir(&mut self, name: &str) -> Result<PathBuf> {
+    pub fn subdir(&mut self, name: &str) -> Result<OutDir> {
+        let sub = self.dir.sub(name)?;
         self.note(&format!("{name}/"))?;
-        Ok(self.dir.join(name))
+        Ok(sub)
     }
 
     /// The files written so far, in order.
@@ -232,7 +249,7 @@ impl DirWriter {
         let written: BTreeSet<&str> = self.written.iter().map(String::as_str).collect();
         remove_stale_temporaries(&self.dir, |n| written.contains(n))?;
         drop(self.marker);
-        remove_file(&self.dir.join(MARKER))
+        self.dir.remove_file(MARKER)
     }
 }
 
@@ -264,13 +281,14 @@ mod tests {
     fn an_earlier_output_is_replaced_and_other_files_stay() {
         let tmp = tempfile::tempdir().unwrap();
         let d = tmp.path();
-        let manifest = r#"{"ohd_version": "0", "files": ["old.npy", "../outside.npy", "notes.txt"]}"#;
+        let manifest = r#"{"ohd_version": "0", "files": ["old.npy", "notes.txt"]}"#;
         for (name, text) in [
             ("manifest.json", manifest),
             ("old.npy", "old"),
             ("notes.txt", "the user's"),
             ("mine.npy", "the user's"),
             (".old.npy.tmp-12", "killed"),
+            (".old.npy.tmp-12-0123456789abcdef", "killed"),
             (".checkpoint.ohd.tmp-13", "killed"),
             (".mine.npy.tmp-14", "the user's"),
             ("killed.npy", "a killed run's"),
@@ -280,7 +298,8 @@ mod tests {
         }
         std::fs::write(d.join("converge.json"), r#"{"ohd_version": "0"}"#).unwrap();
         std::fs::write(d.join("converge.csv"), "a study's").unwrap();
-        let mut w = DirWriter::begin(d, Output::Run, &[]).unwrap();
+        let out = OutDir::create(d).unwrap();
+        let mut w = DirWriter::begin(&out, Output::Run, &[]).unwrap();
         let listing = || {
             let mut v: Vec<String> =
                 std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
@@ -288,16 +307,47 @@ mod tests {
             v
         };
         // A study beside the run stays.
-        assert_eq!(listing(), [".mine.npy.tmp-14", "converge.csv", "converge.json", "mine.npy", "notes.txt", MARKER]);
+        let left = [".mine.npy.tmp-14", LOCK, "converge.csv", "converge.json", "mine.npy", "notes.txt", MARKER];
+        assert_eq!(listing(), left);
         w.put("new.npy", b"new").unwrap();
         let marker = std::fs::read_to_string(d.join(MARKER)).unwrap();
         assert!(marker.contains("\nkilled.npy\n") && marker.contains("\nold.npy\n") && marker.ends_with("\nnew.npy\n"));
         assert_eq!(w.written(), ["new.npy"]);
         w.finish(Some(("manifest.json", br#"{"ohd_version": "0", "files": ["new.npy"]}"#))).unwrap();
         let run = [".mine.npy.tmp-14", "manifest.json", "mine.npy", "new.npy", "notes.txt"];
-        assert_eq!(listing(), [&run[..1], &["converge.csv", "converge.json"], &run[1..]].concat());
+        assert_eq!(listing(), [&run[..1], &[LOCK, "converge.csv", "converge.json"], &run[1..]].concat());
         // A study replaces the study only.
-        DirWriter::begin(d, Output::Study, &[]).unwrap().finish(None).unwrap();
+        DirWriter::begin(&out, Output::Study, &[]).unwrap().finish(None).unwrap();
+        drop(out);
         assert_eq!(listing(), run);
+    }
+
+    /// A record or marker listing a name with a path in it is refused, naming the record, and
+    /// nothing is removed; so is an earlier scan's pointing directory that is a link.
+    #[test]
+    fn records_that_list_paths_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path().join("out");
+        let out = OutDir::create(&d).unwrap();
+        std::fs::write(tmp.path().join("outside.npy"), "the user's").unwrap();
+        for (record, text) in [
+            (MANIFEST, r#"{"ohd_version": "0", "files": ["../outside.npy"]}"#),
+            (MANIFEST, r#"{"ohd_version": "0", "files": ["/etc/x.npy"]}"#),
+            (MARKER, "# …\na/../x.npy\n"),
+            (MARKER, "# …\n../\n"),
+            (SCAN, r#"{"gates": [], "pointings": [{"run": "../pointing_00"}]}"#),
+        ] {
+            std::fs::write(d.join(record), text).unwrap();
+            let e = DirWriter::begin(&out, Output::Run, &[]).unwrap_err();
+            assert!(e.is_input_error() && e.to_string().contains(record), "{e}");
+            assert!(DirWriter::check(&out, Output::Run).is_err());
+            assert!(d.join(record).exists() && tmp.path().join("outside.npy").exists());
+            std::fs::remove_file(d.join(record)).unwrap();
+        }
+        std::os::unix::fs::symlink(tmp.path(), d.join("pointing_00")).unwrap();
+        std::fs::write(d.join(SCAN), r#"{"gates": [], "pointings": [{"run": "pointing_00"}]}"#).unwrap();
+        let e = DirWriter::begin(&out, Output::Run, &[]).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains("pointing_00"), "{e}");
+        assert!(d.join(SCAN).exists() && tmp.path().join("outside.npy").exists());
     }
 }

@@ -19,6 +19,7 @@ use crate::detect::{DetectorKind, LATERAL_SCALAR, Scalar, Side};
 use crate::error::Result;
 use crate::experiment::{Experiment, Progress, RunOutput};
 use crate::io::formats::npy;
+use crate::io::outdir::OutDir;
 use crate::output::{Kind, Output};
 use crate::retrieval::GateRetrieval;
 
@@ -212,7 +213,8 @@ impl Timing {
     }
 }
 
-/// Write all outputs of `out` into `dir` (created if needed). Returns the manifest as written.
+/// Write all outputs of `out` into `dir` (created if needed, locked while written). Returns the
+/// manifest as written.
 pub fn write_run(
     dir: &Path,
     exp: &Experiment,
@@ -220,13 +222,13 @@ pub fn write_run(
     config: &toml::Table,
     inv: &Invocation,
 ) -> Result<Manifest> {
-    write_run_with(dir, exp, out, config, inv, &crate::experiment::Silent)
+    write_run_with(&OutDir::create(dir)?, exp, out, config, inv, &crate::experiment::Silent)
 }
 
 /// [`write_run`], telling `progress` how far the post-processing is: its total set to the gates of
 /// every lidar receiver, advanced by one per gate fitted.
 pub fn write_run_with(
-    dir: &Path,
+    dir: &OutDir,
     exp: &Experiment,
     out: &RunOutput,
     config: &toml::Table,

@@ -34,7 +34,7 @@ pub fn save(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
     if record != MANIFEST {
         return Err(Error::Input(format!("the last of a run's files is {MANIFEST}, not {record}")));
     }
-    let mut w = DirWriter::begin(dir, Output::Run, &[])?;
+    let mut w = DirWriter::begin(&crate::io::outdir::OutDir::create(dir)?, Output::Run, &[])?;
     for (name, bytes) in rest {
         w.put(name, bytes)?;
     }

@@ -331,7 +331,14 @@ fn hostile_value(d: &mut Draw, key: &str, v: &toml::Value, numeric: bool) -> Str
                 .collect()
         }
         toml::Value::String(_) if key == "file" => {
-            ["/dev/zero", "/", "/nonexistent/none.vdb", ".", ""].iter().map(|p| format!("\"{p}\"")).collect()
+            // An endless file and a directory of the tests' own, never the machine's.
+            let special = crate::support::special::special();
+            let own = [special.endless().display().to_string(), special.dir.display().to_string()];
+            own.iter()
+                .map(String::as_str)
+                .chain(["/nonexistent/none.vdb", ".", ""])
+                .map(|p| format!("\"{p}\""))
+                .collect()
         }
         toml::Value::String(s) => vec![
             "\"\"".into(),
@@ -339,7 +346,7 @@ fn hostile_value(d: &mut Draw, key: &str, v: &toml::Value, numeric: bool) -> Str
             literal(toml::Value::String(format!("{s}x"))),
             literal(toml::Value::String(s.to_uppercase())),
             "\"\\u0000\"".into(),
-            "\"../../../../../../etc/passwd\"".into(),
+            "\"../../../../../../../../nonexistent/passwd\"".into(),
         ],
         toml::Value::Boolean(b) => vec![(!b).to_string(), "\"true\"".into(), "1".into()],
         toml::Value::Array(a) => {

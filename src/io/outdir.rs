@@ -1,0 +1,575 @@
+//! The directories ohd writes into ([`OutDir`]): held open, so that every file ohd creates,
+//! replaces or removes there is named relative to the directory it was given, by one plain name,
+//! and never reached through a symbolic link planted inside it (issue 33: temporary and probe
+//! files opened by path followed planted links and truncated what they pointed to; a scan wrote
+//! into, and removed from, a pointing directory that was a link to another directory).
+//!
+//! The contract (README "Output directory"):
+//! - the directory given (`--out`) may be reached through links (it is the user's path); it is
+//!   created with its parents if missing, and found unusable (a dangling link, a loop, a file, a
+//!   name too long, read-only) before anything is traced;
+//! - inside it, ohd writes only plain names (no `/`, no `..`): files through a temporary created
+//!   exclusively (`O_CREAT | O_EXCL | O_NOFOLLOW`, a random name) and renamed over the name; a
+//!   name that is a directory, a device, a FIFO or a socket — or a link to one — is refused, not
+//!   replaced; a link to a file is replaced by the file (the link, not what it points to);
+//! - its sub-directories (a scan's `pointing_NN/`) are made by ohd and opened without following
+//!   a link: a link there is refused;
+//! - a command that writes holds a lock on the directory for its whole life ([`LOCK`], removed
+//!   when it ends); a second one is refused naming the holder's process.
+
+use std::fs::File;
+use std::io::{Read, Write};
+use std::os::fd::OwnedFd;
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+
+use rustix::fs::{AtFlags, CWD, FileType, Mode, OFlags};
+
+use crate::error::{Error, Result};
+
+/// The lock file of a directory being written: holds the process ID of the ohd writing there.
+pub const LOCK: &str = ".ohd-lock";
+
+/// Tries at a fresh random temporary name before giving up (each try fails only if the name
+/// exists: planted, or an astronomically unlikely collision).
+const TEMPORARY_TRIES: usize = 16;
+
+/// Whether `name` is one plain entry of a directory: not empty, no separator or NUL, not `.`
+/// or `..`.
+pub fn plain_name(name: &str) -> bool {
+    !name.is_empty() && name != "." && name != ".." && !name.contains(['/', '\\', '\0'])
+}
+
+/// The refusal of `path` for `why` (an input error, exit status 2).
+fn refused(path: &Path, why: impl Into<String>) -> Error {
+    Error::Refused { path: path.to_path_buf(), why: why.into() }
+}
+
+/// What a file type is called in messages.
+fn kind_name(t: FileType) -> &'static str {
+    match t {
+        FileType::RegularFile => "a regular file",
+        FileType::Directory => "a directory",
+        FileType::Symlink => "a symbolic link",
+        FileType::Fifo => "a FIFO",
+        FileType::Socket => "a socket",
+        FileType::CharacterDevice => "a character device",
+        FileType::BlockDevice => "a block device",
+        _ => "not a file",
+    }
+}
+
+fn io(e: rustix::io::Errno) -> std::io::Error {
+    std::io::Error::from(e)
+}
+
+/// A random 64-bit number from the standard library's per-process random hash keys (seeded by
+/// the OS), stirred by a counter: temporary names are not guessable.
+fn random() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mut h = std::hash::RandomState::new().build_hasher();
+    h.write_u64(COUNTER.fetch_add(1, Ordering::Relaxed));
+    h.finish()
+}
+
+/// The root of an [`OutDir`]: the directory held open, its lock if taken, and the directories
+/// made to reach it (dropped in this order: the lock is gone before they are removed).
+#[derive(Debug)]
+struct Root {
+    fd: OwnedFd,
+    lock: Option<Lock>,
+    /// Held for its drop.
+    _made: Made,
+}
+
+/// The directories made to reach an output directory (each as its parent, open, and its name),
+/// outermost first: removed again, innermost first, if they are still empty when dropped (the
+/// command was refused, or failed before writing: then it leaves nothing behind).
+#[derive(Debug, Default)]
+struct Made(Vec<(OwnedFd, std::ffi::OsString)>);
+
+impl Drop for Made {
+    fn drop(&mut self) {
+        for (parent, name) in self.0.iter().rev() {
+            // Fails, and so keeps it, unless it is empty.
+            let _ = rustix::fs::unlinkat(parent, name.as_os_str(), AtFlags::REMOVEDIR);
+        }
+    }
+}
+
+/// A directory ohd writes into (see the module docs), or one of its sub-directories. Cheap to
+/// clone: the root is shared (and its lock held until the last clone is dropped); a
+/// sub-directory is made and opened (without following a link) at each use.
+#[derive(Debug, Clone)]
+pub struct OutDir {
+    root: Arc<Root>,
+    sub: Option<String>,
+    path: PathBuf,
+}
+
+impl OutDir {
+    /// The output directory `path` of a command that writes: created with its parents if missing,
+    /// checked writable (a temporary file created exclusively and removed) and locked for as
+    /// long as the value (or a clone) lives. Every failure is found here, before any work, and
+    /// is an input error naming the directory.
+    pub fn create(path: &Path) -> Result<OutDir> {
+        let (fd, made) = open_path(path, true)?;
+        let mut dir =
+            OutDir { root: Arc::new(Root { fd, lock: None, _made: made }), sub: None, path: path.to_path_buf() };
+        let lock = Lock::take(&dir)?;
+        // Writable: a probe, created as every temporary is and removed.
+        let probe = dir.temporary("ohd-probe").map_err(|e| match e {
+            Error::Write { source, .. } => refused(path, format!("cannot write into it: {source}")),
+            e => e,
+        })?;
+        drop(probe);
+        Arc::get_mut(&mut dir.root).expect("not shared yet").lock = Some(lock);
+        Ok(dir)
+    }
+
+    /// The existing directory `path`, unlocked: for writing one file into a directory that is not
+    /// an output directory (`ohd mie --table FILE`).
+    pub fn existing(path: &Path) -> Result<OutDir> {
+        let (fd, _) = open_path(if path.as_os_str().is_empty() { Path::new(".") } else { path }, false)?;
+        Ok(OutDir {
+            root: Arc::new(Root { fd, lock: None, _made: Made::default() }),
+            sub: None,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The sub-directory `name` (one plain name) of this output directory, made at its first use.
+    /// A `name` that exists as anything but a directory (a link to one included) is refused now.
+    pub fn sub(&self, name: &str) -> Result<OutDir> {
+        let path = self.path.join(name);
+        if self.sub.is_some() || !plain_name(name) {
+            return Err(refused(&path, "not one plain name inside the output directory"));
+        }
+        let sub = OutDir { root: self.root.clone(), sub: Some(name.to_string()), path };
+        match self.kind(name)? {
+            None | Some(FileType::Directory) => Ok(sub),
+            Some(t) => Err(refused(
+                &sub.path,
+                format!(
+                    "{} where ohd keeps a sub-directory of its own: ohd does not follow or replace it",
+                    kind_name(t)
+                ),
+            )),
+        }
+    }
+
+    /// The directory's path as given (for messages and reading).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The directory, open: the root, or the sub-directory made if missing and opened without
+    /// following a link.
+    fn fd(&self) -> Result<OwnedFd> {
+        let werr = |e: std::io::Error| Error::Write { path: self.path.clone(), source: e };
+        let Some(name) = &self.sub else { return self.root.fd.try_clone().map_err(werr) };
+        match rustix::fs::mkdirat(&self.root.fd, name.as_str(), Mode::from_raw_mode(0o777)) {
+            Ok(()) | Err(rustix::io::Errno::EXIST) => {}
+            Err(e) => return Err(werr(io(e))),
+        }
+        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+        rustix::fs::openat(&self.root.fd, name.as_str(), flags, Mode::empty()).map_err(|e| match e {
+            rustix::io::Errno::LOOP | rustix::io::Errno::NOTDIR => {
+                refused(&self.path, "not a directory (a symbolic link or a file): ohd does not follow or replace it")
+            }
+            e => werr(io(e)),
+        })
+    }
+
+    /// The type of the entry `name` (not following a link), `None` if there is none.
+    pub fn kind(&self, name: &str) -> Result<Option<FileType>> {
+        let fd = match self.fd() {
+            Ok(fd) => fd,
+            Err(Error::Write { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        match rustix::fs::statat(&fd, name, AtFlags::SYMLINK_NOFOLLOW) {
+            Ok(st) => Ok(Some(FileType::from_raw_mode(st.st_mode))),
+            Err(rustix::io::Errno::NOENT) => Ok(None),
+            Err(e) => Err(Error::Write { path: self.path.join(name), source: io(e) }),
+        }
+    }
+
+    /// Refuse `name` as a file to write unless it is missing, a regular file, or a link (to a
+    /// regular file, or dangling): the link is then replaced, never followed.
+    fn check_target(&self, fd: &OwnedFd, name: &str) -> Result<()> {
+        let path = self.path.join(name);
+        let kind = match rustix::fs::statat(fd, name, AtFlags::SYMLINK_NOFOLLOW) {
+            Ok(st) => FileType::from_raw_mode(st.st_mode),
+            Err(rustix::io::Errno::NOENT) => return Ok(()),
+            Err(e) => return Err(Error::Write { path, source: io(e) }),
+        };
+        let target = match kind {
+            FileType::RegularFile => return Ok(()),
+            FileType::Symlink => match rustix::fs::statat(fd, name, AtFlags::empty()) {
+                Ok(st) => FileType::from_raw_mode(st.st_mode),
+                // Dangling, or a loop: the link is replaced.
+                Err(_) => return Ok(()),
+            },
+            other => other,
+        };
+        match (kind, target) {
+            (_, FileType::RegularFile) => Ok(()),
+            (FileType::Symlink, t) => Err(refused(
+                &path,
+                format!("a symbolic link to {}: not a regular file, ohd does not replace it", kind_name(t)),
+            )),
+            (t, _) => Err(refused(&path, format!("{}: not a regular file, ohd does not replace it", kind_name(t)))),
+        }
+    }
+
+    /// A temporary file for `name` (one plain name), created exclusively under a random hidden
+    /// name (`.NAME.tmp-PID-RANDOM`) beside it; [`Temporary::commit`] renames it over `name`, and
+    /// dropped uncommitted it is removed. `name` itself is checked first ([`OutDir`]: what is
+    /// not a regular file or a link to one is refused).
+    pub fn temporary(&self, name: &str) -> Result<Temporary> {
+        let path = self.path.join(name);
+        if !plain_name(name) {
+            return Err(refused(&path, "not one plain name inside the output directory"));
+        }
+        let dir = self.fd()?;
+        self.check_target(&dir, name)?;
+        let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::EXCL | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+        let mut last = rustix::io::Errno::EXIST;
+        for _ in 0..TEMPORARY_TRIES {
+            let tmp = format!(".{name}.tmp-{}-{:016x}", std::process::id(), random());
+            match rustix::fs::openat(&dir, tmp.as_str(), flags, Mode::from_raw_mode(0o666)) {
+                Ok(fd) => {
+                    return Ok(Temporary { file: File::from(fd), dir, tmp, name: name.to_string(), path, done: false });
+                }
+                Err(e @ rustix::io::Errno::EXIST) => last = e,
+                Err(e) => return Err(Error::Write { path, source: io(e) }),
+            }
+        }
+        Err(Error::Write { path, source: io(last) })
+    }
+
+    /// Write `bytes` to `name` atomically: readers see the old file or the complete new one.
+    pub fn write_atomic(&self, name: &str, bytes: &[u8]) -> Result<()> {
+        let mut t = self.temporary(name)?;
+        t.write(bytes)?;
+        t.commit().map(drop)
+    }
+
+    /// Remove the file `name` (one plain name; a link is removed, not what it points to); a
+    /// missing file, or a directory, is left as it is.
+    pub fn remove_file(&self, name: &str) -> Result<()> {
+        let path = self.path.join(name);
+        if !plain_name(name) {
+            return Err(refused(&path, "not one plain name inside the output directory"));
+        }
+        let dir = match self.fd() {
+            Ok(fd) => fd,
+            Err(Error::Write { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(e) => return Err(e),
+        };
+        match rustix::fs::unlinkat(&dir, name, AtFlags::empty()) {
+            Ok(()) | Err(rustix::io::Errno::NOENT | rustix::io::Errno::ISDIR | rustix::io::Errno::PERM) => Ok(()),
+            Err(e) => Err(Error::Write { path, source: io(e) }),
+        }
+    }
+
+    /// Remove this sub-directory if it is empty (what another program left there keeps it).
+    pub fn remove_if_empty(&self) {
+        if let Some(name) = &self.sub {
+            let _ = rustix::fs::unlinkat(&self.root.fd, name.as_str(), AtFlags::REMOVEDIR);
+        }
+    }
+
+    /// The names of the regular files in the directory (none if it does not exist).
+    pub fn files(&self) -> Result<Vec<String>> {
+        let dir = match self.fd() {
+            Ok(fd) => fd,
+            Err(Error::Write { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => return Ok(vec![]),
+            Err(e) => return Err(e),
+        };
+        let werr = |e| Error::Write { path: self.path.clone(), source: io(e) };
+        let mut entries = rustix::fs::Dir::read_from(&dir).map_err(werr)?;
+        let mut names = Vec::new();
+        while let Some(entry) = entries.read() {
+            let entry = entry.map_err(werr)?;
+            let Ok(name) = entry.file_name().to_str() else { continue };
+            let regular = match entry.file_type() {
+                FileType::Unknown => rustix::fs::statat(&dir, name, AtFlags::SYMLINK_NOFOLLOW)
+                    .is_ok_and(|st| FileType::from_raw_mode(st.st_mode) == FileType::RegularFile),
+                t => t == FileType::RegularFile,
+            };
+            if regular {
+                names.push(name.to_string());
+            }
+        }
+        Ok(names)
+    }
+}
+
+/// Open the directory at `path` (through links: it is the user's path), component by component,
+/// creating what is missing when `create` (and returning what it made). A failure is an input
+/// error naming `path`.
+fn open_path(path: &Path, create: bool) -> Result<(OwnedFd, Made)> {
+    let cannot = |what: &str, e: rustix::io::Errno| {
+        let why = match e {
+            rustix::io::Errno::LOOP => "a loop of symbolic links".to_string(),
+            rustix::io::Errno::NOTDIR => "a part of the path is not a directory".to_string(),
+            rustix::io::Errno::NOENT if what == "open" => {
+                "missing (or a symbolic link to nothing: a dangling link)".to_string()
+            }
+            e => io(e).to_string(),
+        };
+        refused(path, format!("cannot {what} it as the output directory: {why}"))
+    };
+    if path.as_os_str().is_empty() {
+        return Err(refused(path, "an empty path: expected a directory"));
+    }
+    let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::CLOEXEC;
+    let mut fd = rustix::fs::openat(CWD, ".", flags, Mode::empty()).map_err(|e| cannot("open", e))?;
+    let mut made = Made::default();
+    for c in path.components() {
+        let name = match c {
+            Component::RootDir => {
+                fd = rustix::fs::openat(CWD, "/", flags, Mode::empty()).map_err(|e| cannot("open", e))?;
+                continue;
+            }
+            Component::CurDir | Component::Prefix(_) => continue,
+            Component::ParentDir => std::ffi::OsStr::new(".."),
+            Component::Normal(n) => n,
+        };
+        fd = match rustix::fs::openat(&fd, name, flags, Mode::empty()) {
+            Ok(next) => next,
+            Err(rustix::io::Errno::NOENT) if create && c != Component::ParentDir => {
+                match rustix::fs::mkdirat(&fd, name, Mode::from_raw_mode(0o777)) {
+                    Ok(()) => {
+                        let parent = fd.try_clone().map_err(|e| refused(path, e.to_string()))?;
+                        made.0.push((parent, name.to_os_string()));
+                    }
+                    // Exists: a link to nothing (then refused as dangling), or made meanwhile.
+                    Err(rustix::io::Errno::EXIST) => {}
+                    Err(e) => return Err(cannot("create", e)),
+                }
+                rustix::fs::openat(&fd, name, flags, Mode::empty()).map_err(|e| cannot("open", e))?
+            }
+            Err(e) => return Err(cannot("open", e)),
+        };
+    }
+    Ok((fd, made))
+}
+
+/// A temporary file being written ([`OutDir::temporary`]).
+#[derive(Debug)]
+pub struct Temporary {
+    file: File,
+    dir: OwnedFd,
+    tmp: String,
+    name: String,
+    path: PathBuf,
+    done: bool,
+}
+
+impl Temporary {
+    /// Append `bytes`.
+    pub fn write(&mut self, bytes: &[u8]) -> Result<()> {
+        self.file.write_all(bytes).map_err(|source| Error::Write { path: self.path.clone(), source })
+    }
+
+    /// The file being written, for a buffered writer.
+    pub fn file(&mut self) -> &mut File {
+        &mut self.file
+    }
+
+    /// The path written (for messages).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flush the file to disk and rename it over its name; returns the file, still open (to
+    /// append to, as the marker is).
+    pub fn commit(mut self) -> Result<File> {
+        let werr = |source| Error::Write { path: self.path.clone(), source };
+        self.file.sync_all().map_err(werr)?;
+        rustix::fs::renameat(&self.dir, self.tmp.as_str(), &self.dir, self.name.as_str()).map_err(|e| werr(io(e)))?;
+        self.done = true;
+        self.file.try_clone().map_err(werr)
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = rustix::fs::unlinkat(&self.dir, self.tmp.as_str(), AtFlags::empty());
+        }
+    }
+}
+
+/// The lock of an output directory: [`LOCK`] locked (`flock`, released by the kernel if the
+/// process dies) and holding this process's ID; removed (while still held) when dropped.
+#[derive(Debug)]
+struct Lock {
+    file: File,
+    dir: OwnedFd,
+}
+
+impl Lock {
+    /// Lock `dir`, or refuse naming the process that holds it.
+    fn take(dir: &OutDir) -> Result<Lock> {
+        let path = dir.path.join(LOCK);
+        let werr = |e: std::io::Error| Error::Write { path: path.clone(), source: e };
+        let fd = dir.fd()?;
+        let flags = OFlags::RDWR | OFlags::CREATE | OFlags::NOFOLLOW | OFlags::NONBLOCK | OFlags::CLOEXEC;
+        for _ in 0..TEMPORARY_TRIES {
+            // What is planted at the lock's name — a link, a file with other names (a hard link
+            // to a file elsewhere), anything but a regular file — is not opened or written: its
+            // name is removed (the name is ohd's; what it points to is untouched), and tried again.
+            let planted = rustix::fs::statat(&fd, LOCK, AtFlags::SYMLINK_NOFOLLOW)
+                .is_ok_and(|st| FileType::from_raw_mode(st.st_mode) != FileType::RegularFile || st.st_nlink != 1);
+            if planted {
+                let _ = rustix::fs::unlinkat(&fd, LOCK, AtFlags::empty());
+            }
+            let file = match rustix::fs::openat(&fd, LOCK, flags, Mode::from_raw_mode(0o666)) {
+                Ok(f) => File::from(f),
+                Err(rustix::io::Errno::LOOP | rustix::io::Errno::NXIO | rustix::io::Errno::ISDIR) => {
+                    let _ = rustix::fs::unlinkat(&fd, LOCK, AtFlags::empty());
+                    continue;
+                }
+                Err(e) => return Err(werr(io(e))),
+            };
+            let st = rustix::fs::fstat(&file).map_err(|e| werr(io(e)))?;
+            if FileType::from_raw_mode(st.st_mode) != FileType::RegularFile || st.st_nlink != 1 {
+                let _ = rustix::fs::unlinkat(&fd, LOCK, AtFlags::empty());
+                continue;
+            }
+            match rustix::fs::flock(&file, rustix::fs::FlockOperation::NonBlockingLockExclusive) {
+                Ok(()) => {}
+                Err(rustix::io::Errno::WOULDBLOCK) => {
+                    let mut text = String::new();
+                    let _ = (&file).take(64).read_to_string(&mut text);
+                    let holder = match text.trim().parse::<u32>() {
+                        Ok(pid) => format!("another ohd (process {pid})"),
+                        Err(_) => "another ohd".to_string(),
+                    };
+                    return Err(refused(
+                        &dir.path,
+                        format!(
+                            "in use: {holder} is writing into this directory (lock {LOCK}); wait for it to end, or give another output directory"
+                        ),
+                    ));
+                }
+                Err(e) => return Err(werr(io(e))),
+            }
+            // The file locked must still be the one named: a holder that ended removed it while
+            // we opened it (then try again with the new one).
+            let named = rustix::fs::statat(&fd, LOCK, AtFlags::SYMLINK_NOFOLLOW);
+            if named.is_ok_and(|n| n.st_ino == st.st_ino && n.st_dev == st.st_dev) {
+                file.set_len(0).map_err(werr)?;
+                (&file).write_all(format!("{}\n", std::process::id()).as_bytes()).map_err(werr)?;
+                return Ok(Lock { file, dir: fd });
+            }
+        }
+        Err(refused(&path, "replaced again and again while ohd took it: another program is interfering"))
+    }
+}
+
+impl Drop for Lock {
+    fn drop(&mut self) {
+        // Removed while still locked, then released: a process that opened it meanwhile finds
+        // it unnamed and takes the new one.
+        let _ = rustix::fs::unlinkat(&self.dir, LOCK, AtFlags::empty());
+        let _ = rustix::fs::flock(&self.file, rustix::fs::FlockOperation::Unlock);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listing(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> =
+            std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn plain_names() {
+        for ok in ["a.npy", ".hidden", "pointing_00", "..a"] {
+            assert!(plain_name(ok), "{ok}");
+        }
+        for not in ["", ".", "..", "a/b", "/etc/passwd", "a\\b", "a\0b"] {
+            assert!(!plain_name(not), "{not:?}");
+        }
+    }
+
+    /// Files are written whole under their names, links planted at a name are replaced (their
+    /// targets untouched), what is not a regular file is refused, and the lock is gone at the end.
+    #[test]
+    fn writes_stay_inside_and_replace_no_device() {
+        let tmp = tempfile::tempdir().unwrap();
+        let canary = tmp.path().join("canary");
+        std::fs::write(&canary, "keep").unwrap();
+        let out = tmp.path().join("a/b/out");
+        {
+            let d = OutDir::create(&out).unwrap();
+            assert_eq!(listing(&out), [LOCK]);
+            d.write_atomic("x.npy", b"1").unwrap();
+            std::os::unix::fs::symlink(&canary, out.join("y.npy")).unwrap();
+            d.write_atomic("y.npy", b"2").unwrap();
+            assert_eq!(std::fs::read(out.join("y.npy")).unwrap(), b"2");
+            assert!(!std::fs::symlink_metadata(out.join("y.npy")).unwrap().file_type().is_symlink());
+            std::fs::create_dir(out.join("z.npy")).unwrap();
+            let e = d.write_atomic("z.npy", b"3").unwrap_err();
+            assert!(e.is_input_error() && e.to_string().contains("a directory"), "{e}");
+            rustix::fs::mknodat(CWD, out.join("f"), FileType::Fifo, Mode::from_raw_mode(0o600), 0).unwrap();
+            std::os::unix::fs::symlink(out.join("f"), out.join("l.npy")).unwrap();
+            let e = d.write_atomic("f", b"4").unwrap_err().to_string();
+            assert!(e.contains("a FIFO"), "{e}");
+            let e = d.write_atomic("l.npy", b"4").unwrap_err().to_string();
+            assert!(e.contains("a symbolic link to a FIFO"), "{e}");
+            assert!(d.write_atomic("../x.npy", b"5").unwrap_err().is_input_error());
+            d.remove_file("x.npy").unwrap();
+            std::os::unix::fs::symlink(&canary, out.join("w.npy")).unwrap();
+            d.remove_file("w.npy").unwrap();
+            assert_eq!(listing(&out), [LOCK, "f", "l.npy", "y.npy", "z.npy"]);
+        }
+        assert_eq!(std::fs::read_to_string(&canary).unwrap(), "keep");
+        assert!(!out.join(LOCK).exists());
+    }
+
+    /// A second holder is refused naming the first's process; a sub-directory that is a link is
+    /// refused; `newdir/.`, dangling links, loops and files as parents are found on creation.
+    #[test]
+    fn locks_and_refusals() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        let d = OutDir::create(&out).unwrap();
+        let e = OutDir::create(&out).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains(&format!("process {}", std::process::id())), "{e}");
+        let elsewhere = tmp.path().join("elsewhere");
+        std::fs::create_dir(&elsewhere).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, out.join("pointing_01")).unwrap();
+        assert!(d.sub("pointing_01").unwrap_err().is_input_error());
+        let s = d.sub("pointing_00").unwrap();
+        s.write_atomic("a.csv", b"a").unwrap();
+        assert_eq!(std::fs::read(out.join("pointing_00/a.csv")).unwrap(), b"a");
+        drop((d, s));
+        OutDir::create(&out).unwrap();
+        OutDir::create(&tmp.path().join("newdir/.")).unwrap();
+        std::os::unix::fs::symlink(tmp.path().join("none"), tmp.path().join("dangling")).unwrap();
+        std::os::unix::fs::symlink(tmp.path().join("loop"), tmp.path().join("loop")).unwrap();
+        std::fs::write(tmp.path().join("file"), "").unwrap();
+        for (p, why) in [
+            ("dangling", "dangling"),
+            ("loop", "loop"),
+            ("file/out", "not a directory"),
+            (&"n".repeat(300)[..], "too long"),
+        ] {
+            let e = OutDir::create(&tmp.path().join(p)).unwrap_err();
+            assert!(e.is_input_error() && e.to_string().to_lowercase().contains(why), "{p}: {e}");
+        }
+        assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+    }
+}
