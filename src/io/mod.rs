@@ -70,7 +70,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         });
     };
     // (The working directory for a bare file name: shown as the name alone.)
-    outdir::OutDir::existing(path.parent().unwrap_or(Path::new("")))?.write_atomic(name, bytes)
+    let dir = outdir::OutDir::existing(path.parent().unwrap_or(Path::new("")))?;
+    dir.check_target(name)?;
+    dir.write_atomic(name, bytes)
 }
 
 /// A byte count for messages: `64 MiB`, `4 GiB`, `1.5 KiB`, `12 bytes`.

@@ -197,45 +197,56 @@ impl OutDir {
         }
     }
 
-    /// Refuse `name` as a file to write unless it is missing, a regular file, or a link (to a
-    /// regular file, or dangling): the link is then replaced, never followed.
-    fn check_target(&self, fd: &OwnedFd, name: &str) -> Result<()> {
+    /// Refuse `name` (one plain name) as a file to write unless it is missing, a regular file, or
+    /// a link (to a regular file, or dangling): the link would be replaced, never followed. An
+    /// input error: for a lone file (`ohd mie --table`), checked before it is made.
+    pub fn check_target(&self, name: &str) -> Result<()> {
+        if !plain_name(name) {
+            return Err(refused(&self.path.join(name), "not one plain name inside the output directory"));
+        }
+        self.target_problem(&self.fd()?, name)?.map_or(Ok(()), |why| Err(refused(&self.path.join(name), why)))
+    }
+
+    /// Why `name` may not be written (see [`OutDir::check_target`]), if it may not.
+    fn target_problem(&self, fd: &OwnedFd, name: &str) -> Result<Option<String>> {
         let path = self.path.join(name);
         let kind = match rustix::fs::statat(fd, name, AtFlags::SYMLINK_NOFOLLOW) {
             Ok(st) => FileType::from_raw_mode(st.st_mode),
-            Err(rustix::io::Errno::NOENT) => return Ok(()),
+            Err(rustix::io::Errno::NOENT) => return Ok(None),
             Err(e) => return Err(Error::Write { path, source: io(e) }),
         };
         let target = match kind {
-            FileType::RegularFile => return Ok(()),
+            FileType::RegularFile => return Ok(None),
             FileType::Symlink => match rustix::fs::statat(fd, name, AtFlags::empty()) {
                 Ok(st) => FileType::from_raw_mode(st.st_mode),
                 // Dangling, or a loop: the link is replaced.
-                Err(_) => return Ok(()),
+                Err(_) => return Ok(None),
             },
             other => other,
         };
-        match (kind, target) {
-            (_, FileType::RegularFile) => Ok(()),
-            (FileType::Symlink, t) => Err(refused(
-                &path,
-                format!("a symbolic link to {}: not a regular file, ohd does not replace it", kind_name(t)),
-            )),
-            (t, _) => Err(refused(&path, format!("{}: not a regular file, ohd does not replace it", kind_name(t)))),
-        }
+        Ok(match (kind, target) {
+            (_, FileType::RegularFile) => None,
+            (FileType::Symlink, t) => {
+                Some(format!("a symbolic link to {}: not a regular file, ohd does not replace it", kind_name(t)))
+            }
+            (t, _) => Some(format!("{}: not a regular file, ohd does not replace it", kind_name(t))),
+        })
     }
 
     /// A temporary file for `name` (one plain name), created exclusively under a random hidden
     /// name (`.NAME.tmp-PID-RANDOM`) beside it; [`Temporary::commit`] renames it over `name`, and
-    /// dropped uncommitted it is removed. `name` itself is checked first ([`OutDir`]: what is
-    /// not a regular file or a link to one is refused).
+    /// dropped uncommitted it is removed. `name` itself is checked first: what is not a regular
+    /// file or a link to one is not replaced (a write error, exit 1: files may have been written
+    /// before it; [`OutDir::check_target`] refuses it as input before anything is).
     pub fn temporary(&self, name: &str) -> Result<Temporary> {
         let path = self.path.join(name);
         if !plain_name(name) {
             return Err(refused(&path, "not one plain name inside the output directory"));
         }
         let dir = self.fd()?;
-        self.check_target(&dir, name)?;
+        if let Some(why) = self.target_problem(&dir, name)? {
+            return Err(Error::Write { path, source: std::io::Error::other(why) });
+        }
         let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::EXCL | OFlags::NOFOLLOW | OFlags::CLOEXEC;
         let mut last = rustix::io::Errno::EXIST;
         for _ in 0..TEMPORARY_TRIES {
@@ -521,8 +532,11 @@ mod tests {
             assert_eq!(std::fs::read(out.join("y.npy")).unwrap(), b"2");
             assert!(!std::fs::symlink_metadata(out.join("y.npy")).unwrap().file_type().is_symlink());
             std::fs::create_dir(out.join("z.npy")).unwrap();
+            // Found while writing (files may have been written before): a write error; checked
+            // first, an input error.
             let e = d.write_atomic("z.npy", b"3").unwrap_err();
-            assert!(e.is_input_error() && e.to_string().contains("a directory"), "{e}");
+            assert!(!e.is_input_error() && e.to_string().contains("a directory"), "{e}");
+            assert!(d.check_target("z.npy").unwrap_err().is_input_error());
             rustix::fs::mknodat(CWD, out.join("f"), FileType::Fifo, Mode::from_raw_mode(0o600), 0).unwrap();
             std::os::unix::fs::symlink(out.join("f"), out.join("l.npy")).unwrap();
             let e = d.write_atomic("f", b"4").unwrap_err().to_string();

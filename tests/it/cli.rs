@@ -713,8 +713,8 @@ fn a_checkpoint_interval_too_long_to_represent_never_comes_due() {
 
 /// Problems with where outputs go are found before a single path is traced (issue 21): a
 /// detector name too long for its file names is a configuration error naming the key (`ohd
-/// check` finds it too), and an `--out` that cannot be written ends the run at once (exit 1)
-/// instead of after the simulation (10¹² paths here: without the check this would not end).
+/// check` finds it too), and an `--out` that cannot be used ends the run at once (exit 2, issue
+/// 33) instead of after the simulation (10¹² paths here: without the check this would not end).
 #[test]
 fn output_names_and_directories_are_checked_before_the_run() {
     let tmp = tempfile::tempdir().unwrap();
@@ -733,8 +733,8 @@ fn output_names_and_directories_are_checked_before_the_run() {
     std::fs::write(&file, b"not a directory").unwrap();
     let out = file.join("run");
     let o = ohd(tmp.path(), &["run", "--samples", "1000000000000", "-q", "--out", path_str(&out)]);
-    assert_eq!(o.status.code(), Some(1), "{}", describe(&o));
-    assert!(text(&o.stderr).contains("cannot write"), "{}", describe(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("not a directory"), "{}", describe(&o));
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1, "nothing is written beside the file");
 }
 

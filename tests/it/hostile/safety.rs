@@ -360,3 +360,471 @@ fn devices_and_fifos_are_never_replaced() {
     let o = mie(&tmp.path().join("table.toml"));
     assert!(o.status.success() && tmp.path().join("table.toml").is_file(), "{}", describe(&o));
 }
+
+// ---------------------------------------------------------------------------------------------
+// The deep sweep of these classes (`cargo test --profile ci hostile:: -- --ignored`; counts in
+// validation/README.md, "Hostile inputs"). Each case's verdict: an allowed exit status (never a
+// panic's 101, a signal or a timeout), the canary beside the output directory and a directory of
+// the user's elsewhere unchanged, the tests' own special files still special, no lock left.
+
+/// The commands the sweeps run, each writing into `OUT` (replaced by the case's directory):
+/// (what, arguments, the file that says the output is complete).
+fn commands(shards: &Path) -> Vec<(&'static str, Vec<String>, &'static str)> {
+    let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let sunny = config("wind_sunny.toml");
+    let doc: toml::Table = std::fs::read_to_string(&sunny).unwrap().parse().unwrap();
+    let mut scan = own(&["run", "-q", "--threads", "1", &sunny, "--samples", "512"]);
+    for s in super::tiny(&doc) {
+        scan.extend(["--set".into(), s]);
+    }
+    let vdh = repo().join("validation/vdh_slab.toml").display().to_string();
+    vec![
+        ("run", own(&["run", "-q", "--threads", "1", "--samples", "2000", "--out", "OUT"]), "manifest.json"),
+        (
+            "run with checkpoints",
+            own(&["run", "-q", "--threads", "1", "--samples", "2000", "--checkpoint-seconds", "0", "--out", "OUT"]),
+            "manifest.json",
+        ),
+        ("scan", [scan, own(&["--out", "OUT"])].concat(), "scan.json"),
+        (
+            "shard",
+            own(&["run", "-q", "--threads", "1", "--samples", "2000", "--shard", "0/2", "--out", "OUT"]),
+            "shard.ohd",
+        ),
+        (
+            "merge",
+            own(&[
+                "merge",
+                &shards.join("0").display().to_string(),
+                &shards.join("1").display().to_string(),
+                "--out",
+                "OUT",
+            ]),
+            "manifest.json",
+        ),
+        (
+            "converge",
+            own(&["converge", "-q", &vdh, "--samples", "4096", "--rungs", "2", "--out", "OUT"]),
+            "converge.json",
+        ),
+    ]
+}
+
+/// Two shards of the default experiment's small run, in `dir/0` and `dir/1`.
+fn make_shards(dir: &Path) {
+    for i in 0..2 {
+        let out = dir.join(i.to_string());
+        let shard = format!("{i}/2");
+        let o = sh_ohd(
+            dir,
+            "",
+            &["run", "-q", "--threads", "1", "--samples", "2000", "--shard", &shard, "--out", out.to_str().unwrap()],
+        );
+        assert!(o.status.success(), "{}", describe(&o));
+    }
+}
+
+fn with_out(args: &[String], out: &Path) -> Vec<String> {
+    args.iter().map(|a| if a == "OUT" { out.display().to_string() } else { a.clone() }).collect()
+}
+
+/// A sweep's cases: counted by outcome, failures kept with their reproducers.
+#[derive(Default)]
+struct Sweep {
+    cases: usize,
+    by_status: std::collections::BTreeMap<String, usize>,
+    failures: Vec<String>,
+}
+
+impl Sweep {
+    /// Judge one ended case: `allowed` exit statuses, and `problems` found by the caller.
+    fn judge(&mut self, what: &str, o: &Output, allowed: &[i32], mut problems: Vec<String>) {
+        self.cases += 1;
+        let status = match (o.status.code(), std::os::unix::process::ExitStatusExt::signal(&o.status)) {
+            (Some(c), _) => format!("exit {c}"),
+            (None, Some(s)) => format!("signal {s}"),
+            _ => "unknown".into(),
+        };
+        *self.by_status.entry(status.clone()).or_default() += 1;
+        if !o.status.code().is_some_and(|c| allowed.contains(&c)) {
+            problems.push(format!("{status}, expected one of {allowed:?}"));
+        }
+        if text(&o.stderr).contains("panicked") {
+            problems.push("panicked".into());
+        }
+        if !problems.is_empty() {
+            self.failures.push(format!("{what}: {}\n{}", problems.join("; "), describe(o)));
+        }
+    }
+
+    fn finish(self, class: &str) {
+        eprintln!("{class}: {} cases, {:?}, {} failed", self.cases, self.by_status, self.failures.len());
+        assert!(self.failures.is_empty(), "{}", self.failures.join("\n\n"));
+    }
+}
+
+/// The user's things around an output directory, which no case may change: a canary file beside
+/// it, a directory elsewhere (with its own manifest and files), and the tests' special files.
+struct Around {
+    canary: Canary,
+    elsewhere: PathBuf,
+    before: std::collections::BTreeMap<PathBuf, (u64, u64)>,
+}
+
+impl Around {
+    fn new(root: &Path, out: &Path) -> Around {
+        let canary = Canary::beside(out);
+        let elsewhere = root.join("elsewhere");
+        std::fs::create_dir_all(&elsewhere).unwrap();
+        std::fs::write(elsewhere.join("manifest.json"), r#"{"ohd_version": "0", "files": ["keep.npy"]}"#).unwrap();
+        std::fs::write(elsewhere.join("keep.npy"), "the user's").unwrap();
+        let before = super::oracle::snapshot(&elsewhere);
+        Around { canary, elsewhere, before }
+    }
+
+    fn problems(&self, out: &Path) -> Vec<String> {
+        let mut p = vec![];
+        if !self.canary.unchanged() {
+            p.push("the canary beside the output directory changed".into());
+        }
+        if super::oracle::snapshot(&self.elsewhere) != self.before {
+            p.push("a directory elsewhere changed".into());
+        }
+        let s = special();
+        for f in [Some(&s.fifo), s.full.as_ref(), s.null.as_ref()].into_iter().flatten() {
+            let m = std::fs::symlink_metadata(f).map(|m| m.file_type());
+            if !m.is_ok_and(|t| {
+                std::os::unix::fs::FileTypeExt::is_fifo(&t) || std::os::unix::fs::FileTypeExt::is_char_device(&t)
+            }) {
+                p.push(format!("{} is no longer special", f.display()));
+            }
+        }
+        if out.join(".ohd-lock").exists() {
+            p.push("the lock was left".into());
+        }
+        p
+    }
+}
+
+/// Links at every name each command creates or removes (its outputs as a scratch run lists them,
+/// the records, the marker, the checkpoint, the shard, the lock, their temporary names of the
+/// process, the old probe, the scan's pointing directories), each pointing to the canary, the
+/// directory elsewhere, the tests' FIFO or device, or nothing: exit 0 or 2, nothing outside
+/// changed.
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_planted_links() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shards = tmp.path().join("shards");
+    make_shards(&shards);
+    let mut sweep = Sweep::default();
+    for (what, args, _) in commands(&shards) {
+        let out = tmp.path().join("case").join("out");
+        let scratch = tmp.path().join("scratch");
+        let o = sh_ohd(tmp.path(), "", &strs(&with_out(&args, &scratch)));
+        assert!(o.status.success(), "{what}: {}", describe(&o));
+        let mut names: Vec<String> = walk_names(&scratch);
+        std::fs::remove_dir_all(&scratch).unwrap();
+        names.extend(
+            ["ohd_incomplete.txt", "checkpoint.ohd", "shard.ohd", ".ohd-lock", "manifest.json"].map(String::from),
+        );
+        names.extend(["pointing_00", "pointing_01"].map(String::from));
+        names.sort();
+        names.dedup();
+        let s = special();
+        let targets: Vec<(&str, PathBuf)> = [
+            ("the canary", None),
+            ("a directory elsewhere", None),
+            ("the FIFO", Some(s.fifo.clone())),
+            ("the device", s.full.clone()),
+            ("nothing", Some(tmp.path().join("nothing"))),
+        ]
+        .into_iter()
+        .filter_map(|(k, p)| match k {
+            "the canary" | "a directory elsewhere" => Some((k, PathBuf::new())),
+            _ => p.map(|p| (k, p)),
+        })
+        .collect();
+        for (kind, target) in &targets {
+            // One case with every name planted at once, and one per name (its temporary too).
+            let plans: Vec<Vec<&String>> =
+                std::iter::once(names.iter().collect()).chain(names.iter().map(|n| vec![n])).collect();
+            for plan in plans {
+                let _ = std::fs::remove_dir_all(tmp.path().join("case"));
+                let around = Around::new(&tmp.path().join("case"), &out);
+                let target = match *kind {
+                    "the canary" => around.canary.path().to_path_buf(),
+                    "a directory elsewhere" => around.elsewhere.clone(),
+                    _ => target.clone(),
+                };
+                let mut script = format!("mkdir -p \"{}\"\n", out.display());
+                for n in &plan {
+                    let (dir, name) = match n.rsplit_once('/') {
+                        Some((d, n)) => (out.join(d), n.to_string()),
+                        None => (out.clone(), n.to_string()),
+                    };
+                    script.push_str(&format!("mkdir -p \"{}\"\n", dir.display()));
+                    for at in [name.clone(), format!(".{name}.tmp-$$")] {
+                        script.push_str(&format!("ln -sfn \"{}\" \"{}/{at}\"\n", target.display(), dir.display()));
+                    }
+                }
+                script.push_str(&format!(
+                    "ln -sfn \"{}\" \"{}/.ohd-write-probe-$$\"\n",
+                    target.display(),
+                    out.display()
+                ));
+                let o = sh_ohd(tmp.path(), &script, &strs(&with_out(&args, &out)));
+                let label = format!(
+                    "{what}, links to {kind} at {}",
+                    if plan.len() > 1 { "every name".into() } else { plan[0].clone() }
+                );
+                sweep.judge(&label, &o, &[0, 2], around.problems(&out));
+            }
+        }
+    }
+    sweep.finish("planted links");
+}
+
+/// The names of the files below `dir`, relative to it (`pointing_00/manifest.json`).
+fn walk_names(dir: &Path) -> Vec<String> {
+    let mut names = vec![];
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let name = e.file_name().into_string().unwrap();
+        if e.file_type().unwrap().is_dir() {
+            names.extend(walk_names(&e.path()).into_iter().map(|n| format!("{name}/{n}")));
+        } else {
+            names.push(name);
+        }
+    }
+    names
+}
+
+/// Two commands at once into one directory, the second started after a drawn delay (0 to 1.5 s),
+/// over pairs of runs with different seeds, a run and a study, a run and a merge: each ends with
+/// 0, or 2 naming the lock's holder; afterwards no lock is left, and a directory without the
+/// marker holds exactly what its record lists, byte for byte one command's (its solo run's bytes).
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_concurrent_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shards = tmp.path().join("shards");
+    make_shards(&shards);
+    let cmds = commands(&shards);
+    let find = |w: &str| cmds.iter().find(|c| c.0 == w).unwrap().1.clone();
+    let run = |seed: &str| {
+        [find("run"), vec!["--seed".into(), seed.into(), "--set".into(), "detectors.0.image.pixels=[512, 512]".into()]]
+            .concat()
+    };
+    let pairs: Vec<(&str, Vec<String>, Vec<String>)> = vec![
+        ("run seed 1 / run seed 2", run("1"), run("2")),
+        ("run / converge", run("1"), find("converge")),
+        ("run / merge", run("1"), find("merge")),
+        ("merge / merge", find("merge"), find("merge")),
+    ];
+    // What each command writes alone: its files' bytes.
+    let solo = |args: &[String]| {
+        let d = tmp.path().join("solo");
+        let _ = std::fs::remove_dir_all(&d);
+        let o = sh_ohd(tmp.path(), "", &strs(&with_out(args, &d)));
+        assert!(o.status.success(), "{}", describe(&o));
+        super::oracle::snapshot(&d)
+            .into_iter()
+            .map(|(p, h)| (p.strip_prefix(&d).unwrap().to_path_buf(), h))
+            .collect::<std::collections::BTreeMap<_, _>>()
+    };
+    let mut sweep = Sweep::default();
+    for (what, a, b) in &pairs {
+        let (sa, sb) = (solo(a), solo(b));
+        for k in 0..8u64 {
+            let out = tmp.path().join("case/out");
+            let _ = std::fs::remove_dir_all(tmp.path().join("case"));
+            let around = Around::new(&tmp.path().join("case"), &out);
+            let spawn = |args: &[String]| {
+                Command::new(bin())
+                    .args(with_out(args, &out))
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            };
+            let first = spawn(a);
+            std::thread::sleep(Duration::from_millis(k * 200));
+            let second = spawn(b);
+            let (oa, ob) = (first.wait_with_output().unwrap(), second.wait_with_output().unwrap());
+            let mut problems = around.problems(&out);
+            if !out.join("ohd_incomplete.txt").exists() {
+                let now: std::collections::BTreeMap<PathBuf, (u64, u64)> = super::oracle::snapshot(&out)
+                    .into_iter()
+                    .map(|(p, h)| (p.strip_prefix(&out).unwrap().to_path_buf(), h))
+                    .filter(|(p, _)| !p.as_os_str().is_empty())
+                    .collect();
+                // Timings differ from run to run: the records are compared by name only.
+                let same = |solo: &std::collections::BTreeMap<PathBuf, (u64, u64)>| {
+                    solo.keys().eq(now.keys())
+                        && solo.iter().all(|(p, h)| {
+                            p.extension().is_some_and(|e| e == "json" || e == "png" || e == "svg" || e == "csv")
+                                || now[p] == *h
+                        })
+                };
+                if !(same(&sa) || same(&sb)) {
+                    problems.push("complete, but not one command's output".into());
+                }
+            }
+            for (o, who) in [(&oa, "first"), (&ob, "second")] {
+                if o.status.code() == Some(2) && !text(&o.stderr).contains("in use") {
+                    problems.push(format!("the {who} was refused, not for the lock"));
+                }
+            }
+            sweep.judge(&format!("{what}, {} ms apart: first", k * 200), &oa, &[0, 2], problems);
+            sweep.judge(&format!("{what}, {} ms apart: second", k * 200), &ob, &[0, 2], vec![]);
+        }
+    }
+    sweep.finish("concurrent commands");
+}
+
+/// Each command into a small tmpfs (16 KiB to 4 MiB) mounted in the test's directory, where the
+/// test may mount one (as root), else skipped with a message: exit 0, or 1 naming the full device's
+/// error; no temporary file left; a failed run's directory marked incomplete or holding no record.
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_full_disk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shards = tmp.path().join("shards");
+    make_shards(&shards);
+    let mnt = tmp.path().join("mnt");
+    std::fs::create_dir(&mnt).unwrap();
+    let mut sweep = Sweep::default();
+    for size in ["16k", "64k", "256k", "1m", "4m"] {
+        let mount =
+            Command::new("mount").args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"]).arg(&mnt).output();
+        if !mount.as_ref().is_ok_and(|o| o.status.success()) {
+            eprintln!("full disk: cannot mount a tmpfs here (not root, or no permission): class skipped");
+            return;
+        }
+        for (what, args, record) in commands(&shards) {
+            let out = mnt.join("out");
+            let around = Around::new(&tmp.path().join("case"), &tmp.path().join("case/out"));
+            let o = sh_ohd(tmp.path(), "", &strs(&with_out(&args, &out)));
+            let mut problems = around.problems(&out);
+            let left = walk_names(&mnt);
+            if left.iter().any(|n| n.contains(".tmp-")) {
+                problems.push(format!("temporary files left: {left:?}"));
+            }
+            if o.status.code() == Some(1) {
+                if !text(&o.stderr).contains("No space left") {
+                    problems.push("exit 1 without the device's error".into());
+                }
+                if out.join(record).exists() && !out.join("ohd_incomplete.txt").exists() {
+                    problems.push("a failed write left a record without the marker".into());
+                }
+            }
+            sweep.judge(&format!("{what} into a {size} tmpfs"), &o, &[0, 1], problems);
+            let _ = std::fs::remove_dir_all(&out);
+        }
+        let umount = Command::new("umount").arg(&mnt).status().unwrap();
+        assert!(umount.success(), "umount {}", mnt.display());
+    }
+    sweep.finish("full disk");
+}
+
+/// Every command with its standard output, error or both a closed pipe or (where the tests have
+/// one) their own full device: exit 0 (nothing was said there) or 1, never a panic; a command's
+/// outputs complete all the same.
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_broken_streams() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shards = tmp.path().join("shards");
+    make_shards(&shards);
+    let mut cmds: Vec<(&str, Vec<String>, &str)> =
+        commands(&shards).into_iter().map(|(w, a, r)| (w, a.into_iter().filter(|x| x != "-q").collect(), r)).collect();
+    let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    cmds.push(("check", own(&["check"]), ""));
+    cmds.push(("check scan", own(&["check", &config("wind_sunny.toml")]), ""));
+    cmds.push(("mie", own(&["mie", "--m-real", "1.33", "--x", "20"]), ""));
+    cmds.push((
+        "mie --table",
+        own(&["mie", "--m-real", "1.33", "--x", "20", "--angles", "64", "--table", "OUT.table"]),
+        "",
+    ));
+    let full = special().full.clone();
+    let mut sweep = Sweep::default();
+    for (what, args, record) in &cmds {
+        for streams in ["stdout", "stderr", "both"] {
+            for sink in ["a closed pipe", "a full device"] {
+                let make = || match sink {
+                    "a closed pipe" => Some(closed_pipe()),
+                    _ => full.as_ref().map(|f| Stdio::from(std::fs::OpenOptions::new().write(true).open(f).unwrap())),
+                };
+                let (Some(a), Some(b)) = (make(), make()) else { continue };
+                let out = tmp.path().join("case/out");
+                let _ = std::fs::remove_dir_all(tmp.path().join("case"));
+                let around = Around::new(&tmp.path().join("case"), &out);
+                let args: Vec<String> = args
+                    .iter()
+                    .map(|x| {
+                        if x == "OUT.table" {
+                            tmp.path().join("case/table.toml").display().to_string()
+                        } else {
+                            x.clone()
+                        }
+                    })
+                    .collect();
+                let mut c = Command::new(bin());
+                c.args(with_out(&args, &out)).current_dir(tmp.path()).stdin(Stdio::null());
+                match streams {
+                    "stdout" => c.stdout(a).stderr(Stdio::piped()),
+                    "stderr" => c.stderr(a).stdout(Stdio::piped()),
+                    _ => c.stdout(a).stderr(b),
+                };
+                let o = c.output().unwrap();
+                let mut problems = around.problems(&out);
+                if !record.is_empty() && (!out.join(record).exists() || out.join("ohd_incomplete.txt").exists()) {
+                    problems.push("the output is not complete".into());
+                }
+                sweep.judge(&format!("{what}, {streams} to {sink}"), &o, &[0, 1], problems);
+            }
+        }
+    }
+    sweep.finish("broken streams");
+}
+
+/// Resource limits: file sizes (`ulimit -f`, 512-byte blocks) from one block up, on every command;
+/// address space (`ulimit -v`) from 200 MB up against images from 64² to 8192² pixels: exit 0, 1
+/// ("File too large", the directory marked incomplete) or 2 (refused up front for the memory
+/// budget), never a signal.
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_resource_limits() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shards = tmp.path().join("shards");
+    make_shards(&shards);
+    let mut sweep = Sweep::default();
+    for blocks in [1, 8, 64, 512, 4096, 32768] {
+        for (what, args, record) in commands(&shards) {
+            let out = tmp.path().join("case/out");
+            let _ = std::fs::remove_dir_all(tmp.path().join("case"));
+            let around = Around::new(&tmp.path().join("case"), &out);
+            let o = sh_ohd(tmp.path(), &format!("ulimit -f {blocks}"), &strs(&with_out(&args, &out)));
+            let mut problems = around.problems(&out);
+            if o.status.code() == Some(1) && out.join(record).exists() && !out.join("ohd_incomplete.txt").exists() {
+                problems.push("a failed write left a record without the marker".into());
+            }
+            sweep.judge(&format!("{what} under ulimit -f {blocks}"), &o, &[0, 1], problems);
+        }
+    }
+    for kib in [200_000, 400_000, 800_000, 1_600_000, 3_200_000] {
+        for pixels in [64, 1024, 2048, 4096, 8192] {
+            let out = tmp.path().join("case/out");
+            let _ = std::fs::remove_dir_all(tmp.path().join("case"));
+            let around = Around::new(&tmp.path().join("case"), &out);
+            let set = format!("detectors.0.image.pixels=[{pixels}, {pixels}]");
+            let args =
+                ["run", "-q", "--threads", "1", "--samples", "2000", "--set", &set, "--out", out.to_str().unwrap()];
+            let o = sh_ohd(tmp.path(), &format!("ulimit -v {kib}"), &args);
+            let problems = around.problems(&out);
+            sweep.judge(&format!("{pixels}² image under ulimit -v {kib}"), &o, &[0, 2], problems);
+        }
+    }
+    sweep.finish("resource limits");
+}
