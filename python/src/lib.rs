@@ -78,15 +78,32 @@ fn panic_error(p: Box<dyn std::any::Any + Send>) -> PyErr {
     PyRuntimeError::new_err(format!("ohd: internal error (please report it with the configuration): {what}"))
 }
 
-/// A Python value of a configuration dict as TOML (key path for errors).
+/// The deepest nesting of dicts, lists (and NumPy values' `tolist()`) a configuration value may
+/// have. A TOML experiment is a handful of levels deep (`detectors[0].ldh.roi[1].center_mm` is
+/// five); the bound ends the conversion's recursion long before the native stack does (issue 33,
+/// item 9: a dict nested 30 000 levels deep overflowed the stack and killed the interpreter).
+const MAX_DEPTH: usize = 64;
+
+/// A Python value of a configuration dict as TOML (key path for errors). A dict or list that
+/// contains itself (a reference cycle) and nesting deeper than [`MAX_DEPTH`] are configuration
+/// errors naming the key path where they were found.
 fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
-    let bad = |what: String| -> PyErr {
-        let err = ConfigError::new_err(format!("config error: {key}: {what}"));
-        Python::attach(|py| {
-            let _ = err.value(py).setattr("key", key);
-        });
-        err
-    };
+    to_toml_in(v, key, &mut Vec::new())
+}
+
+/// `ConfigError("config error: KEY: WHAT")` with `.key` = `key`.
+fn key_error(key: &str, what: &str) -> PyErr {
+    let err = ConfigError::new_err(format!("config error: {key}: {what}"));
+    Python::attach(|py| {
+        let _ = err.value(py).setattr("key", key);
+    });
+    err
+}
+
+/// [`to_toml`] inside the containers `open` (their ids, outermost first: the path from the root
+/// to `v`).
+fn to_toml_in(v: &Bound<'_, PyAny>, key: &str, open: &mut Vec<usize>) -> PyResult<toml::Value> {
+    let bad = |what: String| key_error(key, &what);
     if v.is_instance_of::<PyBool>() {
         return Ok(toml::Value::Boolean(v.extract()?));
     }
@@ -99,30 +116,52 @@ fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
     if v.is_instance_of::<PyString>() {
         return Ok(toml::Value::String(v.extract()?));
     }
-    if let Ok(d) = v.cast::<PyDict>() {
+    let is_dict = v.is_instance_of::<PyDict>();
+    let is_list = v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>();
+    // A container (or a NumPy value, whose `tolist()` is one): a level deeper.
+    if !(is_dict || is_list || v.hasattr("tolist")?) {
+        return Err(bad(format!(
+            "a value of type {} (expected a number, string, bool, list or dict)",
+            v.get_type().name()?
+        )));
+    }
+    let id = v.as_ptr() as usize;
+    if open.contains(&id) {
+        return Err(bad("a dict or list that contains itself (a reference cycle): expected a tree of values".into()));
+    }
+    if open.len() >= MAX_DEPTH {
+        return Err(bad(format!("nested more than {MAX_DEPTH} levels deep: expected a configuration of a few levels")));
+    }
+    open.push(id);
+    let value = container_to_toml(v, key, open, is_dict);
+    open.pop();
+    value
+}
+
+/// The dict, list, tuple or NumPy value `v` of [`to_toml_in`], its id last in `open`.
+fn container_to_toml(v: &Bound<'_, PyAny>, key: &str, open: &mut Vec<usize>, is_dict: bool) -> PyResult<toml::Value> {
+    if is_dict {
+        let d = v.cast::<PyDict>()?;
         let mut t = toml::Table::new();
         for (k, val) in d.iter() {
-            let k: String = k.extract().map_err(|_| bad("a table with a key that is not a string".into()))?;
+            let k: String = k.extract().map_err(|_| key_error(key, "a table with a key that is not a string"))?;
             let path = if key.is_empty() { k.clone() } else { format!("{key}.{k}") };
             if val.is_none() {
                 continue; // None: the key left out (its default)
             }
-            t.insert(k, to_toml(&val, &path)?);
+            t.insert(k, to_toml_in(&val, &path, open)?);
         }
         return Ok(toml::Value::Table(t));
     }
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
         let mut a = Vec::new();
         for (i, item) in v.try_iter()?.enumerate() {
-            a.push(to_toml(&item?, &format!("{key}[{i}]"))?);
+            a.push(to_toml_in(&item?, &format!("{key}[{i}]"), open)?);
         }
         return Ok(toml::Value::Array(a));
     }
     // NumPy scalars and arrays: their Python values.
-    if v.hasattr("tolist")? {
-        return to_toml(&v.call_method0("tolist")?, key);
-    }
-    Err(bad(format!("a value of type {} (expected a number, string, bool, list or dict)", v.get_type().name()?)))
+    to_toml_in(&v.call_method0("tolist")?, key, open)
 }
 
 /// An override value `v` as the text after `KEY=` of `--set` (TOML).

@@ -48,7 +48,7 @@ fn percent(x: f64) -> String {
 }
 
 /// The warnings of run `out` of `exp`, in a fixed order: per detector (off-axis power, aliasing),
-/// then the run's (truncated paths, non-finite detections).
+/// per detector again (FMCW estimates missing), then the run's (truncated paths, non-finite detections).
 pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
     let mean = out.estimates.mean();
     let reg = &out.layout.registry;
@@ -111,6 +111,23 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
                 }
             }
         }
+    }
+    // An FMCW retrieval that gives no estimates, or estimates that are not finite numbers (written
+    // as null), says so here as well as in its note (issue 33, item 8: a range of null was
+    // written without a warning).
+    for (i, d) in exp.detectors.iter().enumerate() {
+        let why = match exp.fmcw_estimates(out, i) {
+            Some(Err(e)) => e.to_string(),
+            Some(Ok(e)) if !e.is_finite() => "an estimate is not a finite number (written as null)".to_string(),
+            _ => continue,
+        };
+        w.push(Warning {
+            code: "fmcw_no_estimates",
+            message: format!(
+                "detector \"{}\": no FMCW range and radial velocity estimates: {why} (detectors.{}.fmcw.note in the manifest)",
+                d.name, d.name
+            ),
+        });
     }
     let st = &out.stats;
     let paths = st.paths.max(1) as f64;

@@ -73,6 +73,28 @@ pub struct FmcwEstimate {
     pub down: GateEstimate,
 }
 
+impl FmcwEstimate {
+    /// Whether every estimate is a finite number. The configuration's checks keep the range
+    /// conversions of a spectrum's axis finite (issue 33, item 8); an estimate that is not (the
+    /// manifest writes it as null) is reported, never passed off as a result.
+    pub fn is_finite(&self) -> bool {
+        [
+            self.f_up_hz,
+            self.f_down_hz,
+            self.range_m,
+            self.radial_velocity_m_per_s,
+            self.f_up_centroid_hz,
+            self.f_down_centroid_hz,
+            self.range_centroid_m,
+            self.radial_velocity_centroid_m_per_s,
+            self.range_bin_m,
+            self.velocity_bin_m_per_s,
+        ]
+        .iter()
+        .all(|x| x.is_finite())
+    }
+}
+
 /// `f_R = 2RB/(cT)`: the beat frequency (Hz) of range `range_m` for a chirp of bandwidth
 /// `bandwidth_hz` swept in `duration_s`.
 pub fn range_frequency(range_m: f64, bandwidth_hz: f64, duration_s: f64) -> f64 {

@@ -41,14 +41,18 @@ pub enum Slot {
 }
 
 impl FrequencyAxis {
-    /// `None` unless `f_min < f_max` (both finite) and `bins ≥ 1`.
+    /// `None` unless `f_min < f_max` (both finite), `bins ≥ 1`, and the span `f_max − f_min` and
+    /// its inverse `bins/(f_max − f_min)` are finite (edges of ±1.7e308 overflow the span, and with
+    /// it the bin width and the bin centres).
     pub fn new(f_min: f64, f_max: f64, bins: usize) -> Option<Self> {
-        (f_min.is_finite() && f_max.is_finite() && f_min < f_max && bins >= 1).then(|| FrequencyAxis {
-            f_min,
-            f_max,
-            bins,
-            inv_width: bins as f64 / (f_max - f_min),
-        })
+        let inv_width = bins as f64 / (f_max - f_min);
+        (f_min.is_finite()
+            && f_max.is_finite()
+            && f_min < f_max
+            && bins >= 1
+            && (f_max - f_min).is_finite()
+            && inv_width.is_finite())
+        .then_some(FrequencyAxis { f_min, f_max, bins, inv_width })
     }
 
     /// Width of one bin, Hz.
@@ -167,6 +171,17 @@ mod tests {
             }
         }
         sum
+    }
+
+    /// Issue 33, item 8: an axis whose span or bin width is not a finite number is refused (edges
+    /// of ±1.7e308 made an all-infinite axis of bin centres).
+    #[test]
+    fn axes_with_a_span_beyond_doubles_are_refused() {
+        assert!(FrequencyAxis::new(-1.7e308, 1.7e308, 256).is_none());
+        assert!(FrequencyAxis::new(0.0, 1e-310, 1).is_none());
+        assert!(FrequencyAxis::new(0.0, f64::INFINITY, 1).is_none());
+        let a = FrequencyAxis::new(-0.8e308, 0.8e308, 256).unwrap();
+        assert!((0..a.bins).all(|k| a.center(k).is_finite()));
     }
 
     #[test]

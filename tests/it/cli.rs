@@ -78,6 +78,30 @@ fn bad_config_exits_2_and_writes_nothing() {
     assert!(text(&o.stderr).contains("layers[0].thickness_mm"), "{}", describe(&o));
 }
 
+/// Issue 33, item 8: delays, axes and chirps whose derived numbers are not finite passed `ohd
+/// check`, then ended the run with non-finite outputs (exit 1), or wrote an axis of infinities or
+/// a range of null without a warning (exit 0). Each is a configuration error (exit 2) naming the
+/// key, before anything is written.
+#[test]
+fn derived_quantities_beyond_doubles_exit_2() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (fixture, key) in [
+        ("correlation_delay_ratio_overflows", "detectors[0].correlation.tau_max_s"),
+        ("correlation_tau_min_subnormal", "detectors[0].correlation.tau_min_s"),
+        ("spectrum_span_overflows", "detectors[0].spectrum.f_max_hz"),
+        ("chirp_range_overflows", "source.chirp.duration_s"),
+    ] {
+        let bad = repo().join(format!("tests/configs/bad/{fixture}.toml"));
+        let o = ohd(tmp.path(), &["check", path_str(&bad)]);
+        assert_eq!(o.status.code(), Some(2), "{fixture}: {}", describe(&o));
+        assert!(text(&o.stderr).contains(&format!("config error: {key}: ")), "{fixture}: {}", describe(&o));
+        let out = tmp.path().join(fixture);
+        let o = ohd(tmp.path(), &["run", path_str(&bad), "--out", path_str(&out), "--set", "run.samples=1000"]);
+        assert_eq!(o.status.code(), Some(2), "{fixture}: {}", describe(&o));
+        assert!(!out.exists(), "{fixture}: the output directory was created for a bad config");
+    }
+}
+
 #[test]
 fn bad_set_value_exits_2() {
     let tmp = tempfile::tempdir().unwrap();

@@ -185,3 +185,21 @@ fn no_signal_gives_a_note_and_no_estimates() {
     let r = run(&single, &["run.samples=2000"]);
     assert!(r.exp.fmcw_estimates(&r.out, 0).is_none());
 }
+
+/// Issue 33, item 8: a retrieval that gives no estimates says so in the run's warnings, not only in
+/// its note (a range of null was written without a warning). The shipped target has estimates and
+/// no such warning.
+#[test]
+fn missing_estimates_are_warned_of() {
+    let codes = |r: &Run| ohd::post::warnings(&r.exp, &r.out).into_iter().collect::<Vec<_>>();
+    let r = run(TARGET, &["run.samples=2000", "source.chirp={ bandwidth_hz = 0, duration_us = 10 }"]);
+    assert!(matches!(r.exp.fmcw_estimates(&r.out, 0), Some(Err(_))));
+    let w = codes(&r);
+    let missing: Vec<_> = w.iter().filter(|w| w.code == "fmcw_no_estimates").collect();
+    assert_eq!(missing.len(), 1, "{w:?}");
+    assert!(missing[0].message.starts_with("detector \"receiver\": no FMCW range"), "{}", missing[0].message);
+    assert!(missing[0].message.contains("bandwidth_hz = 0"), "{}", missing[0].message);
+    let r = run(TARGET, &["run.samples=20000"]);
+    assert!(estimates(&r).is_finite());
+    assert!(!codes(&r).iter().any(|w| w.code == "fmcw_no_estimates"));
+}

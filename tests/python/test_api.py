@@ -175,6 +175,46 @@ def test_config_errors_are_value_errors_with_the_key_and_the_cli_message(cli, tm
         ohd.run(samples=-1)
 
 
+def test_cyclic_and_deeply_nested_values_raise_config_errors():
+    """Issue 33, item 9: a dict or list that contains itself, or nesting thousands of levels deep,
+    in a configuration or an override overflowed the conversion's stack and killed the
+    interpreter. Each is a ConfigError naming the key path."""
+    d = {}
+    d["x"] = d
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(dict(BLOOD_SLAB, extra=d))
+    assert e.value.key.startswith("extra.x"), e.value.key
+    assert "cycle" in str(e.value)
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(overrides={"run.samples": d})
+    assert e.value.key.startswith("run.samples.x"), e.value.key
+    a = []
+    a.append(a)
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(dict(BLOOD_SLAB, extra=a))
+    assert e.value.key.startswith("extra[0]"), e.value.key
+    assert "cycle" in str(e.value)
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.check(overrides={"source.position_mm": a})
+    assert e.value.key.startswith("source.position_mm[0]"), e.value.key
+    deep_dict, deep_list = {}, []
+    for _ in range(30000):
+        deep_dict, deep_list = {"x": deep_dict}, [deep_list]
+    for config, overrides, key in [
+        (dict(BLOOD_SLAB, extra=deep_dict), None, "extra.x.x"),
+        (dict(BLOOD_SLAB, extra=deep_list), None, "extra[0][0]"),
+        (None, {"run.samples": deep_dict}, "run.samples.x.x"),
+        (None, {"run.samples": deep_list}, "run.samples[0][0]"),
+    ]:
+        with pytest.raises(ohd.ConfigError) as e:
+            ohd.check(config, overrides=overrides)
+        assert e.value.key.startswith(key), e.value.key
+        assert "levels deep" in str(e.value)
+    # A list shared by two keys is no cycle.
+    shared = [0.0, 0.0, -1.0]
+    ohd.check(dict(BLOOD_SLAB, source=dict(BLOOD_SLAB["source"], position_mm=shared)))
+
+
 def test_file_errors_are_os_errors(tmp_path):
     with pytest.raises(FileNotFoundError) as e:
         ohd.run(tmp_path / "missing.toml")

@@ -2,7 +2,10 @@
 
 use glam::DVec3;
 
-use super::{Given, R, err, given, given_arr, join, non_negative, positive, require, require_arr, shown, unit_vector};
+use super::{
+    Given, R, err, factor, given, given_arr, join, last, non_negative, positive, require, require_arr, shown,
+    unit_vector,
+};
 use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
@@ -58,6 +61,49 @@ fn rectangle(
     Ok(([c[0] - 0.5 * s[0], c[1] - 0.5 * s[1]], [c[0] + 0.5 * s[0], c[1] + 0.5 * s[1]]))
 }
 
+/// `bins` equal bins over `[lo, hi)` (the SI values of two keys; `bins_key` the key of the count),
+/// with every number derived from it finite (issue 33, item 8: edges of ±1.7e308 Hz made an
+/// infinite bin width, an axis of infinite bin centres and a spectrum of zeros): the span
+/// `hi − lo` (and with it the bin width and the centres), the bins per unit, and bins wide enough
+/// that their edges are distinct numbers. `reversed`: the message for `hi ≤ lo`.
+fn checked_axis(
+    lo: &Given,
+    hi: &Given,
+    bins: u64,
+    bins_key: &str,
+    reversed: impl FnOnce() -> String,
+) -> R<FrequencyAxis> {
+    let (lo_unit, hi_unit) = (unit_of(&lo.1), unit_of(&hi.1));
+    if lo.0 < hi.0 && !(hi.0 - lo.0).is_finite() {
+        return err(
+            hi.1.clone(),
+            format!(
+                "= {} {hi_unit}: expected {} − {} ({} = {} {lo_unit}) of at most {} {hi_unit}, the largest finite number (the bin width and the bin centres are computed from it)",
+                shown(hi.2),
+                last(&hi.1),
+                last(&lo.1),
+                last(&lo.1),
+                shown(lo.2),
+                shown(f64::MAX / factor(&hi.1))
+            ),
+        );
+    }
+    let span = hi.0 - lo.0;
+    let width = span / bins as f64;
+    if lo.0 < hi.0 && !(lo.0 + width > lo.0 && hi.0 - width < hi.0 && (bins as f64 / span).is_finite()) {
+        return err(
+            bins_key,
+            format!(
+                "= {bins}: bins over [{} {lo_unit}, {} {hi_unit}] would be {} {hi_unit} wide, too narrow for their edges to be distinct numbers: expected fewer bins or a wider axis",
+                shown(lo.2),
+                shown(hi.2),
+                shown(width / factor(&hi.1))
+            ),
+        );
+    }
+    FrequencyAxis::new(lo.0, hi.0, bins as usize).ok_or_else(|| ConfigError::new(hi.1.clone(), reversed()))
+}
+
 /// Defaults of an LDH camera: Kim et al. 2025's replica of Puyo et al. 2018 (39 kHz, N_w = 512)
 /// with HoloDoppler's M0 band (6–18.3 kHz); see `scene-parameters.md` §A4.
 pub const LDH_DEFAULT_FRAME_RATE_HZ: f64 = 39_000.0;
@@ -66,11 +112,31 @@ pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];
 pub const LDH_DEFAULT_SPECKLE_WINDOWS: u64 = 16;
 
 fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
-    let fs =
-        given(path, &l.frame_rate)?.map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
+    let rate = given(path, &l.frame_rate)?;
+    let fs = rate.clone().map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
     let n = l.window_samples.unwrap_or(LDH_DEFAULT_WINDOW_SAMPLES);
     if !(2..=1 << 20).contains(&n) || n % 2 != 0 {
         return err(join(path, "window_samples"), format!("= {n}: expected an even number of samples from 2 to 2^20"));
+    }
+    // Every number derived from the rate finite and non-zero (issue 33, item 8): the frame period
+    // 1/f_s, the STFT bin f_s/N and the default spectrum axis, N + 1 bins of it centred on DC.
+    let half = (0.5 * n as f64 + 0.5) * (fs / n as f64);
+    let default_axis = FrequencyAxis::new(-half, half, n as usize + 1);
+    if !((1.0 / fs).is_finite() && fs / n as f64 >= f64::MIN_POSITIVE) || default_axis.is_none() {
+        let (key, written) = rate.map_or((join(path, "frame_rate_hz"), fs), |r| (r.1, r.2));
+        let f = factor(&key);
+        let (lo, hi) = (n as f64 * f64::MIN_POSITIVE, f64::MAX / (1.0 + 1.0 / n as f64));
+        return err(
+            &key,
+            format!(
+                "= {} {}: expected a frame rate from {} to {} {} with window_samples = {n} (the frame period 1/f_s, the STFT bin f_s/N and the spectrum's N + 1 bins must be finite and non-zero)",
+                shown(written),
+                unit_of(&key),
+                shown(lo / f),
+                shown(hi / f),
+                unit_of(&key)
+            ),
+        );
     }
     let window = match l.window.unwrap_or(WindowKind::Hann) {
         WindowKind::Rect => Window::Rect,
@@ -97,8 +163,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
         // per-pixel speckle's: each bin centre is an STFT frequency, so counting a path at its
         // bin centre moves it by at most half an STFT bin, and the expected periodogram of a
         // pixel is two FFTs (the +f_s/2 bin folds onto −f_s/2).
-        None => FrequencyAxis::new(-(0.5 * n as f64 + 0.5) * bin, (0.5 * n as f64 + 0.5) * bin, n as usize + 1)
-            .expect("a valid default axis"),
+        None => default_axis.expect("checked with the frame rate"),
         Some(s) => {
             let p = join(path, "spectrum");
             let fmin = require(&p, "f_min", &s.f_min, "the lower edge")?;
@@ -107,8 +172,8 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             if !(1..=1_000_000).contains(&bins) {
                 return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
             }
-            FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
-                ConfigError::new(fmax.1.clone(), format!("= {} Hz: expected f_min ({} Hz) < f_max", fmax.0, fmin.0))
+            checked_axis(&fmin, &fmax, bins, &join(&p, "bins"), || {
+                format!("= {} Hz: expected f_min ({} Hz) < f_max", fmax.0, fmin.0)
             })?
         }
     };
@@ -402,11 +467,8 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                 if !(1..=10_000_000).contains(&bins) {
                     return err(join(&p, "bins"), format!("= {bins}: expected 1 to 10^7 bins"));
                 }
-                let axis = FrequencyAxis::new(fmin.0, fmax.0, bins as usize).ok_or_else(|| {
-                    ConfigError::new(
-                        fmax.1.clone(),
-                        format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0),
-                    )
+                let axis = checked_axis(&fmin, &fmax, bins, &join(&p, "bins"), || {
+                    format!("= {} Hz: expected finite edges with f_min ({} Hz) < f_max", fmax.0, fmin.0)
                 })?;
                 let split = |key: &str, v: Option<u64>| -> R<Option<u32>> {
                     match v {
@@ -438,6 +500,25 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                     return err(
                         join(&path, "image.pixels"),
                         format!("= {:?}: expected [nx, ny], each 1 to 16384", im.pixels),
+                    );
+                }
+                // Pixel sizes and their inverses finite and non-zero (issue 33, item 8).
+                let pixel_ok = |lo: f64, hi: f64, n: u64| {
+                    let w = (hi - lo) / n as f64;
+                    lo.is_finite()
+                        && hi.is_finite()
+                        && w.is_finite()
+                        && lo + w > lo
+                        && (n as f64 / (hi - lo)).is_finite()
+                };
+                if !(pixel_ok(min[0], max[0], nx) && pixel_ok(min[1], max[1], ny)) {
+                    return err(
+                        join(&path, "area"),
+                        format!(
+                            "spans x {:?}, y {:?} m: expected an image area whose extent and pixels ({nx} × {ny}) have a finite, non-zero size",
+                            [min[0], max[0]],
+                            [min[1], max[1]]
+                        ),
                     );
                 }
                 Some(ImageSpec { nx: nx as usize, ny: ny as usize, min, max })
@@ -497,14 +578,28 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
 
 /// `[detectors.time]`: bins of the time of flight over `[t_min, t_max)`.
 pub(super) fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeSpec> {
-    let t0 = non_negative(require(p, "t_min", &t.t_min, "the start of the time axis")?, "a time of flight")?;
+    let t0g = require(p, "t_min", &t.t_min, "the start of the time axis")?;
+    let t0 = non_negative(t0g.clone(), "a time of flight")?;
     let t1 = require(p, "t_max", &t.t_max, "the end of the time axis")?;
     let bins = t.bins.unwrap_or(100);
     if !(1..=1_000_000).contains(&bins) {
         return err(join(p, "bins"), format!("= {bins}: expected 1 to 10^6 bins"));
     }
-    let axis = FrequencyAxis::new(t0, t1.0, bins as usize).ok_or_else(|| {
-        ConfigError::new(t1.1.clone(), format!("= {} ns: expected t_max > t_min ({} ns)", shown(t1.2), t0 * 1e9))
+    // The path lengths of the bins, c·t, finite (issue 33, item 8; a volume tally bins by them).
+    let longest = f64::MAX / crate::SPEED_OF_LIGHT;
+    if t1.0 > t0 && t1.0 > longest {
+        let unit = unit_of(&t1.1);
+        return err(
+            t1.1.clone(),
+            format!(
+                "= {} {unit}: expected a time of flight of at most {} {unit} (its optical path length c·t must be a finite number)",
+                shown(t1.2),
+                shown(longest / factor(&t1.1))
+            ),
+        );
+    }
+    let axis = checked_axis(&t0g, &t1, bins, &join(p, "bins"), || {
+        format!("= {} ns: expected t_max > t_min ({} ns)", shown(t1.2), t0 * 1e9)
     })?;
     let image = t.image.unwrap_or(false);
     if image && !has_image {
@@ -518,7 +613,8 @@ pub(super) fn resolve_time(p: &str, t: &TimeSection, has_image: bool) -> R<TimeS
 
 /// `[detectors.correlation]`: log-spaced delays, β, exposure times.
 fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<CorrelationSpec> {
-    let tau_min = positive(require(p, "tau_min", &c.tau_min, "the shortest delay")?, "a delay")?;
+    let tau_min_given = require(p, "tau_min", &c.tau_min, "the shortest delay")?;
+    let tau_min = positive(tau_min_given.clone(), "a delay")?;
     let tau_max = require(p, "tau_max", &c.tau_max, "the longest delay")?;
     if !(tau_max.0.is_finite() && tau_max.0 > tau_min) {
         return err(
@@ -526,9 +622,41 @@ fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<Co
             format!("= {}: expected a longest delay > tau_min ({} s)", shown(tau_max.2), shown(tau_min)),
         );
     }
+    // The delays are log-spaced, τ_k = tau_min·exp(k·ln(tau_max/tau_min)/(points − 1)): the
+    // ratio must be a finite number (issue 33, item 8: 1e-160 to 1e160 s, or tau_min = 5e-324 s,
+    // passed `ohd check` and ended the run with non-finite delays). The key named is the delay
+    // further from 1 s (in decades).
+    if !(tau_max.0 / tau_min).is_finite() {
+        let (key, value, other, other_value) = if -tau_min.log10() > tau_max.0.log10() {
+            (&tau_min_given.1, tau_min_given.2, "tau_max", tau_max.0)
+        } else {
+            (&tau_max.1, tau_max.2, "tau_min", tau_min)
+        };
+        let unit = unit_of(key);
+        return err(
+            key.clone(),
+            format!(
+                "= {} {unit}: expected tau_max/tau_min of at most {} with {other} = {} s (the delays are log-spaced over ln(tau_max/tau_min), which must be finite)",
+                shown(value),
+                shown(f64::MAX),
+                shown(other_value)
+            ),
+        );
+    }
     let points = c.points.unwrap_or(64);
     if !(2..=10_000).contains(&points) {
         return err(join(p, "points"), format!("= {points}: expected 2 to 10^4 delays"));
+    }
+    let tau = crate::detect::correlation::log_spaced(tau_min, tau_max.0, points as usize);
+    if !(tau.iter().all(|t| t.is_finite() && *t > 0.0) && tau.windows(2).all(|w| w[0] < w[1])) {
+        return err(
+            join(p, "points"),
+            format!(
+                "= {points}: the delays log-spaced from {} to {} s are not distinct finite numbers: expected fewer points or a wider range",
+                shown(tau_min),
+                shown(tau_max.0)
+            ),
+        );
     }
     let beta = c.beta.unwrap_or(1.0);
     if !(beta > 0.0 && beta <= 1.0) {
@@ -562,11 +690,5 @@ fn resolve_correlation(p: &str, c: &CorrelationSection, has_image: bool) -> R<Co
     if pixels && exposures.is_empty() {
         return err(join(p, "pixels"), "= true: per pixel the speckle contrast is written: give exposures_ms");
     }
-    Ok(CorrelationSpec {
-        tau: crate::detect::correlation::log_spaced(tau_min, tau_max.0, points as usize),
-        beta,
-        exposures,
-        pixels,
-        rois: Vec::new(),
-    })
+    Ok(CorrelationSpec { tau, beta, exposures, pixels, rois: Vec::new() })
 }

@@ -57,6 +57,16 @@ fn shown(x: f64) -> String {
     if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&x.abs()) { format!("{x}") } else { format!("{x:e}") }
 }
 
+/// The factor of a key's unit to SI (1 without a unit).
+fn factor(key: &str) -> f64 {
+    super::units::split_key(key).map_or(1.0, |(_, u)| u.factor)
+}
+
+/// The last part of a key path (`f_max_hz` of `detectors[0].spectrum.f_max_hz`).
+fn last(key: &str) -> &str {
+    key.rsplit('.').next().unwrap_or(key)
+}
+
 /// A quantity as given: its SI value, the key path it came from and the number as written.
 type Given = (f64, String, f64);
 
@@ -194,6 +204,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
             "an LDH camera needs a single-frequency laser: remove source.chirp (FMCW) or the ldh section",
         );
     }
+    check_chirp_ranges(f, &source, &detectors)?;
     if plan.walk.gate.is_some()
         && let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.estimator != Estimator::Forward))
     {
@@ -218,6 +229,41 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     exp.plan.memory = ctx.memory.blocks.take();
     exp.references = resolve_references(&f.reference, &exp)?;
     Ok(exp)
+}
+
+/// With a chirp of bandwidth `B > 0` over `T`, the ranges the FMCW retrieval reads off a
+/// detector's spectrum axis finite (issue 33, item 8): the range of one bin, `c·T·Δf/(2B)`, and of
+/// the beats at the axis's ends, `c·T·(f_up + f_down)/(4B)`, computed as
+/// [`crate::retrieval::fmcw`] computes them.
+fn check_chirp_ranges(
+    f: &ExperimentFile,
+    source: &crate::source::Source,
+    detectors: &[crate::detect::Detector],
+) -> R<()> {
+    let Some(chirp) = source.chirp.as_ref().filter(|c| c.bandwidth > 0.0) else { return Ok(()) };
+    let (b, t) = (chirp.bandwidth, chirp.duration);
+    let ct = crate::SPEED_OF_LIGHT * t;
+    for (i, d) in detectors.iter().enumerate() {
+        let Some(axis) = d.surface().and_then(|s| s.spectrum.as_ref()).map(|s| s.axis) else { continue };
+        let edge = axis.f_min.abs().max(axis.f_max.abs());
+        if (ct * axis.bin_width() / (2.0 * b)).is_finite() && (ct * (2.0 * edge) / (4.0 * b)).is_finite() {
+            continue;
+        }
+        let q = f.detectors[i].spectrum.as_ref().and_then(|s| s.f_max.as_ref());
+        let (key, written) = q.map_or_else(
+            || (format!("detectors[{i}].spectrum"), String::new()),
+            |q| (format!("detectors[{i}].spectrum.{}", q.key), format!("= {} {}: ", shown(q.value), unit_of(&q.key))),
+        );
+        return err(
+            key,
+            format!(
+                "{written}expected an axis whose beat frequencies convert to finite ranges with source.chirp (B = {} Hz, T = {} s): c·T·(f_up + f_down)/(4B) at the axis's ends and c·T·Δf/(2B) for one bin overflow; narrow the axis",
+                shown(b),
+                shown(t)
+            ),
+        );
+    }
+    Ok(())
 }
 
 /// `[reference]`: each key a named output of the experiment, each value finite and of its size,

@@ -67,6 +67,20 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
                     format!("= {:?}: expected [t0, t1] with 0 ≤ t0 < t1, finite", q.value),
                 );
             }
+            // As path lengths c·t, finite (issue 33, item 8).
+            let longest = f64::MAX / crate::SPEED_OF_LIGHT;
+            if t1 > longest {
+                let key = format!("run.{}", q.key);
+                let unit = crate::config::units::unit_of(&key);
+                return err(
+                    &key,
+                    format!(
+                        "= {:?}: expected t1 of at most {} {unit} (the optical path length c·t1 must be a finite number)",
+                        q.value,
+                        super::shown(longest / q.unit.factor)
+                    ),
+                );
+            }
             // As optical path lengths (the walk's `l`): time of flight = l / c.
             Some((crate::SPEED_OF_LIGHT * t0, crate::SPEED_OF_LIGHT * t1))
         }

@@ -2,8 +2,9 @@
 
 use glam::DVec3;
 
-use super::{R, err, given, given_arr, non_negative, positive, require, unit_vector};
+use super::{Given, R, err, factor, given, given_arr, non_negative, positive, require, shown, unit_vector};
 use crate::config::schema::*;
+use crate::config::units::unit_of;
 use crate::error::ConfigError;
 use crate::source::{Chirp, Pointing, Profile, Source};
 
@@ -94,13 +95,60 @@ pub(super) fn resolve_source(s: &SourceSection) -> R<Source> {
             // B = 0 is accepted: a chirp of zero bandwidth is a single-frequency laser, and its up-
             // and down-chirp spectra are the CW Doppler spectrum and its mirror (f = ±(dl/dt)/λ0).
             // Only the range retrieval needs B > 0, and says so (`retrieval::fmcw`).
-            Some(Chirp { bandwidth: non_negative(b, "a bandwidth")?, duration: positive(t, "a chirp duration")? })
+            let bandwidth = non_negative(b.clone(), "a bandwidth")?;
+            let duration = positive(t.clone(), "a chirp duration")?;
+            check_chirp(&b, &t, bandwidth, duration)?;
+            Some(Chirp { bandwidth, duration })
         }
     };
     let mut source = Source::new(wl.0, profile, position, direction, chirp);
     source.divergence = divergence;
     source.pointings = pointings;
     Ok(source)
+}
+
+/// Every number derived from a chirp of bandwidth `bandwidth` (key `b`) swept in `duration` (key
+/// `t`) finite (issue 33, item 8: B = 1 Hz over T = 1e300 s ran and wrote a range of null): the
+/// slope `B/T` of the beat `B/T·l/c`, `c·T`, and with `B > 0` a non-zero slope and the range of one
+/// hertz of beat, `c·T/(2B)` (the range conversions of [`crate::retrieval::fmcw`]).
+fn check_chirp(b: &Given, t: &Given, bandwidth: f64, duration: f64) -> R<()> {
+    let c = crate::SPEED_OF_LIGHT;
+    let (bu, tu) = (unit_of(&b.1), unit_of(&t.1));
+    let (bf, tf) = (factor(&b.1), factor(&t.1));
+    if !(c * duration).is_finite() {
+        return err(
+            t.1.clone(),
+            format!(
+                "= {} {tu}: expected a chirp duration of at most {} {tu} (c·T, which converts beat frequencies to ranges, must be a finite number)",
+                shown(t.2),
+                shown(f64::MAX / c / tf)
+            ),
+        );
+    }
+    if !(bandwidth / duration).is_finite() {
+        return err(
+            b.1.clone(),
+            format!(
+                "= {} {bu}: expected a bandwidth of at most {} {bu} over the chirp duration T = {} s (the slope B/T must be a finite number)",
+                shown(b.2),
+                shown(f64::MAX * duration / bf),
+                shown(duration)
+            ),
+        );
+    }
+    if bandwidth > 0.0 && !(bandwidth / duration >= f64::MIN_POSITIVE && (c * duration / (2.0 * bandwidth)).is_finite())
+    {
+        return err(
+            b.1.clone(),
+            format!(
+                "= {} {bu}: expected 0 (a single frequency) or a bandwidth of at least {} {bu} over the chirp duration T = {} s (the slope B/T must be non-zero and the range of one hertz of beat, c·T/(2B), a finite number)",
+                shown(b.2),
+                shown((duration * f64::MIN_POSITIVE).max(c * duration / (2.0 * f64::MAX)) / bf),
+                shown(duration)
+            ),
+        );
+    }
+    Ok(())
 }
 
 /// The pointing of the beam by azimuth and elevation (degrees), or a scan of several.

@@ -34,6 +34,27 @@ pub(super) fn resolve_volume(v: Option<&VolumeSection>) -> R<Option<VolumeGrid>>
         FluenceKind::Both => FluenceEstimator::Both,
     };
     let (c, h) = (DVec3::from_array(c), DVec3::from_array(sz) * 0.5);
+    // The box's corners, its voxels' edges, their inverses and the inverse voxel volume finite
+    // and non-zero (issue 33, item 8).
+    let (lo, hi) = (c - h, c + h);
+    let counts = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+    let edge = (hi - lo) / counts;
+    let inverse = counts / (hi - lo);
+    if !(lo.is_finite()
+        && hi.is_finite()
+        && edge.is_finite()
+        && inverse.is_finite()
+        && (lo + edge).cmpgt(lo).all()
+        && (1.0 / edge.element_product()).is_finite())
+    {
+        return err(
+            sp,
+            format!(
+                "= {sz:?} m around center {:?} m: expected a box whose corners, voxel edges ({n:?} voxels) and voxel volume are finite, non-zero numbers",
+                c.to_array()
+            ),
+        );
+    }
     let mut grid = VolumeGrid::new(c - h, c + h, [n[0] as usize, n[1] as usize, n[2] as usize], fluence);
     grid.vdb = v.vdb.unwrap_or(false);
     let Some(t) = &v.time else { return Ok(Some(grid)) };

@@ -97,6 +97,10 @@ pub fn detector_entry(
 /// an end of the frequency axis; `None` when the estimates stand.
 pub fn note(result: &Result<FmcwEstimate, RetrievalError>) -> Option<String> {
     match result {
+        Ok(e) if !e.is_finite() => Some(
+            "estimates that are not finite numbers (written as null): the range conversions c·T/(2B) of this axis overflow"
+                .into(),
+        ),
         Ok(e) if e.touches_axis_end => Some(
             "the return reaches an end of the frequency axis: it may extend beyond it and the estimates may be cut off (widen detectors.spectrum)"
                 .into(),
