@@ -828,3 +828,133 @@ fn deep_resource_limits() {
     }
     sweep.finish("resource limits");
 }
+
+/// The keys of `doc` (dotted, array elements by index) whose values set an axis, a range or a
+/// step: where an extreme value can overflow a derived quantity (issue 33, item 8).
+fn range_keys(doc: &toml::Table) -> Vec<String> {
+    const RANGE: [&str; 14] = [
+        "f_min",
+        "f_max",
+        "tau_min",
+        "tau_max",
+        "t_min",
+        "t_max",
+        "bandwidth",
+        "duration",
+        "frame_rate",
+        "time_gate",
+        "size",
+        "bins",
+        "points",
+        "exposures",
+    ];
+    fn walk(v: &toml::Value, key: String, out: &mut Vec<String>) {
+        match v {
+            toml::Value::Table(t) => {
+                t.iter().for_each(|(k, v)| walk(v, if key.is_empty() { k.clone() } else { format!("{key}.{k}") }, out))
+            }
+            toml::Value::Array(a) if a.iter().all(|x| x.is_table()) => {
+                a.iter().enumerate().for_each(|(i, v)| walk(v, format!("{key}.{i}"), out))
+            }
+            _ => {
+                let last = key.rsplit('.').next().unwrap_or_default();
+                if RANGE.iter().any(|r| last.starts_with(r)) {
+                    out.push(key);
+                }
+            }
+        }
+    }
+    let mut out = vec![];
+    walk(&toml::Value::Table(doc.clone()), String::new(), &mut out);
+    out
+}
+
+/// Extreme values for a range key holding `v`: the issue's overflowing ends and their kin.
+fn extremes(v: &toml::Value) -> Vec<String> {
+    let scalars = ["1.7e308", "-1.7e308", "5e-324", "1e-160", "1e160", "1e300", "-1e300", "0"];
+    match v {
+        toml::Value::Integer(_) => ["0", "1", "4294967296", "9223372036854775807"].map(String::from).to_vec(),
+        toml::Value::Array(a) => {
+            let n = a.len().max(1);
+            scalars
+                .iter()
+                .map(|s| format!("[{}]", vec![*s; n].join(", ")))
+                .chain([format!("[{}]", ["5e-324", "1.7e308"][..n.min(2)].join(", "))])
+                .collect()
+        }
+        _ => scalars.map(String::from).to_vec(),
+    }
+}
+
+/// Overflowing ranges over every range key of the shipped experiments (`quick`: the issue's
+/// keys of the configs that have them; else every key, each extreme): `ohd check` exits 2
+/// naming the key, or 0 — and then a tiny run exits 0 with finite outputs or 2 naming it.
+fn overflowing_ranges(quick: bool) {
+    let category = if quick { "ranges-quick" } else { "ranges-deep" };
+    let scratch = tempfile::tempdir().unwrap();
+    let cwd = scratch.path().join("cwd");
+    std::fs::create_dir(&cwd).unwrap();
+    let mut tally = super::oracle::Tally::default();
+    for config in super::shipped_configs() {
+        let name = config.file_name().unwrap().to_string_lossy().into_owned();
+        if super::costly(&config) {
+            continue;
+        }
+        let doc: toml::Table = std::fs::read_to_string(&config).unwrap().parse().unwrap();
+        for key in range_keys(&doc) {
+            let quick_key = ["tau_min", "f_min", "f_max", "bandwidth"]
+                .iter()
+                .any(|k| key.rsplit('.').next().unwrap_or_default().starts_with(k));
+            if quick && !quick_key {
+                continue;
+            }
+            let mut value = toml::Value::Table(doc.clone());
+            for part in key.split('.') {
+                value = match value {
+                    toml::Value::Table(t) => t[part].clone(),
+                    toml::Value::Array(a) => a[part.parse::<usize>().unwrap()].clone(),
+                    v => v,
+                };
+            }
+            let values = extremes(&value);
+            let values = if quick { values[..3].to_vec() } else { values };
+            for v in values {
+                let out = scratch.path().join("out");
+                let set = format!("{key}={v}");
+                let mut args =
+                    vec!["run".to_string(), super::path_str(&config), "-q".into(), "--threads".into(), "1".into()];
+                args.extend(["--samples".into(), super::RUN_SAMPLES.into(), "--out".into(), super::path_str(&out)]);
+                for s in super::tiny(&doc).into_iter().chain([set.clone()]) {
+                    args.extend(["--set".into(), s]);
+                }
+                let mut case = super::oracle::Case::new(
+                    format!("{category} {name} {set}"),
+                    format!("{name} --set {set}"),
+                    args,
+                    &cwd,
+                    super::RUN_LIMIT,
+                    super::oracle::Names::config(Some(&doc), &[&name]),
+                );
+                case.out = Some(out.clone());
+                case.watched.push(out.clone());
+                case.key = Some(key.clone());
+                tally.run(case);
+                let _ = std::fs::remove_dir_all(&out);
+            }
+        }
+    }
+    tally.finish(category);
+}
+
+/// Finding 8, quick: the issue's overflowing keys (delays, spectrum edges, chirp bandwidth) at
+/// three extremes each, on every shipped experiment that has them.
+#[test]
+fn overflowing_ranges_are_refused_or_run_finite() {
+    overflowing_ranges(true);
+}
+
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_overflowing_ranges() {
+    overflowing_ranges(false);
+}
