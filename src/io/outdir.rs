@@ -10,8 +10,8 @@
 //!   name too long, read-only) before anything is traced;
 //! - inside it, ohd writes only plain names (no `/`, no `..`): files through a temporary created
 //!   exclusively (`O_CREAT | O_EXCL | O_NOFOLLOW`, a random name) and renamed over the name; a
-//!   name that is a directory, a device, a FIFO or a socket — or a link to one — is refused, not
-//!   replaced; a link to a file is replaced by the file (the link, not what it points to);
+//!   link at the name is replaced (the link, not what it points to); a directory, a device, a FIFO
+//!   or a socket is refused, not replaced (for a lone file, `ohd mie --table`, a link to one too);
 //! - its sub-directories (a scan's `pointing_NN/`) are made by ohd and opened without following
 //!   a link: a link there is refused;
 //! - a command that writes holds a lock on the directory for its whole life ([`LOCK`], removed
@@ -204,11 +204,14 @@ impl OutDir {
         if !plain_name(name) {
             return Err(refused(&self.path.join(name), "not one plain name inside the output directory"));
         }
-        self.target_problem(&self.fd()?, name)?.map_or(Ok(()), |why| Err(refused(&self.path.join(name), why)))
+        let problem = self.target_problem(&self.fd()?, name, false)?;
+        problem.map_or(Ok(()), |why| Err(refused(&self.path.join(name), why)))
     }
 
-    /// Why `name` may not be written (see [`OutDir::check_target`]), if it may not.
-    fn target_problem(&self, fd: &OwnedFd, name: &str) -> Result<Option<String>> {
+    /// Why `name` may not be written (see [`OutDir::check_target`]), if it may not; with
+    /// `links_replaced`, a link is no problem whatever it points to (in an output directory the
+    /// names are ohd's: a link planted there is replaced, never followed).
+    fn target_problem(&self, fd: &OwnedFd, name: &str, links_replaced: bool) -> Result<Option<String>> {
         let path = self.path.join(name);
         let kind = match rustix::fs::statat(fd, name, AtFlags::SYMLINK_NOFOLLOW) {
             Ok(st) => FileType::from_raw_mode(st.st_mode),
@@ -217,6 +220,7 @@ impl OutDir {
         };
         let target = match kind {
             FileType::RegularFile => return Ok(None),
+            FileType::Symlink if links_replaced => return Ok(None),
             FileType::Symlink => match rustix::fs::statat(fd, name, AtFlags::empty()) {
                 Ok(st) => FileType::from_raw_mode(st.st_mode),
                 // Dangling, or a loop: the link is replaced.
@@ -235,16 +239,17 @@ impl OutDir {
 
     /// A temporary file for `name` (one plain name), created exclusively under a random hidden
     /// name (`.NAME.tmp-PID-RANDOM`) beside it; [`Temporary::commit`] renames it over `name`, and
-    /// dropped uncommitted it is removed. `name` itself is checked first: what is not a regular
-    /// file or a link to one is not replaced (a write error, exit 1: files may have been written
-    /// before it; [`OutDir::check_target`] refuses it as input before anything is).
+    /// dropped uncommitted it is removed. `name` itself is checked first: a link there is replaced
+    /// (never followed), but a directory, a device, a FIFO or a socket is not (a write error,
+    /// exit 1: files may have been written before it; [`OutDir::check_target`] refuses it as
+    /// input before anything is).
     pub fn temporary(&self, name: &str) -> Result<Temporary> {
         let path = self.path.join(name);
         if !plain_name(name) {
             return Err(refused(&path, "not one plain name inside the output directory"));
         }
         let dir = self.fd()?;
-        if let Some(why) = self.target_problem(&dir, name)? {
+        if let Some(why) = self.target_problem(&dir, name, true)? {
             return Err(Error::Write { path, source: std::io::Error::other(why) });
         }
         let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::EXCL | OFlags::NOFOLLOW | OFlags::CLOEXEC;
@@ -541,8 +546,11 @@ mod tests {
             std::os::unix::fs::symlink(out.join("f"), out.join("l.npy")).unwrap();
             let e = d.write_atomic("f", b"4").unwrap_err().to_string();
             assert!(e.contains("a FIFO"), "{e}");
-            let e = d.write_atomic("l.npy", b"4").unwrap_err().to_string();
+            // A link to a FIFO: refused as a lone file's target; replaced in an output directory.
+            let e = d.check_target("l.npy").unwrap_err().to_string();
             assert!(e.contains("a symbolic link to a FIFO"), "{e}");
+            d.write_atomic("l.npy", b"4").unwrap();
+            assert!(std::fs::symlink_metadata(out.join("f")).unwrap().file_type().is_fifo());
             assert!(d.write_atomic("../x.npy", b"5").unwrap_err().is_input_error());
             d.remove_file("x.npy").unwrap();
             std::os::unix::fs::symlink(&canary, out.join("w.npy")).unwrap();

@@ -58,10 +58,9 @@ fn below_light(path: &str, v: f64, written: &str) -> R<()> {
 /// is used.
 pub(super) fn check_velocity(path: &str, v: &VelocitySection) -> R<()> {
     match v {
-        VelocitySection::None {}
-        | VelocitySection::Wind {}
-        | VelocitySection::TerminalFall {}
-        | VelocitySection::Vdb { .. } => Ok(()),
+        VelocitySection::None {} | VelocitySection::Wind {} | VelocitySection::TerminalFall {} => Ok(()),
+        // Its placement's numbers (the file is not read for an unused medium).
+        VelocitySection::Vdb { scale, translate, .. } => resolve_placement(path, *scale, translate).map(drop),
         VelocitySection::Uniform { velocity } => {
             let Some(q) = velocity else { return Ok(()) };
             let (v, key) = require_arr(path, "velocity", velocity, "the velocity vector")?;

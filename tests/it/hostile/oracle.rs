@@ -150,6 +150,8 @@ pub const SECTIONS: &[&str] = &[
     "detectors",
     "wind",
     "reference",
+    "volume",
+    "lateral",
 ];
 
 impl Names {
