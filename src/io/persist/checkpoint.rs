@@ -78,6 +78,10 @@ pub fn read(path: &Path, fp: u64, tallies: usize, limit: u64) -> Result<RunState
     if got != fp || state.estimates.mean().len() != tallies {
         return Err(bad("written by a different experiment (configuration or --set differ); rerun without --resume"));
     }
+    let (_, mean, m2) = state.estimates.parts();
+    if !mean.iter().chain(m2).all(|v| super::plausible(*v)) {
+        return Err(bad("holds a tally no run can produce (not finite, or beyond 1e100): corrupt"));
+    }
     Ok(state)
 }
 

@@ -6,6 +6,15 @@ mod binary;
 pub mod checkpoint;
 pub mod shard;
 
+/// Whether `v` can be a tally sum, mean or sum of squared deviations read back from a shard or a
+/// checkpoint: finite and at most 1e100 in magnitude. A batch sums at most 2⁴⁸ paths' weights (of
+/// order 1, at most 1/`run.roulette_survival` ≤ 10⁶ after roulette), so no run comes near; a file
+/// whose checksum was rewritten over larger values would overflow the standard errors (issue 33's
+/// deep sweep: merged and resumed to exit 1 instead of being refused as the corrupt input).
+pub(crate) fn plausible(v: f64) -> bool {
+    v.is_finite() && v.abs() <= 1e100
+}
+
 /// FNV-1a (64 bit) of `text`: the fingerprint of a configuration.
 pub fn fingerprint(text: &str) -> u64 {
     text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))

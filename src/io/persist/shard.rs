@@ -223,6 +223,13 @@ impl ShardReader {
         for (v, b) in sums.iter_mut().zip(bytes.chunks_exact(8)) {
             *v = f64::from_le_bytes(b.try_into().unwrap_or_default());
         }
+        if !sums.iter().all(|v| super::plausible(*v)) {
+            let batch = self.header.first + self.batches_read;
+            return Err(Error::invalid_file(
+                &self.path,
+                format!("batch {batch} holds a tally no run can produce (not finite, or beyond 1e100): corrupt"),
+            ));
+        }
         self.batches_read += 1;
         self.left -= bytes.len() as u64;
         Ok(())
