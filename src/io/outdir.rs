@@ -550,7 +550,9 @@ mod tests {
             let e = d.check_target("l.npy").unwrap_err().to_string();
             assert!(e.contains("a symbolic link to a FIFO"), "{e}");
             d.write_atomic("l.npy", b"4").unwrap();
-            assert!(std::fs::symlink_metadata(out.join("f")).unwrap().file_type().is_fifo());
+            assert!(std::os::unix::fs::FileTypeExt::is_fifo(
+                &std::fs::symlink_metadata(out.join("f")).unwrap().file_type()
+            ));
             assert!(d.write_atomic("../x.npy", b"5").unwrap_err().is_input_error());
             d.remove_file("x.npy").unwrap();
             std::os::unix::fs::symlink(&canary, out.join("w.npy")).unwrap();
