@@ -61,9 +61,10 @@ pub fn remove_stale_temporaries(dir: &outdir::OutDir, ours: impl Fn(&str) -> boo
 /// it. An existing `path` that is not a regular file (a device, a FIFO, a directory, or a link to
 /// one) is refused, not replaced (issue 33: `ohd mie --table /dev/full` replaced the device).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path.file_name().and_then(|n| n.to_str()).filter(|n| outdir::plain_name(n));
-    let Some(name) = name.filter(|_| !path.ends_with("..") && !path.as_os_str().to_string_lossy().ends_with('/'))
-    else {
+    // (`file_name` is none for `..` and `.`; a trailing `/` names a directory. The name itself is
+    // checked plain by `check_target`.)
+    let name = path.file_name().and_then(|n| n.to_str());
+    let Some(name) = name.filter(|_| !path.as_os_str().to_string_lossy().ends_with('/')) else {
         return Err(Error::Refused {
             path: path.to_path_buf(),
             why: "not a file name: expected a path to a file".into(),
