@@ -16,9 +16,14 @@
 use std::ops::Range;
 
 use crate::spectrum::FrequencyAxis;
+use crate::stats::{BatchAccumulator, GROUPS, jackknife_variance};
 
 /// Units of the tallies that are fractions of the emitted power.
 pub const POWER_UNITS: &str = "fraction of emitted power";
+/// Units of a spectrum's bins.
+pub const PER_BIN: &str = "fraction of emitted power per bin";
+/// Units of an image's pixels.
+pub const PER_PIXEL: &str = "fraction of emitted power per pixel";
 
 /// Where an output's values lie in the tally vector: `rows` rows of `len` values, row `r`
 /// starting at `start + r·stride`. A spectrum's rows are followed by their below/above
@@ -75,7 +80,7 @@ pub enum Kind {
     Image { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
     /// A full spectrum in every pixel of an image: `[y][x][bin]`, its rows ordered as an
     /// [`Kind::Image`]'s.
-    PixelSpectra { nx: usize, ny: usize, axis: FrequencyAxis, mirrored: bool },
+    PixelSpectra { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2], axis: FrequencyAxis, mirrored: bool },
     /// A stack of `layers` images over one detector's pixels, `[layer][y][x]` (the time gates of
     /// a TPSF); each layer's rows ordered as an [`Kind::Image`]'s.
     ImageStack { layers: usize, nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
@@ -89,6 +94,138 @@ pub enum Kind {
     Volume { voxels: [usize; 3], min: [f64; 3], max: [f64; 3] },
     /// Working tallies a detector derives its outputs from (a lidar's lag sums): no file.
     Internal,
+}
+
+/// One axis of an output's array: what an index along it means.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Axis {
+    /// `frequency_hz`, `x_m`, `y_m`, `channel`, `time_s`, …
+    pub name: String,
+    pub units: &'static str,
+    #[serde(flatten)]
+    pub values: AxisValues,
+}
+
+/// The coordinates along an [`Axis`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisValues {
+    /// `first + k·step` for `k = 0 … count − 1` (pixel and bin centres).
+    Linear { first: f64, step: f64, count: usize },
+    /// The values of the axis file of that name, written beside the output.
+    File(String),
+    /// Named entries (channels, path classes, parts).
+    Labels(Vec<String>),
+}
+
+impl Axis {
+    pub fn linear(name: &str, units: &'static str, first: f64, step: f64, count: usize) -> Self {
+        Axis { name: name.to_string(), units, values: AxisValues::Linear { first, step, count } }
+    }
+
+    pub fn file(name: &str, units: &'static str, file: String) -> Self {
+        Axis { name: name.to_string(), units, values: AxisValues::File(file) }
+    }
+
+    pub fn labels(name: &str, labels: Vec<String>) -> Self {
+        Axis { name: name.to_string(), units: "", values: AxisValues::Labels(labels) }
+    }
+
+    /// Bin centres of a frequency axis as written (negated and reversed when `mirrored`).
+    pub fn frequency(axis: &FrequencyAxis, mirrored: bool) -> Self {
+        let (w, n) = (axis.bin_width(), axis.bins);
+        let first = if mirrored { -axis.f_max + 0.5 * w } else { axis.center(0) };
+        Axis::linear("frequency_hz", "Hz", first, w, n)
+    }
+
+    /// The pixel rows (`y_m`, descending: row 0 = the largest `y`) and columns (`x_m`) of an
+    /// image over `[min, max]`, centres in m.
+    pub fn image(nx: usize, ny: usize, min: [f64; 2], max: [f64; 2]) -> [Self; 2] {
+        let (dx, dy) = ((max[0] - min[0]) / nx as f64, (max[1] - min[1]) / ny as f64);
+        [Axis::linear("y_m", "m", max[1] - 0.5 * dy, -dy, ny), Axis::linear("x_m", "m", min[0] + 0.5 * dx, dx, nx)]
+    }
+}
+
+/// How an output is drawn: a colour map from 0 (or a log scale) for what is non-negative, a
+/// diverging map on a symmetric range for what has a sign.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Style {
+    Sequential,
+    Diverging,
+}
+
+impl Kind {
+    /// The axes of an array of this kind and `shape`, as far as the kind knows them: images,
+    /// spectra and volumes fully; the first axis of a stack, curves and range–Doppler maps are
+    /// named by their declarations.
+    pub fn axes(&self, shape: &[usize]) -> Vec<Axis> {
+        match self {
+            Kind::Scalar | Kind::Internal | Kind::Curve | Kind::RangeDoppler { .. } => Vec::new(),
+            Kind::Spectrum { axis, channels, mirrored } => {
+                let f = Axis::frequency(axis, *mirrored);
+                if shape.len() == 2 { vec![Axis::labels("channel", channels.clone()), f] } else { vec![f] }
+            }
+            &Kind::Image { nx, ny, min, max } => Axis::image(nx, ny, min, max).to_vec(),
+            Kind::PixelSpectra { nx, ny, min, max, axis, mirrored } => {
+                let [y, x] = Axis::image(*nx, *ny, *min, *max);
+                vec![y, x, Axis::frequency(axis, *mirrored)]
+            }
+            &Kind::ImageStack { layers, nx, ny, min, max } => {
+                let [y, x] = Axis::image(nx, ny, min, max);
+                vec![Axis::linear("layer", "", 0.0, 1.0, layers), y, x]
+            }
+            &Kind::Volume { voxels: [nx, ny, nz], min, max } => {
+                let d = |a: usize, n: usize| (max[a] - min[a]) / n as f64;
+                let z = Axis::linear("z_m", "m", min[2] + 0.5 * d(2, nz), d(2, nz), nz);
+                let y = Axis::linear("y_m", "m", max[1] - 0.5 * d(1, ny), -d(1, ny), ny);
+                let x = Axis::linear("x_m", "m", min[0] + 0.5 * d(0, nx), d(0, nx), nx);
+                if shape.len() == 4 {
+                    vec![Axis::linear("time_bin", "", 0.0, 1.0, shape[0]), z, y, x]
+                } else {
+                    vec![z, y, x]
+                }
+            }
+        }
+    }
+
+    /// The name of the kind in the manifest's `outputs`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Kind::Scalar => "scalar",
+            Kind::Spectrum { .. } => "spectrum",
+            Kind::Image { .. } => "image",
+            Kind::PixelSpectra { .. } => "pixel_spectra",
+            Kind::ImageStack { .. } => "image_stack",
+            Kind::Curve => "curve",
+            Kind::RangeDoppler { .. } => "range_doppler",
+            Kind::Volume { .. } => "volume",
+            Kind::Internal => "internal",
+        }
+    }
+}
+
+/// How an output's values come from the tallies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Derivation {
+    /// Recorded into its slots: the mean over batches of the per-path means, σ their spread.
+    #[default]
+    Tally,
+    /// Element by element `numerator / denominator` (`sqrt`: its square root) of two tally
+    /// ranges of the output's length, each kept per group of batches ([`Registry::group`]): the
+    /// value from the run's means, σ by the delete-one-group jackknife over [`GROUPS`] groups
+    /// ([`Registry::finish_run`]). NaN where the ratio is undefined (a zero denominator, a
+    /// negative ratio under the root), so such outputs are declared `undefined_nan`.
+    Ratio { numerator: usize, denominator: usize, sqrt: bool },
+}
+
+/// A tally range whose per-batch values are also kept per group of batches (`[group][len]` from
+/// `block`), for the jackknife of the outputs derived from it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Grouped {
+    pub source: usize,
+    pub len: usize,
+    pub block: usize,
 }
 
 /// One declared output.
@@ -118,6 +255,14 @@ pub struct Output {
     /// The configuration key its memory grows with and the value given, for the memory budget
     /// (`("detectors[0].spectrum.bins", "= 256")`).
     pub budget_key: Option<(String, String)>,
+    /// One per dimension of `shape` ([`Kind::axes`] unless declared otherwise).
+    pub axes: Vec<Axis>,
+    /// How its figure draws it.
+    pub style: Style,
+    /// What its figure is titled (after its detector's name); the output's name if empty.
+    pub title: String,
+    /// How its values come from the tallies.
+    pub derivation: Derivation,
     /// NaN marks a value left undefined (a correlation estimate from too few paths, documented
     /// with the output): the finiteness check of the written outputs lets NaN through, not
     /// infinities.
@@ -129,6 +274,10 @@ impl Output {
     /// file, standard errors written, sign +1, not a main output, no memory key.
     pub fn new(name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Self {
         Output {
+            axes: kind.axes(&shape),
+            style: Style::Sequential,
+            title: String::new(),
+            derivation: Derivation::Tally,
             name,
             detector: None,
             kind,
@@ -281,6 +430,8 @@ impl PixelErrors {
 pub struct Registry {
     pub len: usize,
     pub outputs: Vec<Output>,
+    /// The tally ranges kept per group of batches ([`Registry::group`]).
+    pub grouped: Vec<Grouped>,
 }
 
 impl Registry {
@@ -296,6 +447,97 @@ impl Registry {
         debug_assert!(!o.primary || o.slots.rows == 1, "a main output is one row");
         debug_assert!(self.get(&o.name).is_none(), "output {} declared twice", o.name);
         self.outputs.push(o);
+    }
+
+    /// Keep the tallies `source .. source + len` per group of batches as well (once, however
+    /// many outputs are derived from them), in an internal output `name` of detector `detector`
+    /// whose memory grows with `budget_key`.
+    pub fn group(
+        &mut self,
+        name: String,
+        detector: Option<usize>,
+        source: usize,
+        len: usize,
+        budget: Option<(String, String)>,
+    ) {
+        if self.grouped.iter().any(|g| g.source == source && g.len == len) {
+            return;
+        }
+        let block = self.take(GROUPS * len);
+        self.declare(Output {
+            detector,
+            budget_key: budget,
+            ..Output::new(name, Kind::Internal, Slots::contiguous(block, GROUPS * len), vec![GROUPS, len])
+        });
+        self.grouped.push(Grouped { source, len, block });
+    }
+
+    /// File a finished batch (number `batch` of the run) under its group: each grouped range's
+    /// sums added into its group's block.
+    pub fn finish_batch(&self, sums: &mut [f64], batch: u64) {
+        let h = (batch % GROUPS as u64) as usize;
+        for g in &self.grouped {
+            let to = g.block + h * g.len;
+            for j in 0..g.len {
+                sums[to + j] += sums[g.source + j];
+            }
+        }
+    }
+
+    /// Give every derived output ([`Derivation::Ratio`]) its value from the run's means and its
+    /// variance by the delete-one-group jackknife over the groups that hold batches. Applied once,
+    /// when a run's batches are all folded in, whatever the threads, shards or resumes.
+    pub fn finish_run(&self, est: &mut BatchAccumulator) {
+        let b = est.batches();
+        let used = b.min(GROUPS);
+        let block = |source: usize| self.grouped.iter().find(|g| g.source == source).map(|g| (g.block, g.len));
+        for o in &self.outputs {
+            let Derivation::Ratio { numerator, denominator, sqrt } = o.derivation else { continue };
+            let (Some((num_block, len)), Some((den_block, _))) = (block(numerator), block(denominator)) else {
+                unreachable!("{}: the tallies of a ratio are grouped", o.name)
+            };
+            let f = |a: f64, d: f64| {
+                let r = if d != 0.0 { a / d } else { f64::NAN };
+                if sqrt { if r >= 0.0 { r.sqrt() } else { f64::NAN } } else { r }
+            };
+            for j in 0..o.slots.len {
+                let m = est.mean();
+                let (a, d) = (m[numerator + j], m[denominator + j]);
+                let value = f(a, d);
+                // Replicate h: the run without group h's batches (the slots hold Σ over them / B).
+                let reps = (0..used).map(|h| f(a - m[num_block + h * len + j], d - m[den_block + h * len + j]));
+                let var = if b < 3 { 0.0 } else { jackknife_variance(reps) };
+                let slot = o.slots.start + j;
+                est.set_mean(slot, value);
+                est.set_variance(slot, if value.is_finite() { var } else { f64::NAN });
+            }
+        }
+    }
+
+    /// The last line of defence against non-finite outputs (issue 21, item 4): validation refuses
+    /// what cannot give finite output, so a NaN or an infinity in a run's estimates or standard errors
+    /// is a bug, and the run fails (exit status 1) naming the first output that holds one, before any
+    /// file is written, rather than write it silently (NaN is let through where an output documents it
+    /// as undefined: [`crate::output::Output::undefined_nan`]). Every written output is checked, its
+    /// out-of-range tallies included; internal ones (a lidar's lag sums) are not written, and show in
+    /// the outputs made from them.
+    pub fn check_finite(&self, mean: &[f64], stderr: &[f64]) -> crate::error::Result<()> {
+        for o in self.outputs.iter().filter(|o| o.kind != Kind::Internal) {
+            let slots = o.slots.start..o.slots.start + o.slots.footprint();
+            let bad = |x: &f64| if o.undefined_nan { x.is_infinite() } else { !x.is_finite() };
+            let count = |v: &[f64]| v[slots.clone()].iter().filter(|x| bad(x)).count();
+            let (values, errors) = (count(mean), count(stderr));
+            if values + errors > 0 {
+                let what = format!(
+                    "output {} ({values} of its {} values and {errors} of their standard errors; file {})",
+                    o.name,
+                    slots.len(),
+                    o.file.trim_start_matches('/')
+                );
+                return Err(crate::error::Error::NotFinite { what, count: values + errors });
+            }
+        }
+        Ok(())
     }
 
     /// The output called `name`.
@@ -404,7 +646,7 @@ mod tests {
 
         // Per-pixel spectra of a 1 × 2 image, 2 bins and 2 out-of-range tallies per pixel.
         let axis = FrequencyAxis::new(-1.0, 1.0, 2).unwrap();
-        let kind = Kind::PixelSpectra { nx: 1, ny: 2, axis, mirrored: true };
+        let kind = Kind::PixelSpectra { nx: 1, ny: 2, min: [0.0; 2], max: [1.0; 2], axis, mirrored: true };
         let o = Output::new(
             "cam.pixel_spectra".into(),
             kind,

@@ -5,6 +5,7 @@
     >>> r.estimates["reflectance_diffuse"].value
     >>> r["camera_spectrum"].values, r["camera_spectrum"].axes["frequency_hz"]
     >>> r.save("out/default")                          # exactly what `ohd run --out` writes
+    >>> ohd.load("out/default")                        # the same Result, read back
 
 A configuration is a path, a TOML string or a nested dict, in the schema of configs/README.md,
 checked with the CLI's error messages (`ohd.ConfigError`, a ValueError with `.key`). A run is the
@@ -30,6 +31,7 @@ from ._ohd import ConfigError, Experiment
 __version__ = _ohd.__version__
 __all__ = [
     "run",
+    "load",
     "check",
     "sweep",
     "mie",
@@ -61,18 +63,28 @@ class Output:
     """One output array of a run (a `.npy` file of `ohd run --out`).
 
     `values` and `stderr` (None where the run writes no standard errors) are read-only views of
-    the file's bytes; `axes` maps an axis name to its coordinates (`frequency_hz`: bin centres in
-    Hz; `x_m`, `y_m`: pixel centres in m, `y_m` descending as the image rows; others as the
-    manifest names them: `range_m`, gate centres of a lidar map's rows); `units` is the manifest's
-    unit of the values, if it states one.
+    the file's bytes; `axes` maps each dimension's axis name, in order, to its coordinates
+    (`frequency_hz`: bin centres in Hz; `x_m`, `y_m`: pixel centres in m, `y_m` descending as the
+    image rows; `channel`: names; `range_m`, `time_s`, `tau_s`, …), as the manifest's `outputs`
+    table declares them; `units` is the unit of the values; `kind` what it is (`image`,
+    `spectrum`, `curve`, `relative_error`, …).
     """
 
-    def __init__(self, name: str, values: np.ndarray, stderr: Optional[np.ndarray], axes: Dict[str, np.ndarray], units: Optional[str]):
+    def __init__(
+        self,
+        name: str,
+        values: np.ndarray,
+        stderr: Optional[np.ndarray],
+        axes: Dict[str, np.ndarray],
+        units: Optional[str],
+        kind: Optional[str] = None,
+    ):
         self.name = name
         self.values = values
         self.stderr = stderr
         self.axes = axes
         self.units = units
+        self.kind = kind
 
     def __array__(self, dtype=None, copy=None):
         return self.values if dtype is None else self.values.astype(dtype)
@@ -125,7 +137,32 @@ class Result:
             self._outputs = self._read_outputs()
         return self._outputs
 
+    def _axis(self, a: Dict[str, Any]) -> np.ndarray:
+        """The coordinates of one axis of the manifest's `outputs` table."""
+        if "linear" in a:
+            lin = a["linear"]
+            return lin["first"] + lin["step"] * np.arange(lin["count"])
+        if "file" in a:
+            return _npy(self.files[a["file"]])
+        return np.array(a.get("labels", []))
+
     def _read_outputs(self) -> Dict[str, Output]:
+        table = self.manifest.get("outputs")
+        if table is None:
+            return self._guess_outputs()
+        out = {}
+        for file, e in table.items():
+            if not file.endswith(".npy") or e.get("kind") == "axis" or file not in self.files:
+                continue
+            err = e.get("stderr_file")
+            err = _npy(self.files[err]) if err in self.files else None
+            axes = {a["name"]: self._axis(a) for a in e.get("axes", [])}
+            stem = file[: -len(".npy")]
+            out[stem] = Output(stem, _npy(self.files[file]), err, axes, e.get("units"), e.get("kind"))
+        return out
+
+    def _guess_outputs(self) -> Dict[str, Output]:
+        """Outputs of a manifest written before ohd 0.1's `outputs` table, by file name."""
         axes_files = set()
         groups = []  # (name prefix, group key, group dict) of the manifest's detectors
         for det, info in (self.manifest.get("detectors") or {}).items():
@@ -199,6 +236,17 @@ class Result:
         if "manifest.json" in files:  # the manifest last, as written
             files["manifest.json"] = files.pop("manifest.json")
         return cls(files, pointings)
+
+
+def load(dir: Union[str, "os.PathLike[str]"]) -> Result:
+    """The `Result` of a run written into `dir` (by `ohd run --out dir`, `ohd merge` or
+    `Result.save`): the same estimates, outputs, manifest and files that `ohd.run` returned for it.
+    A scan's directory gives its pointings in `.pointings`. Raises FileNotFoundError if `dir` holds
+    no finished run (no manifest.json)."""
+    path = Path(dir)
+    if not (path / "manifest.json").is_file() and not (path / "pointing_00").is_dir():
+        raise FileNotFoundError(f"{os.fspath(dir)}: no finished run here (no manifest.json)")
+    return Result._from_dir(path)
 
 
 def _sets(overrides: Overrides, samples=None, seed=None, threads=None) -> List[str]:

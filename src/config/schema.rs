@@ -676,6 +676,8 @@ pub struct LdhSection {
     pub flip_sign: Option<bool>,
     /// Also accumulate the first moment M1.
     pub m1: Option<bool>,
+    /// Also the band moments M1±, M2± and the mean and RMS frequency images, per pixel and ROI.
+    pub moments: Option<bool>,
     /// Also accumulate M0± per path class (static, one Doppler event, several).
     pub by_class: Option<bool>,
     /// Axis of the ROI spectra (and of per-pixel spectra).

@@ -54,12 +54,10 @@
 //! both ends of a piece (noise, or a zero of an oscillating Doppler g1) the piece is linear.
 
 use super::{ImageSpec, Roi, detector_output, image_stack_output};
-use crate::output::{Kind, Output, Registry, Slots};
-use crate::stats::BatchAccumulator;
+use crate::output::{Axis, Kind, Output, Registry, Slots};
+use crate::stats::{BatchAccumulator, jackknife_variance};
 
-/// Groups of batches of the jackknife: batch `b` is tallied into group `b mod GROUPS`
-/// (module docs, "Standard errors"). 16 groups give σ to ±18 % (a χ² of 15 degrees of freedom).
-pub const GROUPS: usize = 16;
+pub use crate::stats::GROUPS;
 
 /// What a detector correlates.
 #[derive(Debug, Clone, PartialEq)]
@@ -123,6 +121,9 @@ impl CorrelationSpec {
             });
             start
         };
+        let tau = || Axis::file("tau_s", "s", format!("{name}_tau_s.npy"));
+        let exposure = || Axis::file("exposure_s", "s", format!("{name}_exposure_s.npy"));
+        let parts = || Axis::labels("part", vec!["real".into(), "imaginary".into()]);
         let sums = internal(reg, "correlation_sums", 2 * n, &budget);
         let groups = internal(reg, "correlation_groups", GROUPS * (2 * n + 1), &budget);
         let g1 = reg.take(2 * n);
@@ -131,6 +132,7 @@ impl CorrelationSpec {
             undefined_nan: true,
             budget_key: budget.clone(),
             units: "1 (normalised field autocorrelation; row 0 real, row 1 imaginary part)",
+            axes: vec![parts(), tau()],
             ..detector_output(
                 i,
                 format!("{name}.g1"),
@@ -146,6 +148,7 @@ impl CorrelationSpec {
             primary: true,
             budget_key: budget.clone(),
             units: "1 (normalised intensity autocorrelation)",
+            axes: vec![tau()],
             ..detector_output(i, format!("{name}.g2"), Kind::Curve, Slots::contiguous(g2, n), vec![n])
         });
         let contrast = reg.take(nt);
@@ -155,6 +158,7 @@ impl CorrelationSpec {
                 undefined_nan: true,
                 primary: true,
                 units: "1 (speckle contrast K per exposure time)",
+                axes: vec![exposure()],
                 ..detector_output(
                     i,
                     format!("{name}.speckle_contrast"),
@@ -185,6 +189,7 @@ impl CorrelationSpec {
                     undefined_nan: true,
                     budget_key: budget.clone(),
                     units,
+                    axes: if rows == 2 { vec![parts(), tau()] } else { vec![tau()] },
                     ..detector_output(
                         i,
                         format!("{name}.roi_{}.{w}", roi.name),
@@ -199,6 +204,7 @@ impl CorrelationSpec {
                     file: format!("{name}_roi_{}_speckle_contrast.npy", roi.name),
                     undefined_nan: true,
                     units: "1 (speckle contrast K of the ROI per exposure time)",
+                    axes: vec![exposure()],
                     ..detector_output(
                         i,
                         format!("{name}.roi_{}.speckle_contrast", roi.name),
@@ -218,7 +224,7 @@ impl CorrelationSpec {
                 undefined_nan: true,
                 budget_key: key,
                 units: "1 (speckle contrast K per exposure time and pixel; NaN: too few paths)",
-                ..image_stack_output(i, format!("{name}.speckle_contrast_image"), im, nt, c)
+                ..image_stack_output(i, format!("{name}.speckle_contrast_image"), im, nt, c).layered(exposure())
             });
             pixel_contrast = Some(c);
         }
@@ -386,16 +392,7 @@ impl CorrelationSpec {
         let reps: Vec<Vec<f64>> = (0..x.len())
             .map(|h| sums.g1(x, Some(h), n).map(|(g1, g1sq)| self.derived(&g1, &g1sq)))
             .collect::<Option<_>>()?;
-        let g = reps.len() as f64;
-        let len = reps[0].len();
-        Some(
-            (0..len)
-                .map(|j| {
-                    let mean = reps.iter().map(|r| r[j]).sum::<f64>() / g;
-                    (g - 1.0) / g * reps.iter().map(|r| (r[j] - mean) * (r[j] - mean)).sum::<f64>()
-                })
-                .collect(),
-        )
+        Some((0..reps[0].len()).map(|j| jackknife_variance(reps.iter().map(|r| r[j]))).collect())
     }
 
     /// Replace the run's g1, g2 and K (and the speckle contrast image) by their values from the

@@ -22,8 +22,18 @@
 //! diffusing particles): static tissue only (0), one, several.
 
 use super::{ImageSpec, detector_output};
-use crate::output::{Kind, Output, Registry, Slots};
-use crate::spectrum::{BandKernel, BandPowers, FrequencyAxis, Stft};
+use crate::output::{Derivation, Kind, Output, Registry, Slots, Style};
+use crate::spectrum::{BandKernel, BandMoments, BandPowers, FrequencyAxis, Stft};
+use crate::stats::GROUPS;
+
+/// Units of the M0± images.
+pub const M0_UNITS: &str = "fraction of emitted power per pixel (band sum of the expected periodogram)";
+/// Units of the M1 images.
+pub const M1_UNITS: &str = "Hz × fraction of emitted power per pixel";
+/// Units of the M2 images.
+pub const M2_UNITS: &str = "Hz² × fraction of emitted power per pixel";
+/// Units of the ROI spectra.
+pub const SPECTRUM_UNITS: &str = "fraction of emitted power per bin (no window kernel)";
 
 /// Path classes, by Doppler events: 0, 1, ≥ 2.
 pub const CLASS_NAMES: [&str; 3] = ["static", "single_doppler", "multiple_doppler"];
@@ -65,12 +75,27 @@ pub struct SpeckleSpec {
 pub struct LdhOptions {
     pub flip_sign: bool,
     pub m1: bool,
+    pub moments: bool,
     pub by_class: bool,
     pub rois: Vec<Roi>,
     pub spectrum_axis: FrequencyAxis,
     pub pixel_spectra: bool,
     pub speckle: Option<SpeckleSpec>,
 }
+
+/// The band moments an LDH camera records with `moments = true`, per pixel and ROI, in their
+/// order in the tallies: `M1± = ∫_{f1}^{f2} f [S(f) ± S(−f)] df`, `M2± = ∫ f² [S(f) ± S(−f)] df`
+/// (`M1+` is `m1`'s `M1`).
+pub const MOMENTS: [&str; 4] = ["m1_plus", "m1_minus", "m2_plus", "m2_minus"];
+
+/// The frequency images of `moments = true`, ratios of the band moments with their σ by the
+/// group jackknife: `(name, numerator in MOMENTS, sqrt, signed, title)`. `M2−/M0+` has no root
+/// (it is negative wherever the approaching side dominates), so only `M2+` gives an RMS frequency.
+pub const FREQUENCIES: [(&str, usize, bool, bool, &str); 3] = [
+    ("mean_frequency_plus", 0, false, false, "mean |frequency| M1+/M0+"),
+    ("mean_frequency_minus", 1, false, true, "mean signed frequency M1−/M0+"),
+    ("rms_frequency", 2, true, false, "RMS frequency √(M2+/M0+)"),
+];
 
 /// The LDH acquisition and what to accumulate.
 #[derive(Debug, Clone)]
@@ -85,6 +110,11 @@ pub struct LdhSpec {
     /// to the outputs only.
     pub flip_sign: bool,
     pub m1: bool,
+    /// The band moments M1±, M2± and the mean and RMS frequency images ([`MOMENTS`],
+    /// [`FREQUENCIES`]), per pixel and ROI.
+    pub moments: bool,
+    /// `M1−`, `M2±` of a static path.
+    pub static_moments: BandMoments,
     pub by_class: bool,
     pub rois: Vec<Roi>,
     /// Axis of the ROI (and per-pixel) spectra.
@@ -102,6 +132,7 @@ impl PartialEq for LdhSpec {
             && self.band == o.band
             && self.flip_sign == o.flip_sign
             && self.m1 == o.m1
+            && self.moments == o.moments
             && self.by_class == o.by_class
             && self.rois == o.rois
             && self.spectrum_axis == o.spectrum_axis
@@ -113,9 +144,13 @@ impl PartialEq for LdhSpec {
 impl LdhSpec {
     /// Build the band kernel and the static path's band powers. `None` if the band holds no bin.
     pub fn new(stft: Stft, band: (f64, f64), o: LdhOptions) -> Option<Self> {
-        let kernel = BandKernel::new(&stft, band.0, band.1)?;
-        let static_powers = kernel.eval(0.0, 0.0);
-        let LdhOptions { flip_sign, m1, by_class, rois, spectrum_axis, pixel_spectra, speckle } = o;
+        let kernel = if o.moments {
+            BandKernel::with_moments(&stft, band.0, band.1)?
+        } else {
+            BandKernel::new(&stft, band.0, band.1)?
+        };
+        let (static_powers, static_moments) = (kernel.eval(0.0, 0.0), kernel.eval_moments(0.0, 0.0));
+        let LdhOptions { flip_sign, m1, moments, by_class, rois, spectrum_axis, pixel_spectra, speckle } = o;
         Some(LdhSpec {
             stft,
             band,
@@ -123,6 +158,8 @@ impl LdhSpec {
             static_powers,
             flip_sign,
             m1,
+            moments,
+            static_moments,
             by_class,
             rois,
             spectrum_axis,
@@ -135,6 +172,12 @@ impl LdhSpec {
     #[inline]
     pub fn band_powers(&self, f: f64, gamma: f64) -> BandPowers {
         if f == 0.0 && gamma == 0.0 { self.static_powers } else { self.kernel.eval(f, gamma) }
+    }
+
+    /// The higher band moments of a unit line at `f` with half-width `gamma` (with `moments`).
+    #[inline]
+    pub fn band_moments(&self, f: f64, gamma: f64) -> BandMoments {
+        if f == 0.0 && gamma == 0.0 { self.static_moments } else { self.kernel.eval_moments(f, gamma) }
     }
 
     /// Channels of an ROI spectrum: the total, then one per path class.
@@ -150,30 +193,34 @@ impl LdhSpec {
         let stride = bins + 2;
         let sign = if self.flip_sign { -1.0 } else { 1.0 };
         let budget = Some(im.budget_key(i));
-        let image = |reg: &mut Registry, start: usize, stem: String, sign: f64, primary: bool| {
+        // What has a sign (M0−; and M1, drawn so since it was added) is drawn on a diverging map.
+        let (seq, div) = (Style::Sequential, Style::Diverging);
+        let image = |reg: &mut Registry, start: usize, stem: String, sign: f64, primary: bool, style: Style| {
             reg.declare(Output {
                 file: format!("{name}_{stem}.npy"),
+                units: M0_UNITS,
                 sign,
                 primary,
+                style,
                 budget_key: budget.clone(),
                 ..detector_output(i, format!("{name}.{stem}"), im.kind(), Slots::contiguous(start, pixels), im.shape())
             });
         };
         let m0_plus = reg.take(pixels);
-        image(reg, m0_plus, "m0_plus".into(), 1.0, true);
+        image(reg, m0_plus, "m0_plus".into(), 1.0, true, seq);
         let m0_minus = reg.take(pixels);
-        image(reg, m0_minus, "m0_minus".into(), sign, true);
+        image(reg, m0_minus, "m0_minus".into(), sign, true, div);
         let m1 = self.m1.then(|| {
             let o = reg.take(pixels);
-            image(reg, o, "m1".into(), 1.0, false);
-            reg.outputs.last_mut().expect("just declared").units = "Hz × fraction of emitted power";
+            image(reg, o, "m1".into(), 1.0, false, div);
+            reg.outputs.last_mut().expect("just declared").units = M1_UNITS;
             o
         });
         let classes = self.by_class.then(|| {
             let o = reg.take(2 * CLASS_NAMES.len() * pixels);
             for (c, cname) in CLASS_NAMES.iter().enumerate() {
-                image(reg, o + 2 * c * pixels, format!("m0_plus_{cname}"), 1.0, false);
-                image(reg, o + (2 * c + 1) * pixels, format!("m0_minus_{cname}"), sign, false);
+                image(reg, o + 2 * c * pixels, format!("m0_plus_{cname}"), 1.0, false, seq);
+                image(reg, o + (2 * c + 1) * pixels, format!("m0_minus_{cname}"), sign, false, div);
             }
             o
         });
@@ -189,6 +236,7 @@ impl LdhSpec {
                     let o = reg.take(1);
                     reg.declare(Output {
                         file: format!("/estimates/{what}_roi_{}/value", roi.name),
+                        units: "fraction of emitted power (band sum of the expected periodogram)",
                         sign,
                         ..detector_output(
                             i,
@@ -204,6 +252,7 @@ impl LdhSpec {
                 let s = reg.take(Self::ROI_CHANNELS * stride);
                 reg.declare(Output {
                     file: format!("{name}_roi_{}_spectrum.npy", roi.name),
+                    units: SPECTRUM_UNITS,
                     ..detector_output(
                         i,
                         format!("{name}.roi_{}.spectrum", roi.name),
@@ -212,13 +261,14 @@ impl LdhSpec {
                         vec![Self::ROI_CHANNELS, bins],
                     )
                 });
-                RoiLayout { m0_plus, m0_minus, spectrum: s }
+                RoiLayout { m0_plus, m0_minus, spectrum: s, moments: None }
             })
             .collect();
         let pixel_spectra = self.pixel_spectra.then(|| {
             let o = reg.take(pixels * stride);
             reg.declare(Output {
                 file: format!("{name}_pixel_spectra.npy"),
+                units: "fraction of emitted power per pixel and bin (no window kernel)",
                 stderr: false,
                 budget_key: Some((
                     format!("detectors[{i}].ldh.pixel_spectra"),
@@ -227,14 +277,88 @@ impl LdhSpec {
                 ..detector_output(
                     i,
                     format!("{name}.pixel_spectra"),
-                    Kind::PixelSpectra { nx: im.nx, ny: im.ny, axis: self.spectrum_axis, mirrored: self.flip_sign },
+                    Kind::PixelSpectra {
+                        nx: im.nx,
+                        ny: im.ny,
+                        min: im.min,
+                        max: im.max,
+                        axis: self.spectrum_axis,
+                        mirrored: self.flip_sign,
+                    },
                     Slots { start: o, rows: pixels, stride, len: bins },
                     vec![im.ny, im.nx, bins],
                 )
             });
             o
         });
-        LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra }
+        let mut lay = LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra, moments: None };
+        if self.moments {
+            self.declare_moments(i, name, im, reg, &mut lay);
+        }
+        lay
+    }
+
+    /// Declare the band moments ([`MOMENTS`]) of every pixel and ROI, after all other tallies, and
+    /// the frequency images and ROI values derived from them ([`FREQUENCIES`]).
+    fn declare_moments(&self, i: usize, name: &str, im: &ImageSpec, reg: &mut Registry, lay: &mut LdhLayout) {
+        let sign = if self.flip_sign { -1.0 } else { 1.0 };
+        let budget = Some((
+            format!("detectors[{i}].ldh.moments"),
+            format!("= true ({} images, {} kept per group of batches)", MOMENTS.len() + FREQUENCIES.len(), 4 * GROUPS),
+        ));
+        // One unit (the image's pixels, or an ROI): its four moments from `start`, each `len`
+        // values at `stride`, declared as `kind` outputs called `prefix.m1_plus`, …; then the
+        // frequencies from M0+ at `m0_plus`.
+        let unit = |reg: &mut Registry, prefix: &str, stem: &str, kind: Kind, shape: Vec<usize>, m0_plus: usize| {
+            let len = shape.iter().product::<usize>();
+            let start = reg.take(MOMENTS.len() * len);
+            let output = |what: &str, slots: Slots| Output {
+                file: if shape.is_empty() {
+                    format!("/estimates/detectors/{name}/{stem}{what}/value")
+                } else {
+                    format!("{name}_{stem}{what}.npy")
+                },
+                budget_key: budget.clone(),
+                ..detector_output(i, format!("{prefix}.{what}"), kind.clone(), slots, shape.clone())
+            };
+            let (band, moments_of) =
+                (format!("{}–{} kHz", self.band.0 / 1e3, self.band.1 / 1e3), |k: usize| start + k * len);
+            for (k, what) in MOMENTS.iter().enumerate() {
+                let odd = what.ends_with("minus");
+                reg.declare(Output {
+                    units: if k < 2 { M1_UNITS } else { M2_UNITS },
+                    sign: if odd { sign } else { 1.0 },
+                    style: if odd { Style::Diverging } else { Style::Sequential },
+                    title: format!(
+                        "{} ({band})",
+                        what.replace("m1_", "M1").replace("m2_", "M2").replace("plus", "+").replace("minus", "−")
+                    ),
+                    ..output(what, Slots::contiguous(moments_of(k), len))
+                });
+            }
+            reg.group(format!("{prefix}.m0_plus_groups"), Some(i), m0_plus, len, budget.clone());
+            for (k, what) in MOMENTS.iter().enumerate().take(3) {
+                reg.group(format!("{prefix}.{what}_groups"), Some(i), moments_of(k), len, budget.clone());
+            }
+            let frequencies = reg.take(FREQUENCIES.len() * len);
+            for (j, &(what, k, sqrt, signed, title)) in FREQUENCIES.iter().enumerate() {
+                reg.declare(Output {
+                    units: "Hz",
+                    sign: if signed { sign } else { 1.0 },
+                    style: if signed { Style::Diverging } else { Style::Sequential },
+                    title: format!("{title} ({band})"),
+                    undefined_nan: true,
+                    derivation: Derivation::Ratio { numerator: moments_of(k), denominator: m0_plus, sqrt },
+                    ..output(what, Slots::contiguous(frequencies + j * len, len))
+                });
+            }
+            start
+        };
+        lay.moments = Some(unit(reg, name, "", im.kind(), im.shape(), lay.m0_plus));
+        for (roi, rl) in self.rois.iter().zip(lay.rois.iter_mut()) {
+            let (prefix, stem) = (format!("{name}.roi_{}", roi.name), format!("roi_{}_", roi.name));
+            rl.moments = Some(unit(reg, &prefix, &stem, Kind::Scalar, Vec::new(), rl.m0_plus));
+        }
     }
 
     /// Record one detected path `d`. Calls `in_roi` with the index of every ROI it fell in, for
@@ -260,6 +384,9 @@ impl LdhSpec {
                 let s = o + p * lay.stride;
                 self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
             }
+            if let Some(o) = lay.moments {
+                self.record_moments(acc, o, lay.pixels, p, w, b, f, gamma);
+            }
         }
         for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
             if !roi.contains(x, y) {
@@ -272,7 +399,31 @@ impl LdhSpec {
             self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
             let s = rl.spectrum + (1 + class) * lay.stride;
             self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+            if let Some(o) = rl.moments {
+                self.record_moments(acc, o, 1, 0, w, b, f, gamma);
+            }
             in_roi(i);
+        }
+    }
+
+    /// Add a path's band moments (weight `w`, band powers `b`, line at `f` of half-width `gamma`)
+    /// into element `at` of the moments `[moment][len]` from slot `o`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn record_moments(
+        &self,
+        acc: &mut [f64],
+        o: usize,
+        len: usize,
+        at: usize,
+        w: f64,
+        b: BandPowers,
+        f: f64,
+        gamma: f64,
+    ) {
+        let m = self.band_moments(f, gamma);
+        for (k, v) in [b.m1, m.m1_minus, m.m2_plus, m.m2_minus].into_iter().enumerate() {
+            acc[o + k * len + at] += w * v;
         }
     }
 }
@@ -308,6 +459,8 @@ pub struct LdhLayout {
     pub rois: Vec<RoiLayout>,
     /// `[pixel][slot]`.
     pub pixel_spectra: Option<usize>,
+    /// `[moment][pixel]` ([`MOMENTS`]).
+    pub moments: Option<usize>,
 }
 
 /// Offsets of one ROI's tallies: its M0± and its spectra `[channel][slot]` (total, then by class).
@@ -316,6 +469,8 @@ pub struct RoiLayout {
     pub m0_plus: usize,
     pub m0_minus: usize,
     pub spectrum: usize,
+    /// Its four moments ([`MOMENTS`]).
+    pub moments: Option<usize>,
 }
 
 /// A detected path inside an ROI, kept for speckle synthesis.

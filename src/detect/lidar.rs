@@ -105,7 +105,7 @@ use num_complex::Complex;
 
 use super::detector_output;
 use crate::SPEED_OF_LIGHT;
-use crate::output::{Kind, Output, Registry, Slots};
+use crate::output::{Axis, Kind, Output, Registry, Slots};
 use crate::retrieval::GateKernel;
 use crate::spectrum::FrequencyAxis;
 
@@ -355,6 +355,10 @@ impl LidarSpec {
                 file: format!("{name}_{stem}.npy"),
                 primary: c == 0,
                 budget_key: budget.clone(),
+                axes: vec![
+                    Axis::file("range_m", "m", format!("{name}_range_m.npy")),
+                    Axis::file("frequency_hz", "Hz", format!("{name}_frequency_hz.npy")),
+                ],
                 ..detector_output(
                     i,
                     format!("{name}.{stem}"),

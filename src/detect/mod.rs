@@ -22,7 +22,7 @@ pub use lidar::{Echo, LidarLayout, LidarSpec};
 pub use time::{TimeLayout, TimeSpec};
 
 use crate::SPEED_OF_LIGHT;
-use crate::output::{Kind, Output, Registry, Slots};
+use crate::output::{Axis, Kind, Output, PER_BIN, PER_PIXEL, Registry, Slots};
 use crate::spectrum::FrequencyAxis;
 use crate::stats::RunStats;
 
@@ -400,6 +400,7 @@ impl TallyLayout {
         for (spec, cl, power) in self.correlations(detectors) {
             spec.finish_batch(cl, sums, power, batch);
         }
+        self.registry.finish_batch(sums, batch);
     }
 
     /// Replace the run-level values of outputs that are non-linear in the tallies by the same
@@ -411,6 +412,7 @@ impl TallyLayout {
         for (spec, cl, power) in self.correlations(detectors) {
             spec.finish_run(cl, estimates, power);
         }
+        self.registry.finish_run(estimates);
     }
 
     /// Each detector with correlation outputs: its spec, their layout and its power's slot.
@@ -440,6 +442,16 @@ pub(crate) fn image_stack_output(i: usize, name: String, im: &ImageSpec, layers:
         Slots::contiguous(start, layers * im.nx * im.ny),
         vec![layers, im.ny, im.nx],
     )
+}
+
+impl Output {
+    /// A stack ([`Kind::ImageStack`]) whose layers run along `layer` (its time or exposure axis).
+    pub(crate) fn layered(mut self, layer: Axis) -> Self {
+        if let Some(a) = self.axes.first_mut() {
+            *a = layer;
+        }
+        self
+    }
 }
 
 impl Detector {
@@ -505,6 +517,7 @@ impl Surface {
                 let kind = |channels: Vec<String>| Kind::Spectrum { axis: s.axis, channels, mirrored: false };
                 reg.declare(Output {
                     file: format!("{name}{chirp}_spectrum.npy"),
+                    units: PER_BIN,
                     primary: true,
                     budget_key: budget.clone(),
                     ..detector_output(
@@ -519,6 +532,7 @@ impl Surface {
                     let rows = names.len();
                     reg.declare(Output {
                         file: format!("{name}{chirp}_spectrum{suffix}.npy"),
+                        units: PER_BIN,
                         budget_key: budget.clone(),
                         ..detector_output(
                             i,
@@ -537,6 +551,7 @@ impl Surface {
             lay.image = Some(start);
             reg.declare(Output {
                 file: format!("{name}_image.npy"),
+                units: PER_PIXEL,
                 primary: true,
                 budget_key: Some(im.budget_key(i)),
                 ..detector_output(i, format!("{name}.image"), im.kind(), Slots::contiguous(start, n), im.shape())

@@ -10,7 +10,7 @@
 
 use super::{ImageSpec, detector_output, image_stack_output};
 use crate::SPEED_OF_LIGHT;
-use crate::output::{Kind, Output, Registry, Slots};
+use crate::output::{Axis, Kind, Output, Registry, Slots};
 use crate::spectrum::{FrequencyAxis, Slot};
 
 /// A detector's time axis: `bins` equal bins over `[t0, t1)` (s, the axis type of the spectra),
@@ -31,6 +31,11 @@ pub struct TimeLayout {
     pub pixels: usize,
 }
 
+/// The time axis of detector `name`'s outputs: its file of bin centres.
+pub fn time_axis(name: &str) -> Axis {
+    Axis::file("time_s", "s", format!("{name}_time_s.npy"))
+}
+
 impl TimeSpec {
     /// Lay out detector `i`'s (`name`) time-resolved tallies from `reg`'s end and declare them.
     pub fn declare(&self, i: usize, name: &str, im: Option<&ImageSpec>, reg: &mut Registry) -> TimeLayout {
@@ -41,6 +46,7 @@ impl TimeSpec {
             primary: true,
             budget_key: Some((format!("detectors[{i}].time.bins"), format!("= {bins}"))),
             units: "fraction of emitted power per time bin",
+            axes: vec![time_axis(name)],
             ..detector_output(i, format!("{name}.tpsf"), Kind::Curve, Slots::row(tpsf, bins, bins + 2), vec![bins])
         });
         let (image, pixels) = match im.filter(|_| self.image) {
@@ -53,6 +59,7 @@ impl TimeSpec {
                     budget_key: Some((format!("detectors[{i}].time.image"), format!("= true ({bins} gates)"))),
                     units: "fraction of emitted power per pixel and time bin",
                     ..image_stack_output(i, format!("{name}.time_gated_image"), im, bins, start)
+                        .layered(time_axis(name))
                 });
                 (Some(start), pixels)
             }

@@ -48,7 +48,7 @@
 use glam::DVec3;
 
 use crate::SPEED_OF_LIGHT;
-use crate::output::{Kind, Output, Registry, Slots};
+use crate::output::{Axis, Kind, Output, Registry, Slots};
 use crate::spectrum::{FrequencyAxis, Slot};
 
 /// The layout of the volume files.
@@ -218,12 +218,11 @@ impl VolumeGrid {
                 (n, self.shape(), budget.clone())
             };
             let start = reg.take(len);
-            reg.declare(Output {
-                file: format!("volume_{what}.npy"),
-                units,
-                budget_key: budget,
-                ..Output::new(format!("volume.{what}"), kind.clone(), Slots::contiguous(start, len), shape)
-            });
+            let mut o = Output::new(format!("volume.{what}"), kind.clone(), Slots::contiguous(start, len), shape);
+            if let (true, Some(t)) = (timed, self.time) {
+                o.axes[0] = Axis::linear("time_s", "s", t.center(0), t.bin_width(), t.bins);
+            }
+            reg.declare(Output { file: format!("volume_{what}.npy"), units, budget_key: budget, ..o });
             start
         };
         let (col, track) = (self.fluence.collision(), self.fluence.track());

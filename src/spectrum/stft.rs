@@ -212,6 +212,12 @@ impl Stft {
 /// `g_d·2 Σ_{B+} ν_k cos(2π ν_k d/f_s)` (M1). By the band's mirror symmetry they are real, purely
 /// imaginary and real, so only their real magnitudes are stored (`M0− = −Im Σ b_d z^d`).
 ///
+/// The higher moments ([`BandKernel::with_moments`]) weight the same bins by the signed frequency
+/// and its square: `M1− = Σ_{B+} ν_k P_k − Σ_{B−} |ν_k| P_k` (coefficients `g_d·2i Σ_{B+} ν_k Im e^{−2πi ν_k d/f_s}`),
+/// `M2± = Σ_{B+} ν_k² P_k ± Σ_{B−} ν_k² P_k` (`g_d·2 Σ_{B+} ν_k² cos(…)` and
+/// `g_d·2i Σ_{B+} ν_k² Im e^{…}`); `M1+` is `M1`. Kim et al. Eq. 56 with `f`, `f²` under the
+/// integral: `M_n± = ∫_{f1}^{f2} f^n [S(f) ± S(−f)] df`.
+///
 /// Evaluation splits each polynomial into even and odd powers, `p(z) = E(z²) + z O(z²)`, and runs
 /// the six Horner chains in `z²` side by side over eight lanes (three functions × even/odd, one
 /// pad each: measured 5–8% faster than six lanes), which the compiler vectorises: half the steps
@@ -223,6 +229,17 @@ pub struct BandKernel {
     /// For `j = 0..N/2`: `[M0+, M0− (imaginary part), M1, 0]` coefficients of `d = 2j`, then
     /// the same of `d = 2j + 1`.
     coefficients: Vec<[f64; 8]>,
+    /// With the higher moments: `[M1− (imaginary part), M2+, M2− (imaginary part), 0]`, likewise.
+    moments: Option<Vec<[f64; 8]>>,
+}
+
+/// The higher band moments of a line ([`BandKernel::eval_moments`]): `M1−` (Hz × fraction of
+/// power) and `M2±` (Hz² × fraction of power).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BandMoments {
+    pub m1_minus: f64,
+    pub m2_plus: f64,
+    pub m2_minus: f64,
 }
 
 /// `M0+`, `M0−` (fraction of power) and `M1` (Hz × fraction of power) of a band.
@@ -236,6 +253,16 @@ pub struct BandPowers {
 impl BandKernel {
     /// `None` if the band is empty or invalid (`f1 ≥ f2`, `f1 ≤ 0`, non-finite).
     pub fn new(stft: &Stft, f1: f64, f2: f64) -> Option<Self> {
+        Self::build(stft, f1, f2, false)
+    }
+
+    /// [`new`](Self::new), also evaluating the higher moments `M1−`, `M2±`
+    /// ([`eval_moments`](Self::eval_moments)).
+    pub fn with_moments(stft: &Stft, f1: f64, f2: f64) -> Option<Self> {
+        Self::build(stft, f1, f2, true)
+    }
+
+    fn build(stft: &Stft, f1: f64, f2: f64, moments: bool) -> Option<Self> {
         if !(f1.is_finite() && f2.is_finite() && f1 > 0.0 && f1 < f2) {
             return None;
         }
@@ -253,28 +280,38 @@ impl BandKernel {
         }
         // e^{−2πi m/N} for exact integer phases m = (k − N/2)·d mod N.
         let table: Vec<(f64, f64)> = (0..n).map(|m| (2.0 * PI * m as f64 / n as f64).sin_cos()).collect();
-        let single: Vec<[f64; 3]> = (0..n)
-            .map(|d| {
-                let g = if d == 0 { 1.0 } else { 2.0 } * stft.autocorrelation[d] / stft.norm;
-                let (mut re, mut im, mut first) = (0.0, 0.0, 0.0);
-                for &k in &band {
-                    let m = ((k - half) * d) % n;
-                    let (s, c) = table[m];
-                    re += c; // Re A_d
-                    im -= s; // Im A_d
-                    first += stft.bin_frequency(k) * c;
-                }
-                [g * 2.0 * re, g * 2.0 * im, g * 2.0 * first]
+        // The coefficients of lag `d` of the band sums weighted by `ν_k^p`: `[g·2 Σ ν^p cos, g·2 Σ ν^p Im]`.
+        let weighted = |d: usize, p: i32| -> [f64; 2] {
+            let g = if d == 0 { 1.0 } else { 2.0 } * stft.autocorrelation[d] / stft.norm;
+            let (mut re, mut im) = (0.0, 0.0);
+            for &k in &band {
+                let (s, c) = table[((k - half) * d) % n];
+                let w = if p == 0 { 1.0 } else { stft.bin_frequency(k).powi(p) };
+                re += w * c; // Re Σ ν^p e^{−iθd}
+                im -= w * s; // Im Σ ν^p e^{−iθd}
+            }
+            [g * 2.0 * re, g * 2.0 * im]
+        };
+        // Even and odd lags side by side, four functions each.
+        let lanes = |f: &dyn Fn(usize) -> [f64; 3]| -> Vec<[f64; 8]> {
+            (0..n / 2)
+                .map(|j| {
+                    let (e, o) = (f(2 * j), f(2 * j + 1));
+                    [e[0], e[1], e[2], 0.0, o[0], o[1], o[2], 0.0]
+                })
+                .collect()
+        };
+        let coefficients = lanes(&|d| {
+            let ([p, m], [first, _]) = (weighted(d, 0), weighted(d, 1));
+            [p, m, first]
+        });
+        let moments = moments.then(|| {
+            lanes(&|d| {
+                let ([_, first], [p2, m2]) = (weighted(d, 1), weighted(d, 2));
+                [first, p2, m2]
             })
-            .collect();
-        let coefficients = single
-            .chunks_exact(2)
-            .map(|pair| {
-                let (e, o) = (pair[0], pair[1]);
-                [e[0], e[1], e[2], 0.0, o[0], o[1], o[2], 0.0]
-            })
-            .collect();
-        Some(BandKernel { sample_rate: stft.sample_rate, bins: band.len(), coefficients })
+        });
+        Some(BandKernel { sample_rate: stft.sample_rate, bins: band.len(), coefficients, moments })
     }
 
     /// Number of bins in `B+` (= in `B−`).
@@ -287,21 +324,42 @@ impl BandKernel {
     /// `z²` of six complex multiply-adds (even and odd powers of the three band functions), all in
     /// one pass; O(N).
     pub fn eval(&self, f: f64, gamma: f64) -> BandPowers {
-        let rho = (-2.0 * PI * gamma / self.sample_rate).exp();
-        let z = Complex::from_polar(rho, 2.0 * PI * cycles(f, self.sample_rate));
-        let w = z * z;
-        let (mut re, mut im) = ([0.0; 8], [0.0; 8]);
-        for co in self.coefficients.iter().rev() {
-            for l in 0..8 {
-                let r = re[l] * w.re - im[l] * w.im + co[l];
-                im[l] = re[l] * w.im + im[l] * w.re;
-                re[l] = r;
-            }
-        }
-        // p(z) = E(z²) + z·O(z²) per function.
-        let p = |i: usize| Complex::new(re[i], im[i]) + z * Complex::new(re[i + 4], im[i + 4]);
+        let z = self.z(f, gamma);
+        let p = horner(&self.coefficients, z);
         BandPowers { m0_plus: p(0).re, m0_minus: -p(1).im, m1: p(2).re }
     }
+
+    /// Exact `M1−`, `M2+`, `M2−` of one line of unit power at `f` with HWHM `gamma`, as
+    /// [`eval`](Self::eval) evaluates `M0±`, `M1`; zero if the kernel was built without them
+    /// ([`with_moments`](Self::with_moments)).
+    pub fn eval_moments(&self, f: f64, gamma: f64) -> BandMoments {
+        let Some(co) = &self.moments else { return BandMoments::default() };
+        let p = horner(co, self.z(f, gamma));
+        BandMoments { m1_minus: -p(0).im, m2_plus: p(1).re, m2_minus: -p(2).im }
+    }
+
+    /// `z = ρ e^{2πi f/f_s}` of a line at `f` (reduced modulo `f_s`) with HWHM `gamma`.
+    fn z(&self, f: f64, gamma: f64) -> Complex<f64> {
+        let rho = (-2.0 * PI * gamma / self.sample_rate).exp();
+        Complex::from_polar(rho, 2.0 * PI * cycles(f, self.sample_rate))
+    }
+}
+
+/// The three polynomials of `coefficients` (even and odd powers side by side, eight lanes) at
+/// `z`, by Horner's rule in `z²`: `p(i)` is function `i`'s value.
+#[inline(always)]
+fn horner(coefficients: &[[f64; 8]], z: Complex<f64>) -> impl Fn(usize) -> Complex<f64> {
+    let w = z * z;
+    let (mut re, mut im) = ([0.0; 8], [0.0; 8]);
+    for co in coefficients.iter().rev() {
+        for l in 0..8 {
+            let r = re[l] * w.re - im[l] * w.im + co[l];
+            im[l] = re[l] * w.im + im[l] * w.re;
+            re[l] = r;
+        }
+    }
+    // p(z) = E(z²) + z·O(z²) per function.
+    move |i: usize| Complex::new(re[i], im[i]) + z * Complex::new(re[i + 4], im[i + 4])
 }
 
 /// The expected single-window periodogram of a power histogram on a [`FrequencyAxis`] (fftshift
@@ -536,41 +594,51 @@ mod tests {
         }
     }
 
-    fn brute_band(s: &Stft, f1: f64, f2: f64, f: f64, gamma: f64) -> BandPowers {
-        let mut out = BandPowers::default();
+    fn brute_band(s: &Stft, f1: f64, f2: f64, f: f64, gamma: f64) -> (BandPowers, BandMoments) {
+        let (mut out, mut m) = (BandPowers::default(), BandMoments::default());
         let n = s.samples();
         for k in 1..n {
             let nu = s.bin_frequency(k);
             let p = s.kernel(nu - f, gamma);
-            if f1 <= nu && nu <= f2 {
-                out.m0_plus += p;
-                out.m0_minus += p;
-                out.m1 += nu.abs() * p;
-            }
-            if f1 <= -nu && -nu <= f2 {
-                out.m0_plus += p;
-                out.m0_minus -= p;
-                out.m1 += nu.abs() * p;
+            // Both bands by the definition: M_n± = Σ_{B+} |ν|^n P ± Σ_{B−} |ν|^n P.
+            for (inside, sign) in [(f1 <= nu && nu <= f2, 1.0), (f1 <= -nu && -nu <= f2, -1.0)] {
+                if inside {
+                    out.m0_plus += p;
+                    out.m0_minus += sign * p;
+                    out.m1 += nu.abs() * p;
+                    m.m1_minus += sign * nu.abs() * p;
+                    m.m2_plus += nu * nu * p;
+                    m.m2_minus += sign * nu * nu * p;
+                }
             }
         }
-        out
+        (out, m)
     }
 
     #[test]
     fn band_kernel_matches_brute_force() {
-        // Scale of the error: 1e-12 of the band functions' natural size (1 for M0±, f2 for M1;
+        // Scale of the error: 1e-12 of the band functions' natural size (1 for M0±, f2 for M1±, f2² for M2±;
         // both are attained for a line inside the band), or of the value if larger.
         let mut worst: f64 = 0.0;
         for window in [Window::Rect, Window::Hann] {
             for n in [64, 512] {
                 let s = Stft::new(FS, n, window).unwrap();
                 for &(f1, f2) in &[(6_000.0, 18_300.0), (500.0, 1_500.0), (10_000.0, 19_500.0), (100.0, 30_000.0)] {
-                    let Some(band) = BandKernel::new(&s, f1, f2) else { panic!("band {f1}..{f2} empty") };
+                    let Some(band) = BandKernel::with_moments(&s, f1, f2) else { panic!("band {f1}..{f2} empty") };
                     for i in 0..40 {
                         let f = -60_000.0 + 3_001.37 * i as f64;
                         for &g in &[0.0, 0.3 * s.bin_width(), 5.0 * s.bin_width(), 3_000.0] {
-                            let e = band.eval(f, g);
-                            let b = brute_band(&s, f1, f2, f, g);
+                            let (e, em) = (band.eval(f, g), band.eval_moments(f, g));
+                            let (b, bm) = brute_band(&s, f1, f2, f, g);
+                            // The higher moments at the scale f2 (M1−) and f2² (M2±).
+                            let err_m1 = (em.m1_minus - bm.m1_minus).abs() / bm.m1_minus.abs().max(f2);
+                            let err_2p = (em.m2_plus - bm.m2_plus).abs() / bm.m2_plus.abs().max(f2 * f2);
+                            let err_2m = (em.m2_minus - bm.m2_minus).abs() / bm.m2_minus.abs().max(f2 * f2);
+                            worst = worst.max(err_m1).max(err_2p).max(err_2m);
+                            assert!(
+                                err_m1 < 1e-12 && err_2p < 1e-12 && err_2m < 1e-12,
+                                "{window:?} N={n} band {f1}..{f2} f={f} γ={g}: {em:?} vs {bm:?}"
+                            );
                             let err_p = (e.m0_plus - b.m0_plus).abs() / b.m0_plus.abs().max(1.0);
                             let err_m = (e.m0_minus - b.m0_minus).abs() / b.m0_minus.abs().max(1.0);
                             let err_1 = (e.m1 - b.m1).abs() / b.m1.abs().max(f2);
@@ -590,9 +658,13 @@ mod tests {
     #[test]
     fn band_kernel_symmetry_and_leakage() {
         let s = Stft::new(FS, 64, Window::Hann).unwrap();
-        let band = BandKernel::new(&s, 6_000.0, 18_300.0).unwrap();
+        let band = BandKernel::with_moments(&s, 6_000.0, 18_300.0).unwrap();
         // Bins 6094 … 18281 Hz: k − N/2 = 10 … 30.
         assert_eq!(band.bins(), 21);
+        // The moments' kernel leaves M0± and M1 as they are, bit for bit.
+        let plain = BandKernel::new(&s, 6_000.0, 18_300.0).unwrap();
+        assert_eq!(plain.eval(12_345.6, 321.0), band.eval(12_345.6, 321.0));
+        assert_eq!(plain.eval_moments(12_345.6, 321.0), BandMoments::default());
         for i in 0..50 {
             let f = -45_000.0 + 1_837.9 * i as f64;
             for &g in &[0.0, 200.0, 4_000.0] {
@@ -600,6 +672,10 @@ mod tests {
                 assert!((p.m0_plus - m.m0_plus).abs() < 1e-14, "M0+ even");
                 assert!((p.m0_minus + m.m0_minus).abs() < 1e-14, "M0− odd");
                 assert!((p.m1 - m.m1).abs() < 1e-14 * 18_300.0, "M1 even");
+                let (pm, mm) = (band.eval_moments(f, g), band.eval_moments(-f, g));
+                assert!((pm.m1_minus + mm.m1_minus).abs() < 1e-14 * 18_300.0, "M1− odd");
+                assert!((pm.m2_plus - mm.m2_plus).abs() < 1e-14 * 18_300.0_f64.powi(2), "M2+ even");
+                assert!((pm.m2_minus + mm.m2_minus).abs() < 1e-14 * 18_300.0_f64.powi(2), "M2− odd");
             }
         }
         // A pure tone in the middle of the band (12.4 kHz = 20.37 bins, ≥ 9.6 bins from either edge):
@@ -619,8 +695,15 @@ mod tests {
         assert!(1.0 - hann.m0_plus < 1e-6 && 1.0 - hann.m0_plus > 0.0);
         assert!(mirror > 0.0 && mirror < 1e-7);
         assert!((0.005..0.05).contains(&(1.0 - rect.m0_plus)));
-        // M1/M0+ is the mean |frequency| of the band power: close to the tone for Hann.
+        // M1/M0+ is the mean |frequency| of the band power: close to the tone for Hann; so are the
+        // signed mean M1−/M0+ (of −f: −f) and the RMS √(M2+/M0+) (the tone's spread, ±2 bins, adds
+        // < 0.3 % of f).
         assert!((hann.m1 / hann.m0_plus - f).abs() < 0.01 * s.bin_width());
+        let (hm, hm_neg) = (band.eval_moments(f, 0.0), band.eval_moments(-f, 0.0));
+        assert!((hm.m1_minus / hann.m0_plus - f).abs() < 0.01 * s.bin_width());
+        assert!((hm_neg.m1_minus / hann.m0_plus + f).abs() < 0.01 * s.bin_width());
+        let rms = (hm.m2_plus / hann.m0_plus).sqrt();
+        assert!(rms >= f && rms - f < 0.003 * f, "RMS {rms} of a tone at {f}");
     }
 
     #[test]

@@ -340,3 +340,148 @@ fn retina_roi_spectrum_has_dc_peak_single_shoulder_and_multiple_tail() {
     // t with 7 degrees of freedom: 4.79 is the one-sided 0.1 % point.
     assert!(t > 4.79, "multiple-scattering tail share excess {mean:e}, t = {t:.2}");
 }
+
+/// The run's value and standard error of the declared output `name`, in tally order.
+fn output(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
+    let o = r.out.layout.registry.get(name).unwrap_or_else(|| panic!("no output {name}"));
+    let (m, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
+    (m[o.slots.range()].to_vec(), se[o.slots.range()].to_vec())
+}
+
+/// A slab of isotropic scatterers all translating along the beam at `v`, index-matched, seen by
+/// the thin-vessel camera: every detected path, whatever its order, has the Doppler shift of its
+/// first and last directions only (the events' `v·(d_in − d_out)` telescope), f0 = 2 n v/λ0 up to
+/// the 0.05° cone (relative 2e-7), so every pixel's spectrum is one line at f0.
+const TRANSLATING_SLAB: &str = r#"
+schema_version = 1
+[run]
+samples = 400_000
+seed = 5
+batches = 20
+[source]
+wavelength_nm = 785
+position_mm = [0, 0, -0.1]
+[ambient]
+n_above = 1.33
+n_below = 1.33
+[media.moving]
+sigma_a_per_mm = 0.1
+sigma_s_per_mm = 5
+phase = { type = "isotropic" }
+velocity = { type = "uniform", velocity_mm_per_s = [0, 0, 3] }
+[[layers]]
+thickness_mm = 0.5
+n = 1.33
+medium = "moving"
+[[detectors]]
+name = "camera"
+area = { type = "rect", size_mm = [0.4, 0.4] }
+acceptance_half_angle_deg = 0.05
+include_specular = false
+[detectors.image]
+pixels = [4, 4]
+[detectors.ldh]
+band_khz = [4, 16]
+moments = true
+[[detectors.ldh.roi]]
+name = "spot"
+size_mm = [0.2, 0.2]
+"#;
+
+#[test]
+fn translating_slab_mean_and_rms_frequency_are_its_doppler_line() {
+    let f0 = 2.0 * N * 3e-3 / LAMBDA; // 10.166 kHz, mid-band
+    for flip in ["false", "true"] {
+        let r = run(TRANSLATING_SLAB, &[&format!("detectors.0.ldh.flip_sign={flip}")]);
+        let sign = if flip == "true" { -1.0 } else { 1.0 };
+        let bin = r.exp.detectors[0].ldh().unwrap().stft.bin_width();
+        let (m0, _) = output(&r, "camera.m0_plus");
+        let lit = m0.iter().filter(|&&v| v > 0.0).count();
+        assert!(lit >= 4, "{lit} pixels lit");
+        // With the Hann window a line 80 bins from either band edge leaks < 1e-6 of its power
+        // out of the band: the band's mean frequency is the line's within 0.01 bin, its RMS
+        // within 0.3 % (the window's own spread).
+        for (name, expected, tol) in [
+            ("mean_frequency_plus", f0, 0.01 * bin),
+            ("mean_frequency_minus", f0, 0.01 * bin),
+            ("rms_frequency", f0, 0.003 * f0),
+        ] {
+            let (v, se) = output(&r, &format!("camera.{name}"));
+            for (p, (&x, &s)) in v.iter().zip(&se).enumerate() {
+                if m0[p] > 0.0 {
+                    assert!((x - expected).abs() < tol, "{flip} {name} pixel {p}: {x} vs {expected}");
+                    // One line: every path gives the same ratio, so the jackknife sees none.
+                    assert!(s <= 1e-6 * expected, "{name} pixel {p}: σ {s}");
+                } else {
+                    assert!(x.is_nan(), "{name} pixel {p} without signal: {x}");
+                }
+            }
+            let (roi, _) = output(&r, &format!("camera.roi_spot.{name}"));
+            assert!((roi[0] - expected).abs() < tol, "ROI {name}: {}", roi[0]);
+        }
+        // The written M1− and mean signed frequency carry the set-up's sign, M1+ and M2+ do not.
+        let reg = &r.out.layout.registry;
+        for (name, s) in [("m1_minus", sign), ("m2_minus", sign), ("mean_frequency_minus", sign), ("m1_plus", 1.0)] {
+            assert_eq!(reg.get(&format!("camera.{name}")).unwrap().sign, s, "{name}");
+        }
+        // M1+ is the `m1` moment: M1+ = M1− on a line in the positive band, M2± likewise.
+        let (p, _) = output(&r, "camera.m1_plus");
+        let (m, _) = output(&r, "camera.m1_minus");
+        assert!(p.iter().zip(&m).all(|(a, b)| (a - b).abs() <= 1e-6 * a.abs()));
+    }
+}
+
+/// The moments of the single-scattering Poiseuille spectrum p(f) = 1/(2 f_max √(1 − f/f_max)) on
+/// [0, f_max] (validation-values §4.4), through the band's window kernel: with f = f_max(1 − u²),
+/// u uniform on [0, 1), E[M] = ∫ M(f(u)) du for every band function M of a unit line
+/// (`BandKernel`, itself checked against the brute-force periodogram).
+#[test]
+fn poiseuille_roi_moments_match_the_analytic_spectrum() {
+    let r = run(THIN_VESSEL, &["detectors.0.ldh.moments=true", "run.samples=30000000"]);
+    let spec = r.exp.detectors[0].ldh().unwrap();
+    let f_max = 2.0 * N * 0.01 * std::f64::consts::FRAC_1_SQRT_2 / LAMBDA;
+    let n = 20_000;
+    let (mut m0, mut m1p, mut m1m, mut m2) = (0.0, 0.0, 0.0, 0.0);
+    for j in 0..n {
+        let u = (j as f64 + 0.5) / n as f64;
+        let f = f_max * (1.0 - u * u);
+        let (b, m) = (spec.band_powers(f, 0.0), spec.band_moments(f, 0.0));
+        (m0, m1p, m1m, m2) = (m0 + b.m0_plus, m1p + b.m1, m1m + m.m1_minus, m2 + m.m2_plus);
+    }
+    let mut report = Vec::new();
+    for (name, expected) in
+        [("mean_frequency_plus", m1p / m0), ("mean_frequency_minus", m1m / m0), ("rms_frequency", (m2 / m0).sqrt())]
+    {
+        let (v, se) = output(&r, &format!("camera.roi_spot.{name}"));
+        let z = (v[0] - expected) / se[0];
+        report.push(format!("{name} {:.1} ± {:.1} Hz vs {expected:.1} (z = {z:+.2})", v[0], se[0]));
+        assert!(se[0] > 0.0 && se[0] < 0.01 * expected, "{name}: σ {} of {}", se[0], v[0]);
+        assert!(z.abs() < 4.0, "{}", report.join("; "));
+    }
+    eprintln!("Poiseuille ROI moments: {}", report.join("; "));
+    // Receding flow: the signed mean is the mean |f| up to the tiny negative-band leakage.
+    let (plus, _) = output(&r, "camera.roi_spot.mean_frequency_plus");
+    let (minus, _) = output(&r, "camera.roi_spot.mean_frequency_minus");
+    assert!(minus[0] > 0.0 && minus[0] <= plus[0]);
+}
+
+/// The jackknife's σ of a ratio output is its spread over independent runs: 24 seeds of the
+/// Poiseuille ROI's mean frequency (3·10⁵ paths, 20 batches in 16 groups each), the standard
+/// deviation of the values against the RMS of the reported σ (the ratio of two spreads from 24
+/// and 24 × 15 degrees of freedom: within ±40 % at about 3σ).
+#[test]
+fn jackknife_sigma_of_a_ratio_is_its_spread_over_seeds() {
+    let (mut values, mut variances) = (Vec::new(), Vec::new());
+    for seed in 1..=24 {
+        let r = run(THIN_VESSEL, &["detectors.0.ldh.moments=true", "run.samples=300000", &format!("run.seed={seed}")]);
+        let (v, se) = output(&r, "camera.roi_spot.mean_frequency_minus");
+        values.push(v[0]);
+        variances.push(se[0] * se[0]);
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let reported = (variances.iter().sum::<f64>() / n).sqrt();
+    eprintln!("mean frequency over 24 seeds: {mean:.1} Hz, spread {spread:.1} Hz, jackknife σ (RMS) {reported:.1} Hz");
+    assert!((0.6..1.4).contains(&(spread / reported)), "spread {spread} vs jackknife σ {reported}");
+}

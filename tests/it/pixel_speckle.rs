@@ -22,6 +22,7 @@ fn camera(axis: FrequencyAxis, windows: u32) -> LdhSpec {
     let options = LdhOptions {
         flip_sign: false,
         m1: false,
+        moments: false,
         by_class: false,
         rois: Vec::new(),
         spectrum_axis: axis,

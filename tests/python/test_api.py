@@ -87,6 +87,28 @@ def test_ldh_camera_run_is_the_cli_run(cli, tmp_path):
     r = ohd.run(cfg, samples=20000, figures=False, progress=False)
     assert_same_as_dir(r, tmp_path / "cli")
     assert r["camera_m0_plus"].values.ndim == 2 and r["camera_m0_plus"].stderr is not None
+    # Every array comes with its units and one axis per dimension (the manifest's `outputs`
+    # table), axis files are not outputs, and a relative-error map is not a power.
+    for name, o in r.outputs.items():
+        assert o.units and o.kind, name
+        assert [len(c) for c in o.axes.values()] == list(o.values.shape), (name, list(o.axes), o.values.shape)
+    assert "camera_roi_frequency_hz" not in r.outputs
+    assert r["camera_m0_plus"].units.startswith("fraction of emitted power per pixel")
+    assert r["camera_image_relative_error"].units.startswith("1 ") and r["camera_image_relative_error"].kind == "relative_error"
+    np.testing.assert_array_equal(r["camera_m0_plus"].axes["x_m"], r["camera_image"].axes["x_m"])
+    spectrum = next(o for n, o in r.outputs.items() if n.startswith("camera_roi_") and n.endswith("_spectrum"))
+    np.testing.assert_array_equal(spectrum.axes["frequency_hz"], np.load(tmp_path / "cli" / "camera_roi_frequency_hz.npy"))
+    assert list(spectrum.axes["channel"]) == ["total", "static", "single_doppler", "multiple_doppler"]
+    # ohd.load reads back the Result that ohd.run returned.
+    loaded = ohd.load(tmp_path / "cli")
+    assert loaded.estimates == r.estimates and set(loaded.outputs) == set(r.outputs)
+    for name, o in r.outputs.items():
+        l = loaded[name]
+        np.testing.assert_array_equal(l.values, o.values)
+        assert (l.stderr is None) == (o.stderr is None) and (l.units, l.kind) == (o.units, o.kind)
+        assert list(l.axes) == list(o.axes)
+    with pytest.raises(FileNotFoundError):
+        ohd.load(tmp_path / "nothing")
 
 
 def test_scan_run_is_the_cli_scan(cli, tmp_path):

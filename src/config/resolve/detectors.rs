@@ -232,6 +232,7 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
     let options = LdhOptions {
         flip_sign: l.flip_sign.unwrap_or(false),
         m1: l.m1.unwrap_or(false),
+        moments: l.moments.unwrap_or(false),
         by_class: l.by_class.unwrap_or(false),
         rois,
         spectrum_axis: axis,

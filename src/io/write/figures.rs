@@ -15,7 +15,7 @@ use crate::io::figures::image::{ImageFigure, Panel, hsv};
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE, Span, VLine, db_range};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, db, quantile, sequential_range, symmetric_range};
 use crate::io::figures::{Draw, Figure, render};
-use crate::output::{Kind, Output, PixelErrors};
+use crate::output::{Kind, Output, PixelErrors, Style};
 
 /// Dynamic range of spectra and maps below their peak, dB.
 pub const DB_DEPTH: f64 = 60.0;
@@ -42,14 +42,13 @@ impl Writer<'_, '_> {
     }
 
     /// The figure of the image output `o` (values `v`, row 0 at the top, standard errors `e`):
-    /// a main output with its relative-error map beside it. An LDH camera's M0− (and M1) are
-    /// signed: a diverging map on a symmetric range.
+    /// a main output with its relative-error map beside it, on a diverging map over a symmetric
+    /// range where its declaration says so ([`Style::Diverging`]).
     pub fn image_figure(&mut self, o: &Output, v: &[f64], e: &[f64], title: &str, unit: &str) -> Result<()> {
         if !self.figures {
             return Ok(());
         }
-        let what = o.name.rsplit('.').next().unwrap_or("");
-        let signed = what.starts_with("m0_minus") || what == "m1";
+        let signed = o.style == Style::Diverging;
         let mut panels = vec![image_panel(o, v, title, unit, signed)];
         if o.primary {
             panels.push(error_panel(o, v, e));

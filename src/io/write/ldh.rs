@@ -8,12 +8,12 @@ use std::collections::BTreeMap;
 use serde_json::{Map, Value, json};
 
 use super::figures::{Channel, directional, frequency_unit, mark_band, spectrum_plot, stem};
-use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
+use super::{Entry, IMAGE_LAYOUT, OutputEntry, Writer, estimate};
 use crate::detect::ImageSpec;
-use crate::detect::ldh::{CLASS_NAMES, LdhSpec};
+use crate::detect::ldh::{CLASS_NAMES, LdhSpec, M1_UNITS, SPECTRUM_UNITS};
 use crate::error::Result;
 use crate::io::figures::image::ImageFigure;
-use crate::output::rows_reversed;
+use crate::output::{Axis, rows_reversed};
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -71,7 +71,7 @@ pub fn write_ldh(
     let centres: Vec<f64> = (0..bins).map(|k| f_lo + (k as f64 + 0.5) * width).collect();
     let frequency_file = format!("{name}_roi_frequency_hz.npy");
     if !spec.rois.is_empty() || spec.pixel_spectra {
-        w.npy(frequency_file.clone(), &[bins], &centres)?;
+        w.axis_file(frequency_file.clone(), "frequency_hz", "Hz", &centres)?;
     }
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
@@ -144,8 +144,8 @@ pub fn write_ldh(
             "x_range_m": [im.min[0], im.max[0]],
             "y_range_m": [im.min[1], im.max[1]],
             "layout": IMAGE_LAYOUT,
-            "m0_units": "fraction of emitted power per pixel (band sum of the expected periodogram)",
-            "m1_units": "Hz × fraction of emitted power per pixel",
+            "m0_units": out("m0_plus").units,
+            "m1_units": M1_UNITS,
             "classes": CLASS_NAMES,
         },
         "spectrum": {
@@ -155,7 +155,7 @@ pub fn write_ldh(
             "bin_width_hz": width,
             "frequency_file": frequency_file,
             "channels": channel_names,
-            "units": "fraction of emitted power per bin (no window kernel)",
+            "units": SPECTRUM_UNITS,
         },
         "rois": Value::Object(rois),
         "pixel_speckle": pixel_speckle,
@@ -198,13 +198,20 @@ fn write_pixel_speckle(
     let plus = &all_plus[..pixels];
     let minus = &all_minus[..pixels];
     let file = |what: &str| format!("{name}_{what}");
-    w.npy(file("m0_plus_speckle.npy"), &[ny, nx], plus)?;
-    w.npy(file("m0_minus_speckle.npy"), &[ny, nx], minus)?;
-    w.npy(file("m0_plus_speckle_windows.npy"), &[windows, ny, nx], &all_plus)?;
-    w.npy(file("m0_minus_speckle_windows.npy"), &[windows, ny, nx], &all_minus)?;
-    w.npy(file("m0_plus_speckle_expected.npy"), &[ny, nx], &expected_plus)?;
-    let band = format!("{}–{} kHz", spec.band.0 / 1e3, spec.band.1 / 1e3);
     let grid = w.registry.expect(&format!("{name}.m0_plus"));
+    let image = |units| OutputEntry::made("speckle_image", &[ny, nx], units, grid.axes.clone());
+    let windows_axis = Axis::linear("window", "", 0.0, 1.0, windows);
+    let stack = |units| {
+        let axes = std::iter::once(windows_axis.clone()).chain(grid.axes.iter().cloned()).collect();
+        OutputEntry::made("speckle_windows", &[windows, ny, nx], units, axes)
+    };
+    const P: &str = "fraction of emitted power";
+    w.npy(file("m0_plus_speckle.npy"), plus, image(P))?;
+    w.npy(file("m0_minus_speckle.npy"), minus, image(P))?;
+    w.npy(file("m0_plus_speckle_windows.npy"), &all_plus, stack(P))?;
+    w.npy(file("m0_minus_speckle_windows.npy"), &all_minus, stack(P))?;
+    w.npy(file("m0_plus_speckle_expected.npy"), &expected_plus, image(P))?;
+    let band = format!("{}–{} kHz", spec.band.0 / 1e3, spec.band.1 / 1e3);
     for (what, values, sign) in [("m0_plus", plus, "+"), ("m0_minus", minus, "−")] {
         let title = format!("{name}: M0{sign}, single window ({band})");
         let p = super::figures::image_panel(grid, values, &title, "fraction of emitted power", sign == "−");
@@ -273,11 +280,16 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiS
     let file = |what: &str| format!("{name}_roi_{roi}_{what}.npy");
     let frequency_file = format!("{name}_stft_frequency_hz.npy");
     if axis {
-        w.npy(frequency_file.clone(), &[n], &freqs)?;
+        w.axis_file(frequency_file.clone(), "frequency_hz", "Hz", &freqs)?;
     }
-    w.npy(file("periodogram"), &[n], &prep(&s.expected))?;
-    w.npy(file("speckle_algorithm1"), &[windows, n], &prep(&s.algorithm1))?;
-    w.npy(file("speckle_algorithm2"), &[windows, n], &prep(&s.algorithm2))?;
+    const P: &str = "fraction of emitted power per STFT bin";
+    let f = Axis::file("frequency_hz", "Hz", frequency_file.clone());
+    let window = Axis::linear("window", "", 0.0, 1.0, windows);
+    let one = OutputEntry::made("periodogram", &[n], P, vec![f.clone()]);
+    let draws = OutputEntry::made("speckle_windows", &[windows, n], P, vec![window, f]);
+    w.npy(file("periodogram"), &prep(&s.expected), one)?;
+    w.npy(file("speckle_algorithm1"), &prep(&s.algorithm1), draws.clone())?;
+    w.npy(file("speckle_algorithm2"), &prep(&s.algorithm2), draws)?;
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows

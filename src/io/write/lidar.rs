@@ -4,56 +4,23 @@
 //! shot-noise SNR, the spectral moments and the one- or two-component fit of the total spectrum
 //! ([`retrieve_gate`]).
 
-use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use super::{Writer, estimate};
 use crate::detect::LidarSpec;
 use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::error::Result;
-use crate::experiment::Progress;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::lines::{Curve, LinePlot, PALETTE, db_range};
 use crate::io::figures::scale::{Colormap, db};
-use crate::output::Registry;
-use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity, retrieve_gate};
+use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity};
 
 /// Gates drawn in the gate-spectra figure (fewer if the receiver has fewer).
 const PLOTTED_GATES: usize = 4;
 /// Dynamic range of the range–Doppler map below its peak, dB.
 const MAP_RANGE_DB: f64 = super::figures::DB_DEPTH;
 
-/// What is read off every gate of the lidar receiver `name` ([`retrieve_gate`] on its total
-/// spectrum plus the shot-noise floor, through the gate's kernel for the run's gate energies):
-/// the run's post-processing, in gate order. The gates are independent, so they are retrieved in
-/// parallel on `threads` threads (results do not depend on the count) and `progress` advances by
-/// one per gate.
-pub fn retrieve_gates(
-    registry: &Registry,
-    mean: &[f64],
-    stderr: &[f64],
-    name: &str,
-    spec: &LidarSpec,
-    threads: usize,
-    progress: &dyn Progress,
-) -> Vec<GateRetrieval> {
-    let (total, lags) =
-        (registry.expect(&format!("{name}.range_doppler")), registry.expect(&format!("{name}.lag_sums")));
-    let bins = spec.fft_points;
-    // The total channel's gate energies (lag 0): the echo density that shapes each gate's kernel.
-    let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lags.slots.start + spec.lag_slot(0, g, 0)]).collect();
-    let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
-    let one = |g: usize| {
-        let o = total.slots.start + g * bins;
-        let kernel = spec.gate_kernel_in(g, &energies);
-        let r = retrieve_gate(axis.as_ref(), floor, spec.wavelength, &mean[o..o + bins], &stderr[o..o + bins], &kernel);
-        progress.advance(1);
-        r
-    };
-    crate::experiment::on_threads(threads, || (0..spec.gates).into_par_iter().map(one).collect())
-}
-
-/// Write the receiver's outputs, with `retrievals` its gates' ([`retrieve_gates`]); returns the
+/// Write the receiver's outputs, with `retrievals` its gates' ([`crate::post::retrieve_gates`]); returns the
 /// manifest entry (axes, files, noise model, per-gate energies and estimates).
 pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[GateRetrieval]) -> Result<Value> {
     let (reg, mean, se) = (w.registry, w.mean, w.stderr);
@@ -63,8 +30,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[G
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
     let velocity: Vec<f64> = freq.iter().map(|&f| radial_velocity(f, spec.wavelength)).collect();
     let file = |what: &str| format!("{name}_{what}");
-    w.npy(file("range_m.npy"), &[gates], &range)?;
-    w.npy(file("frequency_hz.npy"), &[bins], &freq)?;
+    w.axis_file(file("range_m.npy"), "range_m", "m", &range)?;
+    w.axis_file(file("frequency_hz.npy"), "frequency_hz", "Hz", &freq)?;
     let mut files = serde_json::Map::new();
     // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
     let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());

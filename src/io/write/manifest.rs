@@ -18,10 +18,9 @@ use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
 use crate::detect::{DetectorKind, LATERAL_SCALAR, Scalar, Side};
 use crate::error::Result;
 use crate::experiment::{Experiment, Progress, RunOutput};
-use crate::io::formats::npy;
 use crate::io::outdir::OutDir;
 use crate::output::{Kind, Output};
-use crate::retrieval::GateRetrieval;
+use crate::post::Finished;
 
 /// What the manifest records about how the run was invoked.
 #[derive(Debug, Clone)]
@@ -74,6 +73,10 @@ pub struct Manifest {
     /// The volume tally's grid and files (`[volume]`; absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume: Option<super::volume::VolumeEntry>,
+    /// Every output written, by file (a `.npy` name, or a JSON pointer into this manifest for a
+    /// scalar): its kind, shape, units, axes, standard-error file and figure
+    /// ([`super::OutputEntry`]).
+    pub outputs: BTreeMap<String, super::OutputEntry>,
     /// Every file written, in order.
     pub files: Vec<String>,
     /// What the run could not get right ([`crate::post::warnings`]), `[]` when nothing.
@@ -235,8 +238,9 @@ pub fn write_run_with(
     inv: &Invocation,
     progress: &dyn Progress,
 ) -> Result<Manifest> {
+    let finished = Finished::new(exp, out, progress)?;
     let open = || DirWriter::begin(dir, super::dir::Output::Run, &[]);
-    let (writer, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
+    let (writer, manifest, text) = write_run_to(open, &finished, config, inv)?;
     writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
     Ok(manifest)
 }
@@ -251,51 +255,27 @@ pub fn write_run_memory(
     inv: &Invocation,
     progress: &dyn Progress,
 ) -> Result<(Manifest, super::memory::Memory)> {
+    let finished = Finished::new(exp, out, progress)?;
     let open = || Ok(super::memory::Memory::default());
-    let (mut memory, manifest, text) = write_run_to(open, exp, out, config, inv, progress)?;
+    let (mut memory, manifest, text) = write_run_to(open, &finished, config, inv)?;
     memory.files.push((super::dir::MANIFEST.to_string(), text.into_bytes()));
     Ok((manifest, memory))
 }
 
-/// The one writer of a run's outputs: checks and post-processing first, then the files into the
-/// sink `open` makes (a directory is opened only once nothing can fail before writing); returns
-/// the sink, the manifest and its text, for the caller to write last.
+/// The one writer of a run's outputs: the files of the checked and post-processed run `f` into
+/// the sink `open` makes (opened only now, when nothing can fail before writing); returns the
+/// sink, the manifest and its text, for the caller to write last.
 fn write_run_to<S: super::Sink>(
     open: impl FnOnce() -> Result<S>,
-    exp: &Experiment,
-    out: &RunOutput,
+    f: &Finished,
     config: &toml::Table,
     inv: &Invocation,
-    progress: &dyn Progress,
 ) -> Result<(S, Manifest, String)> {
-    let stderr = out.estimates.stderr();
-    // Non-finite estimates are a bug: refused before anything is written (issue 21, item 4).
-    super::check_finite(&out.layout.registry, out.estimates.mean(), &stderr)?;
-    // Post-processing that the outputs need: the LDH ROIs' speckle, from the recorded lines.
-    let t = std::time::Instant::now();
-    let speckle = crate::post::speckle_of(exp, out);
-    let pixel_speckle = crate::post::pixel_speckle_of(exp, out);
-    let speckle_seconds = t.elapsed().as_secs_f64();
-    // The lidar gate fits, every receiver's gates in parallel.
-    let t = std::time::Instant::now();
-    progress.set_total(exp.detectors.iter().filter_map(|d| d.lidar()).map(|l| l.gates as u64).sum());
-    let (registry, mean, threads) = (&out.layout.registry, out.estimates.mean(), exp.plan.effective_threads());
-    let retrievals: Vec<Vec<GateRetrieval>> = exp
-        .detectors
-        .iter()
-        .map(|d| match &d.kind {
-            DetectorKind::Lidar(spec) => {
-                super::lidar::retrieve_gates(registry, mean, &stderr, &d.name, spec, threads, progress)
-            }
-            DetectorKind::Surface(_) => Vec::new(),
-        })
-        .collect();
-    // 0 without a lidar receiver (nothing was fitted).
-    let gate_fit_seconds = if retrievals.iter().any(|r| !r.is_empty()) { t.elapsed().as_secs_f64() } else { 0.0 };
+    let (exp, out, stderr) = (f.exp, f.out, &f.stderr);
     let t = std::time::Instant::now();
     let mut writer = open()?;
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put_file(name, bytes) };
-    let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), &stderr);
+    let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), stderr);
     w.figures = inv.figures;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
@@ -344,7 +324,7 @@ fn write_run_to<S: super::Sink>(
                         x_range_m: [im.min[0], im.max[0]],
                         y_range_m: [im.min[1], im.max[1]],
                         layout: IMAGE_LAYOUT,
-                        units: "fraction of emitted power per pixel",
+                        units: o.units,
                     });
                 }
                 if let Some(t) = &s.time {
@@ -359,14 +339,14 @@ fn write_run_to<S: super::Sink>(
                         &d.name,
                         im,
                         spec,
-                        &speckle,
-                        pixel_speckle.as_ref(),
+                        &f.speckle,
+                        f.pixel_speckle.as_ref(),
                         &mut estimates,
                     )?);
                 }
             }
             DetectorKind::Lidar(spec) => {
-                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, &retrievals[i])?);
+                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, &f.retrievals[i])?);
             }
         }
         w.rest(i, &mut de)?;
@@ -378,8 +358,10 @@ fn write_run_to<S: super::Sink>(
         None => None,
     };
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
+    let table = std::mem::take(&mut w.table);
     drop(w);
     let files = writer.written();
+    let outputs = super::with_figures(table, &files);
     if !det_estimates.is_empty() {
         estimates.insert("detectors".into(), Entry::Group(det_estimates));
     }
@@ -423,8 +405,8 @@ fn write_run_to<S: super::Sink>(
         wall_seconds: out.wall_seconds,
         timing: Timing {
             transport_seconds: out.wall_seconds,
-            postprocess_seconds: speckle_seconds + gate_fit_seconds,
-            gate_fit_seconds,
+            postprocess_seconds: f.speckle_seconds + f.gate_fit_seconds,
+            gate_fit_seconds: f.gate_fit_seconds,
             // Up to the manifest itself, whose writing is not timed (it holds the time).
             writing_seconds: t.elapsed().as_secs_f64(),
         },
@@ -438,7 +420,7 @@ fn write_run_to<S: super::Sink>(
             roulette_terminations: st.roulette_terminations,
             truncated_paths: st.truncated_paths,
             non_finite: st.non_finite,
-            speckle_seconds,
+            speckle_seconds: f.speckle_seconds,
             out_of_range_weight: out_of_range_total,
             doppler: exp.needs_doppler(),
             path_length: exp.needs_length(),
@@ -448,8 +430,9 @@ fn write_run_to<S: super::Sink>(
         detectors: det_info,
         pixel_errors,
         volume,
+        outputs,
         files,
-        warnings: crate::post::warnings(exp, out),
+        warnings: f.warnings.clone(),
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
     Ok((writer, manifest, text))
@@ -469,7 +452,7 @@ fn write_spectra(
     let bins = spec.axis.bins;
     let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
     let frequency_file = format!("{name}_frequency_hz.npy");
-    w.put(frequency_file.clone(), npy::to_bytes(&[bins], &centres))?;
+    w.axis_file(frequency_file.clone(), "frequency_hz", "Hz", &centres)?;
     let prefix = format!("{name}.spectrum");
     let spectra: Vec<&Output> = reg.of_detector(i).filter(|o| o.name.starts_with(&prefix)).collect();
     let mut channel_names: Vec<String> = Vec::new();
@@ -509,7 +492,7 @@ fn write_spectra(
             frequency_file,
             channels: channel_names,
             chirps,
-            units: "fraction of emitted power per bin",
+            units: crate::output::PER_BIN,
         },
         out_of_range_total,
     ))

@@ -23,7 +23,7 @@ use serde::Serialize;
 
 use super::formats::{exr::exr_bytes, npy};
 use crate::error::{Error, Result};
-use crate::output::{Kind, Output, PixelErrors, Registry};
+use crate::output::{Axis, Kind, Output, PixelErrors, Registry};
 
 /// A value and its standard error (`null` in JSON when not finite).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -78,30 +78,98 @@ pub fn stderr_file(file: &str) -> String {
     format!("{}_stderr.npy", file.trim_end_matches(".npy"))
 }
 
-/// The last line of defence against non-finite outputs (issue 21, item 4): validation refuses
-/// what cannot give finite output, so a NaN or an infinity in a run's estimates or standard errors
-/// is a bug, and the run fails (exit status 1) naming the first output that holds one, before any
-/// file is written, rather than write it silently (NaN is let through where an output documents it
-/// as undefined: [`crate::output::Output::undefined_nan`]). Every written output is checked, its
-/// out-of-range tallies included; internal ones (a lidar's lag sums) are not written, and show in
-/// the outputs made from them.
-pub fn check_finite(registry: &Registry, mean: &[f64], stderr: &[f64]) -> Result<()> {
-    for o in registry.outputs.iter().filter(|o| o.kind != Kind::Internal) {
-        let slots = o.slots.start..o.slots.start + o.slots.footprint();
-        let bad = |x: &f64| if o.undefined_nan { x.is_infinite() } else { !x.is_finite() };
-        let count = |v: &[f64]| v[slots.clone()].iter().filter(|x| bad(x)).count();
-        let (values, errors) = (count(mean), count(stderr));
-        if values + errors > 0 {
-            let what = format!(
-                "output {} ({values} of its {} values and {errors} of their standard errors; file {})",
-                o.name,
-                slots.len(),
-                o.file.trim_start_matches('/')
-            );
-            return Err(Error::NotFinite { what, count: values + errors });
+/// The manifest's description of one written output (`outputs`, keyed by its file: a `.npy` name,
+/// or a JSON pointer into the manifest for a scalar): what a reader needs to interpret the file
+/// without knowing ohd's file names.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutputEntry {
+    /// The declared output (`camera.m0_plus`); absent for what is made at write time (axis
+    /// files, speckle draws, relative-error maps).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output: Option<String>,
+    /// `image`, `spectrum`, `curve`, `scalar`, …; `axis` for the coordinates of other outputs'
+    /// axes.
+    pub kind: &'static str,
+    /// For an axis file: the name of the axis whose coordinates it holds (`frequency_hz`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis: Option<&'static str>,
+    pub shape: Vec<usize>,
+    pub units: &'static str,
+    /// One per dimension of `shape`.
+    pub axes: Vec<Axis>,
+    /// The file of the standard errors (same shape).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stderr_file: Option<String>,
+    /// The file holds `sign ×` the output's tally (an LDH camera's M0− with `flip_sign`).
+    #[serde(skip_serializing_if = "is_one")]
+    pub sign: f64,
+    /// NaN marks a value left undefined (too few paths).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub undefined_nan: bool,
+    /// Its OpenEXR copy (images).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exr_file: Option<String>,
+    /// The map of its per-pixel relative errors (main images).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error_file: Option<String>,
+    /// Its figure (`.png`, with an `.svg` beside it), if drawn.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub figure: Option<String>,
+}
+
+fn is_one(x: &f64) -> bool {
+    *x == 1.0
+}
+
+impl OutputEntry {
+    /// The entry of a declared output.
+    pub fn of(o: &Output) -> Self {
+        OutputEntry {
+            output: Some(o.name.clone()),
+            kind: o.kind.name(),
+            axis: None,
+            shape: o.shape.clone(),
+            units: o.units,
+            axes: o.axes.clone(),
+            stderr_file: (o.stderr && !o.is_scalar()).then(|| stderr_file(&o.file)),
+            sign: o.sign,
+            undefined_nan: o.undefined_nan,
+            exr_file: None,
+            relative_error_file: None,
+            figure: None,
         }
     }
-    Ok(())
+
+    /// The entry of an array made at write time.
+    pub fn made(kind: &'static str, shape: &[usize], units: &'static str, axes: Vec<Axis>) -> Self {
+        OutputEntry {
+            output: None,
+            kind,
+            axis: None,
+            shape: shape.to_vec(),
+            units,
+            axes,
+            stderr_file: None,
+            sign: 1.0,
+            undefined_nan: false,
+            exr_file: None,
+            relative_error_file: None,
+            figure: None,
+        }
+    }
+}
+
+/// The manifest's `outputs`: the `table` of every output written, each given the figure drawn of
+/// it (`<stem>.png` beside `<stem>.npy`) if that is among `files`.
+pub fn with_figures(mut table: BTreeMap<String, OutputEntry>, files: &[String]) -> BTreeMap<String, OutputEntry> {
+    let drawn: BTreeSet<&str> = files.iter().map(String::as_str).collect();
+    for (file, entry) in table.iter_mut() {
+        let png = format!("{}.png", file.trim_end_matches(".npy"));
+        if file.ends_with(".npy") && drawn.contains(png.as_str()) {
+            entry.figure = Some(png);
+        }
+    }
+    table
 }
 
 /// A finished run's outputs being written: where files go, the registry that declares the
@@ -117,6 +185,8 @@ pub struct Writer<'a, 'p> {
     pub pixel_errors: BTreeMap<String, PixelErrorEntry>,
     /// Whether figures are drawn ([`Writer::figure`]; `--no-figures` turns them off).
     pub figures: bool,
+    /// Every output written so far, by file (the manifest's `outputs`).
+    pub table: BTreeMap<String, OutputEntry>,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -132,7 +202,16 @@ pub struct PixelErrorEntry {
 
 impl<'a, 'p> Writer<'a, 'p> {
     pub fn new(put: &'a mut Put<'p>, registry: &'a Registry, mean: &'a [f64], stderr: &'a [f64]) -> Self {
-        Writer { put, registry, mean, stderr, written: BTreeSet::new(), pixel_errors: BTreeMap::new(), figures: true }
+        Writer {
+            put,
+            registry,
+            mean,
+            stderr,
+            written: BTreeSet::new(),
+            pixel_errors: BTreeMap::new(),
+            figures: true,
+            table: BTreeMap::new(),
+        }
     }
 
     /// Write a file.
@@ -140,14 +219,24 @@ impl<'a, 'p> Writer<'a, 'p> {
         (self.put)(name, bytes)
     }
 
-    /// Write `values` (of `shape`) as the `.npy` file `name`, refusing non-finite values
-    /// ([`check_finite`] for arrays made at write time: axes, speckle).
-    pub fn npy(&mut self, name: String, shape: &[usize], values: &[f64]) -> Result<()> {
+    /// Write `values` (of `shape`) as the `.npy` file `name`, made at write time (speckle draws):
+    /// listed in the manifest's `outputs` as `entry` says, refusing non-finite values
+    /// ([`check_finite`] for arrays made at write time).
+    pub fn npy(&mut self, name: String, values: &[f64], entry: OutputEntry) -> Result<()> {
         let count = values.iter().filter(|x| !x.is_finite()).count();
         if count > 0 {
             return Err(Error::NotFinite { what: format!("{name} (of {} values)", values.len()), count });
         }
-        self.put(name, npy::to_bytes(shape, values))
+        let bytes = npy::to_bytes(&entry.shape, values);
+        self.table.insert(name.clone(), entry);
+        self.put(name, bytes)
+    }
+
+    /// Write the coordinates along an axis (`axis`: its name, as the outputs' [`Axis`] names it)
+    /// as the `.npy` file `name`.
+    pub fn axis_file(&mut self, name: String, axis: &'static str, units: &'static str, values: &[f64]) -> Result<()> {
+        let entry = OutputEntry { axis: Some(axis), ..OutputEntry::made("axis", &[values.len()], units, Vec::new()) };
+        self.npy(name, values, entry)
     }
 
     /// The output `name` (declared by the detector being written).
@@ -158,6 +247,7 @@ impl<'a, 'p> Writer<'a, 'p> {
     /// A scalar output as an estimate (`sign ×` its tally, and its standard error).
     pub fn estimate(&mut self, o: &Output) -> Estimate {
         self.written.insert(o.name.clone());
+        self.table.insert(o.file.clone(), OutputEntry::of(o));
         let s = o.slots.start;
         estimate(o.sign * self.mean[s], self.stderr[s])
     }
@@ -166,6 +256,7 @@ impl<'a, 'p> Writer<'a, 'p> {
     /// latter unless the output has none); returns them.
     pub fn array(&mut self, o: &Output) -> Result<(Vec<f64>, Vec<f64>)> {
         self.written.insert(o.name.clone());
+        self.table.insert(o.file.clone(), OutputEntry::of(o));
         let (v, e) = o.values(self.mean, self.stderr);
         self.put(o.file.clone(), npy::to_bytes(&o.shape, &v))?;
         if o.stderr {
@@ -183,7 +274,10 @@ impl<'a, 'p> Writer<'a, 'p> {
         let name = format!("{}.exr", o.file.trim_end_matches(".npy"));
         let exr = exr_bytes(nx, ny, &[(channel, &v), (&format!("{channel}_stderr"), &e)])
             .map_err(|m| Error::Write { path: name.clone().into(), source: std::io::Error::other(m) })?;
-        self.put(name, exr)?;
+        self.put(name.clone(), exr)?;
+        if let Some(entry) = self.table.get_mut(&o.file) {
+            entry.exr_file = Some(name);
+        }
         if o.primary {
             self.pixel_error_map(o, nx, ny, &v, &e)?;
         }
@@ -197,6 +291,13 @@ impl<'a, 'p> Writer<'a, 'p> {
         let stem = o.file.trim_end_matches(".npy");
         let file = format!("{stem}_relative_error.npy");
         self.put(file.clone(), npy::to_bytes(&[ny, nx], &pe.map))?;
+        let axes = o.axes.clone();
+        let mut entry = OutputEntry::made("relative_error", &[ny, nx], "1 (σ/|value|; NaN where the value is 0)", axes);
+        entry.undefined_nan = true;
+        self.table.insert(file.clone(), entry);
+        if let Some(entry) = self.table.get_mut(&o.file) {
+            entry.relative_error_file = Some(file.clone());
+        }
         let finite = |v: f64| v.is_finite().then_some(v);
         let entry = PixelErrorEntry {
             file,
@@ -208,10 +309,11 @@ impl<'a, 'p> Writer<'a, 'p> {
         Ok(())
     }
 
-    /// Detector `i`'s declared outputs that no writer of its kind has written: arrays as `.npy`
-    /// (with their standard errors), scalars into `estimates` under their name after the
-    /// detector's. An output declared in the registry and recorded into is thus written even
-    /// before its detector's writer knows of it.
+    /// Detector `i`'s declared outputs that no writer of its kind has written: images as `.npy`,
+    /// `.exr` and their figure (titled and drawn as declared), other arrays as `.npy` (with their
+    /// standard errors), scalars into `estimates` under their name after the detector's. An
+    /// output declared in the registry and recorded into is thus written, completely, without a
+    /// writer of its own.
     pub fn rest(&mut self, i: usize, estimates: &mut BTreeMap<String, Entry>) -> Result<()> {
         let registry = self.registry;
         for o in registry.of_detector(i) {
@@ -224,6 +326,12 @@ impl<'a, 'p> Writer<'a, 'p> {
                     let key = o.name.split_once('.').map_or(o.name.as_str(), |(_, k)| k).to_string();
                     let e = self.estimate(o);
                     estimates.insert(key, Entry::Estimate(e));
+                }
+                Kind::Image { .. } => {
+                    let (detector, what) = o.name.split_once('.').unwrap_or(("", &o.name));
+                    let (v, e) = self.image(o, what)?;
+                    let title = format!("{detector}: {}", if o.title.is_empty() { what } else { &o.title });
+                    self.image_figure(o, &v, &e, &title, o.units)?;
                 }
                 _ => {
                     self.array(o)?;
@@ -256,6 +364,10 @@ mod tests {
             sign: -1.0,
             primary: false,
             budget_key: None,
+            axes: Vec::new(),
+            style: crate::output::Style::Sequential,
+            title: String::new(),
+            derivation: crate::output::Derivation::Tally,
             undefined_nan: false,
         };
         let start = reg.take(4);
@@ -264,7 +376,10 @@ mod tests {
             file: "new.npy".into(),
             ..base("cam.new", image, Slots::contiguous(start, 2), vec![1, 2])
         });
-        reg.declare(base("cam.flux", Kind::Scalar, Slots::contiguous(start + 2, 1), vec![]));
+        reg.declare(Output {
+            file: "/estimates/detectors/cam/flux/value".into(),
+            ..base("cam.flux", Kind::Scalar, Slots::contiguous(start + 2, 1), vec![])
+        });
         reg.declare(base("cam.work", Kind::Internal, Slots::contiguous(start + 3, 1), vec![1]));
         let (mean, se) = ([1.0, 2.0, 3.0, 4.0], [0.1, 0.2, 0.3, 0.4]);
         let mut files: Vec<(String, Vec<u8>)> = Vec::new();
@@ -273,12 +388,18 @@ mod tests {
             Ok(())
         };
         let mut w = Writer::new(&mut put, &reg, &mean, &se);
+        w.figures = false;
         let mut estimates = BTreeMap::new();
         w.rest(0, &mut estimates).unwrap();
+        // Each is listed in the outputs table with its kind and units.
+        assert_eq!(w.table["new.npy"].kind, "image");
+        assert_eq!(w.table["new.npy"].exr_file.as_deref(), Some("new.exr"));
+        assert!(w.table.keys().any(|k| k.starts_with('/')), "the scalar");
+        drop(w);
         assert_eq!(estimates.get("flux"), Some(&Entry::Estimate(estimate(-3.0, 0.3))));
         assert_eq!(estimates.len(), 1);
         let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
-        assert_eq!(names, ["new.npy", "new_stderr.npy"]);
+        assert_eq!(names, ["new.npy", "new_stderr.npy", "new.exr"]);
         assert_eq!(npy::from_bytes(&files[0].1), Some((vec![1, 2], vec![-1.0, -2.0])));
         assert_eq!(npy::from_bytes(&files[1].1), Some((vec![1, 2], vec![0.1, 0.2])));
     }

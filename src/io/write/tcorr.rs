@@ -24,7 +24,7 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
     let bins = spec.axis.bins;
     let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
     let time_file = format!("{name}_time_s.npy");
-    w.npy(time_file.clone(), &[bins], &centres)?;
+    w.axis_file(time_file.clone(), "time_s", "s", &centres)?;
     let o = w.output(&format!("{name}.tpsf"));
     let (v, e) = w.array(o)?;
     let ((below, above), (below_se, above_se)) = (o.tails(w.mean, 0), o.tails(w.stderr, 0));
@@ -76,7 +76,7 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
 pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> Result<Value> {
     let n = spec.tau.len();
     let tau_file = format!("{name}_tau_s.npy");
-    w.npy(tau_file.clone(), &[n], &spec.tau)?;
+    w.axis_file(tau_file.clone(), "tau_s", "s", &spec.tau)?;
     curves(w, name, spec)?;
     let mut entry = json!({
         "tau_file": tau_file,
@@ -86,9 +86,8 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
         "normalisation": "over the run: ratios of the run's means, |g1|² unbiased in numerator and denominator; σ: jackknife over 16 groups of batches",
     });
     if !spec.exposures.is_empty() {
-        let nt = spec.exposures.len();
         let exposure_file = format!("{name}_exposure_s.npy");
-        w.npy(exposure_file.clone(), &[nt], &spec.exposures)?;
+        w.axis_file(exposure_file.clone(), "exposure_s", "s", &spec.exposures)?;
         entry["exposure_file"] = json!(exposure_file);
         if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
             contrast_image_figure(w, o, spec)?;
