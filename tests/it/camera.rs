@@ -219,8 +219,8 @@ fn auto_runs_the_estimator_its_pilot_finds_cheaper() {
         let s = decided.detectors[0].surface().unwrap();
         let a = s.auto.expect("the pilot's figures are kept");
         assert!(a.forward.is_finite() && a.camera.is_finite() && a.forward > 0.0 && a.camera > 0.0, "{a:?}");
-        assert_eq!(s.estimator, expect, "{half_angle}°: {a:?}");
-        assert_eq!(s.estimator == Estimator::Camera, a.camera < a.forward);
+        assert_eq!(s.estimator(), expect, "{half_angle}°: {a:?}");
+        assert_eq!(s.estimator() == Estimator::Camera, a.camera < a.forward);
         // The same decision, figures and all, on two threads.
         let mut two = ohd::pilot::decide(&load("auto", 2));
         two.plan.threads = 1;
