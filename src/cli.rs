@@ -567,7 +567,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             say!(
                 "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
                 d.name,
-                d.surface().map_or("forward", |s| s.estimator.name()),
+                d.surface().map_or("forward", |s| s.estimator().name()),
                 a.forward / a.camera
             );
         }

@@ -751,10 +751,12 @@ impl Display for Detector {
                 format!("{} from the surface", length(d.distance))
             }
         )?;
-        if d.estimator == crate::detect::Estimator::Camera {
-            write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
-        } else if d.estimator == crate::detect::Estimator::Auto {
+        if d.choice == crate::detect::EstimatorChoice::Auto && d.auto.is_none() {
+            // Undecided: a run that is not the CLI's or Python's (which decide first) estimates
+            // it forward ([`crate::detect::Surface::estimator`]).
             write!(f, ", estimator auto (a pilot before the run chooses camera-side or forward estimation)")?;
+        } else if d.estimator() == crate::detect::Estimator::Camera {
+            write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
         } else if d.next_event {
             write!(f, ", next-event estimation")?;
         }

@@ -30,7 +30,7 @@
 //! Both compare over the camera pilot's pixels. The pilot's paths are not part of the run's
 //! estimate (they would make its batches unequal); its time is reported.
 
-use crate::detect::{AutoChoice, DetectorKind, Estimator};
+use crate::detect::{AutoChoice, DetectorKind, EstimatorChoice};
 use crate::experiment::{Experiment, RunOutput, Silent};
 use crate::sampling::rng::mix64;
 use crate::stats::RunStats;
@@ -48,19 +48,33 @@ pub const CONNECTION_STEPS: f64 = 3.0;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 const PILOT_SEED: u64 = 0x0050_494c_4f54;
 
-/// `exp` with every `estimator = "auto"` decided by a pilot (itself, cloned, when there is none).
+/// `exp` with every undecided `estimator = "auto"` decided by a pilot ([`pilot`]; itself,
+/// cloned, when there is none): the pilot's figures kept on the detector, whose
+/// [`crate::detect::Surface::estimator`] is then the one they choose.
 pub fn decide(exp: &Experiment) -> Experiment {
-    let autos: Vec<usize> = (0..exp.detectors.len()).filter(|&i| estimator(exp, i) == Some(Estimator::Auto)).collect();
     let mut out = exp.clone();
+    for (i, choice) in pilot(exp) {
+        if let DetectorKind::Surface(s) = &mut out.detectors[i].kind {
+            s.auto = Some(choice);
+        }
+    }
+    out
+}
+
+/// The pilot's figures for every undecided `estimator = "auto"` detector of `exp`, by detector
+/// index (none when there is none to decide, without a pilot run); each chooses by
+/// [`AutoChoice::chosen`].
+pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
+    let autos: Vec<usize> = (0..exp.detectors.len()).filter(|&i| undecided(exp, i)).collect();
     if autos.is_empty() {
-        return out;
+        return Vec::new();
     }
     let ppb = (exp.plan.samples() / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS);
     // The camera pilot traces about a quarter as many camera paths as the forward pilot traces
     // paths, one per traced pixel and batch.
     let pixels = autos.iter().map(|&i| pixels_of(exp, i)).sum::<usize>() as u64;
     let stride = (4 * pixels).div_ceil(ppb).max(1) as usize;
-    let variant = |e: Estimator| {
+    let variant = |e: EstimatorChoice| {
         let mut v = exp.clone();
         v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED);
         v.plan.batches = PILOT_BATCHES;
@@ -70,7 +84,7 @@ pub fn decide(exp: &Experiment) -> Experiment {
         autos.iter().for_each(|&i| set_estimator(&mut v, i, e));
         v
     };
-    let (forward_exp, camera_exp) = (variant(Estimator::Forward), variant(Estimator::Camera));
+    let (forward_exp, camera_exp) = (variant(EstimatorChoice::Forward), variant(EstimatorChoice::Camera));
     let (forward, camera) = (forward_exp.run(&Silent), camera_exp.run(&Silent));
     // Work per path of each kind (forward paths of each pilot, camera paths), in steps.
     let forward_paths = (ppb * PILOT_BATCHES) as f64;
@@ -79,7 +93,7 @@ pub fn decide(exp: &Experiment) -> Experiment {
     let per_forward_beside = forward_work(&camera.stats) / forward_paths;
     let per_camera = camera_work(&camera.stats) / camera_paths;
     let run_ppb = exp.plan.paths_per_batch;
-    for &i in &autos {
+    let figures = |i: usize| {
         let (vf, vc) = relative_variances(exp, i, stride, &forward, &camera);
         // Relative variance × work of a run of either estimator, at any number of paths: per
         // forward path (forward); per camera path per pixel, with the forward paths traced
@@ -89,24 +103,20 @@ pub fn decide(exp: &Experiment) -> Experiment {
         let camera_figure = vc
             * (pilot_spp * PILOT_BATCHES) as f64
             * (per_forward_beside * run_ppb as f64 / run_spp as f64 + per_camera * pixels_of(exp, i) as f64);
-        let choice = AutoChoice { forward: forward_figure, camera: camera_figure };
-        let chosen = if choice.camera < choice.forward { Estimator::Camera } else { Estimator::Forward };
-        set_estimator(&mut out, i, chosen);
-        if let DetectorKind::Surface(s) = &mut out.detectors[i].kind {
-            s.auto = Some(choice);
-        }
-    }
-    out
+        (i, AutoChoice { forward: forward_figure, camera: camera_figure })
+    };
+    autos.iter().map(|&i| figures(i)).collect()
 }
 
-/// Detector `i`'s estimator, if it is a surface detector.
-fn estimator(exp: &Experiment, i: usize) -> Option<Estimator> {
-    exp.detectors[i].surface().map(|s| s.estimator)
+/// Whether detector `i` is an `estimator = "auto"` one no pilot has decided yet.
+fn undecided(exp: &Experiment, i: usize) -> bool {
+    exp.detectors[i].surface().is_some_and(|s| s.choice == EstimatorChoice::Auto && s.auto.is_none())
 }
 
-fn set_estimator(exp: &mut Experiment, i: usize, e: Estimator) {
+/// Set detector `i`'s configured estimator to `e` (a pilot's variant).
+fn set_estimator(exp: &mut Experiment, i: usize, e: EstimatorChoice) {
     if let DetectorKind::Surface(s) = &mut exp.detectors[i].kind {
-        s.estimator = e;
+        s.choice = e;
     }
 }
 

@@ -158,23 +158,33 @@ pub struct Surface {
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
-    /// How its light is estimated: by the forward paths, or by camera paths from its pixels
-    /// ([`crate::transport::camera`]); `Auto` until a pilot decides ([`crate::pilot`]).
-    pub estimator: Estimator,
-    /// What the pilot of `estimator = "auto"` measured, once it has decided.
+    /// How its light is to be estimated, as configured (`estimator = "…"`). What a run uses is
+    /// [`Surface::estimator`], never this.
+    pub choice: EstimatorChoice,
+    /// What the pilot of `estimator = "auto"` measured, once it has decided ([`crate::pilot`]):
+    /// its decision, read by [`Surface::estimator`]. `None` for any other choice.
     pub auto: Option<AutoChoice>,
 }
 
 /// The pilot's figures for `estimator = "auto"` ([`crate::pilot`]): the mean per-pixel relative
 /// variance of the detector's main image × the work (collision steps) of a run by each estimator;
-/// the lower is chosen.
+/// the lower is chosen ([`AutoChoice::chosen`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct AutoChoice {
     pub forward: f64,
     pub camera: f64,
 }
 
-/// The estimator of a surface detector's scattered light.
+impl AutoChoice {
+    /// The estimator these figures choose: camera-side where it is strictly cheaper, forward
+    /// otherwise (a tie, or figures that are not numbers).
+    pub fn chosen(self) -> Estimator {
+        if self.camera < self.forward { Estimator::Camera } else { Estimator::Forward }
+    }
+}
+
+/// The estimator a run uses for a surface detector's scattered light: decided, never "auto"
+/// ([`Surface::estimator`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Estimator {
     /// The paths from the laser: their escapes into the cone and, with `next_event`, their
@@ -182,9 +192,6 @@ pub enum Estimator {
     Forward,
     /// Paths from the camera's pixels, connected to the laser at every scattering vertex.
     Camera,
-    /// Either, whichever a pilot finds lower in variance × work ([`crate::pilot`]); traced as
-    /// `Forward` if it is never decided.
-    Auto,
 }
 
 impl Estimator {
@@ -193,15 +200,42 @@ impl Estimator {
         match self {
             Estimator::Forward => "forward",
             Estimator::Camera => "camera",
-            Estimator::Auto => "auto",
         }
     }
+}
+
+/// A surface detector's configured estimator (`estimator = "forward" | "camera" | "auto"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorChoice {
+    Forward,
+    Camera,
+    /// Either, whichever a pilot finds lower in variance × work ([`crate::pilot`]).
+    Auto,
 }
 
 impl Surface {
     /// Solid angle of the acceptance cone, sr.
     pub fn solid_angle(&self) -> f64 {
         cone_solid_angle(self.cos_acceptance)
+    }
+
+    /// The estimator a run uses: the configured one, or for `"auto"` the pilot's decision —
+    /// forward until a pilot has decided, so that every reader (the paths traced, their
+    /// weights, the manifest) sees one estimator.
+    #[inline]
+    pub fn estimator(&self) -> Estimator {
+        match self.choice {
+            EstimatorChoice::Forward => Estimator::Forward,
+            EstimatorChoice::Camera => Estimator::Camera,
+            EstimatorChoice::Auto => self.auto.map_or(Estimator::Forward, AutoChoice::chosen),
+        }
+    }
+
+    /// Scored by next-event estimation: shadow rays are traced to it, and the forward paths'
+    /// escapes into its cone are weighted against them (a camera-estimated detector never is).
+    #[inline]
+    pub fn scored_by_next_event(&self) -> bool {
+        self.next_event && self.estimator() == Estimator::Forward
     }
 }
 
@@ -231,7 +265,7 @@ impl Detector {
     /// never is).
     pub fn next_event(&self) -> bool {
         match &self.kind {
-            DetectorKind::Surface(s) => s.next_event && s.estimator == Estimator::Forward,
+            DetectorKind::Surface(s) => s.scored_by_next_event(),
             DetectorKind::Lidar(_) => true,
         }
     }
@@ -730,13 +764,13 @@ impl Recorder<'_> {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
             if d.side != side
-                || d.estimator == Estimator::Camera
+                || d.estimator() == Estimator::Camera
                 || (e.specular && !d.include_specular)
                 || e.dir.dot(d.axis) < d.cos_acceptance
             {
                 continue;
             }
-            if d.next_event && e.order > 0 {
+            if d.scored_by_next_event() && e.order > 0 {
                 // A direct escape into a next-event detector's cone: the balance heuristic
                 // against the shadow rays, which sample the same exit directions uniformly in
                 // the cone (pdfs in exit solid angle: the phase function's, p·n0² cos θ0 /

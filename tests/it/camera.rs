@@ -219,8 +219,8 @@ fn auto_runs_the_estimator_its_pilot_finds_cheaper() {
         let s = decided.detectors[0].surface().unwrap();
         let a = s.auto.expect("the pilot's figures are kept");
         assert!(a.forward.is_finite() && a.camera.is_finite() && a.forward > 0.0 && a.camera > 0.0, "{a:?}");
-        assert_eq!(s.estimator, expect, "{half_angle}°: {a:?}");
-        assert_eq!(s.estimator == Estimator::Camera, a.camera < a.forward);
+        assert_eq!(s.estimator(), expect, "{half_angle}°: {a:?}");
+        assert_eq!(s.estimator() == Estimator::Camera, a.camera < a.forward);
         // The same decision, figures and all, on two threads.
         let mut two = ohd::pilot::decide(&load("auto", 2));
         two.plan.threads = 1;
@@ -231,5 +231,44 @@ fn auto_runs_the_estimator_its_pilot_finds_cheaper() {
         let (x, y) = (decided.run(&ohd::experiment::Silent), chosen.run(&ohd::experiment::Silent));
         assert_eq!(x.estimates.mean(), y.estimates.mean(), "{half_angle}°");
         assert_eq!(x.estimates.stderr(), y.estimates.stderr(), "{half_angle}°");
+    }
+}
+
+/// `estimator = "auto"` run through the library without a pilot (`Experiment::run` straight from
+/// the config): every reader sees one estimator, so the LDH camera's image, M0+ and power, and
+/// those of a next-event detector beside it, are those of the explicit estimators within their
+/// errors. Before the decision was a type of two states, an undecided `auto` traced no shadow
+/// rays to the camera (an LDH camera is scored by next-event estimation) yet weighted its escapes
+/// against them by the balance heuristic: its power came out low by many σ.
+#[test]
+fn an_undecided_auto_camera_beside_a_next_event_detector_is_unbiased() {
+    let nee = r#"
+[[detectors]]
+name = "nee"
+area = { type = "rect", size_mm = [1.0, 1.0] }
+acceptance_half_angle_deg = 5
+include_specular = false
+next_event = true
+[detectors.image]
+pixels = [4, 4]
+"#;
+    let go = |estimator: &str| {
+        let text = scene(estimator) + nee;
+        run(&text, &["run.samples=300000"])
+    };
+    let (auto, fwd, cam) = (go("auto"), go("forward"), go("camera"));
+    for (what, other) in [("forward", &fwd), ("camera", &cam)] {
+        for d in 0..2 {
+            let (a, b) = (auto.power(d), other.power(d));
+            let z = (a.0 - b.0) / a.1.hypot(b.1);
+            assert!(b.0 > 10.0 * b.1, "detector {d}, {what}: power {b:?} not resolved");
+            assert!(z.abs() < 4.0, "detector {d} power: auto {a:?}, {what} {b:?}, z = {z:.2}");
+        }
+        for name in ["camera.image", "camera.m0_plus", "nee.image"] {
+            let (a, b) = (output(&auto, name), output(other, name));
+            let (stat, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
+            assert!(dof >= 16, "{name}: only {dof} pixels with an error");
+            assert!(p > 1e-4, "{name}, auto against {what}: χ² = {stat:.1} over {dof} pixels (p = {p:.2e})");
+        }
     }
 }

@@ -10,8 +10,8 @@ use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
-    Area, CorrelationSpec, Detector, DetectorKind, Estimator, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi, Side,
-    SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
+    Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi,
+    Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -361,11 +361,11 @@ fn resolve_estimator(
     side: Side,
     image: bool,
     source: &Source,
-) -> R<Estimator> {
+) -> R<EstimatorChoice> {
     let (estimator, name) = match kind {
-        None | Some(EstimatorKind::Forward) => return Ok(Estimator::Forward),
-        Some(EstimatorKind::Camera) => (Estimator::Camera, "camera"),
-        Some(EstimatorKind::Auto) => (Estimator::Auto, "auto"),
+        None | Some(EstimatorKind::Forward) => return Ok(EstimatorChoice::Forward),
+        Some(EstimatorKind::Camera) => (EstimatorChoice::Camera, "camera"),
+        Some(EstimatorKind::Auto) => (EstimatorChoice::Auto, "auto"),
     };
     let why_not = if side != Side::Top {
         "camera paths leave from a top detector (they enter the stack through z = 0)"
@@ -540,7 +540,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                 "= true: next-event estimation scores top detectors only (shadow rays leave through z = 0)",
             );
         }
-        let estimator = resolve_estimator(&path, d.estimator, side, image.is_some(), source)?;
+        let choice = resolve_estimator(&path, d.estimator, side, image.is_some(), source)?;
         let mut surface = Surface {
             side,
             distance,
@@ -554,7 +554,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             correlation,
             ldh: None,
             next_event,
-            estimator,
+            choice,
             auto: None,
         };
         if let Some(l) = &d.ldh {

@@ -2,7 +2,7 @@
 
 use super::{R, err, index_of_refraction, require_arr};
 use crate::config::schema::LateralSection;
-use crate::detect::{Detector, DetectorKind, Estimator};
+use crate::detect::{Detector, DetectorKind, EstimatorChoice};
 use crate::medium::Lateral;
 use crate::source::{Profile, Source};
 
@@ -60,7 +60,7 @@ pub(super) fn resolve_lateral(
     for (i, d) in detectors.iter().enumerate() {
         let key = match &d.kind {
             DetectorKind::Lidar(_) => "lidar",
-            DetectorKind::Surface(s) if s.estimator != Estimator::Forward => "estimator",
+            DetectorKind::Surface(s) if s.choice != EstimatorChoice::Forward => "estimator",
             DetectorKind::Surface(s) if s.ldh.is_some() => "ldh",
             DetectorKind::Surface(s) if s.next_event => "next_event",
             DetectorKind::Surface(_) => continue,

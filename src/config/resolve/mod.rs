@@ -36,7 +36,7 @@ use self::source::resolve_source;
 use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
-use crate::detect::{DetectorKind, Estimator};
+use crate::detect::{DetectorKind, EstimatorChoice};
 use crate::error::ConfigError;
 use crate::experiment::Experiment;
 use crate::medium::grid::VoxelGrid;
@@ -206,7 +206,8 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     }
     check_chirp_ranges(f, &source, &detectors)?;
     if plan.walk.gate.is_some()
-        && let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.estimator != Estimator::Forward))
+        && let Some(i) =
+            detectors.iter().position(|d| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward))
     {
         return err(
             format!("detectors[{i}].estimator"),

@@ -291,7 +291,7 @@ fn write_run_to<S: super::Sink>(
         de.insert("detected_power".to_string(), Entry::Estimate(power));
         let mut info = DetectorEntry {
             side: if d.side() == Side::Top { "top" } else { "bottom" },
-            estimator: d.surface().map(|s| s.estimator.name()),
+            estimator: d.surface().map(|s| s.estimator().name()),
             estimator_pilot: d.surface().and_then(|s| s.auto),
             spectrum: None,
             fmcw: None,
