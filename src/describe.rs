@@ -846,6 +846,17 @@ impl Display for Experiment {
         if self.detectors.is_empty() {
             writeln!(f, "  (none: only the scalar tallies)")?;
         }
+        // The outputs as declared: what the run will write, its shape, axes and units.
+        let layout = self.tally_layout();
+        let outputs: Vec<&crate::output::Output> =
+            layout.registry.outputs.iter().filter(|o| o.kind != crate::output::Kind::Internal).collect();
+        let scalars = outputs.iter().filter(|o| o.is_scalar()).count();
+        writeln!(f, "outputs: {} arrays, {scalars} scalars (manifest.json: estimates)", outputs.len() - scalars)?;
+        for o in outputs.iter().filter(|o| !o.is_scalar()) {
+            let axes: Vec<&str> = o.axes.iter().map(|a| a.name.as_str()).collect();
+            let shape: Vec<String> = o.shape.iter().map(|n| n.to_string()).collect();
+            writeln!(f, "  {}: {} ({}), {}", o.file, shape.join(" × "), axes.join(" × "), o.units)?;
+        }
         writeln!(
             f,
             "run: {}, walk with{} Doppler, with{} path length",

@@ -312,9 +312,10 @@ impl LdhSpec {
         let unit = |reg: &mut Registry, prefix: &str, stem: &str, kind: Kind, shape: Vec<usize>, m0_plus: usize| {
             let len = shape.iter().product::<usize>();
             let start = reg.take(MOMENTS.len() * len);
+            // A scalar lies in its detector's estimates under its name after the detector's.
             let output = |what: &str, slots: Slots| Output {
                 file: if shape.is_empty() {
-                    format!("/estimates/detectors/{name}/{stem}{what}/value")
+                    format!("/estimates/detectors/{name}/{}.{what}/value", &prefix[name.len() + 1..])
                 } else {
                     format!("{name}_{stem}{what}.npy")
                 },

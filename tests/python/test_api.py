@@ -83,10 +83,19 @@ def test_default_run_is_the_cli_run_byte_for_byte(cli, tmp_path):
 
 def test_ldh_camera_run_is_the_cli_run(cli, tmp_path):
     cfg = CONFIGS / "retina_ldh.toml"
-    cli("run", cfg, "--samples", 20000, "--no-figures", "--out", tmp_path / "cli", "--quiet")
-    r = ohd.run(cfg, samples=20000, figures=False, progress=False)
+    moments = "detectors.0.ldh.moments=true"
+    cli("run", cfg, "--samples", 20000, "--no-figures", "--set", moments, "--out", tmp_path / "cli", "--quiet")
+    r = ohd.run(cfg, samples=20000, figures=False, progress=False, overrides=[moments])
     assert_same_as_dir(r, tmp_path / "cli")
     assert r["camera_m0_plus"].values.ndim == 2 and r["camera_m0_plus"].stderr is not None
+    # Every scalar of the outputs table is where its JSON pointer says.
+    for pointer, e in r.manifest["outputs"].items():
+        if pointer.startswith("/"):
+            node = r.manifest
+            for part in pointer.strip("/").split("/"):
+                node = node[part]
+            assert (node is None or isinstance(node, float)) and e["kind"] == "scalar", pointer
+    assert r["camera_mean_frequency_minus"].units == "Hz"
     # Every array comes with its units and one axis per dimension (the manifest's `outputs`
     # table), axis files are not outputs, and a relative-error map is not a power.
     for name, o in r.outputs.items():
