@@ -3,7 +3,8 @@
 //! Work is split into `batches` equal batches of paths. Path `i` of batch `b` draws from the
 //! stream `(seed, Path, b, i)`; batches run in parallel on a rayon pool and are folded into the
 //! statistics in batch order, so the output does not depend on the number of threads.
-//! The random walk is compiled once per scene kind (moving or not, path length needed or not).
+//! The random walk is compiled once per scene kind ([`Features`]); each batch hands its paths to
+//! the one dispatch there.
 
 use crate::detect::volume::{VolumeGrid, VolumeTally};
 use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
@@ -14,7 +15,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{CameraTarget, NeeTarget, WalkContext, WalkSettings, trace_camera_path, trace_path};
+use crate::transport::{CameraTarget, Features, NeeTarget, WalkContext, WalkSettings};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -210,7 +211,8 @@ impl RunOutput {
     }
 }
 
-const PROGRESS_EVERY: u64 = 4096;
+/// Paths between progress reports (and checks for cancellation) of a batch.
+const PROGRESS_EVERY: u64 = crate::transport::PATHS_PER_TICK;
 
 /// A run at a batch boundary: everything needed to continue it to the same result.
 #[derive(Debug, Clone)]
@@ -618,22 +620,6 @@ impl Experiment {
     fn run_batch(
         &self,
         batch: u64,
-        sums: Tallies,
-        layout: &TallyLayout,
-        beat: BeatModel,
-        progress: &dyn Progress,
-    ) -> BatchResult {
-        match (self.needs_doppler(), self.needs_length()) {
-            (false, false) => self.run_batch_kind::<false, false>(batch, sums, layout, beat, progress),
-            (true, false) => self.run_batch_kind::<true, false>(batch, sums, layout, beat, progress),
-            (false, true) => self.run_batch_kind::<false, true>(batch, sums, layout, beat, progress),
-            (true, true) => self.run_batch_kind::<true, true>(batch, sums, layout, beat, progress),
-        }
-    }
-
-    fn run_batch_kind<const DOPPLER: bool, const LENGTH: bool>(
-        &self,
-        batch: u64,
         mut sums: Tallies,
         layout: &TallyLayout,
         beat: BeatModel,
@@ -671,21 +657,13 @@ impl Experiment {
         let cameras = self.camera_targets();
         // Progress counts forward paths; with camera paths, which cost the most, it follows them.
         let forward_progress = cameras.is_empty();
-        let gate = LENGTH && self.plan.walk.gate.is_some();
-        let cancelled = if self.scene.lateral.is_some() {
-            lateral_forward_paths::<DOPPLER, LENGTH>(volume.is_some(), gate, &walk, &mut rec, &key, ppb, progress)
-        } else {
-            forward_paths_by::<DOPPLER, LENGTH, false>(
-                volume.is_some(),
-                gate,
-                &walk,
-                &mut rec,
-                &key,
-                ppb,
-                forward_progress,
-                progress,
-            )
-        };
+        let features = Features::new(&walk, self.needs_length());
+        let cancelled = features.forward_paths(&walk, &mut rec, &key, ppb, || {
+            if forward_progress {
+                progress.advance(PROGRESS_EVERY);
+            }
+            progress.cancelled()
+        });
         if cancelled {
             return (sums, stats, lines);
         }
@@ -701,10 +679,7 @@ impl Experiment {
             let batch_weight = ppb as f64 / spp as f64;
             let key = StreamKey::new(self.plan.seed, Purpose::Camera, batch | (cam.detector as u64) << 48);
             for pixel in (0..cam.pixels()).step_by(cam.stride) {
-                for k in 0..spp {
-                    let mut rng = key.path(pixel as u64 * spp + k);
-                    trace_camera_path::<DOPPLER, LENGTH>(&walk, cam, pixel, batch_weight, &mut rec, &mut rng);
-                }
+                features.camera_paths(&walk, cam, pixel, spp, batch_weight, &mut rec, &key);
                 done += spp;
                 if progress.cancelled() {
                     return (sums, stats, lines);
@@ -722,81 +697,4 @@ impl Experiment {
         layout.finish_batch(&self.detectors, sums.sums_mut(), batch);
         (sums, stats, lines)
     }
-}
-
-/// [`forward_paths`] in a box phantom (`[lateral]`; no camera paths, so progress follows the
-/// forward paths). Outlined: inlined beside the walks without it, its four walks changed the
-/// register allocation of theirs (measured: +0.23 % instructions on the vdH slab without
-/// `[lateral]`).
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn lateral_forward_paths<const DOPPLER: bool, const LENGTH: bool>(
-    volume: bool,
-    gate: bool,
-    walk: &WalkContext,
-    rec: &mut Recorder,
-    key: &StreamKey,
-    ppb: u64,
-    progress: &dyn Progress,
-) -> bool {
-    forward_paths_by::<DOPPLER, LENGTH, true>(volume, gate, walk, rec, key, ppb, true, progress)
-}
-
-/// [`forward_paths`] compiled for the batch's volume tally (`volume`) and time gate (`gate`):
-/// one branch per batch, so that the walk without them runs the loop it ran before there were
-/// any.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn forward_paths_by<const DOPPLER: bool, const LENGTH: bool, const LATERAL: bool>(
-    volume: bool,
-    gate: bool,
-    walk: &WalkContext,
-    rec: &mut Recorder,
-    key: &StreamKey,
-    ppb: u64,
-    forward_progress: bool,
-    progress: &dyn Progress,
-) -> bool {
-    let (fp, p) = (forward_progress, progress);
-    match (volume, gate) {
-        (false, false) => forward_paths::<DOPPLER, LENGTH, false, false, LATERAL>(walk, rec, key, ppb, fp, p),
-        (true, false) => forward_paths::<DOPPLER, LENGTH, true, false, LATERAL>(walk, rec, key, ppb, fp, p),
-        (false, true) => forward_paths::<DOPPLER, LENGTH, false, true, LATERAL>(walk, rec, key, ppb, fp, p),
-        (true, true) => forward_paths::<DOPPLER, LENGTH, true, true, LATERAL>(walk, rec, key, ppb, fp, p),
-    }
-}
-
-/// The forward paths of a batch (`ppb` of them from `key`), with the volume tally (`VOLUME`) or
-/// without, with the time gate (`GATE`, only where `LENGTH`) or without, in a box phantom
-/// (`LATERAL`, never with next-event targets) or in infinite layers. Returns whether the
-/// caller cancelled the run ([`Progress::cancelled`]), checked every [`PROGRESS_EVERY`] paths.
-#[inline(always)]
-fn forward_paths<const DOPPLER: bool, const LENGTH: bool, const VOLUME: bool, const GATE: bool, const LATERAL: bool>(
-    walk: &WalkContext,
-    rec: &mut Recorder,
-    key: &StreamKey,
-    ppb: u64,
-    forward_progress: bool,
-    progress: &dyn Progress,
-) -> bool {
-    for i in 0..ppb {
-        let mut rng = key.path(i);
-        if LATERAL {
-            // (Resolve refuses next-event targets in a box.)
-            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE, true>(walk, rec, &mut rng);
-        } else if walk.nee.is_empty() {
-            trace_path::<DOPPLER, LENGTH, false, VOLUME, GATE, false>(walk, rec, &mut rng);
-        } else {
-            trace_path::<DOPPLER, LENGTH, true, VOLUME, GATE, false>(walk, rec, &mut rng);
-        }
-        if (i + 1) % PROGRESS_EVERY == 0 {
-            if forward_progress {
-                progress.advance(PROGRESS_EVERY);
-            }
-            if progress.cancelled() {
-                return true;
-            }
-        }
-    }
-    false
 }

@@ -1,12 +1,14 @@
 //! Light transport: Fresnel interfaces, free-flight tracking and the random walk of a path.
 
 pub mod camera;
+pub mod features;
 pub mod fresnel;
 pub mod nee;
 pub mod tracking;
 pub mod walk;
 
 pub use camera::CameraTarget;
+pub use features::{Features, PATHS_PER_TICK};
 pub use nee::NeeTarget;
 pub use tracking::{Flight, LayerRay, Tracking, free_flight};
-pub use walk::{PathState, WalkContext, WalkSettings, trace_camera_path, trace_path};
+pub use walk::{PathState, WalkContext, WalkSettings};
