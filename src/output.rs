@@ -10,8 +10,16 @@
 //! budget, the terminal report, shard and checkpoint files — reads the registry, never offsets
 //! of its own.
 //!
-//! Adding an output: declare it where its detector lays out its tallies, record into its slots,
-//! and write it where its detector's outputs are written (`io::write::manifest`).
+//! An output is declared once, completely: besides its slots, its kind, shape and [`Axis`] per
+//! dimension, units, sign, [`Style`] and title for its figure, the memory key, and its
+//! [`Derivation`] (a linear tally, or a ratio of grouped tallies whose σ is the group jackknife,
+//! [`Registry::finish_run`]). The manifest's `outputs` table, the Python package and `ohd check`
+//! read these declarations; writers find an output by the slot its detector's layout holds
+//! ([`Registry::at`]), never by a formatted name.
+//!
+//! Adding an output: declare it where its detector lays out its tallies and record into its
+//! slots; an image or array that no writer of its detector knows is written completely (files,
+//! EXR, figure, manifest entry) as declared (`io::write::Writer::rest`).
 
 use std::ops::Range;
 
@@ -538,6 +546,14 @@ impl Registry {
             }
         }
         Ok(())
+    }
+
+    /// The output whose values start at tally slot `start` (a slot its detector's layout holds).
+    pub fn at(&self, start: usize) -> &Output {
+        self.outputs
+            .iter()
+            .find(|o| o.slots.start == start && o.kind != Kind::Internal)
+            .unwrap_or_else(|| panic!("an output is declared at slot {start}"))
     }
 
     /// The output called `name`.

@@ -94,7 +94,7 @@ pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
     let per_camera = camera_work(&camera.stats) / camera_paths;
     let run_ppb = exp.plan.paths_per_batch;
     let figures = |i: usize| {
-        let (vf, vc) = relative_variances(exp, i, stride, &forward, &camera);
+        let (vf, vc) = relative_variances(i, stride, &forward, &camera);
         // Relative variance × work of a run of either estimator, at any number of paths: per
         // forward path (forward); per camera path per pixel, with the forward paths traced
         // beside the camera paths in the run's proportion (camera).
@@ -143,13 +143,14 @@ fn camera_work(st: &RunStats) -> f64 {
 /// The squared relative errors `Σσ²/Σm²` of detector `i`'s main image (M0+ of an LDH camera,
 /// else the intensity image) by the forward and the camera pilot, over the pixels the camera
 /// pilot traced (every `stride`-th); infinite (neither chosen for it) when neither reached any.
-fn relative_variances(exp: &Experiment, i: usize, stride: usize, f: &RunOutput, c: &RunOutput) -> (f64, f64) {
-    let d = &exp.detectors[i];
-    let name = format!("{}.{}", d.name, if d.ldh().is_some() { "m0_plus" } else { "image" });
+fn relative_variances(i: usize, stride: usize, f: &RunOutput, c: &RunOutput) -> (f64, f64) {
     // In the tally's pixel order, which the camera pilot's stride counts in.
     let image = |o: &RunOutput| {
         let (mean, stderr) = (o.estimates.mean(), o.estimates.stderr());
-        o.layout.registry.get(&name).map(|out| (mean[out.range()].to_vec(), stderr[out.range()].to_vec()))
+        let lay = &o.layout.detectors[i];
+        let start = lay.ldh.as_ref().map(|l| l.m0_plus).or(lay.image)?;
+        let out = o.layout.registry.at(start);
+        Some((mean[out.range()].to_vec(), stderr[out.range()].to_vec()))
     };
     let (Some((mf, sf)), Some((mc, sc))) = (image(f), image(c)) else { return (f64::INFINITY, f64::INFINITY) };
     let (mut m2, mut vf, mut vc) = (0.0, 0.0, 0.0);

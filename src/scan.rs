@@ -18,8 +18,8 @@ use crate::source::Pointing;
 /// `NAME_gates.csv`: the shot-noise floor, a constant, does not move the peak); `None` for a gate
 /// without signal. `None` altogether without a lidar receiver.
 pub fn gate_peak_velocities(exp: &Experiment, out: &RunOutput) -> Option<Vec<Option<f64>>> {
-    let (d, spec) = exp.detectors.iter().find_map(|d| d.lidar().map(|l| (d, l)))?;
-    let start = out.layout.registry.get(&format!("{}.range_doppler", d.name))?.slots.start;
+    let (i, spec) = exp.detectors.iter().enumerate().find_map(|(i, d)| d.lidar().map(|l| (i, l)))?;
+    let start = out.layout.detectors[i].lidar.as_ref()?.spectra;
     let k = spec.fft_points;
     let axis = spec.frequency_axis()?;
     let mean = out.estimates.mean();

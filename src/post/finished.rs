@@ -12,10 +12,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::{PixelSpeckle, RoiSpeckle, Warning, pixel_speckle_of, speckle_of, warnings};
-use crate::detect::{DetectorKind, LidarSpec};
+use crate::detect::{DetectorKind, LidarLayout, LidarSpec};
 use crate::error::Result;
 use crate::experiment::{Experiment, Progress, RunOutput};
-use crate::output::Registry;
 use crate::retrieval::{GateRetrieval, retrieve_gate};
 
 /// A run ready to be written.
@@ -56,8 +55,12 @@ impl<'a> Finished<'a> {
         let retrievals: Vec<Vec<GateRetrieval>> = exp
             .detectors
             .iter()
-            .map(|d| match &d.kind {
-                DetectorKind::Lidar(spec) => retrieve_gates(registry, mean, &stderr, &d.name, spec, threads, progress),
+            .enumerate()
+            .map(|(i, d)| match &d.kind {
+                DetectorKind::Lidar(spec) => {
+                    let lay = out.layout.detectors[i].lidar.as_ref().expect("a lidar receiver's layout");
+                    retrieve_gates(lay, mean, &stderr, spec, threads, progress)
+                }
                 DetectorKind::Surface(_) => Vec::new(),
             })
             .collect();
@@ -83,27 +86,24 @@ impl<'a> Finished<'a> {
     }
 }
 
-/// What is read off every gate of the lidar receiver `name` ([`retrieve_gate`] on its total
+/// What is read off every gate of a lidar receiver (laid out as `lay`; [`retrieve_gate`] on its total
 /// spectrum plus the shot-noise floor, through the gate's kernel for the run's gate energies), in
 /// gate order. The gates are independent, so they are retrieved in parallel on `threads` threads
 /// (results do not depend on the count) and `progress` advances by one per gate.
 pub fn retrieve_gates(
-    registry: &Registry,
+    lay: &LidarLayout,
     mean: &[f64],
     stderr: &[f64],
-    name: &str,
     spec: &LidarSpec,
     threads: usize,
     progress: &dyn Progress,
 ) -> Vec<GateRetrieval> {
-    let (total, lags) =
-        (registry.expect(&format!("{name}.range_doppler")), registry.expect(&format!("{name}.lag_sums")));
     let bins = spec.fft_points;
     // The total channel's gate energies (lag 0): the echo density that shapes each gate's kernel.
-    let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lags.slots.start + spec.lag_slot(0, g, 0)]).collect();
+    let energies: Vec<f64> = (0..spec.gates).map(|g| mean[lay.lags + spec.lag_slot(0, g, 0)]).collect();
     let (axis, floor) = (spec.frequency_axis(), spec.noise_floor_per_bin());
     let one = |g: usize| {
-        let o = total.slots.start + g * bins;
+        let o = lay.spectra + g * bins;
         let kernel = spec.gate_kernel_in(g, &energies);
         let r = retrieve_gate(axis.as_ref(), floor, spec.wavelength, &mean[o..o + bins], &stderr[o..o + bins], &kernel);
         progress.advance(1);

@@ -156,12 +156,12 @@ pub struct PixelSpeckle {
 /// The per-pixel speckle of a finished run of `exp` (its LDH camera with `speckle.pixels`;
 /// `None` otherwise), from the run's estimate of the per-pixel spectra, on the plan's threads.
 pub fn pixel_speckle_of(exp: &Experiment, out: &RunOutput) -> Option<PixelSpeckle> {
-    let d = exp.detectors.iter().find(|d| d.ldh().is_some())?;
-    let spec = d.ldh()?;
+    let i = exp.detectors.iter().position(|d| d.ldh().is_some())?;
+    let spec = exp.detectors[i].ldh()?;
     if !spec.speckle.is_some_and(|s| s.pixels) {
         return None;
     }
-    let o = out.layout.registry.expect(&format!("{}.pixel_spectra", d.name));
+    let o = out.layout.registry.at(out.layout.detectors[i].ldh.as_ref()?.pixel_spectra?);
     let Kind::PixelSpectra { nx, ny, .. } = o.kind else { unreachable!("{} is declared per-pixel spectra", o.name) };
     let (start, stride) = (o.slots.start, o.slots.stride);
     let spectra = &out.estimates.mean()[start..start + nx * ny * stride];

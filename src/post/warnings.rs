@@ -54,9 +54,8 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
     let reg = &out.layout.registry;
     let mut w = Vec::new();
     for (i, d) in exp.detectors.iter().enumerate() {
-        let Some(power) = reg.get(&format!("{}.detected_power", d.name)).map(|o| mean[o.slots.start]) else {
-            continue;
-        };
+        let lay = &out.layout.detectors[i];
+        let power = mean[lay.power];
         if power <= 0.0 {
             continue;
         }
@@ -92,9 +91,7 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
                 }
             }
             DetectorKind::Lidar(l) => {
-                let Some(aliased) = reg.get(&format!("{}.aliased_power", d.name)).map(|o| mean[o.slots.start]) else {
-                    continue;
-                };
+                let Some(aliased) = lay.lidar.as_ref().map(|ll| mean[ll.aliased]) else { continue };
                 if aliased > ALIASED_POWER_FRACTION * power {
                     let half = 0.5 * l.sample_rate;
                     let v = crate::retrieval::radial_velocity(half, l.wavelength);

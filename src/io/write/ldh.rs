@@ -10,10 +10,10 @@ use serde_json::{Map, Value, json};
 use super::figures::{Channel, directional, frequency_unit, mark_band, spectrum_plot, stem};
 use super::{Entry, IMAGE_LAYOUT, OutputEntry, Writer, estimate};
 use crate::detect::ImageSpec;
-use crate::detect::ldh::{CLASS_NAMES, LdhSpec, M1_UNITS, SPECTRUM_UNITS};
+use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec, M1_UNITS, SPECTRUM_UNITS};
 use crate::error::Result;
 use crate::io::figures::image::ImageFigure;
-use crate::output::{Axis, rows_reversed};
+use crate::output::{Axis, Output, rows_reversed};
 use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
@@ -23,45 +23,47 @@ fn mirror_fftshift(v: &[f64]) -> Vec<f64> {
     (0..n).map(|k| if k == 0 { v[0] } else { v[n - k] }).collect()
 }
 
-/// Write the outputs of the LDH camera `name` (over the image `im`) as the registry declares
-/// them; returns its manifest entry. The ROI estimates go to the top level of `estimates`
+/// Write the outputs of the LDH camera `name` (over the image `im`, its tallies laid out as `lay`)
+/// as the registry declares them; returns its manifest entry. The ROI estimates go to the top level of `estimates`
 /// (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
 pub fn write_ldh(
     w: &mut Writer,
     name: &str,
     im: &ImageSpec,
     spec: &LdhSpec,
+    lay: &LdhLayout,
     speckle: &[RoiSpeckle],
     pixel_speckle: Option<&PixelSpeckle>,
     estimates: &mut BTreeMap<String, Entry>,
 ) -> Result<Value> {
     let registry = w.registry;
-    let out = |what: &str| registry.expect(&format!("{name}.{what}"));
+    let out = |slot: usize| registry.at(slot);
     // Each image's EXR channel is named after what it holds (`m0_plus`, `m0_minus_static`, …).
     let (f1, f2) = (spec.band.0 / 1e3, spec.band.1 / 1e3);
     let band = format!("{f1}–{f2} kHz");
     const M0: &str = "fraction of emitted power";
-    let image = |w: &mut Writer, what: &str, title: String, unit: &str| -> Result<Vec<f64>> {
-        let o = out(what);
+    let image = |w: &mut Writer, slot: usize, what: &str, title: String, unit: &str| -> Result<Vec<f64>> {
+        let o = out(slot);
         let (v, e) = w.image(o, what)?;
         w.image_figure(o, &v, &e, &format!("{name}: {title}"), unit)?;
         Ok(v)
     };
-    let m0p = image(w, "m0_plus", format!("M0+ ({band})"), M0)?;
-    let m0m = image(w, "m0_minus", format!("M0− ({band}, + receding)"), M0)?;
-    if spec.m1 {
-        image(w, "m1", format!("M1 ({band})"), "Hz × fraction of emitted power")?;
+    let m0p = image(w, lay.m0_plus, "m0_plus", format!("M0+ ({band})"), M0)?;
+    let m0m = image(w, lay.m0_minus, "m0_minus", format!("M0− ({band}, + receding)"), M0)?;
+    if let Some(slot) = lay.m1 {
+        image(w, slot, "m1", format!("M1 ({band})"), "Hz × fraction of emitted power")?;
     }
-    if spec.by_class {
-        for cname in CLASS_NAMES {
-            for (what, sign) in [("m0_plus", "+"), ("m0_minus", "−")] {
+    if let Some(classes) = lay.classes {
+        // `[class][M0+, M0−][pixel]`, as LdhSpec::declare lays them out.
+        for (c, cname) in CLASS_NAMES.iter().enumerate() {
+            for (k, (what, sign)) in [("m0_plus", "+"), ("m0_minus", "−")].into_iter().enumerate() {
                 let title = format!("M0{sign}, {} ({band})", cname.replace('_', " "));
-                image(w, &format!("{what}_{cname}"), title, M0)?;
+                image(w, classes + (2 * c + k) * lay.pixels, &format!("{what}_{cname}"), title, M0)?;
             }
         }
     }
     let title = format!("{name}: directional M0 ({band})");
-    w.figure(&format!("{name}_m0_directional"), &directional(out("m0_plus"), &m0p, &m0m, &title))?;
+    w.figure(&format!("{name}_m0_directional"), &directional(out(lay.m0_plus), &m0p, &m0m, &title))?;
 
     // ROI spectra.
     let axis = spec.spectrum_axis;
@@ -76,14 +78,13 @@ pub fn write_ldh(
     let channel_names: Vec<String> =
         std::iter::once("total".to_string()).chain(CLASS_NAMES.iter().map(|c| c.to_string())).collect();
     let mut rois = Map::new();
-    for (r, roi) in spec.rois.iter().enumerate() {
-        let roi_out = |what: &str| out(&format!("roi_{}.{what}", roi.name));
-        for what in ["m0_plus", "m0_minus"] {
-            let e = w.estimate(roi_out(what));
+    for (r, (roi, rl)) in spec.rois.iter().zip(&lay.rois).enumerate() {
+        for (what, slot) in [("m0_plus", rl.m0_plus), ("m0_minus", rl.m0_minus)] {
+            let e = w.estimate(out(slot));
             estimates.insert(format!("{what}_roi_{}", roi.name), Entry::Estimate(e));
         }
         // On the written axis: mirrored with the set-up's sign flipped.
-        let o = roi_out("spectrum");
+        let o = out(rl.spectrum);
         let (v, e) = w.array(o)?;
         let mut out_of_range = Map::new();
         for (ch, chname) in channel_names.iter().enumerate() {
@@ -114,13 +115,13 @@ pub fn write_ldh(
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
-    if spec.pixel_spectra {
-        let o = out("pixel_spectra");
+    if let Some(slot) = lay.pixel_spectra {
+        let o = out(slot);
         let (v, _) = w.array(o)?;
         w.figure(&stem(o), &pixel_spectra_plot(name, &centres, &v, bins, spec.band))?;
     }
     let pixel_speckle = match pixel_speckle {
-        Some(s) => write_pixel_speckle(w, name, spec, s, &m0p, &m0m)?,
+        Some(s) => write_pixel_speckle(w, name, spec, out(lay.m0_plus), s, &m0p, &m0m)?,
         None => Value::Null,
     };
 
@@ -144,7 +145,7 @@ pub fn write_ldh(
             "x_range_m": [im.min[0], im.max[0]],
             "y_range_m": [im.min[1], im.max[1]],
             "layout": IMAGE_LAYOUT,
-            "m0_units": out("m0_plus").units,
+            "m0_units": out(lay.m0_plus).units,
             "m1_units": M1_UNITS,
             "classes": CLASS_NAMES,
         },
@@ -182,6 +183,7 @@ fn write_pixel_speckle(
     w: &mut Writer,
     name: &str,
     spec: &LdhSpec,
+    grid: &Output,
     s: &PixelSpeckle,
     m0p: &[f64],
     m0m: &[f64],
@@ -198,7 +200,6 @@ fn write_pixel_speckle(
     let plus = &all_plus[..pixels];
     let minus = &all_minus[..pixels];
     let file = |what: &str| format!("{name}_{what}");
-    let grid = w.registry.expect(&format!("{name}.m0_plus"));
     let image = |units| OutputEntry::made("speckle_image", &[ny, nx], units, grid.axes.clone());
     let windows_axis = Axis::linear("window", "", 0.0, 1.0, windows);
     let stack = |units| {

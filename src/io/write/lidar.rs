@@ -2,13 +2,13 @@
 //! multiple scattering) as `.npy` with standard errors, their axes, a range–Doppler map and a plot
 //! of a few gates' spectra as PNG, and per gate (CSV and the manifest) the energies by class, the
 //! shot-noise SNR, the spectral moments and the one- or two-component fit of the total spectrum
-//! ([`retrieve_gate`]).
+//! ([`crate::retrieval::retrieve_gate`]).
 
 use serde_json::{Value, json};
 
 use super::{Writer, estimate};
-use crate::detect::LidarSpec;
 use crate::detect::lidar::LIDAR_CHANNELS;
+use crate::detect::{LidarLayout, LidarSpec};
 use crate::error::Result;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::lines::{Curve, LinePlot, PALETTE, db_range};
@@ -20,11 +20,17 @@ const PLOTTED_GATES: usize = 4;
 /// Dynamic range of the range–Doppler map below its peak, dB.
 const MAP_RANGE_DB: f64 = super::figures::DB_DEPTH;
 
-/// Write the receiver's outputs, with `retrievals` its gates' ([`crate::post::retrieve_gates`]); returns the
-/// manifest entry (axes, files, noise model, per-gate energies and estimates).
-pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[GateRetrieval]) -> Result<Value> {
+/// Write the receiver's outputs (its tallies laid out as `lay`), with `retrievals` its gates'
+/// ([`crate::post::retrieve_gates`]); returns the manifest entry (axes, files, noise model,
+/// per-gate energies and estimates).
+pub fn write_lidar(
+    w: &mut Writer,
+    name: &str,
+    spec: &LidarSpec,
+    lay: &LidarLayout,
+    retrievals: &[GateRetrieval],
+) -> Result<Value> {
     let (reg, mean, se) = (w.registry, w.mean, w.stderr);
-    let output = |name: &str| reg.expect(name);
     let (gates, bins, m) = (spec.gates, spec.fft_points, spec.gate_points);
     let range: Vec<f64> = (0..gates).map(|g| spec.gate_range(g)).collect();
     let freq: Vec<f64> = (0..bins).map(|k| spec.bin_frequency(k)).collect();
@@ -36,8 +42,8 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[G
     // Each channel's range–Doppler map, `[gate][bin]` from its first slot.
     let mut maps = Vec::with_capacity(LIDAR_CHANNELS.len());
     for (c, channel) in LIDAR_CHANNELS.iter().enumerate() {
-        let stem = if c == 0 { "range_doppler".to_string() } else { format!("range_doppler_{channel}") };
-        let o = output(&format!("{name}.{stem}"));
+        // Channel c's map, `[gate][bin]`, as LidarSpec::declare lays them out.
+        let o = reg.at(lay.spectra + c * gates * bins);
         w.array(o)?;
         files.insert((*channel).into(), json!(o.file));
         maps.push(o.slots.start);
@@ -46,13 +52,13 @@ pub fn write_lidar(w: &mut Writer, name: &str, spec: &LidarSpec, retrievals: &[G
         let o = maps[c] + g * bins;
         (&mean[o..o + bins], &se[o..o + bins])
     };
-    let total = &mean[output(&format!("{name}.range_doppler")).range()];
+    let total = &mean[reg.at(lay.spectra).range()];
     w.figure(&format!("{name}_range_doppler"), &range_doppler_figure(spec, &range, total))?;
     w.figure(&format!("{name}_gate_spectra"), &gate_spectra_plot(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
     // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
-    let lags = output(&format!("{name}.lag_sums")).slots.start;
+    let lags = lay.lags;
     let energy = |c: usize, g: usize| {
         let o = lags + spec.lag_slot(c, g, 0);
         (mean[o], se[o])

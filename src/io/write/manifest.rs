@@ -277,17 +277,19 @@ fn write_run_to<S: super::Sink>(
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put_file(name, bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), stderr);
     w.figures = inv.figures;
+    let reg = &out.layout.registry;
     let mut estimates: BTreeMap<String, Entry> =
-        Scalar::ALL.iter().map(|s| (s.name().to_string(), Entry::Estimate(w.estimate(w.output(s.name()))))).collect();
-    if out.layout.lateral.is_some() {
-        estimates.insert(LATERAL_SCALAR.to_string(), Entry::Estimate(w.estimate(w.output(LATERAL_SCALAR))));
+        Scalar::ALL.iter().map(|&s| (s.name().to_string(), Entry::Estimate(w.estimate(reg.at(s as usize))))).collect();
+    if let Some(slot) = out.layout.lateral {
+        estimates.insert(LATERAL_SCALAR.to_string(), Entry::Estimate(w.estimate(reg.at(slot))));
     }
     let mut det_estimates = BTreeMap::new();
     let mut det_info = BTreeMap::new();
     let mut out_of_range_total = 0.0;
     for (i, d) in exp.detectors.iter().enumerate() {
         let mut de = BTreeMap::new();
-        let power = w.estimate(w.output(&format!("{}.detected_power", d.name)));
+        let lay = &out.layout.detectors[i];
+        let power = w.estimate(reg.at(lay.power));
         de.insert("detected_power".to_string(), Entry::Estimate(power));
         let mut info = DetectorEntry {
             side: if d.side() == Side::Top { "top" } else { "bottom" },
@@ -315,8 +317,8 @@ fn write_run_to<S: super::Sink>(
                     w.put(super::fmcw::csv_file(&d.name), super::fmcw::csv(&rows).into_bytes())?;
                     info.fmcw = Some(entry.info);
                 }
-                if let Some(im) = &s.image {
-                    let o = w.output(&format!("{}.image", d.name));
+                if let (Some(im), Some(slot)) = (&s.image, lay.image) {
+                    let o = reg.at(slot);
                     let (v, e) = w.image(o, "intensity")?;
                     w.image_figure(o, &v, &e, &format!("{}: intensity image", d.name), "fraction of emitted power")?;
                     info.image = Some(ImageEntry {
@@ -327,18 +329,19 @@ fn write_run_to<S: super::Sink>(
                         units: o.units,
                     });
                 }
-                if let Some(t) = &s.time {
-                    info.time = Some(super::tcorr::write_time(&mut w, &d.name, t, &mut de)?);
+                if let (Some(t), Some(tl)) = (&s.time, &lay.time) {
+                    info.time = Some(super::tcorr::write_time(&mut w, &d.name, t, tl, &mut de)?);
                 }
-                if let Some(c) = &s.correlation {
-                    info.correlation = Some(super::tcorr::write_correlation(&mut w, &d.name, c)?);
+                if let (Some(c), Some(cl)) = (&s.correlation, &lay.correlation) {
+                    info.correlation = Some(super::tcorr::write_correlation(&mut w, &d.name, c, cl)?);
                 }
-                if let (Some(spec), Some(im)) = (&s.ldh, &s.image) {
+                if let (Some(spec), Some(im), Some(ll)) = (&s.ldh, &s.image, &lay.ldh) {
                     info.ldh = Some(super::ldh::write_ldh(
                         &mut w,
                         &d.name,
                         im,
                         spec,
+                        ll,
                         &f.speckle,
                         f.pixel_speckle.as_ref(),
                         &mut estimates,
@@ -346,7 +349,8 @@ fn write_run_to<S: super::Sink>(
                 }
             }
             DetectorKind::Lidar(spec) => {
-                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, &f.retrievals[i])?);
+                let ll = lay.lidar.as_ref().expect("a lidar receiver's layout");
+                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, ll, &f.retrievals[i])?);
             }
         }
         w.rest(i, &mut de)?;

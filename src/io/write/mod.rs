@@ -239,11 +239,6 @@ impl<'a, 'p> Writer<'a, 'p> {
         self.npy(name, values, entry)
     }
 
-    /// The output `name` (declared by the detector being written).
-    pub fn output(&self, name: &str) -> &'a Output {
-        self.registry.expect(name)
-    }
-
     /// A scalar output as an estimate (`sign ×` its tally, and its standard error).
     pub fn estimate(&mut self, o: &Output) -> Estimate {
         self.written.insert(o.name.clone());

@@ -9,7 +9,7 @@ use serde_json::{Value, json};
 
 use super::figures::{image_panel, stem};
 use super::{Entry, Writer, estimate};
-use crate::detect::{CorrelationSpec, TimeSpec};
+use crate::detect::{CorrelationLayout, CorrelationSpec, TimeLayout, TimeSpec};
 use crate::error::Result;
 use crate::io::figures::image::ImageFigure;
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
@@ -20,12 +20,18 @@ const STACK_PANELS: usize = 4;
 
 /// The TPSF (and time-gated image) of detector `name`, its time axis and out-of-range tallies
 /// (into `de`); returns the manifest entry.
-pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap<String, Entry>) -> Result<Value> {
+pub fn write_time(
+    w: &mut Writer,
+    name: &str,
+    spec: &TimeSpec,
+    lay: &TimeLayout,
+    de: &mut BTreeMap<String, Entry>,
+) -> Result<Value> {
     let bins = spec.axis.bins;
     let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
     let time_file = format!("{name}_time_s.npy");
     w.axis_file(time_file.clone(), "time_s", "s", &centres)?;
-    let o = w.output(&format!("{name}.tpsf"));
+    let o = w.registry.at(lay.tpsf);
     let (v, e) = w.array(o)?;
     let ((below, above), (below_se, above_se)) = (o.tails(w.mean, 0), o.tails(w.stderr, 0));
     let tails = [("below", estimate(below, below_se)), ("above", estimate(above, above_se))];
@@ -61,7 +67,7 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
         "time_of_flight": "optical path length / c, from emission to the detector plane",
         "units": "fraction of emitted power per time bin",
     });
-    if let Some(o) = w.registry.get(&format!("{name}.time_gated_image")) {
+    if let Some(o) = lay.image.map(|s| w.registry.at(s)) {
         let (v, _) = w.array(o)?;
         let labels: Vec<String> = centres.iter().map(|t| format!("t = {:.3} ns", t * 1e9)).collect();
         stack_figure(w, o, &v, &labels, "fraction of emitted power")?;
@@ -73,11 +79,11 @@ pub fn write_time(w: &mut Writer, name: &str, spec: &TimeSpec, de: &mut BTreeMap
 
 /// g1, g2 and the speckle contrast of detector `name`, with their τ and exposure axes; returns
 /// the manifest entry.
-pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> Result<Value> {
+pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec, lay: &CorrelationLayout) -> Result<Value> {
     let n = spec.tau.len();
     let tau_file = format!("{name}_tau_s.npy");
     w.axis_file(tau_file.clone(), "tau_s", "s", &spec.tau)?;
-    curves(w, name, spec)?;
+    curves(w, name, spec, (lay.g1, lay.g2, lay.contrast))?;
     let mut entry = json!({
         "tau_file": tau_file,
         "points": n,
@@ -89,7 +95,7 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
         let exposure_file = format!("{name}_exposure_s.npy");
         w.axis_file(exposure_file.clone(), "exposure_s", "s", &spec.exposures)?;
         entry["exposure_file"] = json!(exposure_file);
-        if let Some(o) = w.registry.get(&format!("{name}.speckle_contrast_image")) {
+        if let Some(o) = lay.pixel_contrast.map(|s| w.registry.at(s)) {
             contrast_image_figure(w, o, spec)?;
             entry["image_file"] = json!(o.file);
             entry["image_layout"] = json!("[exposure][row][col], row 0 = largest y; NaN: too few paths");
@@ -97,9 +103,12 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
     }
     if !spec.rois.is_empty() {
         let mut rois = serde_json::Map::new();
-        for roi in &spec.rois {
+        let (n, nt) = (spec.tau.len(), spec.exposures.len());
+        for (r, roi) in spec.rois.iter().enumerate() {
             let key = format!("{name}.roi_{}", roi.name);
-            curves(w, &key, spec)?;
+            // Each ROI's g1, g2 and K, in the order CorrelationSpec::declare lays them out.
+            let base = lay.roi_outputs + r * (3 * n + nt);
+            curves(w, &key, spec, (base, base + 2 * n, base + 3 * n))?;
             let file = |what: &str| json!(format!("{name}_roi_{}_{what}.npy", roi.name));
             let mut e = json!({ "g1_file": file("g1"), "g2_file": file("g2") });
             if !spec.exposures.is_empty() {
@@ -112,12 +121,12 @@ pub fn write_correlation(w: &mut Writer, name: &str, spec: &CorrelationSpec) -> 
     Ok(entry)
 }
 
-/// g1, g2 and K (`<key>.g1`, `.g2`, `.speckle_contrast`: a detector's or an ROI's) as files and
-/// figures.
-fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec) -> Result<()> {
+/// g1, g2 and K (a detector's or an ROI's, `key` in their titles) as files and figures, from
+/// the outputs at their slots `(g1, g2, K)`.
+fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec, (g1, g2, k): (usize, usize, usize)) -> Result<()> {
     let (n, name) = (spec.tau.len(), key.replace('.', " "));
-    let (g1, g1e) = w.array(w.output(&format!("{key}.g1")))?;
-    let o2 = w.output(&format!("{key}.g2"));
+    let (o1, o2, ok) = (w.registry.at(g1), w.registry.at(g2), k);
+    let (g1, g1e) = w.array(o1)?;
     let (g2, g2e) = w.array(o2)?;
     if w.figures {
         let mut plot =
@@ -134,7 +143,7 @@ fn curves(w: &mut Writer, key: &str, spec: &CorrelationSpec) -> Result<()> {
     }
     if !spec.exposures.is_empty() {
         let nt = spec.exposures.len();
-        let ok = w.output(&format!("{key}.speckle_contrast"));
+        let ok = w.registry.at(ok);
         let (k, ke) = w.array(ok)?;
         if w.figures {
             let mut plot = LinePlot::new(format!("{name}: speckle contrast"), "exposure time T (s)", "K");

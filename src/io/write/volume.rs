@@ -60,8 +60,14 @@ fn write_vdb(w: &mut Writer, grid: &VolumeGrid) -> Result<()> {
         out
     };
     let mut volumes = Vec::new();
-    for what in ["fluence_track", "fluence_collision", "absorbed"] {
-        let Some(o) = w.registry.get(&format!("volume.{what}")) else { continue };
+    let slots = VolumeGrid::slots(w.registry);
+    let declared = |slot: usize| (slot != usize::MAX).then(|| w.registry.at(slot));
+    for (what, slot) in [
+        ("fluence_track", slots.fluence_track),
+        ("fluence_collision", slots.fluence_collision),
+        ("absorbed", slots.absorbed),
+    ] {
+        let Some(o) = declared(slot) else { continue };
         let (v, e) = o.values(w.mean, w.stderr);
         volumes.push((what.to_string(), o.units, reorder(&v)));
         volumes.push((format!("{what}_stderr"), o.units, reorder(&e)));
@@ -94,8 +100,14 @@ pub struct VolumeTimeEntry {
 /// figures is cut (the source's `y`, m).
 pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<VolumeEntry> {
     let mut files = std::collections::BTreeMap::new();
-    for what in ["absorbed", "fluence_collision", "fluence_track"] {
-        let Some(o) = w.registry.get(&format!("volume.{what}")) else { continue };
+    let slots = VolumeGrid::slots(w.registry);
+    let declared = |slot: usize| (slot != usize::MAX).then(|| w.registry.at(slot));
+    for (what, slot) in [
+        ("absorbed", slots.absorbed),
+        ("fluence_collision", slots.fluence_collision),
+        ("fluence_track", slots.fluence_track),
+    ] {
+        let Some(o) = declared(slot) else { continue };
         let (v, _) = w.array(o)?;
         files.insert(o.file.clone(), o.units);
         let title = match what {
@@ -110,8 +122,12 @@ pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<Vo
         };
         w.figure(&super::figures::stem(o), &slice_figure(grid, &v, beam_y, title, unit))?;
     }
-    for what in ["absorbed", "fluence_collision", "fluence_track"] {
-        let Some(o) = w.registry.get(&format!("volume.{what}_time")) else { continue };
+    for (what, slot) in [
+        ("absorbed", slots.absorbed_time),
+        ("fluence_collision", slots.fluence_collision_time),
+        ("fluence_track", slots.fluence_track_time),
+    ] {
+        let Some(o) = declared(slot) else { continue };
         let Some(axis) = grid.time else { continue };
         let (v, _) = w.array(o)?;
         files.insert(o.file.clone(), o.units);
