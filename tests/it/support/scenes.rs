@@ -182,21 +182,3 @@ by_order = 2
 "#
     )
 }
-
-/// Asserts that the scene `new` (with `sets`) loads to the same experiment as `old` (with the
-/// same `sets`), or fails with the same message: the check that a scene folded into these
-/// fragments is the one it replaced.
-#[allow(dead_code)]
-pub fn assert_same_scene(what: &str, old: &str, new: &str, sets: &[&str]) {
-    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-    let load = |text: &str| ohd::config::load(text, "test", &sets).map_err(|e| e.to_string());
-    match (load(old), load(new)) {
-        (Ok((old_table, old_exp)), Ok((new_table, new_exp))) => {
-            assert_eq!(format!("{old_exp:?}"), format!("{new_exp:?}"), "{what}: the experiments differ");
-            assert!(old_exp == new_exp, "{what}: the experiments differ");
-            eprintln!("{what}: same experiment, tables equal: {}", old_table == new_table);
-        }
-        (Err(a), Err(b)) => assert_eq!(a, b, "{what}: different errors"),
-        (a, b) => panic!("{what}: {:?} vs {:?}", a.err(), b.err()),
-    }
-}
