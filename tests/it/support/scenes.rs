@@ -1,7 +1,8 @@
 //! Shared test scenes, as TOML fragments that each read like a short physical description: the
-//! start of a scene and its `[run]`, the wind lidar's upward beam and receiver, a vessel in an
-//! index-matched water layer seen by a camera looking back along the beam, a Brownian half-space,
-//! a pencil backscattered into a narrow cone, and a thin tube in a clear layer. A test composes
+//! start of a scene and its `[run]`, the wind lidar's upward beam and receiver, a 785 nm beam into
+//! an index-matched water layer holding a vessel, a camera looking back along the beam, a
+//! Brownian half-space, a pencil backscattered into a narrow cone, and a thin tube in a clear
+//! layer. A test composes
 //! them with `format!`, adds its own sections, and overrides what it varies with `--set`-style
 //! keys ([`super::run::experiment`]).
 
