@@ -12,6 +12,7 @@
 
 use crate::support::lidar::{check_single_scattering_lags, gate_lag_weight, hg_backscatter};
 use crate::support::run::{Run, experiment, run};
+use crate::support::scenes::{self, Gates, UPWARD_1550};
 use ohd::numeric::simpson;
 
 use num_complex::Complex64;
@@ -24,17 +25,8 @@ const LAMBDA: f64 = 1550e-9;
 
 /// Two HG populations in one medium looking straight up from 1 m below it: "up" (σs 3e-3 /m,
 /// g 0.7, rising at 1 m/s) and "down" (σs 2e-3 /m, g 0.9, sinking at 2 m/s); σa 5e-4 /m in all.
-const MIXTURE: &str = r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 11
-batches = 40
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.up]
+fn mixture() -> String {
+    let air = r#"[media.up]
 sigma_s_per_m = 3e-3
 sigma_a_per_m = 3e-4
 phase = { type = "hg", g = 0.7 }
@@ -52,18 +44,10 @@ thickness_m = 900
 sublayers = 30
 n = 1.0
 medium = "air"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 90
-gate_points = 10
-gates = 20
-fft_points = 64
 "#;
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 90, gate_points: 10, gates: 20, fft_points: 64 });
+    format!("{}{UPWARD_1550}{air}{receiver}", scenes::header(1_000_000, 11, 40))
+}
 
 /// `∫ A/R²·e^{−2σt s}·W_{g,d}(2R/c) ds` over a layer of thickness `depth` starting 1 m above the
 /// transceiver (Simpson, 0.02 m steps).
@@ -89,7 +73,7 @@ fn populations_scatter_in_proportion_to_sigma_s_with_their_own_phase_and_velocit
     // Lag 0 tests β = Σ σs_i p_i(π) (the choice ∝ σs and each population's phase in the local
     // estimate); lag 1 the Doppler phase 2π f_i Δt of each (+0.162 and −0.324 rad), i.e. that the
     // chosen population's velocity is used.
-    let r = run(MIXTURE, &[]);
+    let r = run(&mixture(), &[]);
     let dt = r.lidar().0.dt();
     let b = |d: usize| {
         [(3e-3, 0.7, 1.0), (2e-3, 0.9, -2.0)]
@@ -107,17 +91,8 @@ fn populations_scatter_in_proportion_to_sigma_s_with_their_own_phase_and_velocit
 
 /// Rain alone: Marshall–Palmer 5 mm/h in 8 size classes (Mie per class), falling at the Atlas
 /// speeds in still air, looked at straight up.
-const RAIN: &str = r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 12
-batches = 40
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.rain]
+fn rain() -> String {
+    let rain = r#"[media.rain]
 preset = "rain_mp_1550"
 size_classes = 8
 particles = { size_points = 512 }
@@ -126,18 +101,10 @@ velocity = { type = "terminal_fall" }
 thickness_m = 900
 n = 1.0
 medium = "rain"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 90
-gate_points = 10
-gates = 20
-fft_points = 64
 "#;
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 90, gate_points: 10, gates: 20, fft_points: 64 });
+    format!("{}{UPWARD_1550}{rain}{receiver}", scenes::header(1_000_000, 12, 40))
+}
 
 /// `(σs_c p_c(π), E[e^{iθ}] over the class's fall speeds, mean fall speed)` of the populations of
 /// the first layer's medium whose names start with `prefix`, with `θ = 2π·(−2v/λ0)·Δt` (falling
@@ -162,7 +129,7 @@ fn rain_classes(exp: &ohd::experiment::Experiment, prefix: &str, dt: f64) -> Vec
 fn raindrops_fall_at_their_atlas_speeds_with_their_class_phase_functions() {
     // Lag 0: the lidar equation with β = Σ_c σs_c p_c(π) from the 8 Mie classes; lag 1: the
     // Doppler phase averaged over every class's drop sizes, Σ_c β_c Σ_n w_n e^{−2πi(2v_n/λ0)Δt}.
-    let r = run(RAIN, &[]);
+    let r = run(&rain(), &[]);
     let dt = r.lidar().0.dt();
     let classes = rain_classes(&r.exp, "", dt);
     assert_eq!(classes.len(), 8);
@@ -180,38 +147,18 @@ fn raindrops_fall_at_their_atlas_speeds_with_their_class_phase_functions() {
     check_lags(&r, [Complex64::new(b0, 0.0), b1], m.sigma_t(), 900.0);
 }
 
-/// Homogeneous haze of scattering coefficient `SIGMA_S` (albedo 0.9, HG 0.7) over 1000 m, seen
-/// straight up by a receiver of field-of-view half-angle `FOV` (mrad); 10 gates of 90 m from 50 m.
-const HAZE: &str = r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 21
-batches = 40
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.haze]
-sigma_s_per_m = SIGMA_S
-sigma_a_per_m = SIGMA_A
-phase = { type = "hg", g = 0.7 }
-[[layers]]
-thickness_m = 1000
-n = 1.0
-medium = "haze"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = FOV
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 50
-gate_points = 30
-gates = 10
-fft_points = 64
-"#;
+/// Homogeneous haze of scattering coefficient `sigma_s` (albedo 0.9, HG 0.7) over 1000 m, seen
+/// straight up by a receiver of field-of-view half-angle `fov_mrad`; 10 gates of 90 m from 50 m.
+fn haze(sigma_s: f64, fov_mrad: f64) -> String {
+    let haze = format!(
+        "[media.haze]\nsigma_s_per_m = {sigma_s}\nsigma_a_per_m = {}\nphase = {{ type = \"hg\", g = 0.7 }}\n",
+        0.1 * sigma_s
+    );
+    let layer = "[[layers]]\nthickness_m = 1000\nn = 1.0\nmedium = \"haze\"\n";
+    let receiver =
+        scenes::lidar_receiver(fov_mrad, Gates { first_gate_m: 50, gate_points: 30, gates: 10, fft_points: 64 });
+    format!("{}{UPWARD_1550}{haze}{layer}{receiver}", scenes::header(1_000_000, 21, 40))
+}
 
 /// Multiple-scattering share of the energy `D_0` received in all gates, with its standard error
 /// (from the multiple channel's errors, gates combined in quadrature; the total's relative error
@@ -234,11 +181,7 @@ fn the_multiple_scattering_share_grows_with_optical_depth_and_field_of_view() {
     let mut table = [[(0.0, 0.0); 3]; 3];
     for (i, s) in sigmas.iter().enumerate() {
         for (j, fov) in fovs.iter().enumerate() {
-            let text = HAZE
-                .replace("SIGMA_S", &s.to_string())
-                .replace("SIGMA_A", &(0.1 * s).to_string())
-                .replace("FOV", &fov.to_string());
-            let r = run(&text, &[]);
+            let r = run(&haze(*s, *fov), &[]);
             table[i][j] = multiple_fraction(&r);
             eprintln!(
                 "σs = {s:e} /m (τ over 1 km {:.1}), FOV {fov} mrad: multiple share {:.5} ± {:.5}",

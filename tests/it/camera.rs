@@ -3,20 +3,14 @@
 //! and the same Doppler sign (reciprocal paths).
 
 use crate::support::run::{Run, roi_channel, roi_m0, run};
+use crate::support::scenes;
 use crate::support::stats::chi2_sf;
 
 /// Two slabs of unequal index (refraction and Fresnel at every interface) with a tilted vessel
 /// of uniform flow in the upper one, under a flat-top beam, seen by an 8 × 8 LDH camera with an
 /// ROI over the vessel and a spectrum.
 fn scene(estimator: &str) -> String {
-    format!(
-        r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 5
-batches = 32
-[source]
+    let slabs = r#"[source]
 wavelength_nm = 785
 profile = "disk"
 radius_mm = 0.6
@@ -26,11 +20,11 @@ n_above = 1.0
 [media.tissue]
 sigma_a_per_mm = 0.1
 sigma_s_per_mm = 10
-phase = {{ type = "hg", g = 0.8 }}
+phase = { type = "hg", g = 0.8 }
 [media.blood]
 sigma_a_per_mm = 0.4
 sigma_s_per_mm = 20
-phase = {{ type = "hg", g = 0.9 }}
+phase = { type = "hg", g = 0.9 }
 [[layers]]
 name = "top"
 thickness_um = 300
@@ -45,20 +39,13 @@ medium = "tissue"
 name = "vessel"
 layer = "top"
 medium = "blood"
-shape = {{ type = "cylinder", center_um = [0, 0, 150], axis = [1, 0, 0.3], radius_um = 60, length_mm = 0.9 }}
-velocity = {{ type = "uniform", velocity_mm_per_s = [5, 0, 1.5] }}
-[[detectors]]
-name = "camera"
-area = {{ type = "rect", size_mm = [1.0, 1.0] }}
-acceptance_half_angle_deg = 20
-include_specular = false
-estimator = "{estimator}"
-[detectors.spectrum]
+shape = { type = "cylinder", center_um = [0, 0, 150], axis = [1, 0, 0.3], radius_um = 60, length_mm = 0.9 }
+velocity = { type = "uniform", velocity_mm_per_s = [5, 0, 1.5] }
+"#;
+    let ldh = r#"[detectors.spectrum]
 f_min_khz = -30
 f_max_khz = 30
 bins = 30
-[detectors.image]
-pixels = [8, 8]
 [detectors.ldh]
 frame_rate_khz = 78
 window_samples = 64
@@ -68,8 +55,9 @@ by_class = true
 name = "vessel"
 center_um = [0, 0]
 size_um = [500, 250]
-"#
-    )
+"#;
+    let camera = scenes::camera(1.0, 20.0, 8);
+    format!("{}{slabs}{camera}estimator = \"{estimator}\"\n{ldh}", scenes::header(1_000_000, 5, 32))
 }
 
 /// χ² of the differences of two estimates over their combined standard errors (slots where

@@ -1,7 +1,8 @@
 //! Doppler physics against closed forms (validation-values §4): sign, rigid translation at every
 //! order, isotropic random directions, Poiseuille flow, mirror symmetry, Parseval, FMCW.
 
-use crate::support::run::{run, tube_scene};
+use crate::support::run::run;
+use crate::support::scenes::tube_scene;
 use crate::support::stats::chi_square;
 
 use ohd::transport::walk::doppler_increment;

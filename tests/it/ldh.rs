@@ -3,55 +3,27 @@
 //! mean of Algorithm 2, and the shipped retina scene (opposite M0− in artery and vein).
 
 use crate::support::run::{Channel, Run, roi_channel, roi_m0, run};
+use crate::support::scenes::{self, BEAM_785, WATER_AROUND};
 use crate::support::stats::{chi_square_estimates, chi2_sf};
 
 /// Optically thin blood (isotropic scatterers, τ ≈ 3e-3 across the vessel) in a clear layer,
 /// index-matched throughout, a pencil beam through the vessel's axis, and a camera looking back
 /// along the beam through a 0.05° cone (next-event estimation): single backscatter with a fixed
-/// scattering vector q = 2k ẑ. λ0 = 785 nm, n = 1.33.
-const THIN_VESSEL: &str = r#"
-schema_version = 1
-[run]
-samples = 3_000_000
-seed = 11
-batches = 20
-[source]
-wavelength_nm = 785
-position_mm = [0, 0, -0.1]
-[ambient]
-n_above = 1.33
-n_below = 1.33
-[media.clear]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0
-[media.blood]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0.01
-phase = { type = "isotropic" }
-[[layers]]
-thickness_mm = 1
-n = 1.33
-medium = "clear"
-[[regions]]
-layer = "layer0"
-medium = "blood"
-# 45° to the beam: the chord through the axis samples r uniformly on [0, R].
-shape = { type = "cylinder", center_um = [0, 0, 500], axis = [0.7071067811865476, 0, 0.7071067811865476], radius_um = 100 }
-velocity = { type = "poiseuille", v_max_mm_per_s = 10 }
-[[detectors]]
-name = "camera"
-area = { type = "rect", size_mm = [0.4, 0.4] }
-acceptance_half_angle_deg = 0.05
-include_specular = false
-[detectors.image]
-pixels = [4, 4]
-[detectors.ldh]
-band_khz = [1, 10]
-spectrum = { f_min_khz = -5, f_max_khz = 30, bins = 70 }
-[[detectors.ldh.roi]]
-name = "spot"
-size_mm = [0.2, 0.2]
-"#;
+/// scattering vector q = 2k ẑ. λ0 = 785 nm, n = 1.33. The vessel is at 45° to the beam: the
+/// chord through the axis samples r uniformly on [0, R].
+fn thin_vessel() -> String {
+    let vessel = scenes::vessel_in_water(0.0, 0.01);
+    let ldh = "band_khz = [1, 10]\nspectrum = { f_min_khz = -5, f_max_khz = 30, bins = 70 }\n";
+    format!("{}{BEAM_785}{WATER_AROUND}{vessel}{}", scenes::header(3_000_000, 11, 20), camera(ldh))
+}
+
+/// The camera of both scenes here: 0.4 mm square, 4 × 4 pixels, looking back along the beam
+/// through a 0.05° cone, an LDH camera (`ldh`: the keys of its section) with an ROI "spot" of
+/// 0.2 mm at the centre.
+fn camera(ldh: &str) -> String {
+    let roi = "[[detectors.ldh.roi]]\nname = \"spot\"\nsize_mm = [0.2, 0.2]\n";
+    format!("{}[detectors.ldh]\n{ldh}{roi}", scenes::camera(0.4, 0.05, 4))
+}
 
 const N: f64 = 1.33;
 const LAMBDA: f64 = 785e-9;
@@ -76,7 +48,7 @@ fn poiseuille_single_scattering_matches_the_pencil_closed_form() {
     // Pencil through the axis of a tube at 45°: r is uniform along the chord, v = v_max(1 − r²/R²),
     // so with f = 2 n v_z/λ0 the spectrum is p(f) = 1/(2 f_max √(1 − f/f_max)) on [0, f_max],
     // CDF 1 − √(1 − f/f_max), f_max = 2 n v_max cos 45°/λ0 = 23.96 kHz (validation-values §4.4).
-    let r = run(THIN_VESSEL, &[]);
+    let r = run(&thin_vessel(), &[]);
     let f_max = 2.0 * N * 0.01 * std::f64::consts::FRAC_1_SQRT_2 / LAMBDA;
     let cdf = |f: f64| {
         if f <= 0.0 {
@@ -106,8 +78,8 @@ fn poiseuille_single_scattering_matches_the_pencil_closed_form() {
 fn reversed_flow_mirrors_the_roi_spectrum_and_m0_minus() {
     // v → −v mirrors every dl/dt exactly (validation-values §4.5); with the same seed, the M0−
     // changes sign and M0+ is unchanged, up to rounding of the band sums.
-    let a = run(THIN_VESSEL, &["run.samples=200000"]);
-    let b = run(THIN_VESSEL, &["run.samples=200000", "regions.0.velocity.v_max_mm_per_s=-10"]);
+    let a = run(&thin_vessel(), &["run.samples=200000"]);
+    let b = run(&thin_vessel(), &["run.samples=200000", "regions.0.velocity.v_max_mm_per_s=-10"]);
     let ((pa, _), (ma, _)) = roi_m0(&a, 0, 0);
     let ((pb, _), (mb, _)) = roi_m0(&b, 0, 0);
     assert!(ma > 0.0 && (pa - pb).abs() <= 1e-12 * pa && (ma + mb).abs() <= 1e-12 * ma, "{pa} {pb} {ma} {mb}");
@@ -124,7 +96,7 @@ fn brownian_single_scattering_is_the_stokes_einstein_lorentzian() {
         "detectors.0.ldh.spectrum={ f_min_hz = -300, f_max_hz = 300, bins = 60 }",
         "run.samples=1000000",
     ];
-    let r = run(THIN_VESSEL, &sets);
+    let r = run(&thin_vessel(), &sets);
     let d = ohd::medium::stokes_einstein(0.5e-6, 293.0, 1.002e-3);
     assert!((d - 4.29e-13).abs() < 0.01e-13, "D = {d:e}");
     let q = 4.0 * std::f64::consts::PI * N / LAMBDA;
@@ -148,7 +120,7 @@ fn velocity_dispersion_gives_the_gaussian_spectrum() {
         "detectors.0.ldh.spectrum={ f_min_khz = -15, f_max_khz = 15, bins = 60 }",
         "run.samples=1000000",
     ];
-    let r = run(THIN_VESSEL, &sets);
+    let r = run(&thin_vessel(), &sets);
     let sd = 2.0 * N * 1e-3 / LAMBDA;
     let phi = |x: f64| 0.5 * erfc(-x / (sd * std::f64::consts::SQRT_2));
     let p: Vec<f64> = edges(-15e3, 15e3, 60).windows(2).map(|w| phi(w[1]) - phi(w[0])).collect();
@@ -201,7 +173,7 @@ fn single_window_m0_noise_falls_by_about_sqrt8_from_64_to_512_samples() {
             wn.as_str(),
             "detectors.0.ldh.speckle={ windows = 500 }",
         ];
-        let r = run(THIN_VESSEL, &sets);
+        let r = run(&thin_vessel(), &sets);
         let spec = r.exp.detectors[0].ldh().unwrap();
         let s = &ohd::post::speckle_of(&r.exp, &r.out)[0];
         let band: Vec<f64> = (1..n)
@@ -234,7 +206,7 @@ fn algorithm2_mean_over_windows_is_the_expected_periodogram_of_the_run() {
     // E[Algorithm 2] = Algorithm 1 ∗ |W|² (Kim et al. Eq. 28, §5.3) for the recorded paths of a
     // run: per bin, the mean of W windows has standard error E_k/√W (exponential bins).
     let r = run(
-        THIN_VESSEL,
+        &thin_vessel(),
         &["run.samples=200000", "detectors.0.ldh.window_samples=64", "detectors.0.ldh.speckle={ windows = 2000 }"],
     );
     let s = &ohd::post::speckle_of(&r.exp, &r.out)[0];
@@ -352,19 +324,8 @@ fn output(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
 /// the thin-vessel camera: every detected path, whatever its order, has the Doppler shift of its
 /// first and last directions only (the events' `v·(d_in − d_out)` telescope), f0 = 2 n v/λ0 up to
 /// the 0.05° cone (relative 2e-7), so every pixel's spectrum is one line at f0.
-const TRANSLATING_SLAB: &str = r#"
-schema_version = 1
-[run]
-samples = 400_000
-seed = 5
-batches = 20
-[source]
-wavelength_nm = 785
-position_mm = [0, 0, -0.1]
-[ambient]
-n_above = 1.33
-n_below = 1.33
-[media.moving]
+fn translating_slab() -> String {
+    let slab = r#"[media.moving]
 sigma_a_per_mm = 0.1
 sigma_s_per_mm = 5
 phase = { type = "isotropic" }
@@ -373,26 +334,16 @@ velocity = { type = "uniform", velocity_mm_per_s = [0, 0, 3] }
 thickness_mm = 0.5
 n = 1.33
 medium = "moving"
-[[detectors]]
-name = "camera"
-area = { type = "rect", size_mm = [0.4, 0.4] }
-acceptance_half_angle_deg = 0.05
-include_specular = false
-[detectors.image]
-pixels = [4, 4]
-[detectors.ldh]
-band_khz = [4, 16]
-moments = true
-[[detectors.ldh.roi]]
-name = "spot"
-size_mm = [0.2, 0.2]
 "#;
+    let ldh = "band_khz = [4, 16]\nmoments = true\n";
+    format!("{}{BEAM_785}{WATER_AROUND}{slab}{}", scenes::header(400_000, 5, 20), camera(ldh))
+}
 
 #[test]
 fn translating_slab_mean_and_rms_frequency_are_its_doppler_line() {
     let f0 = 2.0 * N * 3e-3 / LAMBDA; // 10.166 kHz, mid-band
     for flip in ["false", "true"] {
-        let r = run(TRANSLATING_SLAB, &[&format!("detectors.0.ldh.flip_sign={flip}")]);
+        let r = run(&translating_slab(), &[&format!("detectors.0.ldh.flip_sign={flip}")]);
         let sign = if flip == "true" { -1.0 } else { 1.0 };
         let bin = r.exp.detectors[0].ldh().unwrap().stft.bin_width();
         let (m0, _) = output(&r, "camera.m0_plus");
@@ -437,7 +388,7 @@ fn translating_slab_mean_and_rms_frequency_are_its_doppler_line() {
 /// (`BandKernel`, itself checked against the brute-force periodogram).
 #[test]
 fn poiseuille_roi_moments_match_the_analytic_spectrum() {
-    let r = run(THIN_VESSEL, &["detectors.0.ldh.moments=true", "run.samples=30000000"]);
+    let r = run(&thin_vessel(), &["detectors.0.ldh.moments=true", "run.samples=30000000"]);
     let spec = r.exp.detectors[0].ldh().unwrap();
     let f_max = 2.0 * N * 0.01 * std::f64::consts::FRAC_1_SQRT_2 / LAMBDA;
     let n = 20_000;
@@ -473,7 +424,8 @@ fn poiseuille_roi_moments_match_the_analytic_spectrum() {
 fn jackknife_sigma_of_a_ratio_is_its_spread_over_seeds() {
     let (mut values, mut variances) = (Vec::new(), Vec::new());
     for seed in 1..=24 {
-        let r = run(THIN_VESSEL, &["detectors.0.ldh.moments=true", "run.samples=300000", &format!("run.seed={seed}")]);
+        let r =
+            run(&thin_vessel(), &["detectors.0.ldh.moments=true", "run.samples=300000", &format!("run.seed={seed}")]);
         let (v, se) = output(&r, "camera.roi_spot.mean_frequency_minus");
         values.push(v[0]);
         variances.push(se[0] * se[0]);

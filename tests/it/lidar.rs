@@ -6,6 +6,7 @@
 use crate::support::files::png_size;
 use crate::support::lidar::{gate_lag_weight, hg_backscatter};
 use crate::support::run::{Run, run};
+use crate::support::scenes::{self, Gates, UPWARD_1550};
 use crate::support::stats::chi2_sf;
 use ohd::numeric::simpson;
 
@@ -15,17 +16,8 @@ use ohd::SPEED_OF_LIGHT;
 /// straight up from 1 m below it, wind (3, 0, 1) m/s, 1550 nm; a monostatic receiver (40 mm
 /// aperture radius, 1 mrad field of view): 20 gates of 10 samples at 50 MHz (30 m) from 90 m,
 /// a 200 ns pulse.
-const HAZE: &str = r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 3
-batches = 40
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.haze]
+fn haze() -> String {
+    let haze = r#"[media.haze]
 sigma_s_per_m = 5e-3
 sigma_a_per_m = 5e-4
 phase = { type = "hg", g = 0.7 }
@@ -34,21 +26,37 @@ velocity = { type = "uniform", velocity_m_per_s = [3, 0, 1] }
 thickness_m = 1200
 n = 1.0
 medium = "haze"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 90
-gate_points = 10
-gates = 20
-fft_points = 256
 "#;
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 90, gate_points: 10, gates: 20, fft_points: 256 });
+    format!("{}{UPWARD_1550}{haze}{receiver}", scenes::header(1_000_000, 3, 40))
+}
 
 /// Vacuum wavelength, m.
 const LAMBDA: f64 = 1550e-9;
+
+/// Clear air, the medium "clear": nothing scatters or absorbs.
+const CLEAR_AIR: &str = "[media.clear]\nsigma_s_per_m = 0\nsigma_a_per_m = 0\n";
+
+/// `gap_m` of [`CLEAR_AIR`], then a 2 m slab of haze `name` (σs = 0.05 /m, HG 0.7, nothing
+/// absorbed) moving at `velocity` (m/s): the two layers and the haze's medium.
+fn haze_slab(gap_m: u32, name: &str, velocity: &str) -> String {
+    format!(
+        r#"[[layers]]
+thickness_m = {gap_m}
+n = 1.0
+medium = "clear"
+[media.{name}]
+sigma_s_per_m = 5e-2
+sigma_a_per_m = 0
+phase = {{ type = "hg", g = 0.7 }}
+velocity = {{ type = "uniform", velocity_m_per_s = {velocity} }}
+[[layers]]
+thickness_m = 2
+n = 1.0
+medium = "{name}"
+"#
+    )
+}
 
 /// Gate energy of channel `c` (0 total, 1 single, 2 multiple): the lag sum D_0, with its error.
 fn gate_energy(r: &Run, c: usize, g: usize) -> (f64, f64) {
@@ -61,7 +69,7 @@ fn single_scattering_follows_the_lidar_equation_in_every_gate() {
     // E_g = ∫ σs·p(π)·A/R²·exp(−2σt·s)·W_g(2R/c) ds with R = s + 1 m the range from the
     // transceiver, s the depth into the haze (Simpson's rule, 0.02 m steps; the aperture's
     // offset from the axis, ≤ 4e-5 rad, changes p and R by < 1e-8 relative).
-    let r = run(HAZE, &[]);
+    let r = run(&haze(), &[]);
     let (spec, _) = r.lidar();
     let (sigma_s, sigma_t, g): (f64, f64, f64) = (5e-3, 5.5e-3, 0.7);
     let p_back = hg_backscatter(g);
@@ -109,7 +117,7 @@ fn doppler_peak_sits_at_twice_the_line_of_sight_speed_over_lambda_in_every_gate(
     // < 1e-8), so every gate's single-scattering periodogram is the windowed pulse's kernel
     // centred there: its peak, refined by a parabola through the three top bins, within 0.05
     // bin (195 kHz bins).
-    let r = run(HAZE, &["run.samples=100000"]);
+    let r = run(&haze(), &["run.samples=100000"]);
     let f0 = 2.0 * 1.0 / LAMBDA;
     let (spec, _) = r.lidar();
     let width = spec.sample_rate / spec.fft_points as f64;
@@ -128,45 +136,10 @@ fn a_gate_holding_the_whole_pulse_has_the_pulse_limited_width() {
     // lies far inside the gate, so its periodogram is the pulse's power spectrum, a Gaussian of
     // FWHM 2 ln 2/(π τ_p) = 0.4413/τ_p = 2.2064 MHz for τ_p = 200 ns (validation-values §4.9), here on 12.2 kHz
     // bins (4096-point DFT). Half-maximum crossings by linear interpolation: within 0.5 %.
-    let slab = r#"
-schema_version = 1
-[run]
-samples = 20_000
-seed = 5
-batches = 16
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.clear]
-sigma_s_per_m = 0
-sigma_a_per_m = 0
-[media.haze]
-sigma_s_per_m = 5e-2
-sigma_a_per_m = 0
-phase = { type = "hg", g = 0.7 }
-velocity = { type = "uniform", velocity_m_per_s = [0, 0, -2] }
-[[layers]]
-thickness_m = 299
-n = 1.0
-medium = "clear"
-[[layers]]
-thickness_m = 2
-n = 1.0
-medium = "haze"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 109
-gate_points = 128
-gates = 1
-fft_points = 4096
-"#;
-    let r = run(slab, &[]);
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 109, gate_points: 128, gates: 1, fft_points: 4096 });
+    let haze = haze_slab(299, "haze", "[0, 0, -2]");
+    let slab = format!("{}{UPWARD_1550}{CLEAR_AIR}{haze}{receiver}", scenes::header(20_000, 5, 16));
+    let r = run(&slab, &[]);
     let (p, f) = gate_spectrum(&r, 1, 0);
     let k = argmax(&p);
     let half = 0.5 * p[k];
@@ -242,7 +215,7 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
     //   with the scatterers' spread near 0 (one velocity: the wind, no dispersion).
     //   (A plain Gaussian kept a second, broad, concentric component in all 20: the kernel's
     //   sidelobes.)
-    let (r, dir, entry) = run_and_write(HAZE, &[]);
+    let (r, dir, entry) = run_and_write(&haze(), &[]);
     let (spec, _) = r.lidar();
     let bin_v = 0.5 * LAMBDA * spec.sample_rate / spec.fft_points as f64;
     let sigma2 = 6.626_070_15e-34 * SPEED_OF_LIGHT / LAMBDA / (0.8 * 0.4 * 100e-6);
@@ -363,9 +336,9 @@ fn haze_gate_estimates_find_the_wind_and_snr_falls_with_range() {
 #[test]
 fn snr_scales_with_pulse_energy_and_efficiency() {
     // Same seed, same paths: SNR ∝ η_q·η_h·E_p exactly (the spectra do not change).
-    let (_, _, a) = run_and_write(HAZE, &["run.samples=20000"]);
+    let (_, _, a) = run_and_write(&haze(), &["run.samples=20000"]);
     let (_, _, b) = run_and_write(
-        HAZE,
+        &haze(),
         &[
             "run.samples=20000",
             "detectors.0.lidar.pulse_energy_mj=1",
@@ -386,70 +359,12 @@ fn snr_scales_with_pulse_energy_and_efficiency() {
 /// than the pulse's ±6σ (108 m) before the first slab, so nothing can reach it (causality);
 /// gates 1–3 each hold one slab's whole echo, whose periodogram is the Gaussian pulse spectrum
 /// (σ_f = 0.4413/(2.3548 τ_p) = 0.937 MHz, 19 bins).
-const SLABS: &str = r#"
-schema_version = 1
-[run]
-samples = 40_000
-seed = 9
-batches = 16
-[source]
-wavelength_nm = 1550
-position_m = [0, 0, -1]
-direction = [0, 0, 1]
-[media.clear]
-sigma_s_per_m = 0
-sigma_a_per_m = 0
-[media.a]
-sigma_s_per_m = 5e-2
-sigma_a_per_m = 0
-phase = { type = "hg", g = 0.7 }
-velocity = { type = "uniform", velocity_m_per_s = [0, 0, -2] }
-[media.b]
-sigma_s_per_m = 5e-2
-sigma_a_per_m = 0
-phase = { type = "hg", g = 0.7 }
-velocity = { type = "uniform", velocity_m_per_s = [0, 0, 3] }
-[media.c]
-sigma_s_per_m = 5e-2
-sigma_a_per_m = 0
-phase = { type = "hg", g = 0.7 }
-velocity = { type = "uniform", velocity_m_per_s = [1, 0, 0.5] }
-[[layers]]
-thickness_m = 574
-n = 1.0
-medium = "clear"
-[[layers]]
-thickness_m = 2
-n = 1.0
-medium = "a"
-[[layers]]
-thickness_m = 382
-n = 1.0
-medium = "clear"
-[[layers]]
-thickness_m = 2
-n = 1.0
-medium = "b"
-[[layers]]
-thickness_m = 382
-n = 1.0
-medium = "clear"
-[[layers]]
-thickness_m = 2
-n = 1.0
-medium = "c"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 0
-gate_points = 128
-gates = 4
-fft_points = 1024
-"#;
+fn slabs() -> String {
+    let slabs =
+        [haze_slab(574, "a", "[0, 0, -2]"), haze_slab(382, "b", "[0, 0, 3]"), haze_slab(382, "c", "[1, 0, 0.5]")];
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 0, gate_points: 128, gates: 4, fft_points: 1024 });
+    format!("{}{UPWARD_1550}{CLEAR_AIR}{}{receiver}", scenes::header(40_000, 9, 16), slabs.concat())
+}
 
 #[test]
 fn one_gaussian_per_slab_gate_and_an_empty_gate_reports_no_signal() {
@@ -465,7 +380,7 @@ fn one_gaussian_per_slab_gate_and_an_empty_gate_reports_no_signal() {
     // errors plus 0.002 m/s, and the fitted width is the pulse's, σ_v = λ0/2 · 0.937 MHz =
     // 0.726 m/s, within 1 %. The empty gate 0 writes NaN and null with the reason, and the run
     // goes on.
-    let (r, dir, entry) = run_and_write(SLABS, &[]);
+    let (r, dir, entry) = run_and_write(&slabs(), &[]);
     let (spec, _) = r.lidar();
     let rows = entry["gates"].as_array().unwrap();
     let row = &rows[0];

@@ -12,6 +12,8 @@ use std::process::Output;
 
 use ohd::io::formats::npy;
 
+use crate::support::scenes;
+
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -27,14 +29,8 @@ fn ohd(cwd: &Path, args: &[&str]) -> Output {
 /// line) lit by a narrow beam at (+0.5, +0.5) mm, and a 2 × 2 mm camera of 8 × 8 pixels over
 /// it with a spectrum: light leaves the slab within ~0.2 mm (μ_eff ≈ 5.7/mm) of the beam, so
 /// the top-right quadrant of every image is far brighter than the rest.
-const SURFACE: &str = r#"
-schema_version = 1
-name = "surface camera/1"
-[run]
-samples = 40_000
-seed = 11
-batches = 16
-[source]
+fn surface() -> String {
+    let slab = r#"[source]
 wavelength_nm = 785
 profile = "disk"
 radius_um = 100
@@ -50,22 +46,19 @@ velocity = { type = "uniform", velocity_mm_per_s = [0, 0, 3] }
 thickness_mm = 2
 n = 1.4
 medium = "tissue"
-[[detectors]]
-name = "camera"
-area = { type = "rect", size_mm = [2, 2] }
-acceptance_half_angle_deg = 30
-include_specular = false
-[detectors.spectrum]
+"#;
+    let spectrum = r#"[detectors.spectrum]
 f_min_khz = -30
 f_max_khz = 30
 bins = 30
 by_order = 2
 by_doppler_events = 2
-[detectors.image]
-pixels = [8, 8]
 "#;
+    let header = scenes::header(40_000, 11, 16);
+    format!("name = \"surface camera/1\"{header}{slab}{}{spectrum}", scenes::camera(2.0, 30.0, 8))
+}
 
-/// [`SURFACE`]'s camera made an LDH camera with every output: M1, M0± by class, per-pixel
+/// [`surface`]'s camera made an LDH camera with every output: M1, M0± by class, per-pixel
 /// spectra and speckle, an ROI over the bright quadrant with its speckle.
 const LDH: &str = r#"
 [detectors.ldh]
@@ -185,7 +178,7 @@ fn exr_channels(path: &Path) -> Vec<(String, usize, usize, Vec<f32>)> {
         .collect()
 }
 
-/// Every image of a run of [`SURFACE`] or [`SURFACE`] + [`LDH`] in `dir` with its light in the
+/// Every image of a run of [`surface`] or [`surface`] + [`LDH`] in `dir` with its light in the
 /// top-right quadrant, and each `.exr` holding its `.npy`'s values under the channel names of the
 /// scheme. Returns the images checked.
 fn check_images(dir: &Path, files: &BTreeSet<String>) -> BTreeSet<String> {
@@ -268,7 +261,7 @@ fn check_images(dir: &Path, files: &BTreeSet<String>) -> BTreeSet<String> {
 fn surface_camera_files_and_orientation_and_the_default_folder() {
     let tmp = tempfile::tempdir().unwrap();
     let config = tmp.path().join("surface.toml");
-    std::fs::write(&config, SURFACE).unwrap();
+    std::fs::write(&config, surface()).unwrap();
     // No --out: the folder is the experiment's name, its `/` and space made `_`.
     ohd(tmp.path(), &["run", config.to_str().unwrap(), "--quiet"]);
     assert_eq!(listing(&tmp.path().join("out")), BTreeSet::from(["surface_camera_1".to_string()]));
@@ -295,7 +288,7 @@ fn surface_camera_files_and_orientation_and_the_default_folder() {
 fn ldh_camera_files_and_orientation() {
     let tmp = tempfile::tempdir().unwrap();
     let config = tmp.path().join("ldh.toml");
-    std::fs::write(&config, format!("{SURFACE}{LDH}")).unwrap();
+    std::fs::write(&config, format!("{}{LDH}", surface())).unwrap();
     let dir = tmp.path().join("run");
     ohd(tmp.path(), &["run", config.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]);
     let (m, files) = check_run_dir(&dir, "camera");
@@ -386,7 +379,7 @@ fn lidar_scan_and_fmcw_files() {
 #[test]
 fn references_read_back_in_the_tally_order() {
     use ohd::io::write::manifest::{Invocation, write_run};
-    let text = format!("{SURFACE}{LDH}");
+    let text = format!("{}{LDH}", surface());
     let sets = ["run.samples=4000", "detectors.0.ldh.flip_sign=true", "detectors.0.ldh.speckle.pixels=false"];
     let r = crate::support::run::run(&text, &sets);
     let tmp = tempfile::tempdir().unwrap();

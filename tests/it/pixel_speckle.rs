@@ -5,6 +5,7 @@
 //! `√(Σ_B S_k²)/Σ_B S_k`, and the files do not depend on the thread count. Fixed seeds;
 //! tolerances in standard errors, never re-rolled.
 
+use crate::support::scenes::{self, BEAM_785, WATER_AROUND};
 use crate::support::stats::contrast;
 
 use ohd::detect::{LdhOptions, LdhSpec, SpeckleSpec};
@@ -135,38 +136,11 @@ fn single_window_contrast_is_the_closed_form() {
     assert!(((c - exact) / se).abs() < 4.0, "contrast {c:.4} ± {se:.4} vs {exact:.4}");
 }
 
-/// A thin vessel seen by an 8 × 8 camera with per-pixel spectra and per-pixel speckle, no ROI.
-const VESSEL: &str = r#"
-schema_version = 1
-[run]
-samples = 60_000
-seed = 5
-batches = 16
-[source]
-wavelength_nm = 785
-position_mm = [0, 0, -0.1]
-profile = "disk"
-radius_um = 150
-[ambient]
-n_above = 1.33
-n_below = 1.33
-[media.clear]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0.2
-[media.blood]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 5
-phase = { type = "isotropic" }
-[[layers]]
-thickness_mm = 1
-n = 1.33
-medium = "clear"
-[[regions]]
-layer = "layer0"
-medium = "blood"
-shape = { type = "cylinder", center_um = [0, 0, 500], axis = [0.7071067811865476, 0, 0.7071067811865476], radius_um = 100 }
-velocity = { type = "poiseuille", v_max_mm_per_s = 10 }
-[[detectors]]
+/// A thin vessel in a faintly scattering water layer under a flat-top beam of radius 150 µm, seen
+/// by an 8 × 8 camera (20° acceptance) with per-pixel spectra and per-pixel speckle, no ROI.
+fn vessel() -> String {
+    let beam = format!("{BEAM_785}profile = \"disk\"\nradius_um = 150\n");
+    let camera = r#"[[detectors]]
 name = "camera"
 area = { type = "rect", size_mm = [0.4, 0.4] }
 acceptance_half_angle_deg = 20
@@ -180,6 +154,9 @@ pixel_spectra = true
 pixels = true
 windows = 3
 "#;
+    let vessel = scenes::vessel_in_water(0.2, 5.0);
+    format!("{}{beam}{WATER_AROUND}{vessel}{camera}", scenes::header(60_000, 5, 16))
+}
 
 #[test]
 fn files_are_identical_for_one_and_two_threads() {
@@ -191,7 +168,7 @@ fn files_are_identical_for_one_and_two_threads() {
             .zip(&dirs)
     {
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-        let (table, exp) = ohd::config::load(VESSEL, "vessel", &sets).unwrap();
+        let (table, exp) = ohd::config::load(&vessel(), "vessel", &sets).unwrap();
         let out = exp.run(&ohd::experiment::Silent);
         manifests.push(write_run(dir.path(), &exp, &out, &table, &Invocation::default()).unwrap().json());
     }
@@ -222,7 +199,7 @@ fn files_are_identical_for_one_and_two_threads() {
 }
 
 fn config_error(sets: &[String]) -> String {
-    match ohd::config::load(VESSEL, "vessel", sets) {
+    match ohd::config::load(&vessel(), "vessel", sets) {
         Ok(_) => panic!("{sets:?}: expected a config error"),
         Err(e) => e.to_string(),
     }

@@ -6,37 +6,15 @@
 use std::f64::consts::PI;
 
 use crate::support::run::{Run, run};
+use crate::support::scenes;
 
 const C: f64 = 299_792_458.0;
 
 /// A semi-infinite medium, n = 1 everywhere (no Fresnel), isotropic scattering (μs' = μs =
 /// 1/mm), μa = 0.01/mm, every scatterer Brownian with D_B; a pencil beam at the origin and a
 /// ring detector 9.5–10.5 mm from it, with a time axis and g1.
-const SEMI_INFINITE: &str = r#"
-schema_version = 1
-name = "semi_infinite"
-[run]
-samples = 2_000_000
-seed = 5
-batches = 32
-[source]
-wavelength_nm = 785
-profile = "pencil"
-position_mm = [0, 0, 0]
-direction = [0, 0, 1]
-[ambient]
-n_above = 1.0
-[media.tissue]
-sigma_a_per_mm = 0.01
-sigma_s_per_mm = 1.0
-phase = { type = "isotropic" }
-motion = { diffusion_m2_per_s = 1e-12 }
-[[layers]]
-name = "tissue"
-thickness_mm = inf
-n = 1.0
-medium = "tissue"
-[[detectors]]
+fn semi_infinite() -> String {
+    let ring = r#"[[detectors]]
 name = "ring"
 area = { type = "annulus", inner_radius_mm = 9.5, outer_radius_mm = 10.5 }
 [detectors.time]
@@ -50,6 +28,11 @@ points = 41
 beta = 0.5
 exposures_s = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2]
 "#;
+    let pencil =
+        "[source]\nwavelength_nm = 785\nprofile = \"pencil\"\nposition_mm = [0, 0, 0]\ndirection = [0, 0, 1]\n";
+    let tissue = scenes::brownian_half_space(0.01, 1.0);
+    format!("name = \"semi_infinite\"{}{pencil}{tissue}{ring}", scenes::header(2_000_000, 5, 32))
+}
 
 const MUA: f64 = 10.0; // m⁻¹
 const MUSP: f64 = 1000.0; // m⁻¹
@@ -107,7 +90,7 @@ fn outputs(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
 /// solution at late times within the diffusion approximation's error.
 #[test]
 fn tpsf_sums_to_the_power_and_follows_diffusion_at_late_times() {
-    let r = run(SEMI_INFINITE, &[]);
+    let r = run(&semi_infinite(), &[]);
     let lay = r.out.layout.detectors[0].time.expect("a time axis");
     let m = r.out.estimates.mean();
     let sum: f64 = m[lay.tpsf..lay.tpsf + 102].iter().sum();
@@ -137,7 +120,7 @@ fn tpsf_sums_to_the_power_and_follows_diffusion_at_late_times() {
     // g1 against correlation diffusion where g1 ≥ 0.05: within 3σ + 0.02 (2 % of g1(0), the
     // diffusion approximation's error at ρ μs' = 10 taken a priori as for the TPSF).
     let (g1, g1e) = outputs(&r, "ring.g1");
-    let tau = crate::support::run::experiment(SEMI_INFINITE, &[]).detectors[0]
+    let tau = crate::support::run::experiment(&semi_infinite(), &[]).detectors[0]
         .surface()
         .and_then(|s| s.correlation.as_ref().map(|c| c.tau.clone()))
         .expect("correlation");
@@ -186,46 +169,21 @@ fn tpsf_sums_to_the_power_and_follows_diffusion_at_late_times() {
 #[test]
 fn single_velocity_and_single_scattering_closed_forms() {
     let scene = |velocity: &str, albedo_tiny: bool, brownian: bool| {
-        format!(
-            r#"
-schema_version = 1
-name = "closed_form"
-[run]
-samples = 20_000
-seed = 3
-batches = 16
-[source]
-wavelength_nm = 800
-profile = "pencil"
-position_mm = [0, 0, 0]
-direction = [0, 0, 1]
-[media.m]
-sigma_a_per_mm = {}
-sigma_s_per_mm = {}
-phase = {{ type = "isotropic" }}
-{velocity}
-{}
-[[layers]]
-name = "m"
-thickness_mm = 2
-n = 1.0
-medium = "m"
-[[detectors]]
-name = "back"
-acceptance_half_angle_deg = 0.5
-next_event = true
-include_specular = false
-[detectors.correlation]
+        let medium = format!(
+            "sigma_a_per_mm = {}\nsigma_s_per_mm = {}\n{velocity}\n{}",
+            if albedo_tiny { 1000.0 } else { 0.1 },
+            if albedo_tiny { 1e-3 } else { 1.0 },
+            if brownian { "motion = { diffusion_m2_per_s = 1e-13 }" } else { "" },
+        );
+        let correlation = r#"[detectors.correlation]
 tau_min_s = 1e-6
 tau_max_s = 1e-2
 points = 9
 beta = 0.8
 exposures_s = [1e-5, 1e-4, 1e-3, 1e-2]
-"#,
-            if albedo_tiny { 1000.0 } else { 0.1 },
-            if albedo_tiny { 1e-3 } else { 1.0 },
-            if brownian { "motion = { diffusion_m2_per_s = 1e-13 }" } else { "" },
-        )
+"#;
+        let header = scenes::header(20_000, 3, 16);
+        format!("name = \"closed_form\"{header}{}{correlation}", scenes::backscatter_800(&medium))
     };
     let v = 1e-3; // m/s
     let r = run(&scene("velocity = { type = \"uniform\", velocity_mm_per_s = [0, 0, 1] }", false, false), &[]);
@@ -264,7 +222,7 @@ exposures_s = [1e-5, 1e-4, 1e-3, 1e-2]
 /// width (each path is within Δf/2 of its bin's centre: a phase error ≤ πΔfτ).
 #[test]
 fn g1_is_the_fourier_transform_of_the_doppler_spectrum() {
-    let text = crate::support::run::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#);
+    let text = crate::support::scenes::tube_scene(r#"{ type = "poiseuille", v_max_mm_per_s = 1 }"#);
     let text = text.split("[detectors.spectrum]").next().expect("the scene's detector");
     let text = format!(
         "{text}[detectors.spectrum]\nf_min_hz = -2000\nf_max_hz = 2000\nbins = 40000\n\
@@ -309,7 +267,7 @@ fn gated_image_sums_to_the_image() {
         "detectors.0.time.image=true",
         "detectors.0.image.pixels=[1, 1]",
     ];
-    let r = run(SEMI_INFINITE, &sets);
+    let r = run(&semi_infinite(), &sets);
     let lay = &r.out.layout.detectors[0];
     let m = r.out.estimates.mean();
     let tl = lay.time.expect("time");
@@ -321,33 +279,15 @@ fn gated_image_sums_to_the_image() {
 
 /// Single backscattering (albedo 10⁻⁶) from particles with a Gaussian random velocity, σ_v =
 /// 1 mm/s per component, seen straight back through a 0.5° cone: each path's frequency is
-/// f = 2v_z/λ0 (λ0 = 800 nm). The tests add `[run]` and `[detectors.correlation]`.
-const RANDOM_FLOW: &str = r#"
-schema_version = 1
-name = "random_flow"
-[source]
-wavelength_nm = 800
-profile = "pencil"
-position_mm = [0, 0, 0]
-direction = [0, 0, 1]
-[media.m]
-sigma_a_per_mm = 1000
-sigma_s_per_mm = 1e-3
-phase = { type = "isotropic" }
-motion = { dispersion_mm_per_s = 1 }
-[[layers]]
-name = "m"
-thickness_mm = 2
-n = 1.0
-medium = "m"
-[[detectors]]
-name = "back"
-acceptance_half_angle_deg = 0.5
-next_event = true
-include_specular = false
-"#;
+/// f = 2v_z/λ0 (λ0 = 800 nm), `samples` paths from `seed` in `batches` batches. The tests add
+/// `[detectors.correlation]`.
+fn random_flow(samples: u64, seed: u64, batches: u64) -> String {
+    let medium = "sigma_a_per_mm = 1000\nsigma_s_per_mm = 1e-3\nmotion = { dispersion_mm_per_s = 1 }";
+    let header = scenes::header(samples, seed, batches);
+    format!("name = \"random_flow\"{header}{}", scenes::backscatter_800(medium))
+}
 
-/// g1 of `RANDOM_FLOW`: f ~ N(0, σ_f²), σ_f = 2σ_v/λ0, so g1(τ) = exp(−2π²σ_f²τ²).
+/// g1 of [`random_flow`]: f ~ N(0, σ_f²), σ_f = 2σ_v/λ0, so g1(τ) = exp(−2π²σ_f²τ²).
 fn random_flow_g1(tau: f64) -> f64 {
     let sigma_f = 2.0 * 1e-3 / 800e-9;
     (-2.0 * PI * PI * sigma_f * sigma_f * tau * tau).exp()
@@ -360,15 +300,12 @@ fn random_flow_g1(tau: f64) -> f64 {
 #[test]
 fn random_flow_gives_the_gaussian_characteristic_function() {
     let text = format!(
-        r#"{RANDOM_FLOW}[run]
-samples = 40_000
-seed = 8
-batches = 32
-[detectors.correlation]
+        r#"{}[detectors.correlation]
 tau_min_s = 1e-5
 tau_max_s = 1e-3
 points = 9
-"#
+"#,
+        random_flow(40_000, 8, 32)
     );
     let r = run(&text, &[]);
     let (g1, g1e) = outputs(&r, "back.g1");
@@ -398,8 +335,8 @@ points = 9
 /// count as g1 = 0; a batch with one path does not dephase).
 #[test]
 fn correlation_does_not_depend_on_the_batch_count() {
-    let few = run(SEMI_INFINITE, &["run.samples=400000", "run.batches=16"]);
-    let many = run(SEMI_INFINITE, &["run.samples=400000", "run.batches=4000"]);
+    let few = run(&semi_infinite(), &["run.samples=400000", "run.batches=16"]);
+    let many = run(&semi_infinite(), &["run.samples=400000", "run.batches=4000"]);
     for name in ["ring.g1", "ring.g2", "ring.speckle_contrast"] {
         let ((a, ae), (b, be)) = (outputs(&few, name), outputs(&many, name));
         for k in 0..a.len() {
@@ -422,32 +359,15 @@ fn correlation_does_not_depend_on_the_batch_count() {
 /// radius 5 mm, seen by a 2 × 2 mm camera of 4 × 4 pixels at the centre: every pixel sees the
 /// same diffuse light (the beam's edge is 4 mm and ≥ 40 transport lengths away), so the
 /// per-pixel K is one value up to noise, and the camera's own K over its area is that value.
-const UNIFORM_CAMERA: &str = r#"
-schema_version = 1
-name = "uniform_camera"
-[run]
-samples = 512_000
-seed = 11
-batches = 16
-[source]
+fn uniform_camera() -> String {
+    let beam = r#"[source]
 wavelength_nm = 785
 profile = "disk"
 radius_mm = 5
 position_mm = [0, 0, -1]
 direction = [0, 0, 1]
-[ambient]
-n_above = 1.0
-[media.tissue]
-sigma_a_per_mm = 0.1
-sigma_s_per_mm = 2.0
-phase = { type = "isotropic" }
-motion = { diffusion_m2_per_s = 1e-12 }
-[[layers]]
-name = "tissue"
-thickness_mm = inf
-n = 1.0
-medium = "tissue"
-[[detectors]]
+"#;
+    let camera = r#"[[detectors]]
 name = "camera"
 area = { type = "rect", center_mm = [0, 0], size_mm = [2, 2] }
 image = { pixels = [4, 4] }
@@ -459,6 +379,9 @@ beta = 1.0
 exposures_s = [1e-5, 1e-4, 1e-3, 1e-2]
 pixels = true
 "#;
+    let tissue = scenes::brownian_half_space(0.1, 2.0);
+    format!("name = \"uniform_camera\"{}{beam}{tissue}{camera}", scenes::header(512_000, 11, 16))
+}
 
 /// Per-pixel K is unbiased: the same number of paths cut into 16 or 512 batches (≈ 60 or ≈ 2
 /// detected paths per pixel and batch) gives the same K in every pixel within σ (per-pixel z
@@ -468,8 +391,8 @@ pixels = true
 /// with 512).
 #[test]
 fn pixel_contrast_is_unbiased_and_does_not_depend_on_the_batch_count() {
-    let few = run(UNIFORM_CAMERA, &[]);
-    let many = run(UNIFORM_CAMERA, &["run.batches=512"]);
+    let few = run(&uniform_camera(), &[]);
+    let many = run(&uniform_camera(), &["run.batches=512"]);
     let ((a, ae), (b, be)) =
         (outputs(&few, "camera.speckle_contrast_image"), outputs(&many, "camera.speckle_contrast_image"));
     assert_eq!(a.len(), 4 * 16);
@@ -515,7 +438,7 @@ fn pixel_contrast_is_unbiased_and_does_not_depend_on_the_batch_count() {
 /// jackknife replicate's): K and σ are NaN there, not 0 or √β.
 #[test]
 fn pixels_without_enough_paths_are_nan() {
-    let r = run(UNIFORM_CAMERA, &["run.samples=3200", "detectors.0.image.pixels=[40, 40]"]);
+    let r = run(&uniform_camera(), &["run.samples=3200", "detectors.0.image.pixels=[40, 40]"]);
     let (k, ke) = outputs(&r, "camera.speckle_contrast_image");
     let nan = k.iter().filter(|x| x.is_nan()).count();
     println!("{nan} of {} values NaN", k.len());
@@ -538,17 +461,14 @@ fn pixels_without_enough_paths_are_nan() {
 #[test]
 fn correlation_sigma_matches_closed_form_residuals_and_the_spread_of_seeds() {
     let text = format!(
-        r#"{RANDOM_FLOW}[run]
-samples = 40_000
-seed = 1
-batches = 400
-[detectors.correlation]
+        r#"{}[detectors.correlation]
 tau_min_s = 1e-5
 tau_max_s = 1e-3
 points = 25
 beta = 1.0
 exposures_s = [3e-5, 6e-5, 1e-4, 2e-4, 5e-4, 1e-3]
-"#
+"#,
+        random_flow(40_000, 1, 400)
     );
     let tau: Vec<f64> = (0..25).map(|k| 1e-5 * 10f64.powf(k as f64 / 12.0)).collect();
     let g1_exact: Vec<f64> = tau.iter().map(|&t| random_flow_g1(t)).collect();
@@ -602,7 +522,7 @@ exposures_s = [3e-5, 6e-5, 1e-4, 2e-4, 5e-4, 1e-3]
 /// larger).
 #[test]
 fn ldh_roi_correlation_equals_the_detector_over_a_uniform_field() {
-    let text = UNIFORM_CAMERA.replace("pixels = true\n", "")
+    let text = uniform_camera().replace("pixels = true\n", "")
         + r#"[detectors.ldh]
 frame_rate_khz = 39
 window_samples = 64

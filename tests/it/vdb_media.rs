@@ -4,7 +4,8 @@
 //! errors; seeds are fixed.
 
 use crate::support::lidar::{check_single_scattering_lags, gate_lag_weight, hg_backscatter};
-use crate::support::run::{Run, run, tube_scene};
+use crate::support::run::{Run, run};
+use crate::support::scenes::{self, Gates, tube_scene};
 use crate::support::stats::{chi_square, chi2_sf};
 use ohd::numeric::simpson;
 
@@ -112,13 +113,8 @@ fn a_vdb_poiseuille_velocity_gives_the_analytic_tube_spectrum() {
 /// A pulsed lidar staring up from 1 m below a 400 m haze whose velocity is the turbulent wind box
 /// of `media/vdb/wind_box.vdb` (32³ voxels of 10 m over x, y ∈ [−160, 150] m, z ∈ [0, 310] m;
 /// outside it the background, 8 m/s east).
-const WIND_BOX: &str = r#"
-schema_version = 1
-[run]
-samples = 1_000_000
-seed = 21
-batches = 40
-[source]
+fn wind_box() -> String {
+    let haze = r#"[source]
 wavelength_nm = 1550
 position_m = [30, -40, -1]
 direction = [0, 0, 1]
@@ -132,18 +128,11 @@ name = "air"
 thickness_m = 400
 n = 1.0
 medium = "haze"
-[[detectors]]
-name = "lidar"
-[detectors.lidar]
-aperture_radius_mm = 40
-field_of_view_mrad = 1
-pulse_fwhm_ns = 200
-sample_rate_mhz = 50
-first_gate_m = 90                # full overlap (see the test)
-gate_points = 10
-gates = 11
-fft_points = 64
 "#;
+    // The first gate at 90 m: full overlap (see the test).
+    let receiver = scenes::lidar_receiver(1, Gates { first_gate_m: 90, gate_points: 10, gates: 11, fft_points: 64 });
+    format!("{}{haze}{receiver}", scenes::header(1_000_000, 21, 40))
+}
 
 #[test]
 fn lidar_gates_through_a_vdb_wind_box_follow_the_grid_along_the_beam() {
@@ -158,7 +147,7 @@ fn lidar_gates_through_a_vdb_wind_box_follow_the_grid_along_the_beam() {
     // aperture is seen wider than the 1 mrad half-angle: incomplete overlap, which the formula
     // leaves out.)
     use num_complex::Complex64;
-    let r = run(WIND_BOX, &[]);
+    let r = run(&wind_box(), &[]);
     let (spec, _) = r.lidar();
     let medium = &r.exp.scene.media[r.exp.scene.layers[0].medium];
     let ohd::flow::VelocityField::Grid(field) = &medium.population().velocity else {

@@ -45,6 +45,24 @@ fn volume(r: &Run, what: &str) -> (Vec<f64>, Vec<f64>) {
     o.values(r.out.estimates.mean(), &r.out.estimates.stderr())
 }
 
+/// [`SEMI`]'s pencil beam through a clear layer 2 mm thick instead (σt = 0: no collision at all)
+/// with `ambient` (a TOML section, or ""), over a 1 × 1 × 2 mm box of 5 × 5 × 4 voxels whose
+/// middle column holds the beam; 1000 paths, then the overrides `sets`.
+fn clear_column(ambient: &str, sets: &[&str]) -> Run {
+    let clear = "[media.clear]\nsigma_a_per_mm = 0\nsigma_s_per_mm = 0\nphase = { type = \"hg\", g = 0.0 }\n";
+    let text = format!("{SEMI}\n{ambient}{clear}");
+    let mut all = vec![
+        "layers.0.medium=\"clear\"",
+        "layers.0.thickness_mm=2",
+        "volume.center_mm=[0.05, 0.05, 1]",
+        "volume.size_mm=[1, 1, 2]",
+        "volume.voxels=[5, 5, 4]",
+        "run.samples=1000",
+    ];
+    all.extend(sets);
+    run(&text, &all)
+}
+
 #[test]
 fn absorbed_voxels_sum_to_the_absorbed_fraction() {
     // A 1 mm slab between mismatched indices (Fresnel at both faces) inside a box 2 m wide: every
@@ -90,20 +108,7 @@ fn track_length_fluence_of_a_beam_in_a_clear_layer() {
     // A pencil beam through a clear layer (σt = 0, no collision at all) at normal incidence, index
     // matched: every path crosses each voxel of the beam's column with weight 1 over its height h,
     // so φ = h / V = 1 / (Δx Δy) there and 0 elsewhere, exactly; the collision estimator is 0.
-    let text = format!(
-        "{SEMI}\n[media.clear]\nsigma_a_per_mm = 0\nsigma_s_per_mm = 0\nphase = {{ type = \"hg\", g = 0.0 }}\n"
-    );
-    let r = run(
-        &text,
-        &[
-            "layers.0.medium=\"clear\"",
-            "layers.0.thickness_mm=2",
-            "volume.center_mm=[0.05, 0.05, 1]",
-            "volume.size_mm=[1, 1, 2]",
-            "volume.voxels=[5, 5, 4]",
-            "run.samples=1000",
-        ],
-    );
+    let r = clear_column("", &[]);
     let (t, st) = volume(&r, "fluence_track");
     // The beam at x = y = 0: the voxel x ∈ [−0.05, 0.15) mm, column 2 of x, row 2 of y.
     let want = 1.0 / (0.2e-3 * 0.2e-3);
@@ -309,29 +314,14 @@ fn gated_and_time_binned_track_of_a_beam_in_a_clear_layer() {
     // 2.25] mm / c keeps depths 0.25–1.25 mm; the time axis over the gate, 3 bins, cuts them at
     // 0.25 + k/3 mm. Every path carries weight 1 down the column x = y = 0, so a voxel of the
     // column holds (the beam's length in it, in the bin) / V exactly, every other voxel 0.
-    let text = format!(
-        "{SEMI}\n[ambient]\nn_above = 1.5\nn_below = 1.5\n[media.clear]\nsigma_a_per_mm = 0\nsigma_s_per_mm = 0\nphase = {{ type = \"hg\", g = 0.0 }}\n"
-    );
     let c_mm_per_ns = ohd::SPEED_OF_LIGHT * 1e-6;
     let (l0, l1) = (1.5 * 1.25, 1.5 * 2.25);
     let gate = format!("run.time_gate_ns=[{}, {}]", l0 / c_mm_per_ns, l1 / c_mm_per_ns);
     let (t0, t1) =
         (format!("volume.time.t_min_ns={}", l0 / c_mm_per_ns), format!("volume.time.t_max_ns={}", l1 / c_mm_per_ns));
-    let r = run(
-        &text,
-        &[
-            "layers.0.medium=\"clear\"",
-            "layers.0.thickness_mm=2",
-            "layers.0.n=1.5",
-            "volume.center_mm=[0.05, 0.05, 1]",
-            "volume.size_mm=[1, 1, 2]",
-            "volume.voxels=[5, 5, 4]",
-            "volume.time.bins=3",
-            &gate,
-            &t0,
-            &t1,
-            "run.samples=1000",
-        ],
+    let r = clear_column(
+        "[ambient]\nn_above = 1.5\nn_below = 1.5\n",
+        &["layers.0.n=1.5", "volume.time.bins=3", &gate, &t0, &t1],
     );
     let overlap = |a: f64, b: f64, c: f64, d: f64| (b.min(d) - a.max(c)).max(0.0);
     let vol_mm3 = 0.2 * 0.2 * 0.5;

@@ -1,6 +1,5 @@
 //! Run helpers: experiments from inline TOML with `--set`-style overrides, a finished run with
-//! accessors for its tallies (scalars, detector powers, spectrum channels, LDH ROIs), and shared
-//! test scenes.
+//! accessors for its tallies (scalars, detector powers, spectrum channels, LDH ROIs).
 
 use ohd::detect::Scalar;
 use ohd::experiment::{Experiment, RunOutput, Silent};
@@ -82,48 +81,4 @@ pub fn roi_m0(r: &Run, detector: usize, roi: usize) -> ((f64, f64), (f64, f64)) 
     let (m, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
     let rl = &ll.rois[roi];
     ((m[rl.m0_plus], se[rl.m0_plus]), (m[rl.m0_minus], se[rl.m0_minus]))
-}
-
-/// A thin tube at 45° in a transparent layer, lit uniformly and seen in near-backscatter (HG
-/// g = −0.99 scatterers, 3° acceptance; the flat-spectrum scene of validation-values §4.4), its
-/// velocity given by `velocity` (a TOML inline table), 3·10⁶ paths in 16 batches.
-pub fn tube_scene(velocity: &str) -> String {
-    format!(
-        r#"
-schema_version = 1
-[run]
-samples = 3000000
-batches = 16
-[source]
-wavelength_nm = 1000
-profile = "disk"
-radius_mm = 0.35
-position_mm = [0, 0, -0.1]
-[media.clear]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0
-[media.blood]
-sigma_a_per_mm = 0
-sigma_s_per_mm = 0.2
-phase = {{ type = "hg", g = -0.99 }}
-[[layers]]
-name = "clear"
-thickness_mm = 0.4
-n = 1.0
-medium = "clear"
-[[regions]]
-layer = "clear"
-medium = "blood"
-shape = {{ type = "cylinder", center_mm = [0, 0, 0.2], axis = [1, 0, 1], radius_mm = 0.05 }}
-velocity = {velocity}
-[[detectors]]
-name = "top"
-acceptance_half_angle_deg = 3
-[detectors.spectrum]
-f_min_hz = 0
-f_max_hz = 1555.634918610405   # 1.1 f_max
-bins = 22
-by_order = 2
-"#
-    )
 }
