@@ -14,7 +14,7 @@ use crate::detect::ldh::{CLASS_NAMES, LdhLayout, LdhSpec, M1_UNITS, SPECTRUM_UNI
 use crate::error::Result;
 use crate::io::figures::image::ImageFigure;
 use crate::output::{Axis, Output, rows_reversed};
-use crate::post::{PixelSpeckle, RoiSpeckle, band_sums};
+use crate::post::{Finished, PixelSpeckle, RoiSpeckle, band_sums};
 
 /// Mirror a periodogram in fftshift order: `ν_k = (k − N/2)Δ` goes to `−ν_k`, bin `N − k`; the
 /// unpaired `−f_s/2` bin (k = 0) is its own alias.
@@ -23,7 +23,8 @@ fn mirror_fftshift(v: &[f64]) -> Vec<f64> {
     (0..n).map(|k| if k == 0 { v[0] } else { v[n - k] }).collect()
 }
 
-/// Write the outputs of the LDH camera `name` (over the image `im`, its tallies laid out as `lay`)
+/// Write the outputs of the LDH camera `name` (over the image `im`, its tallies laid out as `lay`,
+/// its speckle in `f`)
 /// as the registry declares them; returns its manifest entry. The ROI estimates go to the top level of `estimates`
 /// (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
 pub fn write_ldh(
@@ -32,10 +33,10 @@ pub fn write_ldh(
     im: &ImageSpec,
     spec: &LdhSpec,
     lay: &LdhLayout,
-    speckle: &[RoiSpeckle],
-    pixel_speckle: Option<&PixelSpeckle>,
+    f: &Finished,
     estimates: &mut BTreeMap<String, Entry>,
 ) -> Result<Value> {
+    let (speckle, pixel_speckle) = (&f.speckle, f.pixel_speckle.as_ref());
     let registry = w.registry;
     let out = |slot: usize| registry.at(slot);
     // Each image's EXR channel is named after what it holds (`m0_plus`, `m0_minus_static`, …).

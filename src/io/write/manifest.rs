@@ -336,16 +336,7 @@ fn write_run_to<S: super::Sink>(
                     info.correlation = Some(super::tcorr::write_correlation(&mut w, &d.name, c, cl)?);
                 }
                 if let (Some(spec), Some(im), Some(ll)) = (&s.ldh, &s.image, &lay.ldh) {
-                    info.ldh = Some(super::ldh::write_ldh(
-                        &mut w,
-                        &d.name,
-                        im,
-                        spec,
-                        ll,
-                        &f.speckle,
-                        f.pixel_speckle.as_ref(),
-                        &mut estimates,
-                    )?);
+                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, ll, f, &mut estimates)?);
                 }
             }
             DetectorKind::Lidar(spec) => {
