@@ -154,7 +154,7 @@ impl Axis {
     }
 }
 
-/// How an output is drawn: a colour map from 0 (or a log scale) for what is non-negative, a
+/// How an output's figure draws it: a sequential colour map from 0 for what is non-negative, a
 /// diverging map on a symmetric range for what has a sign.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]

@@ -85,8 +85,9 @@ pub struct LdhOptions {
 
 /// The band moments an LDH camera records with `moments = true`, per pixel and ROI, in their
 /// order in the tallies: `M1± = ∫_{f1}^{f2} f [S(f) ± S(−f)] df`, `M2± = ∫ f² [S(f) ± S(−f)] df`
-/// (`M1+` is `m1`'s `M1`).
-pub const MOMENTS: [&str; 4] = ["m1_plus", "m1_minus", "m2_plus", "m2_minus"];
+/// (`M1+` is `m1`'s `M1`), as `(name, title)`.
+pub const MOMENTS: [(&str, &str); 4] =
+    [("m1_plus", "M1+"), ("m1_minus", "M1−"), ("m2_plus", "M2+"), ("m2_minus", "M2−")];
 
 /// The frequency images of `moments = true`, ratios of the band moments with their σ by the
 /// group jackknife: `(name, numerator in MOMENTS, sqrt, signed, title)`. `M2−/M0+` has no root
@@ -306,9 +307,9 @@ impl LdhSpec {
             format!("detectors[{i}].ldh.moments"),
             format!("= true ({} images, {} kept per group of batches)", MOMENTS.len() + FREQUENCIES.len(), 4 * GROUPS),
         ));
-        // One unit (the image's pixels, or an ROI): its four moments from `start`, each `len`
-        // values at `stride`, declared as `kind` outputs called `prefix.m1_plus`, …; then the
-        // frequencies from M0+ at `m0_plus`.
+        // One unit (the image's pixels, or an ROI, `len` values each): its four moments from
+        // `start`, declared as `kind` outputs called `prefix.m1_plus`, …; then the frequencies,
+        // ratios to its M0+ at `m0_plus`.
         let unit = |reg: &mut Registry, prefix: &str, stem: &str, kind: Kind, shape: Vec<usize>, m0_plus: usize| {
             let len = shape.iter().product::<usize>();
             let start = reg.take(MOMENTS.len() * len);
@@ -324,21 +325,19 @@ impl LdhSpec {
             };
             let (band, moments_of) =
                 (format!("{}–{} kHz", self.band.0 / 1e3, self.band.1 / 1e3), |k: usize| start + k * len);
-            for (k, what) in MOMENTS.iter().enumerate() {
-                let odd = what.ends_with("minus");
+            for (k, (what, title)) in MOMENTS.iter().enumerate() {
+                // M1− and M2− are odd in the frequency: they carry the set-up's sign.
+                let odd = k % 2 == 1;
                 reg.declare(Output {
                     units: if k < 2 { M1_UNITS } else { M2_UNITS },
                     sign: if odd { sign } else { 1.0 },
                     style: if odd { Style::Diverging } else { Style::Sequential },
-                    title: format!(
-                        "{} ({band})",
-                        what.replace("m1_", "M1").replace("m2_", "M2").replace("plus", "+").replace("minus", "−")
-                    ),
+                    title: format!("{title} ({band})"),
                     ..output(what, Slots::contiguous(moments_of(k), len))
                 });
             }
             reg.group(format!("{prefix}.m0_plus_groups"), Some(i), m0_plus, len, budget.clone());
-            for (k, what) in MOMENTS.iter().enumerate().take(3) {
+            for (k, (what, _)) in MOMENTS.iter().enumerate().take(3) {
                 reg.group(format!("{prefix}.{what}_groups"), Some(i), moments_of(k), len, budget.clone());
             }
             let frequencies = reg.take(FREQUENCIES.len() * len);
@@ -367,8 +366,16 @@ impl LdhSpec {
     #[inline]
     pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
         let Detection { pixel, x, y, weight: w, frequency: f, gamma, class } = d;
+        // Each evaluated once, when first needed (a path in a pixel and an ROI).
         let mut powers: Option<BandPowers> = None;
         let mut bp = || *powers.get_or_insert_with(|| self.band_powers(f, gamma));
+        let mut moments: Option<[f64; 4]> = None;
+        let mut bm = |b: BandPowers| {
+            *moments.get_or_insert_with(|| {
+                let m = self.band_moments(f, gamma);
+                [b.m1, m.m1_minus, m.m2_plus, m.m2_minus]
+            })
+        };
         if let Some(p) = pixel {
             let b = bp();
             acc[lay.m0_plus + p] += w * b.m0_plus;
@@ -386,7 +393,9 @@ impl LdhSpec {
                 self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
             }
             if let Some(o) = lay.moments {
-                self.record_moments(acc, o, lay.pixels, p, w, b, f, gamma);
+                for (k, v) in bm(b).into_iter().enumerate() {
+                    acc[o + k * lay.pixels + p] += w * v;
+                }
             }
         }
         for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
@@ -401,30 +410,11 @@ impl LdhSpec {
             let s = rl.spectrum + (1 + class) * lay.stride;
             self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
             if let Some(o) = rl.moments {
-                self.record_moments(acc, o, 1, 0, w, b, f, gamma);
+                for (k, v) in bm(b).into_iter().enumerate() {
+                    acc[o + k] += w * v;
+                }
             }
             in_roi(i);
-        }
-    }
-
-    /// Add a path's band moments (weight `w`, band powers `b`, line at `f` of half-width `gamma`)
-    /// into element `at` of the moments `[moment][len]` from slot `o`.
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn record_moments(
-        &self,
-        acc: &mut [f64],
-        o: usize,
-        len: usize,
-        at: usize,
-        w: f64,
-        b: BandPowers,
-        f: f64,
-        gamma: f64,
-    ) {
-        let m = self.band_moments(f, gamma);
-        for (k, v) in [b.m1, m.m1_minus, m.m2_plus, m.m2_minus].into_iter().enumerate() {
-            acc[o + k * len + at] += w * v;
         }
     }
 }

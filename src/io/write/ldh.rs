@@ -24,9 +24,8 @@ fn mirror_fftshift(v: &[f64]) -> Vec<f64> {
 }
 
 /// Write the outputs of the LDH camera `name` (over the image `im`, its tallies laid out as `lay`,
-/// its speckle in `f`)
-/// as the registry declares them; returns its manifest entry. The ROI estimates go to the top level of `estimates`
-/// (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
+/// its speckle in `f`) as the registry declares them; returns its manifest entry. The ROI
+/// estimates go to the top level of `estimates` (`m0_plus_roi_NAME`, `m0_minus_roi_NAME`).
 pub fn write_ldh(
     w: &mut Writer,
     name: &str,
