@@ -118,7 +118,10 @@ pub struct Axis {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AxisValues {
-    /// `first + k·step` for `k = 0 … count − 1` (pixel and bin centres).
+    /// Bin and pixel centres, `start + (k + ½)·width` for `k = 0 … count − 1` (as the axis files
+    /// compute them, to the bit; `width` is negative for image rows, `y` descending).
+    Bins { start: f64, width: f64, count: usize },
+    /// `first + k·step` for `k = 0 … count − 1` (indices: windows, layers, time bins).
     Linear { first: f64, step: f64, count: usize },
     /// The values of the axis file of that name, written beside the output.
     File(String),
@@ -131,6 +134,10 @@ impl Axis {
         Axis { name: name.to_string(), units, values: AxisValues::Linear { first, step, count } }
     }
 
+    pub fn bins(name: &str, units: &'static str, start: f64, width: f64, count: usize) -> Self {
+        Axis { name: name.to_string(), units, values: AxisValues::Bins { start, width, count } }
+    }
+
     pub fn file(name: &str, units: &'static str, file: String) -> Self {
         Axis { name: name.to_string(), units, values: AxisValues::File(file) }
     }
@@ -141,16 +148,15 @@ impl Axis {
 
     /// Bin centres of a frequency axis as written (negated and reversed when `mirrored`).
     pub fn frequency(axis: &FrequencyAxis, mirrored: bool) -> Self {
-        let (w, n) = (axis.bin_width(), axis.bins);
-        let first = if mirrored { -axis.f_max + 0.5 * w } else { axis.center(0) };
-        Axis::linear("frequency_hz", "Hz", first, w, n)
+        let start = if mirrored { -axis.f_max } else { axis.f_min };
+        Axis::bins("frequency_hz", "Hz", start, axis.bin_width(), axis.bins)
     }
 
     /// The pixel rows (`y_m`, descending: row 0 = the largest `y`) and columns (`x_m`) of an
     /// image over `[min, max]`, centres in m.
     pub fn image(nx: usize, ny: usize, min: [f64; 2], max: [f64; 2]) -> [Self; 2] {
         let (dx, dy) = ((max[0] - min[0]) / nx as f64, (max[1] - min[1]) / ny as f64);
-        [Axis::linear("y_m", "m", max[1] - 0.5 * dy, -dy, ny), Axis::linear("x_m", "m", min[0] + 0.5 * dx, dx, nx)]
+        [Axis::bins("y_m", "m", max[1], -dy, ny), Axis::bins("x_m", "m", min[0], dx, nx)]
     }
 }
 
@@ -185,9 +191,9 @@ impl Kind {
             }
             &Kind::Volume { voxels: [nx, ny, nz], min, max } => {
                 let d = |a: usize, n: usize| (max[a] - min[a]) / n as f64;
-                let z = Axis::linear("z_m", "m", min[2] + 0.5 * d(2, nz), d(2, nz), nz);
-                let y = Axis::linear("y_m", "m", max[1] - 0.5 * d(1, ny), -d(1, ny), ny);
-                let x = Axis::linear("x_m", "m", min[0] + 0.5 * d(0, nx), d(0, nx), nx);
+                let z = Axis::bins("z_m", "m", min[2], d(2, nz), nz);
+                let y = Axis::bins("y_m", "m", max[1], -d(1, ny), ny);
+                let x = Axis::bins("x_m", "m", min[0], d(0, nx), nx);
                 if shape.len() == 4 {
                     vec![Axis::linear("time_bin", "", 0.0, 1.0, shape[0]), z, y, x]
                 } else {

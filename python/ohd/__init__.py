@@ -139,6 +139,9 @@ class Result:
 
     def _axis(self, a: Dict[str, Any]) -> np.ndarray:
         """The coordinates of one axis of the manifest's `outputs` table."""
+        if "bins" in a:
+            b = a["bins"]
+            return b["start"] + (np.arange(b["count"]) + 0.5) * b["width"]
         if "linear" in a:
             lin = a["linear"]
             return lin["first"] + lin["step"] * np.arange(lin["count"])

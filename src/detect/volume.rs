@@ -220,7 +220,7 @@ impl VolumeGrid {
             let start = reg.take(len);
             let mut o = Output::new(format!("volume.{what}"), kind.clone(), Slots::contiguous(start, len), shape);
             if let (true, Some(t)) = (timed, self.time) {
-                o.axes[0] = Axis::linear("time_s", "s", t.center(0), t.bin_width(), t.bins);
+                o.axes[0] = Axis::bins("time_s", "s", t.f_min, t.bin_width(), t.bins);
             }
             reg.declare(Output { file: format!("volume_{what}.npy"), units, budget_key: budget, ..o });
             start
