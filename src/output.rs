@@ -161,12 +161,14 @@ impl Axis {
 }
 
 /// How an output's figure draws it: a sequential colour map from 0 for what is non-negative, a
-/// diverging map on a symmetric range for what has a sign.
+/// diverging map on a symmetric range for what has a sign, a sequential map over the values'
+/// spread for what is far from 0 everywhere (a mean frequency).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Style {
     Sequential,
     Diverging,
+    Spread,
 }
 
 impl Kind {

@@ -345,7 +345,9 @@ impl LdhSpec {
                 reg.declare(Output {
                     units: "Hz",
                     sign: if signed { sign } else { 1.0 },
-                    style: if signed { Style::Diverging } else { Style::Sequential },
+                    // A frequency image's values lie far from 0 (the static background's leakage
+                    // has its band centroid): drawn over their spread, not from 0.
+                    style: if signed { Style::Diverging } else { Style::Spread },
                     title: format!("{title} ({band})"),
                     undefined_nan: true,
                     derivation: Derivation::Ratio { numerator: moments_of(k), denominator: m0_plus, sqrt },

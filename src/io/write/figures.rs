@@ -48,8 +48,10 @@ impl Writer<'_, '_> {
         if !self.figures {
             return Ok(());
         }
-        let signed = o.style == Style::Diverging;
-        let mut panels = vec![image_panel(o, v, title, unit, signed)];
+        let mut panels = vec![match o.style {
+            Style::Spread => spread_panel(o, v, title, unit),
+            style => image_panel(o, v, title, unit, style == Style::Diverging),
+        }];
         if o.primary {
             panels.push(error_panel(o, v, e));
         }
@@ -83,6 +85,23 @@ pub fn image_panel(o: &Output, v: &[f64], title: &str, unit: &str, signed: bool)
         100.0 * TOP_QUANTILE,
         if signed { " of |value|" } else { "" },
         sat
+    );
+    p
+}
+
+/// An image panel of `v` on the grid of `o`, sequential between the 0.5th and the 99.5th
+/// percentiles of its values ([`Style::Spread`]).
+fn spread_panel(o: &Output, v: &[f64], title: &str, unit: &str) -> Panel {
+    let (x, y, n) = extent_mm(o);
+    let lo = quantile(v, 1.0 - TOP_QUANTILE).unwrap_or(0.0);
+    let hi = quantile(v, TOP_QUANTILE).unwrap_or(1.0);
+    let range = if hi > lo { (lo, hi) } else { (lo, lo + 1.0) };
+    let mut p = Panel::new(title, v.to_vec(), n, x, y, Colormap::Viridis, range, unit);
+    let outside = v.iter().filter(|&&x| x < range.0 || x > range.1).count();
+    p.caption = format!(
+        "colour scale: the {:.1}th to the {:.1}th percentile; {outside} pixels outside; grey: no signal",
+        100.0 * (1.0 - TOP_QUANTILE),
+        100.0 * TOP_QUANTILE
     );
     p
 }
