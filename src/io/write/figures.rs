@@ -98,8 +98,9 @@ fn spread_panel(o: &Output, v: &[f64], title: &str, unit: &str) -> Panel {
     let range = if hi > lo { (lo, hi) } else { (lo, lo + 1.0) };
     let mut p = Panel::new(title, v.to_vec(), n, x, y, Colormap::Viridis, range, unit);
     let outside = v.iter().filter(|&&x| x < range.0 || x > range.1).count();
+    // Short enough for the panel's width (grey pixels: no signal, as in every image).
     p.caption = format!(
-        "colour scale: the {:.1}th to the {:.1}th percentile; {outside} pixels outside; grey: no signal",
+        "colour scale: {:.1}th–{:.1}th percentile; {outside} pixels outside",
         100.0 * (1.0 - TOP_QUANTILE),
         100.0 * TOP_QUANTILE
     );
