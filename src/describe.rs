@@ -763,20 +763,20 @@ impl Display for Detector {
         if d.include_specular {
             write!(f, ", specular reflection included")?;
         }
-        if let Some(s) = &d.spectrum {
+        if let Some(s) = d.spectrum() {
             write!(f, "\n  {s}")?;
         }
-        if let Some(i) = &d.image {
+        if let Some(i) = d.image() {
             write!(f, "\n  {i}")?;
         }
-        if let Some(t) = &d.time {
+        if let Some(t) = d.time() {
             let u = unit(TIME, 0, t.axis.f_max);
             write!(f, "\n  TPSF: {} time-of-flight bins over {}", t.axis.bins, u.range(t.axis.f_min, t.axis.f_max))?;
             if t.image {
                 write!(f, ", and a time-gated image")?;
             }
         }
-        if let Some(c) = &d.correlation {
+        if let Some(c) = d.correlation() {
             let (lo, hi) = (c.tau[0], c.tau[c.tau.len() - 1]);
             let (ul, uh) = (unit(TIME, 0, lo), unit(TIME, 0, hi));
             write!(
@@ -798,7 +798,7 @@ impl Display for Detector {
                 write!(f, "; also per ROI ({})", c.rois.len())?;
             }
         }
-        if let Some(l) = &d.ldh {
+        if let Some(l) = d.ldh() {
             write!(f, "\n  {l}")?;
         }
         Ok(())

@@ -411,7 +411,7 @@ impl Experiment {
     /// Whether the walk needs the optical path length (a chirp, range gates, or a time axis).
     pub fn needs_length(&self) -> bool {
         self.source.chirp.is_some()
-            || self.detectors.iter().any(|d| d.lidar().is_some() || d.surface().is_some_and(|s| s.time.is_some()))
+            || self.detectors.iter().any(|d| d.lidar().is_some() || d.surface().is_some_and(|s| s.time().is_some()))
             || self.plan.walk.gate.is_some()
             || self.volume.as_ref().is_some_and(|v| v.time.is_some())
     }
@@ -436,7 +436,7 @@ impl Experiment {
             .enumerate()
             .filter_map(|(i, d)| {
                 let s = d.surface()?;
-                let im = s.image?;
+                let im = *s.image()?;
                 (s.estimator() == crate::detect::Estimator::Camera).then(|| CameraTarget {
                     include_specular: s.include_specular,
                     stride: self.plan.camera_pixel_stride.max(1),
@@ -457,7 +457,7 @@ impl Experiment {
     /// an error when they cannot be read off (no signal).
     pub fn fmcw_estimates(&self, out: &RunOutput, i: usize) -> Option<Result<FmcwEstimate, RetrievalError>> {
         let chirp = self.source.chirp?;
-        let axis = self.detectors.get(i)?.surface()?.spectrum.as_ref()?.axis;
+        let axis = self.detectors.get(i)?.surface()?.spectrum()?.axis;
         let (up, down) = (out.spectrum(self, i, 0, 0)?, out.spectrum(self, i, 1, 0)?);
         Some(fmcw_estimates(&axis, up, down, self.source.wavelength, chirp.bandwidth, chirp.duration))
     }

@@ -579,6 +579,11 @@ impl Registry {
         self.outputs.iter().filter(move |o| o.detector == Some(i))
     }
 
+    /// The outputs whose first slot lies in `slots` (a part's block), in declaration order.
+    pub fn within(&self, slots: std::ops::Range<usize>) -> impl Iterator<Item = &Output> {
+        self.outputs.iter().filter(move |o| slots.contains(&o.slots.start) && o.kind != Kind::Internal)
+    }
+
     /// The main outputs (see [`Output::primary`]): the scalar tallies, then per detector its
     /// power, total spectrum (per chirp), image, LDH M0± images and lidar range–Doppler spectra.
     pub fn named(&self) -> impl Iterator<Item = &Output> {

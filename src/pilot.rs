@@ -121,7 +121,7 @@ fn set_estimator(exp: &mut Experiment, i: usize, e: EstimatorChoice) {
 }
 
 fn pixels_of(exp: &Experiment, i: usize) -> usize {
-    exp.detectors[i].surface().and_then(|s| s.image).map_or(0, |im| im.nx * im.ny)
+    exp.detectors[i].surface().and_then(|s| s.image()).map_or(0, |im| im.nx * im.ny)
 }
 
 /// Camera paths per pixel of detector `i` in a batch of `ppb` paths (as
@@ -148,7 +148,7 @@ fn relative_variances(i: usize, stride: usize, f: &RunOutput, c: &RunOutput) -> 
     let image = |o: &RunOutput| {
         let (mean, stderr) = (o.estimates.mean(), o.estimates.stderr());
         let lay = &o.layout.detectors[i];
-        let start = lay.ldh.as_ref().map(|l| l.m0_plus).or(lay.image)?;
+        let start = lay.ldh().map(|l| l.m0_plus).or(lay.image())?;
         let out = o.layout.registry.at(start);
         Some((mean[out.range()].to_vec(), stderr[out.range()].to_vec()))
     };

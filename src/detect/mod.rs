@@ -2,28 +2,32 @@
 //!
 //! All per-batch numbers live in one flat `Vec<f64>` whose layout ([`TallyLayout`]) is fixed by
 //! the configuration, so batch statistics treat every estimate — scalars, spectrum bins, pixels —
-//! the same way. Scalars come first ([`Scalar`]), then each detector's block: detected power,
-//! spectra (`chirps × channels × (bins + 2)`, the last two slots of a channel being the
-//! below/above out-of-range tallies), then the image (`ny × nx`, row-major), then an LDH camera's
-//! or a lidar receiver's tallies. Each detector declares its named outputs in the
+//! the same way. Scalars come first ([`Scalar`]), then each detector's block: its detected power,
+//! then a surface detector's parts in order ([`part`]: spectra, image, time, correlation, LDH) or
+//! a lidar receiver's tallies. Each part declares its named outputs in the
 //! [`crate::output::Registry`] as it lays them out ([`TallyLayout::new`]).
 
 pub mod correlation;
+pub mod image;
 pub mod ldh;
 pub mod lidar;
+pub mod part;
+pub mod spectrum;
 pub mod time;
 pub mod volume;
 
 use glam::DVec3;
 
 pub use correlation::{CorrelationLayout, CorrelationSpec};
+pub use image::ImageSpec;
 pub use ldh::{Detection, LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
 pub use lidar::{Echo, LidarLayout, LidarSpec};
+pub use part::{Hit, Part, Place, Placed};
+pub use spectrum::{SpectrumLayout, SpectrumSpec};
 pub use time::{TimeLayout, TimeSpec};
 
 use crate::SPEED_OF_LIGHT;
-use crate::output::{Axis, Kind, Output, PER_BIN, PER_PIXEL, Registry, Slots};
-use crate::spectrum::FrequencyAxis;
+use crate::output::{Axis, Kind, Output, Registry, Slots};
 use crate::stats::RunStats;
 
 /// Which surface of the stack a detector watches.
@@ -91,32 +95,6 @@ impl Area {
     }
 }
 
-/// A spectrum recorded by a detector.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SpectrumSpec {
-    pub axis: FrequencyAxis,
-    /// Split by scattering order 0, 1, …, K−1 and ≥ K (`Some(K)`).
-    pub by_order: Option<u32>,
-    /// Split by number of Doppler-shifting events 0, 1, …, E−1 and ≥ E (`Some(E)`).
-    pub by_doppler_events: Option<u32>,
-}
-
-impl SpectrumSpec {
-    /// Channels: the total, then the order split, then the Doppler-event split.
-    pub fn channels(&self) -> usize {
-        1 + self.by_order.map_or(0, |k| k as usize + 1) + self.by_doppler_events.map_or(0, |e| e as usize + 1)
-    }
-}
-
-/// An intensity image over the bounding rectangle of the detector area.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImageSpec {
-    pub nx: usize,
-    pub ny: usize,
-    pub min: [f64; 2],
-    pub max: [f64; 2],
-}
-
 /// A detector: what the run records into its named outputs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Detector {
@@ -147,14 +125,9 @@ pub struct Surface {
     pub cos_acceptance: f64,
     /// Whether the specular reflection of the laser at the top surface is recorded.
     pub include_specular: bool,
-    pub spectrum: Option<SpectrumSpec>,
-    pub image: Option<ImageSpec>,
-    /// A time axis: the TPSF (and time-gated images) ([`time`]).
-    pub time: Option<TimeSpec>,
-    /// g1, g2 and speckle contrast ([`correlation`]; boxed: read only where asked for).
-    pub correlation: Option<Box<CorrelationSpec>>,
-    /// An LDH camera over the image's pixels (boxed: large, and read only by a camera).
-    pub ldh: Option<Box<LdhSpec>>,
+    /// What it records, in the order declared ([`part`]): at most one part of each kind, and a
+    /// part laid out on pixels after the image.
+    pub parts: Vec<Part>,
     /// Scored by next-event estimation from every scattering vertex (a top detector with a
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
@@ -258,7 +231,7 @@ impl Detector {
 
     /// The LDH camera, if this is one.
     pub fn ldh(&self) -> Option<&LdhSpec> {
-        self.surface()?.ldh.as_deref()
+        self.surface()?.ldh()
     }
 
     /// Scored by next-event estimation (a lidar receiver always is; a camera-estimated detector
@@ -377,13 +350,8 @@ pub struct TallyLayout {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DetectorLayout {
     pub power: usize,
-    /// Start of the spectra, and the stride of one channel (`bins + 2`).
-    pub spectra: Option<(usize, usize)>,
-    pub channels: usize,
-    pub image: Option<usize>,
-    pub time: Option<TimeLayout>,
-    pub correlation: Option<CorrelationLayout>,
-    pub ldh: Option<LdhLayout>,
+    /// Where each of its parts' tallies lie, in the order of its parts ([`Surface::parts`]).
+    pub parts: Vec<Placed>,
     pub lidar: Option<LidarLayout>,
 }
 
@@ -431,8 +399,8 @@ impl TallyLayout {
                 spec.finish_batch(ll, sums);
             }
         }
-        for (spec, cl, power) in self.correlations(detectors) {
-            spec.finish_batch(cl, sums, power, batch);
+        for (part, placed, power) in self.parts(detectors) {
+            part.finish_batch(placed, sums, power, batch);
         }
         self.registry.finish_batch(sums, batch);
     }
@@ -443,21 +411,18 @@ impl TallyLayout {
     /// all folded in ([`crate::experiment::Experiment::finish`]), whatever the threads, shards or
     /// resumes.
     pub fn finish_run(&self, detectors: &[Detector], estimates: &mut crate::stats::BatchAccumulator) {
-        for (spec, cl, power) in self.correlations(detectors) {
-            spec.finish_run(cl, estimates, power);
+        for (part, placed, power) in self.parts(detectors) {
+            part.finish_run(placed, estimates, power);
         }
         self.registry.finish_run(estimates);
     }
 
-    /// Each detector with correlation outputs: its spec, their layout and its power's slot.
-    fn correlations<'a>(
-        &'a self,
-        detectors: &'a [Detector],
-    ) -> impl Iterator<Item = (&'a CorrelationSpec, &'a CorrelationLayout, usize)> {
-        detectors
-            .iter()
-            .zip(&self.detectors)
-            .filter_map(|(d, lay)| Some((d.surface()?.correlation.as_deref()?, lay.correlation.as_ref()?, lay.power)))
+    /// Every part of every surface detector: the part, where it lies, and its detector's power slot.
+    pub fn parts<'a>(&'a self, detectors: &'a [Detector]) -> impl Iterator<Item = (&'a Part, &'a Placed, usize)> {
+        detectors.iter().zip(&self.detectors).flat_map(|(d, lay)| {
+            let parts = d.surface().map_or(&[][..], |s| &s.parts[..]);
+            parts.iter().zip(&lay.parts).map(move |(p, l)| (p, l, lay.power))
+        })
     }
 }
 
@@ -503,132 +468,15 @@ impl Detector {
                 vec![],
             )
         });
-        let mut lay = DetectorLayout {
-            power,
-            spectra: None,
-            channels: 0,
-            image: None,
-            time: None,
-            correlation: None,
-            ldh: None,
-            lidar: None,
-        };
+        let mut lay = DetectorLayout { power, parts: Vec::new(), lidar: None };
         match &self.kind {
-            DetectorKind::Surface(s) => s.declare(i, &self.name, beat, reg, &mut lay),
+            DetectorKind::Surface(s) => {
+                let at = Place { i, name: &self.name, image: s.image(), beat };
+                lay.parts = s.parts.iter().map(|p| p.declare(&at, reg)).collect();
+            }
             DetectorKind::Lidar(l) => lay.lidar = Some(l.declare(i, &self.name, reg)),
         }
         lay
-    }
-}
-
-impl Surface {
-    fn declare(&self, i: usize, name: &str, beat: &BeatModel, reg: &mut Registry, lay: &mut DetectorLayout) {
-        let path = format!("detectors[{i}]");
-        if let Some(s) = &self.spectrum {
-            let (bins, stride, channels) = (s.axis.bins, s.axis.bins + 2, s.channels());
-            let start = reg.take(beat.chirps() * channels * stride);
-            lay.spectra = Some((start, stride));
-            lay.channels = channels;
-            let budget = Some((format!("{path}.spectrum.bins"), format!("= {bins}")));
-            let mut groups: Vec<(&str, usize, Vec<String>)> = Vec::new();
-            if let Some(k) = s.by_order {
-                let names = (0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") });
-                groups.push(("_by_order", 1, names.collect()));
-            }
-            if let Some(e) = s.by_doppler_events {
-                let first = 1 + s.by_order.map_or(0, |k| k as usize + 1);
-                let names = (0..=e)
-                    .map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") });
-                groups.push(("_by_doppler_events", first, names.collect()));
-            }
-            for c in 0..beat.chirps() {
-                let base = start + c * channels * stride;
-                let (what, chirp) = match (beat.chirps(), c) {
-                    (1, _) => ("spectrum", ""),
-                    (_, 0) => ("spectrum_up", "_up"),
-                    _ => ("spectrum_down", "_down"),
-                };
-                let kind = |channels: Vec<String>| Kind::Spectrum { axis: s.axis, channels, mirrored: false };
-                reg.declare(Output {
-                    file: format!("{name}{chirp}_spectrum.npy"),
-                    units: PER_BIN,
-                    primary: true,
-                    budget_key: budget.clone(),
-                    ..detector_output(
-                        i,
-                        format!("{name}.{what}"),
-                        kind(vec!["total".into()]),
-                        Slots::row(base, bins, stride),
-                        vec![bins],
-                    )
-                });
-                for (suffix, first, names) in &groups {
-                    let rows = names.len();
-                    reg.declare(Output {
-                        file: format!("{name}{chirp}_spectrum{suffix}.npy"),
-                        units: PER_BIN,
-                        budget_key: budget.clone(),
-                        ..detector_output(
-                            i,
-                            format!("{name}.{what}{suffix}"),
-                            kind(names.clone()),
-                            Slots { start: base + first * stride, rows, stride, len: bins },
-                            vec![rows, bins],
-                        )
-                    });
-                }
-            }
-        }
-        if let Some(im) = &self.image {
-            let n = im.nx * im.ny;
-            let start = reg.take(n);
-            lay.image = Some(start);
-            reg.declare(Output {
-                file: format!("{name}_image.npy"),
-                units: PER_PIXEL,
-                primary: true,
-                budget_key: Some(im.budget_key(i)),
-                ..detector_output(i, format!("{name}.image"), im.kind(), Slots::contiguous(start, n), im.shape())
-            });
-        }
-        if let Some(t) = &self.time {
-            lay.time = Some(t.declare(i, name, self.image.as_ref(), reg));
-        }
-        if let Some(c) = &self.correlation {
-            lay.correlation = Some(c.declare(i, name, self.image.as_ref(), reg));
-        }
-        if let (Some(ldh), Some(im)) = (&self.ldh, &self.image) {
-            lay.ldh = Some(ldh.declare(i, name, im, reg));
-        }
-    }
-}
-
-impl ImageSpec {
-    /// The pixel (row-major index) holding the point `(x, y)` of the detector plane.
-    #[inline]
-    pub fn pixel_at(&self, x: f64, y: f64) -> Option<usize> {
-        let fx = (x - self.min[0]) / (self.max[0] - self.min[0]);
-        let fy = (y - self.min[1]) / (self.max[1] - self.min[1]);
-        ((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy)).then(|| {
-            let ix = ((fx * self.nx as f64) as usize).min(self.nx - 1);
-            let iy = ((fy * self.ny as f64) as usize).min(self.ny - 1);
-            iy * self.nx + ix
-        })
-    }
-
-    /// The kind of an image over this detector's pixels.
-    pub fn kind(&self) -> Kind {
-        Kind::Image { nx: self.nx, ny: self.ny, min: self.min, max: self.max }
-    }
-
-    /// `[ny, nx]`: rows are `y`.
-    pub fn shape(&self) -> Vec<usize> {
-        vec![self.ny, self.nx]
-    }
-
-    /// The key of detector `i` that its images' memory grows with.
-    pub fn budget_key(&self, i: usize) -> (String, String) {
-        (format!("detectors[{i}].image.pixels"), format!("= [{}, {}]", self.nx, self.ny))
     }
 }
 
@@ -798,63 +646,30 @@ impl Recorder<'_> {
             return;
         }
         let l = e.l + n_ambient * dist;
-        let pixel = d.image.and_then(|im| im.pixel_at(p.x, p.y));
+        let pixel = d.image().and_then(|im| im.pixel_at(p.x, p.y));
         self.score(i, p.x, p.y, pixel, l, e);
     }
 
     /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the
-    /// optical path length `l`, into the detector's tallies.
+    /// optical path length `l`, into the detector's power and each of its parts.
     fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &Escape) {
-        let (DetectorKind::Surface(d), lay) = (&self.detectors[i].kind, &self.layout.detectors[i]) else { return };
-        let w = e.weight;
-        self.acc[lay.power] += w;
+        let (detectors, layout) = (self.detectors, self.layout);
+        let (DetectorKind::Surface(d), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
+        self.acc[lay.power] += e.weight;
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
-        if let (Some(spec), Some((start, stride))) = (&d.spectrum, lay.spectra) {
-            let order_channel = spec.by_order.map(|k| 1 + e.order.min(k) as usize);
-            let event_channel = spec
-                .by_doppler_events
-                .map(|k| 1 + spec.by_order.map_or(0, |k| k as usize + 1) + e.doppler_events.min(k) as usize);
-            for chirp in 0..self.beat.chirps() {
-                let f = self.beat.frequency(chirp, l, e.dldt);
-                let base = start + chirp * lay.channels * stride;
-                if !spec.axis.add_line(&mut self.acc[base..base + stride], w, f, gamma) {
-                    self.stats.non_finite += 1;
-                    continue;
-                }
-                for c in [order_channel, event_channel].into_iter().flatten() {
-                    let o = base + c * stride;
-                    spec.axis.add_line(&mut self.acc[o..o + stride], w, f, gamma);
-                }
-            }
-        }
-        if let (Some(px), Some(start)) = (pixel, lay.image) {
-            self.acc[start + px] += w;
-        }
-        if let (Some(t), Some(tl)) = (&d.time, &lay.time) {
-            t.record(tl, self.acc, w, l, pixel);
-        }
-        if let (Some(c), Some(cl)) = (&d.correlation, &lay.correlation) {
-            // The Doppler frequency alone: a chirp's range term is not a motion of the field.
-            let f = e.dldt * self.beat.inv_wavelength;
-            // Γ = 2π × the line's half-width.
-            let rate = std::f64::consts::TAU * gamma;
-            c.record(cl, self.acc, w, f, rate, pixel, (x, y));
-        }
-        if let (Some(ldh), Some(ll)) = (&d.ldh, &lay.ldh) {
-            // LDH uses a single-frequency laser (checked when resolving).
-            let f = self.beat.frequency(0, l, e.dldt);
-            if !f.is_finite() {
-                self.stats.non_finite += 1;
-                return;
-            }
-            let class = ldh::class_of(e.doppler_events);
-            let lines = &mut self.lines;
-            let hit = Detection { pixel, x, y, weight: w, frequency: f, gamma, class };
-            ldh.record(ll, self.acc, hit, |roi| {
-                if let Some(v) = lines.as_deref_mut() {
-                    v.push(RecordedLine { roi: roi as u32, class: class as u8, weight: w, frequency: f, gamma });
-                }
-            });
+        let hit = Hit {
+            x,
+            y,
+            pixel,
+            weight: e.weight,
+            l,
+            dldt: e.dldt,
+            gamma,
+            order: e.order,
+            doppler_events: e.doppler_events,
+        };
+        for (part, placed) in d.parts.iter().zip(&lay.parts) {
+            part.record(placed, self, &hit);
         }
     }
 }

@@ -161,7 +161,7 @@ pub fn pixel_speckle_of(exp: &Experiment, out: &RunOutput) -> Option<PixelSpeckl
     if !spec.speckle.is_some_and(|s| s.pixels) {
         return None;
     }
-    let o = out.layout.registry.at(out.layout.detectors[i].ldh.as_ref()?.pixel_spectra?);
+    let o = out.layout.registry.at(out.layout.detectors[i].ldh()?.pixel_spectra?);
     let Kind::PixelSpectra { nx, ny, .. } = o.kind else { unreachable!("{} is declared per-pixel spectra", o.name) };
     let (start, stride) = (o.slots.start, o.slots.stride);
     let spectra = &out.estimates.mean()[start..start + nx * ny * stride];

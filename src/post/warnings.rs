@@ -8,7 +8,6 @@ use serde::Serialize;
 
 use crate::detect::DetectorKind;
 use crate::experiment::{Experiment, RunOutput};
-use crate::output::Kind;
 
 /// A warning: a stable code for scripts and a message for people. In the manifest:
 /// `{"code": "...", "message": "..."}`.
@@ -62,11 +61,9 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
         let share = |x: f64| percent(x / power);
         match &d.kind {
             DetectorKind::Surface(s) => {
-                let Some(spec) = &s.spectrum else { continue };
+                let (Some(spec), Some(sl)) = (s.spectrum(), lay.spectrum()) else { continue };
                 let prefix = format!("{}.spectrum", d.name);
-                let totals = reg
-                    .of_detector(i)
-                    .filter(|o| o.primary && matches!(o.kind, Kind::Spectrum { .. }) && o.name.starts_with(&prefix));
+                let totals = reg.within(sl.slots(out.beat.chirps())).filter(|o| o.primary);
                 for o in totals {
                     let (below, above) = o.tails(mean, 0);
                     if below + above > OFF_AXIS_POWER_FRACTION * power {

@@ -126,7 +126,7 @@ fn a_translating_slab_gives_the_same_doppler_line_both_ways() {
         run(&text, &sets)
     };
     let mean_frequency = |r: &Run| {
-        let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
+        let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
         let c = r.channel(0, 0, 0);
         let total: f64 = c.values.iter().sum();
         (c.values.iter().enumerate().map(|(k, v)| v * axis.center(k)).sum::<f64>() / total, total)

@@ -67,7 +67,7 @@ fn rigid_translation_gives_the_same_shift_at_every_order() {
     assert!(r.out.stats.null_collisions > 0);
     let (n, v, lambda) = (1.4, 1e-3, 1e-6);
     let (lo, hi) = (n * v * (1.0 + 10f64.to_radians().cos()) / lambda, 2.0 * n * v / lambda);
-    let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
+    let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
     for order in 1..=6 {
         let ch = r.channel(0, 0, 1 + order); // channel 1 + k is order k
         let mut inside = 0.0;
@@ -160,7 +160,7 @@ fn reversing_velocities_mirrors_the_spectrum_exactly() {
     ];
     for (text, fwd, rev) in cases {
         let (a, b) = (run(text, &fwd), run(text, &rev));
-        let channels = a.out.layout.detectors[0].channels;
+        let channels = a.out.layout.detectors[0].spectrum().unwrap().channels;
         let mut shifted = 0.0;
         for c in 0..channels {
             let (x, y) = (a.channel(0, 0, c), b.channel(0, 0, c));
@@ -188,7 +188,7 @@ fn parseval_spectrum_sums_to_detected_power() {
     ] {
         let r = run(text, &sets);
         let (power, _) = r.power(0);
-        let spec = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap();
+        let spec = r.exp.detectors[0].surface().unwrap().spectrum().unwrap();
         let groups = [
             (0usize, 1usize),
             (1, spec.by_order.unwrap() as usize + 1),
@@ -248,7 +248,7 @@ f_max_mhz = 15
 bins = 3000
 "#;
     let r = run(text, &[]);
-    let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
+    let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
     let peak = |chirp: usize| {
         let ch = r.channel(0, chirp, 0);
         let (k, _) = ch.values.iter().enumerate().max_by(|a, b| a.1.partial_cmp(b.1).unwrap()).unwrap();

@@ -47,7 +47,7 @@ fn closed_form_beat_frequencies() {
 /// centres and each peak errs by at most Δf/2.
 fn check_hard_target(r: &Run, v: f64) -> FmcwEstimate {
     let e = estimates(r);
-    let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
+    let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
     let df = axis.bin_width();
     for chirp in 0..2 {
         let s = r.out.spectrum(&r.exp, 0, chirp, 0).unwrap();
@@ -152,9 +152,9 @@ fn cloud_slab_range_inside_and_velocity_within_one_bin() {
     assert!(!e.touches_axis_end);
     let (lo, hi) = (range_frequency(near, B, T), range_frequency(far, B, T));
     let f_d = doppler(1.0);
-    let df = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis.bin_width();
+    let df = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis.bin_width();
     for (g, shift) in [(&e.up, f_d), (&e.down, -f_d)] {
-        let axis = r.exp.detectors[0].surface().unwrap().spectrum.as_ref().unwrap().axis;
+        let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
         let (a, b) = (axis.center(g.window.start) - 0.5 * df, axis.center(g.window.end - 1) + 0.5 * df);
         assert!(
             a <= lo + shift + df && b >= hi + shift - df,

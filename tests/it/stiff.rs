@@ -774,12 +774,12 @@ fn one_pixel() {
     let r = run(&ldh_scene(50e3 * 1e-6 / 2.0), &["run.samples=50000"]);
     assert_finite(&r, "one pixel");
     let lay = &r.out.layout.detectors[0];
-    let i = lay.image.unwrap();
+    let i = lay.image().unwrap();
     let (m, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
     let (p, sp) = r.power(0);
     eprintln!("pixel {:.6e} ± {:.1e}, power {p:.6e} ± {sp:.1e}", m[i], se[i]);
     assert!(p > 0.0 && (m[i] - p).abs() <= 1e-12 * p && (se[i] - sp).abs() <= 1e-9 * sp);
-    let ll = lay.ldh.as_ref().unwrap();
+    let ll = lay.ldh().unwrap();
     let ((roi_plus, _), (roi_minus, _)) = roi_m0(&r, 0, 0);
     assert!((m[ll.m0_plus] - roi_plus).abs() <= 1e-9 * roi_plus);
     assert!((m[ll.m0_minus] - roi_minus).abs() <= 1e-9 * roi_plus);

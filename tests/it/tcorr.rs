@@ -91,7 +91,7 @@ fn outputs(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
 #[test]
 fn tpsf_sums_to_the_power_and_follows_diffusion_at_late_times() {
     let r = run(&semi_infinite(), &[]);
-    let lay = r.out.layout.detectors[0].time.expect("a time axis");
+    let lay = r.out.layout.detectors[0].time().copied().expect("a time axis");
     let m = r.out.estimates.mean();
     let sum: f64 = m[lay.tpsf..lay.tpsf + 102].iter().sum();
     let (p, _) = r.power(0);
@@ -122,7 +122,7 @@ fn tpsf_sums_to_the_power_and_follows_diffusion_at_late_times() {
     let (g1, g1e) = outputs(&r, "ring.g1");
     let tau = crate::support::run::experiment(&semi_infinite(), &[]).detectors[0]
         .surface()
-        .and_then(|s| s.correlation.as_ref().map(|c| c.tau.clone()))
+        .and_then(|s| s.correlation().map(|c| c.tau.clone()))
         .expect("correlation");
     let norm = over_ring(|rho| boas_yodh(rho, 0.0));
     let mut worst: f64 = 0.0;
@@ -233,8 +233,8 @@ fn g1_is_the_fourier_transform_of_the_doppler_spectrum() {
     let ch = r.channel(0, 0, 0);
     assert_eq!(ch.below + ch.above, 0.0, "the axis holds every path");
     let (p, _) = r.power(0);
-    let axis = r.exp.detectors[0].surface().and_then(|s| s.spectrum.as_ref()).expect("spectrum").axis;
-    let tau = r.exp.detectors[0].surface().and_then(|s| s.correlation.as_ref()).expect("correlation").tau.clone();
+    let axis = r.exp.detectors[0].surface().and_then(|s| s.spectrum()).expect("spectrum").axis;
+    let tau = r.exp.detectors[0].surface().and_then(|s| s.correlation()).expect("correlation").tau.clone();
     let n = tau.len();
     for (k, &t) in tau.iter().enumerate() {
         let (mut re, mut im) = (0.0, 0.0);
@@ -270,9 +270,9 @@ fn gated_image_sums_to_the_image() {
     let r = run(&semi_infinite(), &sets);
     let lay = &r.out.layout.detectors[0];
     let m = r.out.estimates.mean();
-    let tl = lay.time.expect("time");
+    let tl = lay.time().copied().expect("time");
     assert_eq!(m[tl.tpsf + 5] + m[tl.tpsf + 6], 0.0, "every path within 1 µs");
-    let image = m[lay.image.expect("image")];
+    let image = m[lay.image().expect("image")];
     let gated: f64 = (0..5).map(|k| m[tl.image.expect("gated") + k]).sum();
     assert!((gated / image - 1.0).abs() < 1e-12 && image > 0.0, "{gated} vs {image}");
 }

@@ -10,8 +10,8 @@ use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
-    Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Roi,
-    Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
+    Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Part,
+    Roi, Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -541,37 +541,49 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             );
         }
         let choice = resolve_estimator(&path, d.estimator, side, image.is_some(), source)?;
-        let mut surface = Surface {
+        let ldh = match &d.ldh {
+            None => None,
+            Some(l) => {
+                let p = join(&path, "ldh");
+                let Some(im) = image else {
+                    return err(
+                        p,
+                        "an LDH camera needs the detector's image (add [detectors.image] pixels = [nx, ny])",
+                    );
+                };
+                if out.iter().any(|o| o.ldh().is_some()) {
+                    return err(p, "only one detector may be an LDH camera");
+                }
+                Some(Box::new(resolve_ldh(&p, l, &im)?))
+            }
+        };
+        // Correlation on an LDH camera: also per ROI.
+        let correlation = correlation.map(|mut c| {
+            if let Some(l) = &ldh {
+                c.rois = l.rois.clone();
+            }
+            c
+        });
+        let parts = [
+            spectrum.map(Part::Spectrum),
+            image.map(Part::Image),
+            time.map(Part::Time),
+            correlation.map(Part::Correlation),
+            ldh.map(Part::Ldh),
+        ];
+        let surface = Surface {
             side,
             distance,
             area,
             axis,
             cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
             include_specular: d.include_specular.unwrap_or(true),
-            spectrum,
-            image,
-            time,
-            correlation,
-            ldh: None,
-            next_event,
+            // An LDH camera is scored by next-event estimation.
+            next_event: next_event || parts[4].is_some(),
+            parts: parts.into_iter().flatten().collect(),
             choice,
             auto: None,
         };
-        if let Some(l) = &d.ldh {
-            let p = join(&path, "ldh");
-            let Some(im) = image else {
-                return err(p, "an LDH camera needs the detector's image (add [detectors.image] pixels = [nx, ny])");
-            };
-            if out.iter().any(|o| o.ldh().is_some()) {
-                return err(p, "only one detector may be an LDH camera");
-            }
-            surface.ldh = Some(Box::new(resolve_ldh(&p, l, &im)?));
-            surface.next_event = true;
-        }
-        // Correlation on an LDH camera: also per ROI.
-        if let (Some(c), Some(l)) = (surface.correlation.as_mut(), surface.ldh.as_ref()) {
-            c.rois = l.rois.clone();
-        }
         out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
     }
     Ok(out)

@@ -61,7 +61,7 @@ pub(super) fn resolve_lateral(
         let key = match &d.kind {
             DetectorKind::Lidar(_) => "lidar",
             DetectorKind::Surface(s) if s.choice != EstimatorChoice::Forward => "estimator",
-            DetectorKind::Surface(s) if s.ldh.is_some() => "ldh",
+            DetectorKind::Surface(s) if s.ldh().is_some() => "ldh",
             DetectorKind::Surface(s) if s.next_event => "next_event",
             DetectorKind::Surface(_) => continue,
         };

@@ -245,7 +245,7 @@ fn check_chirp_ranges(
     let (b, t) = (chirp.bandwidth, chirp.duration);
     let ct = crate::SPEED_OF_LIGHT * t;
     for (i, d) in detectors.iter().enumerate() {
-        let Some(axis) = d.surface().and_then(|s| s.spectrum.as_ref()).map(|s| s.axis) else { continue };
+        let Some(axis) = d.surface().and_then(|s| s.spectrum()).map(|s| s.axis) else { continue };
         let edge = axis.f_min.abs().max(axis.f_max.abs());
         if (ct * axis.bin_width() / (2.0 * b)).is_finite() && (ct * (2.0 * edge) / (4.0 * b)).is_finite() {
             continue;
@@ -341,7 +341,7 @@ fn check_speckle_memory(exp: &Experiment, memory: &Memory) -> R<()> {
         let windows = u64::from(sp.windows);
         let spectra = (ldh.rois.len() as u64).saturating_mul(n.saturating_mul(1 + 2 * windows) * 8);
         // Per pixel: M0± of every window and the expected M0+.
-        let pixels = d.surface().and_then(|s| s.image).map_or(0, |im| (im.nx * im.ny) as u64);
+        let pixels = d.surface().and_then(|s| s.image()).map_or(0, |im| (im.nx * im.ny) as u64);
         let per_pixel = if sp.pixels { pixels.saturating_mul((2 * windows + 1) * 8) } else { 0 };
         memory.charge(
             &format!("detectors[{i}].ldh.speckle"),

@@ -227,15 +227,14 @@ pub fn mark_frequency(plot: &mut LinePlot, f: f64, div: f64, label: String, colo
 /// give in the title.
 pub fn spectra_figures(
     w: &mut Writer,
-    i: usize,
     name: &str,
+    outputs: &[&Output],
     fmcw: Option<&crate::retrieval::FmcwEstimate>,
 ) -> Result<()> {
     if !w.figures {
         return Ok(());
     }
     let prefix = format!("{name}.spectrum");
-    let outputs: Vec<&Output> = w.registry.of_detector(i).filter(|o| o.name.starts_with(&prefix)).collect();
     let chirped = outputs.iter().any(|o| o.name == format!("{prefix}_up"));
     let axis_of = |o: &Output| -> Vec<f64> {
         match &o.kind {

@@ -14,12 +14,11 @@ use serde::Serialize;
 use serde_json::Value;
 
 use super::dir::DirWriter;
-use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
+use super::{Entry, Writer};
 use crate::detect::{DetectorKind, LATERAL_SCALAR, Scalar, Side};
 use crate::error::Result;
 use crate::experiment::{Experiment, Progress, RunOutput};
 use crate::io::outdir::OutDir;
-use crate::output::{Kind, Output};
 use crate::post::Finished;
 
 /// What the manifest records about how the run was invoked.
@@ -148,45 +147,10 @@ pub struct DetectorEntry {
     /// lower was chosen).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator_pilot: Option<crate::detect::AutoChoice>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub spectrum: Option<SpectrumEntry>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub fmcw: Option<Value>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub image: Option<ImageEntry>,
-    /// The time axis of the TPSF ([`super::tcorr::write_time`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub time: Option<Value>,
-    /// The delays, β and exposure times of g1, g2 and K ([`super::tcorr::write_correlation`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub correlation: Option<Value>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ldh: Option<Value>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub lidar: Option<Value>,
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct SpectrumEntry {
-    pub f_min_hz: f64,
-    pub f_max_hz: f64,
-    pub bins: usize,
-    pub bin_width_hz: f64,
-    pub frequency_file: String,
-    pub channels: Vec<String>,
-    /// Chirp (`single`, or `up` and `down`) → its file-name infix.
-    pub chirps: BTreeMap<String, String>,
-    pub units: &'static str,
-}
-
-/// An image's pixel grid.
-#[derive(Debug, Clone, Serialize)]
-pub struct ImageEntry {
-    pub pixels: [usize; 2],
-    pub x_range_m: [f64; 2],
-    pub y_range_m: [f64; 2],
-    pub layout: &'static str,
-    pub units: &'static str,
+    /// Per part of a surface detector (`spectrum`, `fmcw`, `image`, `time`, `correlation`,
+    /// `ldh`) or a lidar receiver (`lidar`): what its files hold ([`super::parts`]).
+    #[serde(flatten)]
+    pub parts: BTreeMap<&'static str, Value>,
 }
 
 /// Where a run's wall time went, seconds (`timing` in the manifest; like `wall_seconds`, the only
@@ -295,53 +259,29 @@ fn write_run_to<S: super::Sink>(
             side: if d.side() == Side::Top { "top" } else { "bottom" },
             estimator: d.surface().map(|s| s.estimator().name()),
             estimator_pilot: d.surface().and_then(|s| s.auto),
-            spectrum: None,
-            fmcw: None,
-            image: None,
-            time: None,
-            correlation: None,
-            ldh: None,
-            lidar: None,
+            parts: BTreeMap::new(),
         };
         match &d.kind {
             DetectorKind::Surface(s) => {
-                if let Some(spec) = &s.spectrum {
-                    let (entry, oor) = write_spectra(&mut w, i, &d.name, spec, &mut de)?;
-                    let fmcw = exp.fmcw_estimates(out, i).and_then(|r| r.ok());
-                    super::figures::spectra_figures(&mut w, i, &d.name, fmcw.as_ref())?;
-                    info.spectrum = Some(entry);
-                    out_of_range_total += oor;
+                let mut cx = super::parts::Context {
+                    i,
+                    name: &d.name,
+                    surface: s,
+                    finished: f,
+                    detector: &mut de,
+                    estimates: &mut estimates,
+                    entries: &mut info.parts,
+                    out_of_range: 0.0,
+                };
+                for (part, placed) in s.parts.iter().zip(&lay.parts) {
+                    super::parts::write_part(&mut w, part, placed, &mut cx)?;
                 }
-                if let Some(entry) = super::fmcw::detector_entry(exp, out, i, &mut de) {
-                    let rows: Vec<String> = entry.row.into_iter().collect();
-                    w.put(super::fmcw::csv_file(&d.name), super::fmcw::csv(&rows).into_bytes())?;
-                    info.fmcw = Some(entry.info);
-                }
-                if let (Some(im), Some(slot)) = (&s.image, lay.image) {
-                    let o = reg.at(slot);
-                    let (v, e) = w.image(o, "intensity")?;
-                    w.image_figure(o, &v, &e, &format!("{}: intensity image", d.name), "fraction of emitted power")?;
-                    info.image = Some(ImageEntry {
-                        pixels: [im.nx, im.ny],
-                        x_range_m: [im.min[0], im.max[0]],
-                        y_range_m: [im.min[1], im.max[1]],
-                        layout: IMAGE_LAYOUT,
-                        units: o.units,
-                    });
-                }
-                if let (Some(t), Some(tl)) = (&s.time, &lay.time) {
-                    info.time = Some(super::tcorr::write_time(&mut w, &d.name, t, tl, &mut de)?);
-                }
-                if let (Some(c), Some(cl)) = (&s.correlation, &lay.correlation) {
-                    info.correlation = Some(super::tcorr::write_correlation(&mut w, &d.name, c, cl)?);
-                }
-                if let (Some(spec), Some(im), Some(ll)) = (&s.ldh, &s.image, &lay.ldh) {
-                    info.ldh = Some(super::ldh::write_ldh(&mut w, &d.name, im, spec, ll, f, &mut estimates)?);
-                }
+                out_of_range_total += cx.out_of_range;
             }
             DetectorKind::Lidar(spec) => {
                 let ll = lay.lidar.as_ref().expect("a lidar receiver's layout");
-                info.lidar = Some(super::lidar::write_lidar(&mut w, &d.name, spec, ll, &f.retrievals[i])?);
+                let entry = super::lidar::write_lidar(&mut w, &d.name, spec, ll, &f.retrievals[i])?;
+                info.parts.insert("lidar", entry);
             }
         }
         w.rest(i, &mut de)?;
@@ -431,64 +371,4 @@ fn write_run_to<S: super::Sink>(
     };
     let text = serde_json::to_string_pretty(&manifest.json()).expect("a JSON value serialises");
     Ok((writer, manifest, text))
-}
-
-/// A surface detector's spectra (every chirp, the total and its splits) with their frequency
-/// axis, and its out-of-range tallies into `de`; returns the manifest entry and the total
-/// channels' out-of-range weight.
-fn write_spectra(
-    w: &mut Writer,
-    i: usize,
-    name: &str,
-    spec: &crate::detect::SpectrumSpec,
-    de: &mut BTreeMap<String, Entry>,
-) -> Result<(SpectrumEntry, f64)> {
-    let (reg, mean, se) = (w.registry, w.mean, w.stderr);
-    let bins = spec.axis.bins;
-    let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
-    let frequency_file = format!("{name}_frequency_hz.npy");
-    w.axis_file(frequency_file.clone(), "frequency_hz", "Hz", &centres)?;
-    let prefix = format!("{name}.spectrum");
-    let spectra: Vec<&Output> = reg.of_detector(i).filter(|o| o.name.starts_with(&prefix)).collect();
-    let mut channel_names: Vec<String> = Vec::new();
-    let mut chirps = BTreeMap::new();
-    let mut out_of_range_total = 0.0;
-    // Each chirp's outputs: its total, then its splits.
-    let totals = spectra.iter().enumerate().filter(|(_, o)| o.primary).map(|(k, _)| k);
-    let starts: Vec<usize> = totals.chain(std::iter::once(spectra.len())).collect();
-    for bounds in starts.windows(2) {
-        let group = &spectra[bounds[0]..bounds[1]];
-        let chirp = group[0].name[prefix.len()..].trim_start_matches('_');
-        let (key, infix) = if chirp.is_empty() { ("single", String::new()) } else { (chirp, format!("_{chirp}")) };
-        let mut oor = BTreeMap::new();
-        let mut names = Vec::new();
-        for o in group {
-            w.array(o)?;
-            let Kind::Spectrum { channels, .. } = &o.kind else { unreachable!("{} is declared a spectrum", o.name) };
-            for (r, ch) in channels.iter().enumerate() {
-                let ((below, above), (below_se, above_se)) = (o.tails(mean, r), o.tails(se, r));
-                let tails = [("below", estimate(below, below_se)), ("above", estimate(above, above_se))];
-                oor.insert(ch.clone(), Entry::Group(tails.map(|(k, e)| (k.to_string(), Entry::Estimate(e))).into()));
-                names.push(ch.clone());
-            }
-        }
-        let (below, above) = group[0].tails(mean, 0);
-        out_of_range_total += below + above;
-        de.insert(format!("out_of_range_{key}"), Entry::Group(oor));
-        chirps.insert(key.to_string(), infix);
-        channel_names = names;
-    }
-    Ok((
-        SpectrumEntry {
-            f_min_hz: spec.axis.f_min,
-            f_max_hz: spec.axis.f_max,
-            bins,
-            bin_width_hz: spec.axis.bin_width(),
-            frequency_file,
-            channels: channel_names,
-            chirps,
-            units: crate::output::PER_BIN,
-        },
-        out_of_range_total,
-    ))
 }

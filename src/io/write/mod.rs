@@ -13,6 +13,7 @@ pub mod ldh;
 pub mod lidar;
 pub mod manifest;
 pub mod memory;
+pub mod parts;
 pub mod scan;
 pub mod tcorr;
 pub mod volume;

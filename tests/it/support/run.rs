@@ -46,9 +46,10 @@ impl Run {
     /// Channel 0 is the total; then orders 0…K (if split), then Doppler-event counts.
     pub fn channel(&self, detector: usize, chirp: usize, channel: usize) -> Channel {
         let lay = &self.out.layout.detectors[detector];
-        let (start, stride) = lay.spectra.expect("detector has a spectrum");
+        let s = lay.spectrum().expect("detector has a spectrum");
+        let (start, stride) = (s.start, s.stride);
         let bins = stride - 2;
-        self.slots(start + (chirp * lay.channels + channel) * stride, bins)
+        self.slots(start + (chirp * s.channels + channel) * stride, bins)
     }
 
     /// The `bins` values at `o` of the tally vector and the two out-of-range slots after them.
@@ -71,13 +72,13 @@ impl Run {
 
 /// One channel of an LDH ROI spectrum (0 = total, then static, single Doppler, multiple Doppler).
 pub fn roi_channel(r: &Run, detector: usize, roi: usize, channel: usize) -> Channel {
-    let ll = r.out.layout.detectors[detector].ldh.as_ref().expect("an LDH camera");
+    let ll = r.out.layout.detectors[detector].ldh().expect("an LDH camera");
     r.slots(ll.rois[roi].spectrum + channel * ll.stride, ll.stride - 2)
 }
 
 /// An LDH ROI's M0+ and M0− with their standard errors: ((m0+, σ), (m0−, σ)).
 pub fn roi_m0(r: &Run, detector: usize, roi: usize) -> ((f64, f64), (f64, f64)) {
-    let ll = r.out.layout.detectors[detector].ldh.as_ref().expect("an LDH camera");
+    let ll = r.out.layout.detectors[detector].ldh().expect("an LDH camera");
     let (m, se) = (r.out.estimates.mean(), r.out.estimates.stderr());
     let rl = &ll.rois[roi];
     ((m[rl.m0_plus], se[rl.m0_plus]), (m[rl.m0_minus], se[rl.m0_minus]))

@@ -1,0 +1,123 @@
+//! A surface detector's spectra: the detected power over the beat frequency, per chirp (one, or up
+//! and down with FMCW), as a total and optionally split by scattering order and by the number of
+//! Doppler-shifting events. Each channel's bins are followed by its below/above out-of-range
+//! tallies, so a path outside the axis is counted, never lost (`DESIGN.md` §2).
+
+use super::{BeatModel, Hit, Place, detector_output};
+use crate::output::{Kind, Output, PER_BIN, Registry, Slots};
+use crate::spectrum::FrequencyAxis;
+use crate::stats::RunStats;
+
+/// A spectrum recorded by a detector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectrumSpec {
+    pub axis: FrequencyAxis,
+    /// Split by scattering order 0, 1, …, K−1 and ≥ K (`Some(K)`).
+    pub by_order: Option<u32>,
+    /// Split by number of Doppler-shifting events 0, 1, …, E−1 and ≥ E (`Some(E)`).
+    pub by_doppler_events: Option<u32>,
+}
+
+/// Where a detector's spectra lie: `chirps × channels × stride` slots from `start`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpectrumLayout {
+    pub start: usize,
+    /// Slots of one channel: the bins, then the below/above tallies.
+    pub stride: usize,
+    pub channels: usize,
+}
+
+impl SpectrumLayout {
+    /// The slots of every chirp's spectra (`chirps` of them).
+    pub fn slots(&self, chirps: usize) -> std::ops::Range<usize> {
+        self.start..self.start + chirps * self.channels * self.stride
+    }
+}
+
+impl SpectrumSpec {
+    /// Channels: the total, then the order split, then the Doppler-event split.
+    pub fn channels(&self) -> usize {
+        1 + self.by_order.map_or(0, |k| k as usize + 1) + self.by_doppler_events.map_or(0, |e| e as usize + 1)
+    }
+
+    /// Lay out the spectra of every chirp from `reg`'s end and declare them: per chirp its total
+    /// (`NAME[_up|_down]_spectrum.npy`), then each split as one array of rows.
+    pub fn declare(&self, at: &Place, reg: &mut Registry) -> SpectrumLayout {
+        let (i, name, beat) = (at.i, at.name, at.beat);
+        let (bins, stride, channels) = (self.axis.bins, self.axis.bins + 2, self.channels());
+        let start = reg.take(beat.chirps() * channels * stride);
+        let budget = Some((format!("detectors[{i}].spectrum.bins"), format!("= {bins}")));
+        let mut groups: Vec<(&str, usize, Vec<String>)> = Vec::new();
+        if let Some(k) = self.by_order {
+            let names = (0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") });
+            groups.push(("_by_order", 1, names.collect()));
+        }
+        if let Some(e) = self.by_doppler_events {
+            let first = 1 + self.by_order.map_or(0, |k| k as usize + 1);
+            let names =
+                (0..=e).map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") });
+            groups.push(("_by_doppler_events", first, names.collect()));
+        }
+        for c in 0..beat.chirps() {
+            let base = start + c * channels * stride;
+            let (what, chirp) = match (beat.chirps(), c) {
+                (1, _) => ("spectrum", ""),
+                (_, 0) => ("spectrum_up", "_up"),
+                _ => ("spectrum_down", "_down"),
+            };
+            let kind = |channels: Vec<String>| Kind::Spectrum { axis: self.axis, channels, mirrored: false };
+            reg.declare(Output {
+                file: format!("{name}{chirp}_spectrum.npy"),
+                units: PER_BIN,
+                primary: true,
+                budget_key: budget.clone(),
+                ..detector_output(
+                    i,
+                    format!("{name}.{what}"),
+                    kind(vec!["total".into()]),
+                    Slots::row(base, bins, stride),
+                    vec![bins],
+                )
+            });
+            for (suffix, first, names) in &groups {
+                let rows = names.len();
+                reg.declare(Output {
+                    file: format!("{name}{chirp}_spectrum{suffix}.npy"),
+                    units: PER_BIN,
+                    budget_key: budget.clone(),
+                    ..detector_output(
+                        i,
+                        format!("{name}.{what}{suffix}"),
+                        kind(names.clone()),
+                        Slots { start: base + first * stride, rows, stride, len: bins },
+                        vec![rows, bins],
+                    )
+                });
+            }
+        }
+        SpectrumLayout { start, stride, channels }
+    }
+
+    /// Record `hit` into every chirp's total and its split channels (a non-finite beat frequency
+    /// is counted in `stats.non_finite`).
+    #[inline]
+    pub fn record(&self, lay: &SpectrumLayout, acc: &mut [f64], stats: &mut RunStats, beat: &BeatModel, hit: &Hit) {
+        let (w, gamma, stride) = (hit.weight, hit.gamma, lay.stride);
+        let order_channel = self.by_order.map(|k| 1 + hit.order.min(k) as usize);
+        let event_channel = self
+            .by_doppler_events
+            .map(|k| 1 + self.by_order.map_or(0, |k| k as usize + 1) + hit.doppler_events.min(k) as usize);
+        for chirp in 0..beat.chirps() {
+            let f = beat.frequency(chirp, hit.l, hit.dldt);
+            let base = lay.start + chirp * lay.channels * stride;
+            if !self.axis.add_line(&mut acc[base..base + stride], w, f, gamma) {
+                stats.non_finite += 1;
+                continue;
+            }
+            for c in [order_channel, event_channel].into_iter().flatten() {
+                let o = base + c * stride;
+                self.axis.add_line(&mut acc[o..o + stride], w, f, gamma);
+            }
+        }
+    }
+}
