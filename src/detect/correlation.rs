@@ -5,7 +5,7 @@
 //! every pixel of its image, and on an LDH camera all three per ROI.
 //!
 //! **Per path, exactly.** A detected path of weight `w`, Doppler beat frequency `f = (dl/dt)/λ0`
-//! and Brownian sum `b = Σ D_k n_k² |Δ_k|²` ([`super::Escape::brownian`]) has the field
+//! and Brownian sum `b = Σ D_k n_k² |Δ_k|²` ([`super::PathState::brownian`]) has the field
 //! autocorrelation `exp(i2πfτ)·exp(−Γτ)` with `Γ = Σ D_k q_k² = (2π/λ0)² b` (the decay whose
 //! Fourier transform is the Lorentzian of half-width [`super::BeatModel::brownian_hwhm`]); random
 //! flow (a per-event velocity dispersion) is in `f`, drawn per path. The detector adds

@@ -480,27 +480,41 @@ impl Detector {
     }
 }
 
-/// What a path carries when it leaves the stack.
+/// The state a path carries between events, and what it hands to the detectors when it leaves
+/// the stack, sends a shadow ray or connects a camera path to the laser.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Escape {
-    /// Where it crosses the surface (z = 0 or the bottom).
+pub struct PathState {
     pub pos: DVec3,
-    /// Propagation direction in the ambient medium.
+    /// Propagation direction (in the ambient medium, once it has left the stack).
     pub dir: DVec3,
     pub weight: f64,
-    /// Optical path length so far, m.
+    /// Optical path length from the emission point, m (only tracked when needed).
     pub l: f64,
     /// Rate of change of the optical path length, m/s.
     pub dldt: f64,
+    /// Real scattering events so far.
     pub order: u32,
+    /// Scattering events on moving particles so far.
     pub doppler_events: u32,
     /// `Σ D_k n_k² |dir_in − dir_out|²` over events on diffusing particles, m²/s; the Lorentzian
     /// half-width of the path's line is [`BeatModel::brownian_hwhm`] of it.
     pub brownian: f64,
-    /// Next-event estimation's record of the last scattering (`PathState::mis`).
+    /// For next-event estimation: the phase-function density of the last scattering direction
+    /// divided by `n_k² cos θ_k` at the vertex (see `transport::nee`), or −1 when the path has not
+    /// scattered or was reflected at an interface since (its escape is then not a direct
+    /// connection, which the shadow rays do not cover). On a camera path: the ratio of the walk's
+    /// density of its last direction (times the Fresnel transmittances crossed since) to the
+    /// guide lobe's (`transport::camera`, "Two ways to the last vertex"), or −1.
     pub mis: f64,
-    /// The specular reflection of the laser at the top surface.
-    pub specular: bool,
+}
+
+impl PathState {
+    /// A path at `pos` going along `dir` with `weight` and optical path length `l`, before any
+    /// scattering event.
+    #[inline(always)]
+    pub fn new(pos: DVec3, dir: DVec3, weight: f64, l: f64) -> Self {
+        PathState { pos, dir, weight, l, dldt: 0.0, order: 0, doppler_events: 0, brownian: 0.0, mis: -1.0 }
+    }
 }
 
 /// Which pixel a camera path scores into, where it starts, and the factor turning its
@@ -544,19 +558,20 @@ impl Recorder<'_> {
         }
     }
 
-    /// A path leaving the stack through `side` into ambient index `n_ambient`.
+    /// A path leaving the stack through `side` into ambient index `n_ambient` (`specular`: the
+    /// laser's specular reflection at the top surface).
     ///
     /// Inlined into the walk: the scalar tallies are a few adds, and where the walk does not
     /// track `l` or `dl/dt` their finiteness checks fold away. The detectors are an outlined
     /// call made only if there are any (measured: ~60 → ~15 instructions per escape without
     /// detectors).
     #[inline(always)]
-    pub fn escape(&mut self, side: Side, e: Escape, n_ambient: f64) {
+    pub fn escape(&mut self, side: Side, e: PathState, specular: bool, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
         }
-        match (side, e.specular) {
+        match (side, specular) {
             (Side::Top, true) => self.add(Scalar::ReflectanceSpecular, e.weight),
             (Side::Top, false) => self.add(Scalar::ReflectanceDiffuse, e.weight),
             (Side::Bottom, _) => {
@@ -569,14 +584,14 @@ impl Recorder<'_> {
         if !self.detectors.is_empty() {
             // A copy made here: taking `&e` directly made LLVM build `e` on the stack before the
             // first test, for every path (13 stores; measured 182.8M → 177.8M instructions).
-            let e = Escape { ..e };
-            self.detect(side, &e, n_ambient);
+            let e = PathState { ..e };
+            self.detect(side, &e, specular, n_ambient);
         }
     }
 
     /// A shadow ray of next-event estimation reaching detector `i` (already in its cone).
     #[inline(never)]
-    pub fn next_event(&mut self, i: usize, e: &Escape, n_ambient: f64) {
+    pub fn next_event(&mut self, i: usize, e: &PathState, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -598,7 +613,7 @@ impl Recorder<'_> {
     /// A camera path's connection `e` to the laser, scored into its pixel (`e.l` is the whole
     /// optical path length).
     #[inline(never)]
-    pub fn camera(&mut self, shot: &Shot, e: &Escape) {
+    pub fn camera(&mut self, shot: &Shot, e: &PathState) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -608,12 +623,12 @@ impl Recorder<'_> {
 
     /// The detectors' share of [`escape`](Self::escape) (a finite path).
     #[inline(never)]
-    fn detect(&mut self, side: Side, e: &Escape, n_ambient: f64) {
+    fn detect(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64) {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
             if d.side != side
                 || d.estimator() == Estimator::Camera
-                || (e.specular && !d.include_specular)
+                || (specular && !d.include_specular)
                 || e.dir.dot(d.axis) < d.cos_acceptance
             {
                 continue;
@@ -627,7 +642,7 @@ impl Recorder<'_> {
                 if e.mis >= 0.0 {
                     let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
                     let w = p / (p + 1.0 / d.solid_angle());
-                    let e = Escape { weight: e.weight * w, ..*e };
+                    let e = PathState { weight: e.weight * w, ..*e };
                     self.detect_one(i, &e, n_ambient);
                     continue;
                 }
@@ -637,7 +652,7 @@ impl Recorder<'_> {
     }
 
     /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area.
-    fn detect_one(&mut self, i: usize, e: &Escape, n_ambient: f64) {
+    fn detect_one(&mut self, i: usize, e: &PathState, n_ambient: f64) {
         let DetectorKind::Surface(d) = &self.detectors[i].kind else { return };
         // Travel on to the detector plane.
         let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
@@ -652,7 +667,7 @@ impl Recorder<'_> {
 
     /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the
     /// optical path length `l`, into the detector's power and each of its parts.
-    fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &Escape) {
+    fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &PathState) {
         let (detectors, layout) = (self.detectors, self.layout);
         let (DetectorKind::Surface(d), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
         self.acc[lay.power] += e.weight;

@@ -69,8 +69,7 @@ use crate::sampling::PathRng;
 use crate::source::Source;
 
 use super::fresnel;
-use super::nee::{Crossing, segment_optical_depth, trace_up};
-use super::tracking::ratio_transmittance;
+use super::nee::{Crossing, trace_up};
 
 /// A surface detector scored by the camera-side estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -215,7 +214,7 @@ pub fn unscattered(
     let up_in = |n: f64| down_in(n).map(|d| -d);
     // The way up from interface j to the point, traced back down from the surface: the reflected
     // beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along `−that`.
-    let (mut p, mut tau_up, mut transmit_up, mut l_up) = (top, 0.0, 1.0, l0);
+    let mut way = Crossing { pos: top, length: l0, ..Crossing::START };
     for j in 0..scene.layers.len() {
         let layer = &scene.layers[j];
         if !layer.z_bottom.is_finite() {
@@ -223,25 +222,19 @@ pub fn unscattered(
         }
         let Some(d) = down_in(layer.n) else { return };
         let n_above = if j == 0 { n0 } else { scene.layers[j - 1].n };
-        transmit_up *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
+        way.transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
         let back = DVec3::new(-d.x, -d.y, d.z);
-        let t = (layer.z_bottom - p.z) / d.z;
-        if layer.heterogeneous {
-            transmit_up *= ratio_transmittance(scene, layer, p, back, t, rng);
-        } else {
-            tau_up += segment_optical_depth(scene, layer, p, back, t);
-        }
-        l_up += layer.n * t;
-        p += t * back;
-        p.z = layer.z_bottom;
+        way.segment(scene, layer, back, (layer.z_bottom - way.pos.z) / d.z, rng);
+        way.pos.z = layer.z_bottom;
         let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
         let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
-        if r <= 0.0 || transmit_up <= 0.0 {
+        if r <= 0.0 || way.transmit <= 0.0 {
             continue;
         }
         // The way down to the interface, traced back up to the surface.
-        let acc = Crossing { pos: p, tau: tau_up, transmit: transmit_up * r, length: l_up };
-        let Some(Crossing { pos: q, tau, transmit, length: l }) = trace_up(scene, j, p, -d, up_in, acc, rng) else {
+        let acc = Crossing { transmit: way.transmit * r, ..way };
+        let Some(Crossing { pos: q, tau, transmit, length: l }) = trace_up(scene, j, way.pos, -d, up_in, acc, rng)
+        else {
             return;
         };
         let (e, l_top) = at_top(q);

@@ -134,23 +134,11 @@ pub fn receiver_ray(
     if cos_r < target.cos_acceptance || dir.z >= 0.0 {
         return None;
     }
-    // Straight up through the layers to z = 0, then the (clear) ambient medium to the aperture.
-    let mut tau = 0.0;
-    let mut ratio = 1.0;
-    let mut p = pos;
-    for j in (0..=li).rev() {
-        let layer = &scene.layers[j];
-        let t = (p.z - layer.z_top) / -dir.z;
-        if layer.heterogeneous {
-            ratio *= ratio_transmittance(scene, layer, p, dir, t, rng);
-        } else {
-            tau += segment_optical_depth(scene, layer, p, dir, t);
-        }
-        p += t * dir;
-        p.z = layer.z_top;
-    }
+    // Straight up through the layers to z = 0 (every index 1: no refraction, no reflection),
+    // then the (clear) ambient medium to the aperture.
+    let Crossing { tau, transmit, .. } = trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
-    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * ratio * (-tau).exp();
+    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * transmit * (-tau).exp();
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r })
 }
 
@@ -195,6 +183,20 @@ pub struct Crossing {
 impl Crossing {
     /// Nothing crossed yet (`pos` is set by [`trace_up`]).
     pub const START: Crossing = Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0 };
+
+    /// Cross the segment `pos + s·d`, `0 ≤ s ≤ t`, inside `layer`: its optical depth (ratio
+    /// tracking in a density layer, a factor of `transmit`) and optical length; `pos` moves to its
+    /// end.
+    #[inline(always)]
+    pub(super) fn segment(&mut self, scene: &Scene, layer: &crate::medium::Layer, d: DVec3, t: f64, rng: &mut PathRng) {
+        if layer.heterogeneous {
+            self.transmit *= ratio_transmittance(scene, layer, self.pos, d, t, rng);
+        } else {
+            self.tau += segment_optical_depth(scene, layer, self.pos, d, t);
+        }
+        self.length += layer.n * t;
+        self.pos += t * d;
+    }
 }
 
 /// Trace from `pos` in layer `li` straight up through the planar interfaces to `z = 0`, along
@@ -213,25 +215,17 @@ pub(super) fn trace_up(
     acc: Crossing,
     rng: &mut PathRng,
 ) -> Option<Crossing> {
-    let Crossing { mut tau, mut transmit, mut length, .. } = acc;
-    let mut p = pos;
+    let mut c = Crossing { pos, ..acc };
     for j in (0..=li).rev() {
         let layer = &scene.layers[j];
         let d = if j == li { first } else { up_in(layer.n)? };
-        let t = (p.z - layer.z_top) / -d.z;
-        if layer.heterogeneous {
-            transmit *= ratio_transmittance(scene, layer, p, d, t, rng);
-        } else {
-            tau += segment_optical_depth(scene, layer, p, d, t);
-        }
-        length += layer.n * t;
-        p += t * d;
-        p.z = layer.z_top;
+        c.segment(scene, layer, d, (c.pos.z - layer.z_top) / -d.z, rng);
+        c.pos.z = layer.z_top;
         let n_next = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
         let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
-        transmit *= 1.0 - r;
+        c.transmit *= 1.0 - r;
     }
-    Some(Crossing { pos: p, tau, transmit, length })
+    Some(c)
 }
 
 /// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase

@@ -16,7 +16,7 @@
 use glam::DVec3;
 
 use crate::detect::volume::VolumeTally;
-use crate::detect::{Escape, Recorder, Scalar, Shot, Side};
+use crate::detect::{PathState, Recorder, Scalar, Shot, Side};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
@@ -77,49 +77,6 @@ struct Vertex<'a> {
     medium: &'a Medium,
     albedo: f64,
     n: f64,
-}
-
-/// The state a path carries between events.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PathState {
-    pub pos: DVec3,
-    pub dir: DVec3,
-    pub weight: f64,
-    /// Optical path length from the emission point, m (only tracked when needed).
-    pub l: f64,
-    /// Rate of change of the optical path length, m/s.
-    pub dldt: f64,
-    /// Real scattering events so far.
-    pub order: u32,
-    /// Scattering events on moving particles so far.
-    pub doppler_events: u32,
-    /// `Σ D_k n_k² |dir_in − dir_out|²` over the events on diffusing particles, m²/s: with the
-    /// wavenumber `2π/λ0` it gives the path's Brownian line width (see [`Escape::brownian`]).
-    pub brownian: f64,
-    /// For next-event estimation: the phase-function density of the last scattering direction
-    /// divided by `n_k² cos θ_k` at the vertex (see [`super::nee`]), or −1 when the path has not
-    /// scattered or was reflected at an interface since (its escape is then not a direct
-    /// connection, which the shadow rays do not cover). On a camera path: the ratio of the walk's
-    /// density of its last direction (times the Fresnel transmittances crossed since) to the
-    /// guide lobe's ([`super::camera`], "Two ways to the last vertex"), or −1.
-    pub mis: f64,
-}
-
-impl PathState {
-    fn escape(&self, specular: bool) -> Escape {
-        Escape {
-            pos: self.pos,
-            dir: self.dir,
-            weight: self.weight,
-            l: self.l,
-            dldt: self.dldt,
-            order: self.order,
-            doppler_events: self.doppler_events,
-            brownian: self.brownian,
-            mis: self.mis,
-            specular,
-        }
-    }
 }
 
 /// Rotate `dir` by the deflection `d` at azimuth `(cos φ, sin φ)`.
@@ -222,24 +179,15 @@ pub fn trace_path<
     let dir = source.emit_direction(rng);
     // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
     let t0 = (0.0 - start.z) / dir.z;
-    let mut s = PathState {
-        pos: DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0),
-        dir,
-        weight: 1.0,
-        l: if LENGTH { scene.n_above * t0 } else { 0.0 },
-        dldt: 0.0,
-        order: 0,
-        doppler_events: 0,
-        brownian: 0.0,
-        mis: -1.0,
-    };
+    let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
+    let mut s = PathState::new(pos, dir, 1.0, if LENGTH { scene.n_above * t0 } else { 0.0 });
     // Specular reflection at entry, scored deterministically (as MCML).
     let n_top = scene.layers[0].n;
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
     if r_sp > 0.0 {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
         if in_gate::<GATE>(ctx.settings, s.l) {
-            rec.escape(Side::Top, reflected.escape(true), scene.n_above);
+            rec.escape(Side::Top, reflected, true, scene.n_above);
         }
         s.weight = 1.0 - r_sp;
         if s.weight <= 0.0 {
@@ -272,7 +220,7 @@ pub fn trace_path<
     match end {
         End::Escaped { side, n_ambient } => {
             if in_gate::<GATE>(ctx.settings, s.l) {
-                rec.escape(side, s.escape(false), n_ambient);
+                rec.escape(side, s, false, n_ambient);
             }
         }
         End::Lateral => {
@@ -314,18 +262,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     // The laser's unscattered reflections, scored from the point.
     let reflected = Shot { detector: cam.detector, pixel, x, y, scale: 0.0 };
     super::camera::unscattered(cam, ctx.scene, ctx.source, (x, y), &mut local, |e, l| {
-        let e = Escape {
-            pos: DVec3::new(x, y, 0.0),
-            dir: cam.axis,
-            weight: e * area * batch_weight,
-            l: if LENGTH { l } else { 0.0 },
-            dldt: 0.0,
-            order: 0,
-            doppler_events: 0,
-            brownian: 0.0,
-            mis: -1.0,
-            specular: true,
-        };
+        let e = PathState::new(DVec3::new(x, y, 0.0), cam.axis, e * area * batch_weight, if LENGTH { l } else { 0.0 });
         rec.camera(&reflected, &e);
     });
     let Some((shot, pos, dir, weight, l)) =
@@ -334,17 +271,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
         *rng = local;
         return;
     };
-    let mut s = PathState {
-        pos,
-        dir,
-        weight,
-        l: if LENGTH { l } else { 0.0 },
-        dldt: 0.0,
-        order: 0,
-        doppler_events: 0,
-        brownian: 0.0,
-        mis: -1.0,
-    };
+    let mut s = PathState::new(pos, dir, weight, if LENGTH { l } else { 0.0 });
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
     let end = walk::<DOPPLER, LENGTH, false, true, false, false, false>(
@@ -685,16 +612,12 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
         return Some(End::Absorbed);
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
-    let d = pop.phase.sample(rng.uniform());
-    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
-    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    let (_, out, delta) = deflect(s.dir, &pop.phase, rng);
     if DOPPLER && dynamic {
         let v = particle_velocity(pop, s.pos, rng);
-        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
+        doppler_event(s, pop, n, v, delta);
     }
-    s.dir = out;
-    s.order += 1;
-    end_of_event(s, settings, rng, checkpoint)
+    turn(s, out, settings, rng, checkpoint)
 }
 
 /// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
@@ -742,33 +665,26 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             Some(a) => super::nee::receiver_ray(scene, li, s.pos, s.dir, &pop.phase, target, a, u1, u2, rng),
         };
         let Some(h) = hit else { continue };
-        let mut e = Escape {
+        let mut e = PathState {
             pos: h.pos,
             dir: h.dir,
             weight: s.weight * h.factor * boost,
             l: if LENGTH { s.l + h.length } else { 0.0 },
-            dldt: s.dldt,
             order: s.order + 1,
-            doppler_events: s.doppler_events,
-            brownian: s.brownian,
             mis: -1.0,
-            specular: false,
+            ..*s
         };
         if dynamic {
-            doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, pop, n, v, s.dir - h.dir_vertex);
+            doppler_event(&mut e, pop, n, v, s.dir - h.dir_vertex);
         }
         rec.next_event(target.detector, &e, scene.n_above);
     }
-    let d = pop.phase.sample(rng.uniform());
-    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
-    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
     if dynamic {
-        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
+        doppler_event(s, pop, n, v, delta);
     }
-    s.dir = out;
-    s.order += 1;
-    end_of_event(s, settings, rng, checkpoint)
+    turn(s, out, settings, rng, checkpoint)
 }
 
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
@@ -809,7 +725,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         // here (−1 when the lobe connection cannot make it).
         let w = if s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
         let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
-        let tail = Tail { l: s.l, dldt: s.dldt, brownian: s.brownian, events: s.doppler_events, order: s.order };
+        let tail = *s;
         rec.stats.work.camera_connections += 1;
         connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
         // The beam-lobe connection: a direction from the guide lobe, the straight refracted way
@@ -828,7 +744,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
                 let v2 = if dynamic2 { particle_velocity(pop2, h.pos, rng) } else { DVec3::ZERO };
                 let mut tail = tail;
                 if dynamic {
-                    doppler_event(&mut tail.dldt, &mut tail.brownian, &mut tail.events, pop, n, v, s.dir - dir);
+                    doppler_event(&mut tail, pop, n, v, s.dir - dir);
                 }
                 tail.order += 1;
                 tail.l += if LENGTH { h.length } else { 0.0 };
@@ -841,19 +757,15 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
             }
         }
     }
-    let d = pop.phase.sample(rng.uniform());
-    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
-    let (out, delta) = scatter_direction(s.dir, d, cos_phi, sin_phi);
+    let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     s.mis = match up {
         Some(up) => pop.phase.eval(d.cos) / guide.eval(up.dot(out)),
         None => -1.0,
     };
     if dynamic {
-        doppler_event(&mut s.dldt, &mut s.brownian, &mut s.doppler_events, pop, n, v, delta);
+        doppler_event(s, pop, n, v, delta);
     }
-    s.dir = out;
-    s.order += 1;
-    end_of_event(s, ctx.settings, rng, checkpoint)
+    turn(s, out, ctx.settings, rng, checkpoint)
 }
 
 /// A vertex a camera path connects to the laser from: where, the walk's direction into it, the
@@ -868,17 +780,6 @@ struct Link<'a> {
     n: f64,
 }
 
-/// What a camera path carries up to a [`Link`]: its optical path length, `dl/dt`, Brownian sum,
-/// Doppler events and scattering order before the link's own event.
-#[derive(Clone, Copy)]
-struct Tail {
-    l: f64,
-    dldt: f64,
-    brownian: f64,
-    events: u32,
-    order: u32,
-}
-
 /// Connect `at` (in layer `li`) to the laser and score the path into `shot`'s pixel with the
 /// weight `w` (the walk's weight, with every factor but the phase function and the irradiance).
 #[allow(clippy::too_many_arguments)]
@@ -888,7 +789,7 @@ fn connect<const LENGTH: bool>(
     li: usize,
     shot: &Shot,
     at: Link,
-    tail: Tail,
+    tail: PathState,
     w: f64,
     rng: &mut PathRng,
     rec: &mut Recorder,
@@ -896,20 +797,17 @@ fn connect<const LENGTH: bool>(
     let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
     // The light arrives along `b.dir` and leaves towards the camera along `−dir_in`.
     let p = at.pop.phase.eval(-b.dir.dot(at.dir_in));
-    let mut e = Escape {
+    let mut e = PathState {
         pos: at.pos,
         dir: -at.dir_in,
         weight: w * p * b.irradiance * shot.scale,
         l: if LENGTH { tail.l + b.length } else { 0.0 },
-        dldt: tail.dldt,
         order: tail.order + 1,
-        doppler_events: tail.events,
-        brownian: tail.brownian,
         mis: -1.0,
-        specular: false,
+        ..tail
     };
     if at.dynamic {
-        doppler_event(&mut e.dldt, &mut e.brownian, &mut e.doppler_events, at.pop, at.n, at.v, b.dir + at.dir_in);
+        doppler_event(&mut e, at.pop, at.n, at.v, b.dir + at.dir_in);
     }
     rec.camera(shot, &e);
 }
@@ -956,12 +854,37 @@ fn absorb(s: &mut PathState, albedo: f64, absorbed: &mut f64) -> bool {
 /// `q = (2πn/λ0)·delta`, so `D·q² = (2π/λ0)²·D n²|delta|²` and only the wavelength-free part is
 /// carried.
 #[inline(always)]
-fn doppler_event(dldt: &mut f64, brownian: &mut f64, events: &mut u32, m: &Population, n: f64, v: DVec3, delta: DVec3) {
-    *dldt += doppler_increment(n, v, delta);
+fn doppler_event(s: &mut PathState, m: &Population, n: f64, v: DVec3, delta: DVec3) {
+    s.dldt += doppler_increment(n, v, delta);
     if m.motion.diffusion > 0.0 {
-        *brownian += m.motion.diffusion * n * n * delta.length_squared();
+        s.brownian += m.motion.diffusion * n * n * delta.length_squared();
     }
-    *events += 1;
+    s.doppler_events += 1;
+}
+
+/// A new direction about `dir` drawn from `phase` (its deflection, then the azimuth): the
+/// deflection, the direction and `dir − out` ([`scatter_direction`]).
+#[inline(always)]
+fn deflect(dir: DVec3, phase: &crate::phase::PhaseFunction, rng: &mut PathRng) -> (Deflection, DVec3, DVec3) {
+    let d = phase.sample(rng.uniform());
+    let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
+    let (out, delta) = scatter_direction(dir, d, cos_phi, sin_phi);
+    (d, out, delta)
+}
+
+/// The path turns to `out` at a real collision: one more scattering order, then the end of the
+/// event ([`end_of_event`]).
+#[inline(always)]
+fn turn(
+    s: &mut PathState,
+    out: DVec3,
+    settings: &WalkSettings,
+    rng: &mut PathRng,
+    checkpoint: &mut u32,
+) -> Option<End> {
+    s.dir = out;
+    s.order += 1;
+    end_of_event(s, settings, rng, checkpoint)
 }
 
 /// The velocity of the particle a path scatters on at `p`: the flow plus, for a medium with a
