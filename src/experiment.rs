@@ -598,7 +598,7 @@ impl Experiment {
         let mut estimates = estimates;
         let batches = estimates.batches() as u64;
         let layout = self.tally_layout();
-        layout.finish_run(&self.detectors, &mut estimates);
+        layout.finish_run(&mut estimates);
         let main = layout.registry.main();
         let main_output = (main.name.clone(), main.relative_error(&estimates));
         RunOutput {

@@ -399,8 +399,8 @@ impl TallyLayout {
                 spec.finish_batch(ll, sums);
             }
         }
-        for (part, placed, power) in self.parts(detectors) {
-            part.finish_batch(placed, sums, power, batch);
+        for (placed, power) in self.parts() {
+            placed.finish_batch(sums, power, batch);
         }
         self.registry.finish_batch(sums, batch);
     }
@@ -410,19 +410,16 @@ impl TallyLayout {
     /// jackknife standard errors over groups of batches. Applied once, when a run's batches are
     /// all folded in ([`crate::experiment::Experiment::finish`]), whatever the threads, shards or
     /// resumes.
-    pub fn finish_run(&self, detectors: &[Detector], estimates: &mut crate::stats::BatchAccumulator) {
-        for (part, placed, power) in self.parts(detectors) {
-            part.finish_run(placed, estimates, power);
+    pub fn finish_run(&self, estimates: &mut crate::stats::BatchAccumulator) {
+        for (placed, power) in self.parts() {
+            placed.finish_run(estimates, power);
         }
         self.registry.finish_run(estimates);
     }
 
-    /// Every part of every surface detector: the part, where it lies, and its detector's power slot.
-    pub fn parts<'a>(&'a self, detectors: &'a [Detector]) -> impl Iterator<Item = (&'a Part, &'a Placed, usize)> {
-        detectors.iter().zip(&self.detectors).flat_map(|(d, lay)| {
-            let parts = d.surface().map_or(&[][..], |s| &s.parts[..]);
-            parts.iter().zip(&lay.parts).map(move |(p, l)| (p, l, lay.power))
-        })
+    /// Every part of every surface detector, with its detector's power slot.
+    pub fn parts(&self) -> impl Iterator<Item = (&Placed, usize)> {
+        self.detectors.iter().flat_map(|lay| lay.parts.iter().map(move |p| (p, lay.power)))
     }
 }
 
@@ -669,7 +666,7 @@ impl Recorder<'_> {
     /// optical path length `l`, into the detector's power and each of its parts.
     fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &PathState) {
         let (detectors, layout) = (self.detectors, self.layout);
-        let (DetectorKind::Surface(d), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
+        let (DetectorKind::Surface(_), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
         self.acc[lay.power] += e.weight;
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
         let hit = Hit {
@@ -683,8 +680,8 @@ impl Recorder<'_> {
             order: e.order,
             doppler_events: e.doppler_events,
         };
-        for (part, placed) in d.parts.iter().zip(&lay.parts) {
-            part.record(placed, self, &hit);
+        for placed in &lay.parts {
+            placed.record(self, &hit);
         }
     }
 }

@@ -1,11 +1,13 @@
 //! The parts of a surface detector. A detector is its geometry (side, plane, area, acceptance,
 //! estimator) and a list of parts, each one feature of what it records: a spectrum, an image, a
 //! time axis, correlations, an LDH camera. A part owns its spec (in its own file), lays out and
-//! declares its tally slots and outputs ([`Part::declare`]), records a detected path
-//! ([`Part::record`]) and finishes a batch and the run ([`Part::finish_batch`],
-//! [`Part::finish_run`]). This file is the list of parts and their dispatch: adding a part is a
-//! variant here, its own file, its resolve step (`config/resolve/detectors.rs`) and its docs; its
-//! declared outputs are written, described in the manifest and read by Python without more.
+//! declares its tally slots and outputs ([`Part::declare`], giving the [`Placed`] part: its spec
+//! and where its tallies lie), records a detected path ([`Placed::record`]) and finishes a batch
+//! and the run ([`Placed::finish_batch`], [`Placed::finish_run`]). This file is the list of parts
+//! and their dispatch, each `match` exhaustive, so that the compiler lists what a new part needs:
+//! a variant here, its own file, its resolve step (`config/resolve/detectors.rs`), its arm in
+//! `io/write/parts.rs` (files of its own, if any, and its manifest table) and its docs. Its
+//! declared outputs are written, listed in the manifest and read by Python without more.
 //!
 //! Parts are declared in the order of the list a detector holds, which resolve builds in the
 //! order spectrum, image, time, correlation, LDH (the tally layout, and so the files' order,
@@ -34,15 +36,17 @@ pub enum Part {
     Ldh(Box<LdhSpec>),
 }
 
-/// Where a part's tallies lie: [`Part::declare`]'s result, held in the same order as the parts.
+/// A part laid out in the tally vector ([`Part::declare`]): its spec and where its tallies lie.
+/// A detector's layout holds them in the order of its parts; recording and writing read them
+/// alone.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Placed {
-    Spectrum(SpectrumLayout),
-    /// The first slot of the intensity image.
-    Image(usize),
-    Time(TimeLayout),
-    Correlation(CorrelationLayout),
-    Ldh(LdhLayout),
+    Spectrum(SpectrumSpec, SpectrumLayout),
+    /// The pixel grid and the first slot of the intensity image.
+    Image(ImageSpec, usize),
+    Time(TimeSpec, TimeLayout),
+    Correlation(Box<CorrelationSpec>, CorrelationLayout),
+    Ldh(Box<LdhSpec>, LdhLayout),
 }
 
 /// Where a detector's parts are declared: its index and name, its pixel grid (if it has an
@@ -76,32 +80,49 @@ impl Part {
     /// Lay out this part's tallies from `reg`'s end and declare its outputs.
     pub fn declare(&self, at: &Place, reg: &mut Registry) -> Placed {
         match self {
-            Part::Spectrum(s) => Placed::Spectrum(s.declare(at, reg)),
-            Part::Image(im) => Placed::Image(im.declare(at, reg)),
-            Part::Time(t) => Placed::Time(t.declare(at.i, at.name, at.image, reg)),
-            Part::Correlation(c) => Placed::Correlation(c.declare(at.i, at.name, at.image, reg)),
+            Part::Spectrum(s) => Placed::Spectrum(s.clone(), s.declare(at, reg)),
+            Part::Image(im) => Placed::Image(*im, im.declare(at, reg)),
+            Part::Time(t) => Placed::Time(*t, t.declare(at.i, at.name, at.image, reg)),
+            Part::Correlation(c) => {
+                let lay = c.declare(at.i, at.name, at.image, reg);
+                Placed::Correlation(c.clone(), lay)
+            }
             Part::Ldh(l) => {
                 let im = at.image.expect("an LDH camera has an image (checked when resolving)");
-                Placed::Ldh(l.declare(at.i, at.name, im, reg))
+                let lay = l.declare(at.i, at.name, im, reg);
+                Placed::Ldh(l.clone(), lay)
             }
         }
     }
 
-    /// Record `hit` into this part's tallies (laid out as `placed`) of `r`'s batch.
+    /// The name of its table in the manifest's `detectors.NAME` and of its config section.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Part::Spectrum(_) => "spectrum",
+            Part::Image(_) => "image",
+            Part::Time(_) => "time",
+            Part::Correlation(_) => "correlation",
+            Part::Ldh(_) => "ldh",
+        }
+    }
+}
+
+impl Placed {
+    /// Record `hit` into this part's tallies of `r`'s batch.
     #[inline(always)]
-    pub fn record(&self, placed: &Placed, r: &mut Recorder, hit: &Hit) {
-        match (self, placed) {
-            (Part::Spectrum(s), Placed::Spectrum(lay)) => s.record(lay, r.acc, r.stats, &r.beat, hit),
-            (Part::Image(_), Placed::Image(start)) => ImageSpec::record(*start, r.acc, hit),
-            (Part::Time(t), Placed::Time(lay)) => t.record(lay, r.acc, hit.weight, hit.l, hit.pixel),
-            (Part::Correlation(c), Placed::Correlation(lay)) => {
+    pub fn record(&self, r: &mut Recorder, hit: &Hit) {
+        match self {
+            Placed::Spectrum(s, lay) => s.record(lay, r.acc, r.stats, &r.beat, hit),
+            Placed::Image(_, start) => ImageSpec::record(*start, r.acc, hit),
+            Placed::Time(t, lay) => t.record(lay, r.acc, hit.weight, hit.l, hit.pixel),
+            Placed::Correlation(c, lay) => {
                 // The Doppler frequency alone: a chirp's range term is not a motion of the field.
                 let f = hit.dldt * r.beat.inv_wavelength;
                 // Γ = 2π × the line's half-width.
                 let rate = std::f64::consts::TAU * hit.gamma;
                 c.record(lay, r.acc, hit.weight, f, rate, hit.pixel, (hit.x, hit.y));
             }
-            (Part::Ldh(l), Placed::Ldh(lay)) => {
+            Placed::Ldh(l, lay) => {
                 // LDH uses a single-frequency laser (checked when resolving).
                 let f = r.beat.frequency(0, hit.l, hit.dldt);
                 if !f.is_finite() {
@@ -118,34 +139,35 @@ impl Part {
                     }
                 });
             }
-            _ => unreachable!("a part is recorded with its own layout"),
         }
     }
 
-    /// File a finished batch (number `batch`) of sums: the part's outputs that are not linear in
+    /// File a finished batch (number `batch`) of sums: a part's outputs that are not linear in
     /// the tallies keep their sums per group of batches (the detector's power is at `power`).
-    pub fn finish_batch(&self, placed: &Placed, sums: &mut [f64], power: usize, batch: u64) {
-        if let (Part::Correlation(c), Placed::Correlation(lay)) = (self, placed) {
-            c.finish_batch(lay, sums, power, batch);
+    pub fn finish_batch(&self, sums: &mut [f64], power: usize, batch: u64) {
+        match self {
+            Placed::Correlation(c, lay) => c.finish_batch(lay, sums, power, batch),
+            Placed::Spectrum(..) | Placed::Image(..) | Placed::Time(..) | Placed::Ldh(..) => {}
         }
     }
 
     /// Set the run-level values (and jackknife errors) of the part's non-linear outputs from the
     /// run's means.
-    pub fn finish_run(&self, placed: &Placed, estimates: &mut BatchAccumulator, power: usize) {
-        if let (Part::Correlation(c), Placed::Correlation(lay)) = (self, placed) {
-            c.finish_run(lay, estimates, power);
+    pub fn finish_run(&self, estimates: &mut BatchAccumulator, power: usize) {
+        match self {
+            Placed::Correlation(c, lay) => c.finish_run(lay, estimates, power),
+            Placed::Spectrum(..) | Placed::Image(..) | Placed::Time(..) | Placed::Ldh(..) => {}
         }
     }
 
     /// The name of its table in the manifest's `detectors.NAME` and of its config section.
     pub fn name(&self) -> &'static str {
         match self {
-            Part::Spectrum(_) => "spectrum",
-            Part::Image(_) => "image",
-            Part::Time(_) => "time",
-            Part::Correlation(_) => "correlation",
-            Part::Ldh(_) => "ldh",
+            Placed::Spectrum(..) => "spectrum",
+            Placed::Image(..) => "image",
+            Placed::Time(..) => "time",
+            Placed::Correlation(..) => "correlation",
+            Placed::Ldh(..) => "ldh",
         }
     }
 }
@@ -187,26 +209,26 @@ impl super::Surface {
 impl super::DetectorLayout {
     /// Where its spectra lie, if it has any.
     pub fn spectrum(&self) -> Option<&SpectrumLayout> {
-        self.parts.iter().find_map(|p| if let Placed::Spectrum(l) = p { Some(l) } else { None })
+        self.parts.iter().find_map(|p| if let Placed::Spectrum(_, l) = p { Some(l) } else { None })
     }
 
     /// The first slot of its intensity image, if it has one.
     pub fn image(&self) -> Option<usize> {
-        self.parts.iter().find_map(|p| if let Placed::Image(l) = p { Some(*l) } else { None })
+        self.parts.iter().find_map(|p| if let Placed::Image(_, l) = p { Some(*l) } else { None })
     }
 
     /// Where its time-resolved tallies lie, if it has a time axis.
     pub fn time(&self) -> Option<&TimeLayout> {
-        self.parts.iter().find_map(|p| if let Placed::Time(l) = p { Some(l) } else { None })
+        self.parts.iter().find_map(|p| if let Placed::Time(_, l) = p { Some(l) } else { None })
     }
 
     /// Where its correlation tallies lie, if it has any.
     pub fn correlation(&self) -> Option<&CorrelationLayout> {
-        self.parts.iter().find_map(|p| if let Placed::Correlation(l) = p { Some(l) } else { None })
+        self.parts.iter().find_map(|p| if let Placed::Correlation(_, l) = p { Some(l) } else { None })
     }
 
     /// Where its LDH tallies lie, if it is a camera.
     pub fn ldh(&self) -> Option<&LdhLayout> {
-        self.parts.iter().find_map(|p| if let Placed::Ldh(l) = p { Some(l) } else { None })
+        self.parts.iter().find_map(|p| if let Placed::Ldh(_, l) = p { Some(l) } else { None })
     }
 }

@@ -273,8 +273,8 @@ fn write_run_to<S: super::Sink>(
                     entries: &mut info.parts,
                     out_of_range: 0.0,
                 };
-                for (part, placed) in s.parts.iter().zip(&lay.parts) {
-                    super::parts::write_part(&mut w, part, placed, &mut cx)?;
+                for part in &lay.parts {
+                    super::parts::write_part(&mut w, part, &mut cx)?;
                 }
                 out_of_range_total += cx.out_of_range;
             }

@@ -9,7 +9,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use super::{Entry, IMAGE_LAYOUT, Writer, estimate};
-use crate::detect::{Part, Placed, SpectrumSpec, Surface};
+use crate::detect::{Placed, SpectrumSpec, Surface};
 use crate::error::Result;
 use crate::output::{Kind, Output};
 use crate::post::Finished;
@@ -30,11 +30,11 @@ pub struct Context<'a, 'f> {
     pub out_of_range: f64,
 }
 
-/// Write `part` (laid out as `placed`) of `cx`'s detector.
-pub fn write_part(w: &mut Writer, part: &Part, placed: &Placed, cx: &mut Context) -> Result<()> {
+/// Write `part` of `cx`'s detector.
+pub fn write_part(w: &mut Writer, part: &Placed, cx: &mut Context) -> Result<()> {
     let (exp, out, name) = (cx.finished.exp, cx.finished.out, cx.name);
-    match (part, placed) {
-        (Part::Spectrum(spec), Placed::Spectrum(lay)) => {
+    match part {
+        Placed::Spectrum(spec, lay) => {
             let spectra: Vec<&Output> = w.registry.within(lay.slots(out.beat.chirps())).collect();
             let (entry, oor) = write_spectra(w, name, spec, &spectra, cx.detector)?;
             let fmcw = exp.fmcw_estimates(out, cx.i).and_then(|r| r.ok());
@@ -47,7 +47,7 @@ pub fn write_part(w: &mut Writer, part: &Part, placed: &Placed, cx: &mut Context
                 cx.entries.insert("fmcw", entry.info);
             }
         }
-        (Part::Image(im), Placed::Image(slot)) => {
+        Placed::Image(im, slot) => {
             let o = w.registry.at(*slot);
             let (v, e) = w.image(o, "intensity")?;
             w.image_figure(o, &v, &e, &format!("{name}: intensity image"), "fraction of emitted power")?;
@@ -60,20 +60,19 @@ pub fn write_part(w: &mut Writer, part: &Part, placed: &Placed, cx: &mut Context
             };
             cx.entries.insert(part.name(), to_value(entry));
         }
-        (Part::Time(t), Placed::Time(lay)) => {
+        Placed::Time(t, lay) => {
             let entry = super::tcorr::write_time(w, name, t, lay, cx.detector)?;
             cx.entries.insert(part.name(), entry);
         }
-        (Part::Correlation(c), Placed::Correlation(lay)) => {
+        Placed::Correlation(c, lay) => {
             let entry = super::tcorr::write_correlation(w, name, c, lay)?;
             cx.entries.insert(part.name(), entry);
         }
-        (Part::Ldh(spec), Placed::Ldh(lay)) => {
+        Placed::Ldh(spec, lay) => {
             let im = cx.surface.image().expect("an LDH camera has an image (checked when resolving)");
             let entry = super::ldh::write_ldh(w, name, im, spec, lay, cx.finished, cx.estimates)?;
             cx.entries.insert(part.name(), entry);
         }
-        _ => unreachable!("a part is written with its own layout"),
     }
     Ok(())
 }
