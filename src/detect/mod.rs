@@ -22,7 +22,7 @@ pub use correlation::{CorrelationLayout, CorrelationSpec};
 pub use image::ImageSpec;
 pub use ldh::{Detection, LdhLayout, LdhOptions, LdhSpec, RecordedLine, Roi, RoiLayout, SpeckleSpec};
 pub use lidar::{Echo, LidarLayout, LidarSpec};
-pub use part::{Hit, Part, Place, Placed};
+pub use part::{Part, Placed};
 pub use spectrum::{SpectrumLayout, SpectrumSpec};
 pub use time::{TimeLayout, TimeSpec};
 
@@ -512,6 +512,33 @@ impl PathState {
     pub fn new(pos: DVec3, dir: DVec3, weight: f64, l: f64) -> Self {
         PathState { pos, dir, weight, l, dldt: 0.0, order: 0, doppler_events: 0, brownian: 0.0, mis: -1.0 }
     }
+}
+
+/// Where a detector's parts are declared: its index and name, its pixel grid (if it has an
+/// image) and the beat model.
+#[derive(Debug, Clone, Copy)]
+pub struct Place<'a> {
+    pub i: usize,
+    pub name: &'a str,
+    pub image: Option<&'a ImageSpec>,
+    pub beat: &'a BeatModel,
+}
+
+/// A path as the parts of a detector record it: arrived at `(x, y)` of the detector plane (in
+/// image pixel `pixel`) with the optical path length `l` (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    pub x: f64,
+    pub y: f64,
+    pub pixel: Option<usize>,
+    pub weight: f64,
+    pub l: f64,
+    /// m/s.
+    pub dldt: f64,
+    /// The Lorentzian half-width of its line, Hz ([`BeatModel::brownian_hwhm`]).
+    pub gamma: f64,
+    pub order: u32,
+    pub doppler_events: u32,
 }
 
 /// Which pixel a camera path scores into, where it starts, and the factor turning its

@@ -16,7 +16,7 @@
 
 use super::ldh::{self, Detection, RecordedLine};
 use super::{
-    BeatModel, CorrelationLayout, CorrelationSpec, ImageSpec, LdhLayout, LdhSpec, Recorder, SpectrumLayout,
+    CorrelationLayout, CorrelationSpec, Hit, ImageSpec, LdhLayout, LdhSpec, Place, Recorder, SpectrumLayout,
     SpectrumSpec, TimeLayout, TimeSpec,
 };
 use crate::output::Registry;
@@ -47,33 +47,6 @@ pub enum Placed {
     Time(TimeSpec, TimeLayout),
     Correlation(Box<CorrelationSpec>, CorrelationLayout),
     Ldh(Box<LdhSpec>, LdhLayout),
-}
-
-/// Where a detector's parts are declared: its index and name, its pixel grid (if it has an
-/// image) and the beat model.
-#[derive(Debug, Clone, Copy)]
-pub struct Place<'a> {
-    pub i: usize,
-    pub name: &'a str,
-    pub image: Option<&'a ImageSpec>,
-    pub beat: &'a BeatModel,
-}
-
-/// A path as the parts of a detector record it: arrived at `(x, y)` of the detector plane (in
-/// image pixel `pixel`) with the optical path length `l` (m).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hit {
-    pub x: f64,
-    pub y: f64,
-    pub pixel: Option<usize>,
-    pub weight: f64,
-    pub l: f64,
-    /// m/s.
-    pub dldt: f64,
-    /// The Lorentzian half-width of its line, Hz ([`BeatModel::brownian_hwhm`]).
-    pub gamma: f64,
-    pub order: u32,
-    pub doppler_events: u32,
 }
 
 impl Part {
