@@ -651,6 +651,7 @@ impl Experiment {
             nee: &nee,
             shot: None,
             volume,
+            reflections: WalkContext::deterministic_reflections(&self.scene, &self.plan.walk, &self.detectors),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;

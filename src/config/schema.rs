@@ -182,12 +182,22 @@ pub struct RunSection {
     pub roulette_threshold: Option<f64>,
     pub roulette_survival: Option<f64>,
     pub max_scattering_events: Option<u64>,
+    /// How the laser's unscattered reflections at the interfaces below the surface reach the
+    /// detectors: `"deterministic"` (default) or `"sampled"`.
+    pub reflections: Option<ReflectionsKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
     /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
     /// / c from the emission point).
     #[serde(rename = "time_gate_ns", alias = "time_gate_us")]
     pub time_gate: Option<Quantity<PulseWidth, [f64; 2]>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReflectionsKind {
+    Deterministic,
+    Sampled,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -541,6 +541,18 @@ pub struct Hit {
     pub doppler_events: u32,
 }
 
+/// What kind of escape a path's is, for the tallies ([`Recorder::escape`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exit {
+    /// The laser's specular reflection at the top surface.
+    Specular,
+    /// Any other escape of the walk.
+    Walked,
+    /// An escape whose detectors' share is scored otherwise (the unscattered once-reflected
+    /// escapes, with deterministic reflections, [`Recorder::reflection`]): the scalar tallies only.
+    ScalarsOnly,
+}
+
 /// Which pixel a camera path scores into, where it starts, and the factor turning its
 /// contributions into the batch's tally (see `transport::camera::start`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -582,19 +594,20 @@ impl Recorder<'_> {
         }
     }
 
-    /// A path leaving the stack through `side` into ambient index `n_ambient` (`specular`: the
-    /// laser's specular reflection at the top surface).
+    /// A path leaving the stack through `side` into ambient index `n_ambient` (`exit`: what kind
+    /// of escape, for the tallies).
     ///
     /// Inlined into the walk: the scalar tallies are a few adds, and where the walk does not
     /// track `l` or `dl/dt` their finiteness checks fold away. The detectors are an outlined
     /// call made only if there are any (measured: ~60 → ~15 instructions per escape without
     /// detectors).
     #[inline(always)]
-    pub fn escape(&mut self, side: Side, e: PathState, specular: bool, n_ambient: f64) {
+    pub fn escape(&mut self, side: Side, e: PathState, exit: Exit, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
         }
+        let specular = exit == Exit::Specular;
         match (side, specular) {
             (Side::Top, true) => self.add(Scalar::ReflectanceSpecular, e.weight),
             (Side::Top, false) => self.add(Scalar::ReflectanceDiffuse, e.weight),
@@ -605,12 +618,24 @@ impl Recorder<'_> {
                 }
             }
         }
-        if !self.detectors.is_empty() {
+        if exit != Exit::ScalarsOnly && !self.detectors.is_empty() {
             // A copy made here: taking `&e` directly made LLVM build `e` on the stack before the
             // first test, for every path (13 stores; measured 182.8M → 177.8M instructions).
             let e = PathState { ..e };
             self.detect(side, &e, specular, n_ambient);
         }
+    }
+
+    /// The laser's unscattered reflection `e` at an interface below the surface, leaving through
+    /// it into the ambient index `n_ambient`, scored deterministically into the detectors (the
+    /// scalar tallies count the walk's own, [`Exit::ScalarsOnly`]).
+    #[inline(never)]
+    pub fn reflection(&mut self, e: &PathState, n_ambient: f64) {
+        if !(e.weight.is_finite() && e.l.is_finite()) {
+            self.stats.non_finite += 1;
+            return;
+        }
+        self.detect(Side::Top, e, false, n_ambient);
     }
 
     /// A shadow ray of next-event estimation reaching detector `i` (already in its cone).

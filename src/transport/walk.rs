@@ -16,7 +16,7 @@
 use glam::DVec3;
 
 use crate::detect::volume::VolumeTally;
-use crate::detect::{PathState, Recorder, Scalar, Shot, Side};
+use crate::detect::{Exit, PathState, Recorder, Scalar, Shot, Side};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
@@ -24,7 +24,7 @@ use crate::source::Source;
 
 use super::camera::CameraTarget;
 use super::fresnel;
-use super::nee::NeeTarget;
+use super::nee::{Crossing, NeeTarget, trace_up};
 use super::tracking::{Flight, LayerRay, Tracking, free_flight, free_flight_to};
 
 /// Knobs of the random walk.
@@ -41,6 +41,21 @@ pub struct WalkSettings {
     /// `l/c` from the emission point), `None`: no gate. Forward paths record only what happens
     /// within it (escapes, deposits) and end at `l1` (as MCX); read only by walks that track `l`.
     pub gate: Option<(f64, f64)>,
+    /// How the forward paths' unscattered reflections at the interfaces below the surface reach
+    /// the detectors (`run.reflections`).
+    pub reflections: Reflections,
+}
+
+/// How the laser's unscattered reflections at the interfaces below the surface reach the
+/// forward-estimated detectors (`run.reflections`; the scalar tallies always count the walk's).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Reflections {
+    /// Scored from each path before its walk ([`unscattered_reflections`]), the walk's own
+    /// unscattered once-reflected escapes left out of the detectors.
+    #[default]
+    Deterministic,
+    /// As the walk meets them: a path reflects at an interface with probability `R`.
+    Sampled,
 }
 
 impl Default for WalkSettings {
@@ -51,6 +66,7 @@ impl Default for WalkSettings {
             roulette_survival: 0.1,
             max_events: 1_000_000,
             gate: None,
+            reflections: Reflections::Deterministic,
         }
     }
 }
@@ -68,6 +84,31 @@ pub struct WalkContext<'a> {
     pub nee: &'a [NeeTarget],
     pub shot: Option<Shot>,
     pub volume: Option<VolumeTally<'a>>,
+    /// Forward paths score their unscattered reflections at the interfaces below the surface
+    /// deterministically ([`unscattered_reflections`]): `run.reflections = "deterministic"`, a
+    /// forward-estimated top detector to see them, an interface with a change of index below the
+    /// surface, and no box phantom ([`WalkContext::deterministic_reflections`]).
+    pub reflections: bool,
+}
+
+impl WalkContext<'_> {
+    /// Whether forward paths in `scene` with `settings` and these `detectors` score their
+    /// unscattered reflections deterministically (see [`WalkContext::reflections`]).
+    pub fn deterministic_reflections(
+        scene: &Scene,
+        settings: &WalkSettings,
+        detectors: &[crate::detect::Detector],
+    ) -> bool {
+        let seen = detectors.iter().any(|d| {
+            d.surface().is_some_and(|s| s.side == Side::Top && s.estimator() == crate::detect::Estimator::Forward)
+        });
+        let mismatched = scene
+            .layers
+            .iter()
+            .enumerate()
+            .any(|(j, l)| l.z_bottom.is_finite() && l.n != scene.layers.get(j + 1).map_or(scene.n_below, |b| b.n));
+        settings.reflections == Reflections::Deterministic && seen && mismatched && scene.lateral.is_none()
+    }
 }
 
 /// A real collision as the event loop hands it to [`collide`]: the medium collided in, its albedo
@@ -138,8 +179,10 @@ pub fn doppler_increment(n: f64, v: DVec3, dir_in_minus_out: DVec3) -> f64 {
 /// How a walk ended; [`trace_path`] records it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum End {
-    /// Left the stack through `side` into the ambient medium of index `n_ambient`.
-    Escaped { side: Side, n_ambient: f64 },
+    /// Left the stack through `side` into the ambient medium of index `n_ambient`;
+    /// `reflected_once`: without scattering, after one reflection (at an interface below the
+    /// surface, on the way down).
+    Escaped { side: Side, n_ambient: f64, reflected_once: bool },
     /// Left a box phantom through one of its side faces.
     Lateral,
     /// Went down through a transparent semi-infinite last layer: transmitted to depth.
@@ -187,7 +230,7 @@ pub fn trace_path<
     if r_sp > 0.0 {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
         if in_gate::<GATE>(ctx.settings, s.l) {
-            rec.escape(Side::Top, reflected, true, scene.n_above);
+            rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above);
         }
         s.weight = 1.0 - r_sp;
         if s.weight <= 0.0 {
@@ -195,6 +238,9 @@ pub fn trace_path<
         }
     }
     s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
+    if ctx.reflections {
+        unscattered_reflections::<LENGTH, GATE>(ctx, &s, dir, rng, rec);
+    }
 
     let mut absorbed = 0.0;
     let mut null_collisions = 0;
@@ -218,9 +264,11 @@ pub fn trace_path<
     rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
     match end {
-        End::Escaped { side, n_ambient } => {
+        End::Escaped { side, n_ambient, reflected_once } => {
             if in_gate::<GATE>(ctx.settings, s.l) {
-                rec.escape(side, s, false, n_ambient);
+                // With deterministic reflections their detectors' share is scored already.
+                let exit = if reflected_once && ctx.reflections { Exit::ScalarsOnly } else { Exit::Walked };
+                rec.escape(side, s, exit, n_ambient);
             }
         }
         End::Lateral => {
@@ -239,6 +287,59 @@ pub fn trace_path<
         End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         End::Truncated => rec.stats.truncated_paths += 1,
+    }
+}
+
+/// The unscattered reflections of the forward path `s` (just refracted into the first layer
+/// along the ambient direction `b`, not yet scattered), scored into the detectors
+/// ([`Recorder::reflection`]): for the bottom `j` of every finite layer, the beam's straight way
+/// down to it, its reflection `R_j` and the way back up through the surface, leaving along the
+/// mirror image `(b_x, b_y, −b_z)` with the weight `w·Π(1 − R_i)·R_j·exp(−τ)` (Fresnel
+/// transmittances of the interfaces crossed, the optical depth of both ways: analytic segments,
+/// ratio tracking in density layers), as the camera-side estimator scores them
+/// ([`super::camera::unscattered`]). This is the expectation, given the launch, of what the walk's
+/// escapes without scattering and with one reflection bring the detectors, which are then left
+/// out of them ([`Exit::ScalarsOnly`]); light reflected more than once stays in the walk. A
+/// delta-like beam that the walk meets by a rare Fresnel draw (`R ≈ 10⁻³` between tissue layers)
+/// becomes a sure, small contribution per path.
+#[inline(never)]
+fn unscattered_reflections<const LENGTH: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    s: &PathState,
+    b: DVec3,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let scene = ctx.scene;
+    let n0 = scene.n_above;
+    let down_in = |n: f64| super::camera::refracted_down(b, n0, n);
+    let up_in = |n: f64| down_in(n).map(|d| DVec3::new(d.x, d.y, -d.z));
+    let mut way = Crossing { pos: s.pos, length: s.l, ..Crossing::START };
+    for j in 0..scene.layers.len() {
+        let layer = &scene.layers[j];
+        if !layer.z_bottom.is_finite() {
+            break;
+        }
+        let Some(d) = down_in(layer.n) else { return };
+        if j > 0 {
+            way.transmit *= 1.0 - fresnel::reflectance(scene.layers[j - 1].n, layer.n, d.z).0;
+        }
+        way.segment(scene, layer, d, (layer.z_bottom - way.pos.z) / d.z, rng);
+        way.pos.z = layer.z_bottom;
+        let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
+        let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
+        if r <= 0.0 || way.transmit <= 0.0 {
+            continue;
+        }
+        let acc = Crossing { transmit: way.transmit * r, ..way };
+        let up = DVec3::new(d.x, d.y, -d.z);
+        let Some(c) = trace_up(scene, j, way.pos, up, up_in, acc, rng) else { return };
+        let l = if LENGTH { c.length } else { 0.0 };
+        let weight = s.weight * c.transmit * (-c.tau).exp();
+        if weight > 0.0 && in_gate::<GATE>(ctx.settings, l) {
+            let e = PathState::new(c.pos, DVec3::new(b.x, b.y, -b.z), weight, l);
+            rec.reflection(&e, n0);
+        }
     }
 }
 
@@ -525,7 +626,11 @@ fn walk<
         }
         s.dir = fresnel::refract(s.dir, n, n2, cos_t);
         if beyond.is_none() {
-            return End::Escaped { side: if down { Side::Bottom } else { Side::Top }, n_ambient: n2 };
+            let side = if down { Side::Bottom } else { Side::Top };
+            // Without scattering `reflections` counts every reflection (it restarts at a
+            // collision).
+            let reflected_once = s.order == 0 && reflections == 1;
+            return End::Escaped { side, n_ambient: n2, reflected_once };
         }
         if CAMERA {
             // Radiance across the interface: `L/n²` is invariant. The beam-lobe connection

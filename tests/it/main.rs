@@ -25,6 +25,7 @@ mod phase_table;
 mod pixel_speckle;
 mod precision;
 mod presets;
+mod reflections;
 mod reliability;
 mod retrieval;
 mod sampling;

@@ -3,7 +3,7 @@
 use super::{DEFAULT_MEMORY_BUDGET_GIB, R, err};
 use crate::config::schema::*;
 use crate::experiment::RunPlan;
-use crate::transport::{Tracking, WalkSettings};
+use crate::transport::{Reflections, Tracking, WalkSettings};
 
 pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     let batches = r.batches.unwrap_or(32);
@@ -92,7 +92,17 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         paths_per_batch,
         seed: r.seed.unwrap_or(1),
         threads: threads as usize,
-        walk: WalkSettings { tracking, roulette_threshold, roulette_survival, max_events: max_events as u32, gate },
+        walk: WalkSettings {
+            tracking,
+            roulette_threshold,
+            roulette_survival,
+            max_events: max_events as u32,
+            gate,
+            reflections: match r.reflections.unwrap_or(ReflectionsKind::Deterministic) {
+                ReflectionsKind::Deterministic => Reflections::Deterministic,
+                ReflectionsKind::Sampled => Reflections::Sampled,
+            },
+        },
         memory_budget,
         memory_limited_by,
         camera_pixel_stride: 1,
