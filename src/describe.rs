@@ -26,6 +26,7 @@ use crate::phase::PhaseFunction;
 use crate::source::{Chirp, Pointing, Profile, Source};
 use crate::spectrum::FrequencyAxis;
 use crate::transport::Tracking;
+use crate::transport::WalkContext;
 
 /// A unit: its symbol and its size in SI.
 #[derive(Debug, Clone, Copy)]
@@ -863,6 +864,17 @@ impl Display for Experiment {
             self.plan,
             if self.needs_doppler() { "" } else { "out" },
             if self.needs_length() { "" } else { "out" }
+        )?;
+        // The interfaces' unscattered reflections: how the detectors get them (`run.reflections`).
+        let deterministic =
+            WalkContext::deterministic_reflections(&self.scene, &self.source, &self.plan.walk, &self.detectors);
+        let moment = crate::transport::walk::reflection_second_moment(&self.scene, &self.source);
+        writeln!(
+            f,
+            "unscattered reflections below the surface: {} (second moment per path along the beam {}, auto threshold {})",
+            if deterministic { "deterministic" } else { "sampled by the walk" },
+            num(moment),
+            num(crate::transport::walk::AUTO_REFLECTIONS)
         )?;
         let mib = |b: u64| b as f64 / (1 << 20) as f64;
         let parts: String = self.plan.memory.iter().map(|b| format!(", {} {:.1} MiB", b.what, mib(b.bytes))).collect();

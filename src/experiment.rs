@@ -651,7 +651,12 @@ impl Experiment {
             nee: &nee,
             shot: None,
             volume,
-            reflections: WalkContext::deterministic_reflections(&self.scene, &self.plan.walk, &self.detectors),
+            reflections: WalkContext::deterministic_reflections(
+                &self.scene,
+                &self.source,
+                &self.plan.walk,
+                &self.detectors,
+            ),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;

@@ -183,7 +183,7 @@ pub struct RunSection {
     pub roulette_survival: Option<f64>,
     pub max_scattering_events: Option<u64>,
     /// How the laser's unscattered reflections at the interfaces below the surface reach the
-    /// detectors: `"deterministic"` (default) or `"sampled"`.
+    /// detectors: `"auto"` (default), `"deterministic"` or `"sampled"`.
     pub reflections: Option<ReflectionsKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
@@ -196,6 +196,7 @@ pub struct RunSection {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ReflectionsKind {
+    Auto,
     Deterministic,
     Sampled,
 }

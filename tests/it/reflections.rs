@@ -7,7 +7,10 @@
 
 use ohd::detect::Scalar;
 
-use crate::support::run::{Run, run};
+use ohd::transport::WalkContext;
+use ohd::transport::walk::reflection_second_moment;
+
+use crate::support::run::{Run, experiment, run};
 use crate::support::scenes;
 use crate::support::stats::chi2_sf;
 
@@ -89,6 +92,18 @@ fn a_clear_stack_reflects_the_closed_form() {
     for s in Scalar::ALL {
         assert_eq!(det.scalar(s), sampled.scalar(s), "{} differs", s.name());
     }
+    // What `auto` weighs: the sampled reflections' second moment per path, the probability
+    // `T0·Σ T²·R·e^{−2τ}` times the squared weight `T0²` (here ~10⁻³: deterministic), and under a
+    // scattering top layer (σs 15 /mm, 0.3 mm: e^{−9} less) far below the threshold (sampled).
+    let moment = t0 * expected;
+    let exp = &det.exp;
+    let m = reflection_second_moment(&exp.scene, &exp.source);
+    assert!((m - moment).abs() < 1e-12 * moment, "second moment {m:e}, closed form {moment:e}");
+    let auto = |sigma_s: f64| {
+        let e = experiment(&stack(sigma_s, 1000, "auto"), &[]);
+        WalkContext::deterministic_reflections(&e.scene, &e.source, &e.plan.walk, &e.detectors)
+    };
+    assert!(auto(0.0) && !auto(15.0), "auto: clear {}, scattering {}", auto(0.0), auto(15.0));
 }
 
 /// A scattering stack under a flat-top beam: deterministic and sampled reflections give the same

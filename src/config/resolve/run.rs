@@ -98,7 +98,8 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
             roulette_survival,
             max_events: max_events as u32,
             gate,
-            reflections: match r.reflections.unwrap_or(ReflectionsKind::Deterministic) {
+            reflections: match r.reflections.unwrap_or(ReflectionsKind::Auto) {
+                ReflectionsKind::Auto => Reflections::Auto,
                 ReflectionsKind::Deterministic => Reflections::Deterministic,
                 ReflectionsKind::Sampled => Reflections::Sampled,
             },
