@@ -89,9 +89,10 @@ pub struct WalkContext<'a> {
     pub shot: Option<Shot>,
     pub volume: Option<VolumeTally<'a>>,
     /// Forward paths score their unscattered reflections at the interfaces below the surface
-    /// deterministically ([`unscattered_reflections`]): `run.reflections = "deterministic"`, a
-    /// forward-estimated top detector to see them, an interface with a change of index below the
-    /// surface, and no box phantom ([`WalkContext::deterministic_reflections`]).
+    /// deterministically ([`unscattered_reflections`]): `run.reflections = "deterministic"` (or
+    /// `"auto"` where they pay), a forward-estimated top detector to see them, an interface with a
+    /// change of index below the surface, and no box phantom
+    /// ([`WalkContext::deterministic_reflections`]).
     pub reflections: bool,
 }
 
@@ -319,14 +320,9 @@ pub fn trace_path<
     match end {
         End::Escaped { side, n_ambient, reflected_once } => {
             if in_gate::<GATE>(ctx.settings, s.l) {
-                // With deterministic reflections their detectors' share is scored already. (Two
-                // calls with constant kinds: one with a kind chosen here cost 17 instructions
-                // per path on the vdH slab, where no reflection is deterministic.)
-                if reflected_once && ctx.reflections {
-                    rec.escape(side, s, Exit::ScalarsOnly, n_ambient);
-                } else {
-                    rec.escape(side, s, Exit::Walked, n_ambient);
-                }
+                // With deterministic reflections their detectors' share is scored already.
+                let exit = if reflected_once && ctx.reflections { Exit::ScalarsOnly } else { Exit::Walked };
+                rec.escape(side, s, exit, n_ambient);
             }
         }
         End::Lateral => {
@@ -360,6 +356,7 @@ pub fn trace_path<
 /// out of them ([`Exit::ScalarsOnly`]); light reflected more than once stays in the walk. A
 /// delta-like beam that the walk meets by a rare Fresnel draw (`R ≈ 10⁻³` between tissue layers)
 /// becomes a sure, small contribution per path.
+#[cold]
 #[inline(never)]
 fn unscattered_reflections<const LENGTH: bool, const GATE: bool>(
     ctx: &WalkContext,
