@@ -69,7 +69,7 @@ use crate::sampling::PathRng;
 use crate::source::Source;
 
 use super::fresnel;
-use super::nee::{Crossing, trace_up};
+use super::nee::{Crossing, reflections_below, trace_up};
 
 /// A surface detector scored by the camera-side estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -211,37 +211,18 @@ pub fn unscattered(
         }
     }
     let down_in = |n: f64| refracted_down(b, n0, n);
+    // Traced back from the point: the way up from interface j, back down from the surface (the
+    // reflected beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along
+    // `−that`), then the way down to the interface, back up to the surface (along `−d`).
+    let back = |n: f64| down_in(n).map(|d| DVec3::new(-d.x, -d.y, d.z));
     let up_in = |n: f64| down_in(n).map(|d| -d);
-    // The way up from interface j to the point, traced back down from the surface: the reflected
-    // beam travels along `(d_x, d_y, −d_z)` in each layer, so going back is along `−that`.
-    let mut way = Crossing { pos: top, length: l0, ..Crossing::START };
-    for j in 0..scene.layers.len() {
-        let layer = &scene.layers[j];
-        if !layer.z_bottom.is_finite() {
-            break;
-        }
-        let Some(d) = down_in(layer.n) else { return };
-        let n_above = if j == 0 { n0 } else { scene.layers[j - 1].n };
-        way.transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
-        let back = DVec3::new(-d.x, -d.y, d.z);
-        way.segment(scene, layer, back, (layer.z_bottom - way.pos.z) / d.z, rng);
-        way.pos.z = layer.z_bottom;
-        let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
-        let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
-        if r <= 0.0 || way.transmit <= 0.0 {
-            continue;
-        }
-        // The way down to the interface, traced back up to the surface.
-        let acc = Crossing { transmit: way.transmit * r, ..way };
-        let Some(Crossing { pos: q, tau, transmit, length: l }) = trace_up(scene, j, way.pos, -d, up_in, acc, rng)
-        else {
-            return;
-        };
+    let start = Crossing { pos: top, length: l0, ..Crossing::START };
+    reflections_below(scene, start, true, back, up_in, rng, |Crossing { pos: q, tau, transmit, length: l }| {
         let (e, l_top) = at_top(q);
         if e > 0.0 && transmit > 0.0 {
             emit(e * transmit * (-tau).exp(), l + l_top);
         }
-    }
+    });
 }
 
 /// The direction `beam` (travelling down, in the ambient medium of index `n0`) takes in a layer

@@ -228,6 +228,48 @@ pub(super) fn trace_up(
     Some(c)
 }
 
+/// A collimated beam's unscattered reflections at the interfaces below the surface: from
+/// `start` at the surface (its sums so far), the straight way down through each finite layer
+/// along `down(n)` in a layer of index `n` (with the Fresnel transmittance of each top face
+/// crossed, the surface's only if `surface`), the reflectance `R` of its bottom, and the way back
+/// up to the surface along `up(n)` ([`trace_up`]); `each` gets every reflection's [`Crossing`] at
+/// the surface. Stops where a direction cannot exist (total internal reflection). The forward
+/// paths' deterministic reflections and the camera-side estimator's (traced back from the
+/// camera) go this way.
+pub(super) fn reflections_below(
+    scene: &Scene,
+    start: Crossing,
+    surface: bool,
+    down: impl Fn(f64) -> Option<DVec3>,
+    up: impl Fn(f64) -> Option<DVec3>,
+    rng: &mut PathRng,
+    mut each: impl FnMut(Crossing),
+) {
+    let mut way = start;
+    for j in 0..scene.layers.len() {
+        let layer = &scene.layers[j];
+        if !layer.z_bottom.is_finite() {
+            break;
+        }
+        let Some(d) = down(layer.n) else { return };
+        if surface || j > 0 {
+            let n_above = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
+            way.transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
+        }
+        way.segment(scene, layer, d, (layer.z_bottom - way.pos.z) / d.z, rng);
+        way.pos.z = layer.z_bottom;
+        let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
+        let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
+        if r <= 0.0 || way.transmit <= 0.0 {
+            continue;
+        }
+        let acc = Crossing { transmit: way.transmit * r, ..way };
+        let Some(first) = up(layer.n) else { return };
+        let Some(c) = trace_up(scene, j, way.pos, first, &up, acc, rng) else { return };
+        each(c);
+    }
+}
+
 /// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
 /// function `phase`, reached along `dir_in`, for the exit direction drawn from the uniforms
 /// `(u1, u2)`. `None` when nothing can come out that way (the direction cannot exist in some

@@ -24,7 +24,7 @@ use crate::source::Source;
 
 use super::camera::CameraTarget;
 use super::fresnel;
-use super::nee::{Crossing, NeeTarget, trace_up};
+use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::tracking::{Flight, LayerRay, Tracking, free_flight, free_flight_to};
 
 /// Knobs of the random walk.
@@ -365,37 +365,19 @@ fn unscattered_reflections<const LENGTH: bool, const GATE: bool>(
     rng: &mut PathRng,
     rec: &mut Recorder,
 ) {
-    let scene = ctx.scene;
-    let n0 = scene.n_above;
-    let down_in = |n: f64| super::camera::refracted_down(b, n0, n);
-    let up_in = |n: f64| down_in(n).map(|d| DVec3::new(d.x, d.y, -d.z));
-    let mut way = Crossing { pos: s.pos, length: s.l, ..Crossing::START };
-    for j in 0..scene.layers.len() {
-        let layer = &scene.layers[j];
-        if !layer.z_bottom.is_finite() {
-            break;
-        }
-        let Some(d) = down_in(layer.n) else { return };
-        if j > 0 {
-            way.transmit *= 1.0 - fresnel::reflectance(scene.layers[j - 1].n, layer.n, d.z).0;
-        }
-        way.segment(scene, layer, d, (layer.z_bottom - way.pos.z) / d.z, rng);
-        way.pos.z = layer.z_bottom;
-        let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
-        let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
-        if r <= 0.0 || way.transmit <= 0.0 {
-            continue;
-        }
-        let acc = Crossing { transmit: way.transmit * r, ..way };
-        let up = DVec3::new(d.x, d.y, -d.z);
-        let Some(c) = trace_up(scene, j, way.pos, up, up_in, acc, rng) else { return };
+    let n0 = ctx.scene.n_above;
+    let down = |n: f64| super::camera::refracted_down(b, n0, n);
+    let up = |n: f64| down(n).map(|d| DVec3::new(d.x, d.y, -d.z));
+    // The surface's transmittance on the way in is in the path's weight.
+    let start = Crossing { pos: s.pos, length: s.l, ..Crossing::START };
+    reflections_below(ctx.scene, start, false, down, up, rng, |c| {
         let l = if LENGTH { c.length } else { 0.0 };
         let weight = s.weight * c.transmit * (-c.tau).exp();
         if weight > 0.0 && in_gate::<GATE>(ctx.settings, l) {
             let e = PathState::new(c.pos, DVec3::new(b.x, b.y, -b.z), weight, l);
             rec.reflection(&e, n0);
         }
-    }
+    });
 }
 
 /// Trace one camera path of pixel `pixel` of `cam` ([`super::camera`]), recording its

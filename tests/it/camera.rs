@@ -4,7 +4,7 @@
 
 use crate::support::run::{Run, roi_channel, roi_m0, run};
 use crate::support::scenes;
-use crate::support::stats::chi2_sf;
+use crate::support::stats::chi2_difference;
 
 /// Two slabs of unequal index (refraction and Fresnel at every interface) with a tilted vessel
 /// of uniform flow in the upper one, under a flat-top beam, seen by an 8 × 8 LDH camera with an
@@ -58,20 +58,6 @@ size_um = [500, 250]
 "#;
     let camera = scenes::camera(1.0, 20.0, 8);
     format!("{}{slabs}{camera}estimator = \"{estimator}\"\n{ldh}", scenes::header(1_000_000, 5, 32))
-}
-
-/// χ² of the differences of two estimates over their combined standard errors (slots where
-/// neither has an error are skipped): (χ², dof, p).
-fn chi2_difference(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize, f64) {
-    let (mut stat, mut dof) = (0.0, 0);
-    for i in 0..a.0.len() {
-        let var = a.1[i].powi(2) + b.1[i].powi(2);
-        if var > 0.0 {
-            stat += (a.0[i] - b.0[i]).powi(2) / var;
-            dof += 1;
-        }
-    }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
 }
 
 /// An output's values and standard errors, by name.

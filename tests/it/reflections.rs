@@ -12,7 +12,7 @@ use ohd::transport::walk::reflection_second_moment;
 
 use crate::support::run::{Run, experiment, run};
 use crate::support::scenes;
-use crate::support::stats::chi2_sf;
+use crate::support::stats::chi2_difference;
 
 /// Normal-incidence Fresnel reflectance between indices `a` and `b`.
 fn fresnel(a: f64, b: f64) -> f64 {
@@ -54,19 +54,6 @@ medium = "tissue"
 fn image(r: &Run) -> (Vec<f64>, Vec<f64>) {
     let o = r.exp.outputs().into_iter().find(|o| o.name == "camera.image").expect("an image");
     o.values(r.out.estimates.mean(), &r.out.estimates.stderr())
-}
-
-/// χ² of the differences of two estimates over their combined standard errors: (χ², dof, p).
-fn chi2(a: &(Vec<f64>, Vec<f64>), b: &(Vec<f64>, Vec<f64>)) -> (f64, usize, f64) {
-    let (mut stat, mut dof) = (0.0, 0);
-    for i in 0..a.0.len() {
-        let var = a.1[i].powi(2) + b.1[i].powi(2);
-        if var > 0.0 {
-            stat += (a.0[i] - b.0[i]).powi(2) / var;
-            dof += 1;
-        }
-    }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
 }
 
 /// A clear stack: every path's detected light is its two single reflections (and, rarely, light
@@ -119,9 +106,10 @@ fn deterministic_reflections_agree_with_sampled_ones() {
     let (a, b) = (det.power(0), sampled.power(0));
     let z = (a.0 - b.0) / a.1.hypot(b.1);
     assert!(z.abs() < 4.0, "power: deterministic {a:?}, sampled {b:?} (z = {z:.2})");
-    let (stat, dof, p) = chi2(&image(&det), &image(&sampled));
+    let (a_image, b_image) = (image(&det), image(&sampled));
+    let (stat, dof, p) = chi2_difference((&a_image.0, &a_image.1), (&b_image.0, &b_image.1));
     assert!(p > 1e-4, "image: χ² = {stat:.1} over {dof} pixels (p = {p:.2e})");
     let (ca, cb) = (det.channel(0, 0, 0), sampled.channel(0, 0, 0));
-    let (stat, dof, p) = chi2(&(ca.values, ca.stderr), &(cb.values, cb.stderr));
+    let (stat, dof, p) = chi2_difference((&ca.values, &ca.stderr), (&cb.values, &cb.stderr));
     assert!(p > 1e-4, "spectrum: χ² = {stat:.1} over {dof} bins (p = {p:.2e})");
 }

@@ -212,3 +212,17 @@ pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) ->
     }
     (stat, dof, chi2_sf(stat, dof.max(1)))
 }
+
+/// χ² of the differences of two estimates over their combined standard errors (slots where
+/// neither has an error are skipped): (χ², dof, p).
+pub fn chi2_difference(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize, f64) {
+    let (mut stat, mut dof) = (0.0, 0);
+    for i in 0..a.0.len() {
+        let var = a.1[i].powi(2) + b.1[i].powi(2);
+        if var > 0.0 {
+            stat += (a.0[i] - b.0[i]).powi(2) / var;
+            dof += 1;
+        }
+    }
+    (stat, dof, chi2_sf(stat, dof.max(1)))
+}
