@@ -67,17 +67,6 @@ impl Part {
             }
         }
     }
-
-    /// The name of its table in the manifest's `detectors.NAME` and of its config section.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Part::Spectrum(_) => "spectrum",
-            Part::Image(_) => "image",
-            Part::Time(_) => "time",
-            Part::Correlation(_) => "correlation",
-            Part::Ldh(_) => "ldh",
-        }
-    }
 }
 
 impl Placed {

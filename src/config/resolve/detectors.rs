@@ -564,6 +564,8 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             }
             c
         });
+        // An LDH camera is scored by next-event estimation.
+        let next_event = next_event || ldh.is_some();
         let parts = [
             spectrum.map(Part::Spectrum),
             image.map(Part::Image),
@@ -578,8 +580,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             axis,
             cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
             include_specular: d.include_specular.unwrap_or(true),
-            // An LDH camera is scored by next-event estimation.
-            next_event: next_event || parts[4].is_some(),
+            next_event,
             parts: parts.into_iter().flatten().collect(),
             choice,
             auto: None,
