@@ -865,6 +865,7 @@ impl Display for Experiment {
             if self.needs_doppler() { "" } else { "out" },
             if self.needs_length() { "" } else { "out" }
         )?;
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
         // The interfaces' unscattered reflections: how the detectors get them (`run.reflections`).
         let deterministic =
             WalkContext::deterministic_reflections(&self.scene, &self.source, &self.plan.walk, &self.detectors);
@@ -876,7 +877,26 @@ impl Display for Experiment {
             num(moment),
             num(crate::transport::walk::AUTO_REFLECTIONS)
         )?;
-        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        // The cameras' layered control variate (`run.control_variate`).
+        let obstacle = crate::transport::control_variate_obstacle(&self.scene, &self.source, &self.detectors);
+        match (self.plan.walk.control_variate, obstacle) {
+            (crate::transport::ControlVariate::Off, _) => writeln!(f, "layered control variate: off")?,
+            (_, Some(why)) => writeln!(f, "layered control variate: none ({why})")?,
+            (_, None) => {
+                let layout = self.tally_layout();
+                for (d, lay) in self.detectors.iter().zip(&layout.detectors) {
+                    let Some(t) = &lay.twin else { continue };
+                    let ((kx, ky), (fx, fy)) = t.sizes();
+                    writeln!(
+                        f,
+                        "layered control variate of {}: {} maps, kernels of {kx}×{ky} offsets ({:.1} MiB per batch), FFT {fx}×{fy}",
+                        d.name,
+                        t.blocks.len(),
+                        mib(8 * t.kernel_len() as u64)
+                    )?;
+                }
+            }
+        }
         let parts: String = self.plan.memory.iter().map(|b| format!(", {} {:.1} MiB", b.what, mib(b.bytes))).collect();
         writeln!(
             f,

@@ -15,7 +15,9 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::{CameraTarget, Features, NeeTarget, WalkContext, WalkSettings};
+use crate::transport::{
+    CameraTarget, ControlVariate, Features, NeeTarget, WalkContext, WalkSettings, control_variate_obstacle,
+};
 
 /// How many paths and how they are split.
 #[derive(Debug, Clone, PartialEq)]
@@ -400,7 +402,20 @@ impl Experiment {
         if self.scene.lateral.is_some() {
             layout.declare_lateral();
         }
+        // Outside the tally vector: the layout of the outputs is the same with or without it.
+        if self.control_variate()
+            && let Some(fp) = self.source.footprint()
+        {
+            layout.declare_twins(&self.detectors, fp);
+        }
         layout
+    }
+
+    /// Whether the forward-estimated cameras get the layered control variate
+    /// (`run.control_variate`, [`crate::detect::twin`]).
+    pub fn control_variate(&self) -> bool {
+        self.plan.walk.control_variate != ControlVariate::Off
+            && control_variate_obstacle(&self.scene, &self.source, &self.detectors).is_none()
     }
 
     /// Whether the walk needs the Doppler term (something moves).
@@ -638,6 +653,8 @@ impl Experiment {
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
+            twin: None,
+            kernels: layout.twin_kernels(),
         };
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
@@ -657,6 +674,7 @@ impl Experiment {
                 &self.plan.walk,
                 &self.detectors,
             ),
+            twin: layout.detectors.iter().any(|d| d.twin.is_some()),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;
@@ -700,6 +718,8 @@ impl Experiment {
         if !cameras.is_empty() {
             progress.advance(ppb - reported);
         }
+        let kernels = std::mem::take(&mut rec.kernels);
+        layout.convolve_twins(&kernels, sums.sums_mut());
         layout.finish_batch(&self.detectors, sums.sums_mut(), batch);
         (sums, stats, lines)
     }

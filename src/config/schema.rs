@@ -185,12 +185,23 @@ pub struct RunSection {
     /// How the laser's unscattered reflections at the interfaces below the surface reach the
     /// detectors: `"auto"` (default), `"deterministic"` or `"sampled"`.
     pub reflections: Option<ReflectionsKind>,
+    /// The layered control variate of forward-estimated cameras: `"auto"` (default: wherever it
+    /// applies), `"layered"` (refused where it does not) or `"off"`.
+    pub control_variate: Option<ControlVariateKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
     /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
     /// / c from the emission point).
     #[serde(rename = "time_gate_ns", alias = "time_gate_us")]
     pub time_gate: Option<Quantity<PulseWidth, [f64; 2]>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ControlVariateKind {
+    Auto,
+    Layered,
+    Off,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -292,11 +292,22 @@ impl LdhSpec {
             });
             o
         });
-        let mut lay = LdhLayout { pixels, stride, m0_plus, m0_minus, m1, classes, rois, pixel_spectra, moments: None };
+        let mut lay = LdhLayout {
+            pixels,
+            stride,
+            m0_plus,
+            m0_minus,
+            m1,
+            classes,
+            rois,
+            pixel_spectra,
+            moments: None,
+            blocks: Vec::new(),
+        };
         if self.moments {
             self.declare_moments(i, name, im, reg, &mut lay);
         }
-        lay
+        lay.with_blocks()
     }
 
     /// Declare the band moments ([`MOMENTS`]) of every pixel and ROI, after all other tallies, and
@@ -369,56 +380,95 @@ impl LdhSpec {
     pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
         let Detection { pixel, x, y, weight: w, frequency: f, gamma, class } = d;
         // Each evaluated once, when first needed (a path in a pixel and an ROI).
-        let mut powers: Option<BandPowers> = None;
-        let mut bp = || *powers.get_or_insert_with(|| self.band_powers(f, gamma));
-        let mut moments: Option<[f64; 4]> = None;
-        let mut bm = |b: BandPowers| {
-            *moments.get_or_insert_with(|| {
-                let m = self.band_moments(f, gamma);
-                [b.m1, m.m1_minus, m.m2_plus, m.m2_minus]
-            })
-        };
+        let mut values: Option<PixelValues> = None;
+        let mut v = || *values.get_or_insert_with(|| self.pixel_values(lay, f, gamma, class));
         if let Some(p) = pixel {
-            let b = bp();
-            acc[lay.m0_plus + p] += w * b.m0_plus;
-            acc[lay.m0_minus + p] += w * b.m0_minus;
-            if let Some(o) = lay.m1 {
-                acc[o + p] += w * b.m1;
-            }
-            if let Some(o) = lay.classes {
-                let c = o + 2 * class * lay.pixels;
-                acc[c + p] += w * b.m0_plus;
-                acc[c + lay.pixels + p] += w * b.m0_minus;
+            let v = v();
+            for (&block, &x) in lay.blocks.iter().zip(&v.of_block) {
+                if x != 0.0 {
+                    acc[block + p] += w * x;
+                }
             }
             if let Some(o) = lay.pixel_spectra {
                 let s = o + p * lay.stride;
                 self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
-            }
-            if let Some(o) = lay.moments {
-                for (k, v) in bm(b).into_iter().enumerate() {
-                    acc[o + k * lay.pixels + p] += w * v;
-                }
             }
         }
         for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
             if !roi.contains(x, y) {
                 continue;
             }
-            let b = bp();
-            acc[rl.m0_plus] += w * b.m0_plus;
-            acc[rl.m0_minus] += w * b.m0_minus;
-            let s = rl.spectrum;
-            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
-            let s = rl.spectrum + (1 + class) * lay.stride;
-            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
-            if let Some(o) = rl.moments {
-                for (k, v) in bm(b).into_iter().enumerate() {
-                    acc[o + k] += w * v;
-                }
-            }
+            self.record_roi(lay, rl, acc, w, &v(), f, gamma, class);
             in_roi(i);
         }
     }
+
+    /// Add a path of weight `w` (its line at `f` with half-width `gamma`, its class, its values
+    /// per unit weight `v`) to an ROI's M0± (and moments) and spectra.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn record_roi(
+        &self,
+        lay: &LdhLayout,
+        rl: &RoiLayout,
+        acc: &mut [f64],
+        w: f64,
+        v: &PixelValues,
+        f: f64,
+        gamma: f64,
+        class: usize,
+    ) {
+        acc[rl.m0_plus] += w * v.of_block[0];
+        acc[rl.m0_minus] += w * v.of_block[1];
+        let s = rl.spectrum;
+        self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+        let s = rl.spectrum + (1 + class) * lay.stride;
+        self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+        if let Some(o) = rl.moments {
+            for (k, m) in v.moments.into_iter().enumerate() {
+                acc[o + k] += w * m;
+            }
+        }
+    }
+
+    /// What a path of unit weight with its line at `f` (half-width `gamma`) in class `class` adds
+    /// to a pixel of each per-pixel map of `lay` ([`LdhLayout::blocks`], in their order).
+    #[inline]
+    pub fn pixel_values(&self, lay: &LdhLayout, f: f64, gamma: f64, class: usize) -> PixelValues {
+        let b = self.band_powers(f, gamma);
+        let mut v = PixelValues { of_block: [0.0; MAX_BLOCKS], moments: [0.0; 4] };
+        v.of_block[0] = b.m0_plus;
+        v.of_block[1] = b.m0_minus;
+        let mut k = 2;
+        if lay.m1.is_some() {
+            v.of_block[k] = b.m1;
+            k += 1;
+        }
+        if lay.classes.is_some() {
+            v.of_block[k + 2 * class] = b.m0_plus;
+            v.of_block[k + 2 * class + 1] = b.m0_minus;
+            k += 2 * CLASS_NAMES.len();
+        }
+        if lay.moments.is_some() || lay.rois.iter().any(|r| r.moments.is_some()) {
+            let m = self.band_moments(f, gamma);
+            v.moments = [b.m1, m.m1_minus, m.m2_plus, m.m2_minus];
+            if lay.moments.is_some() {
+                v.of_block[k..k + 4].copy_from_slice(&v.moments);
+            }
+        }
+        v
+    }
+}
+
+/// The most per-pixel maps an LDH camera has: M0±, M1, M0± per class, four moments.
+pub const MAX_BLOCKS: usize = 3 + 2 * CLASS_NAMES.len() + MOMENTS.len();
+
+/// What a path of unit weight adds to a pixel of each per-pixel map ([`LdhSpec::pixel_values`]),
+/// and its four band moments (for the ROIs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelValues {
+    pub of_block: [f64; MAX_BLOCKS],
+    pub moments: [f64; 4],
 }
 
 /// A detected path as an LDH camera records it.
@@ -454,6 +504,26 @@ pub struct LdhLayout {
     pub pixel_spectra: Option<usize>,
     /// `[moment][pixel]` ([`MOMENTS`]).
     pub moments: Option<usize>,
+    /// The first slot of every per-pixel map (not the pixel spectra): M0+, M0−, M1, each class's
+    /// M0+ and M0−, the four moments, those it has in this order ([`LdhSpec::pixel_values`]).
+    pub blocks: Vec<usize>,
+}
+
+impl LdhLayout {
+    /// Fill [`LdhLayout::blocks`] from the layout's offsets.
+    fn with_blocks(mut self) -> Self {
+        let p = self.pixels;
+        let mut b = vec![self.m0_plus, self.m0_minus];
+        b.extend(self.m1);
+        if let Some(o) = self.classes {
+            b.extend((0..2 * CLASS_NAMES.len()).map(|k| o + k * p));
+        }
+        if let Some(o) = self.moments {
+            b.extend((0..MOMENTS.len()).map(|k| o + k * p));
+        }
+        self.blocks = b;
+        self
+    }
 }
 
 /// Offsets of one ROI's tallies: its M0± and its spectra `[channel][slot]` (total, then by class).

@@ -14,6 +14,7 @@ pub mod lidar;
 pub mod part;
 pub mod spectrum;
 pub mod time;
+pub mod twin;
 pub mod volume;
 
 use glam::DVec3;
@@ -353,6 +354,10 @@ pub struct DetectorLayout {
     /// Where each of its parts' tallies lie, in the order of its parts ([`Surface::parts`]).
     pub parts: Vec<Placed>,
     pub lidar: Option<LidarLayout>,
+    /// Its layered control variate's kernels ([`twin`]; a forward-estimated camera in a scene of
+    /// layers and regions, `run.control_variate`). Outside the tally vector: a batch's kernels
+    /// are convolved into its images when it ends ([`TallyLayout::convolve_twins`]).
+    pub twin: Option<twin::TwinLayout>,
 }
 
 impl TallyLayout {
@@ -370,6 +375,32 @@ impl TallyLayout {
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
         TallyLayout { registry: reg, detectors: layouts, lateral: None }
+    }
+
+    /// Give every camera with a control variate (a forward-estimated top detector with an image
+    /// over its whole rectangular area, and the footprint `fp`) its twin kernels.
+    pub fn declare_twins(&mut self, detectors: &[Detector], fp: crate::source::Footprint) {
+        for (d, lay) in detectors.iter().zip(&mut self.detectors) {
+            if let Some(im) = twin_camera(d) {
+                let mut blocks: Vec<usize> = lay.image().into_iter().collect();
+                blocks.extend(lay.ldh().map_or(&[][..], |l| &l.blocks[..]));
+                lay.twin = Some(twin::TwinLayout::new(im, fp, blocks));
+            }
+        }
+    }
+
+    /// Empty kernels for one batch, one per detector.
+    pub fn twin_kernels(&self) -> Vec<Vec<f64>> {
+        self.detectors.iter().map(|d| d.twin.as_ref().map_or(Vec::new(), |t| vec![0.0; t.kernel_len()])).collect()
+    }
+
+    /// Convolve a finished batch's twin kernels into its images ([`twin`]).
+    pub fn convolve_twins(&self, kernels: &[Vec<f64>], sums: &mut [f64]) {
+        for (lay, k) in self.detectors.iter().zip(kernels) {
+            if let Some(t) = &lay.twin {
+                t.convolve(k, sums);
+            }
+        }
     }
 
     /// Declare the scalar `transmittance_lateral` of a box phantom in the next slot.
@@ -423,6 +454,16 @@ impl TallyLayout {
     }
 }
 
+/// The image of `d` if the layered control variate can cover it ([`twin`]): a forward-estimated
+/// top detector whose image spans exactly its rectangular area (a pixel is then on the area
+/// wherever it lies, which the twin's shifted contributions need).
+pub fn twin_camera(d: &Detector) -> Option<&ImageSpec> {
+    let s = d.surface()?;
+    let im = s.image()?;
+    let fits = matches!(s.area, Area::Rect { min, max } if min == im.min && max == im.max);
+    (s.side == Side::Top && s.estimator() == Estimator::Forward && fits).then_some(im)
+}
+
 /// An output of detector `i` with [`Output::new`]'s defaults, for struct update syntax.
 pub(crate) fn detector_output(i: usize, name: String, kind: Kind, slots: Slots, shape: Vec<usize>) -> Output {
     Output { detector: Some(i), ..Output::new(name, kind, slots, shape) }
@@ -465,7 +506,7 @@ impl Detector {
                 vec![],
             )
         });
-        let mut lay = DetectorLayout { power, parts: Vec::new(), lidar: None };
+        let mut lay = DetectorLayout { power, parts: Vec::new(), lidar: None, twin: None };
         match &self.kind {
             DetectorKind::Surface(s) => {
                 let at = Place { i, name: &self.name, image: s.image(), beat };
@@ -578,6 +619,23 @@ pub struct Recorder<'a> {
     pub lines: Option<&'a mut Vec<RecordedLine>>,
     /// Scratch space of the lidar receiver's pulse samples.
     pub scratch: Vec<f64>,
+    /// The current forward path's layered twin ([`twin::TwinPath`]; `None` in a run without a
+    /// control variate and on camera paths).
+    pub twin: Option<twin::TwinPath>,
+    /// This batch's twin kernels, one per detector (empty for those without a control variate).
+    pub kernels: Vec<Vec<f64>>,
+}
+
+/// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Twin {
+    /// No control variate for this path: the contribution alone.
+    Off,
+    /// The path's own state (`Λ = 1`, the same Doppler shift and transmittance): its share of the
+    /// pixels cancels, it goes to the kernels only.
+    Same,
+    /// A state of its own.
+    Other(PathState),
 }
 
 impl Recorder<'_> {
@@ -630,17 +688,18 @@ impl Recorder<'_> {
     /// it into the ambient index `n_ambient`, scored deterministically into the detectors (the
     /// scalar tallies count the walk's own, [`Exit::ScalarsOnly`]).
     #[inline(never)]
-    pub fn reflection(&mut self, e: &PathState, n_ambient: f64) {
+    pub fn reflection(&mut self, e: &PathState, twin: Twin, n_ambient: f64) {
         if !(e.weight.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
         }
-        self.detect(Side::Top, e, false, n_ambient);
+        self.detect_with(Side::Top, e, false, n_ambient, twin);
     }
 
-    /// A shadow ray of next-event estimation reaching detector `i` (already in its cone).
+    /// A shadow ray of next-event estimation reaching detector `i` (already in its cone), and
+    /// what the path's layered twin scores along it.
     #[inline(never)]
-    pub fn next_event(&mut self, i: usize, e: &PathState, n_ambient: f64) {
+    pub fn next_event(&mut self, i: usize, e: &PathState, twin: Twin, n_ambient: f64) {
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -656,7 +715,7 @@ impl Recorder<'_> {
             );
             return;
         }
-        self.detect_one(i, e, n_ambient);
+        self.detect_one(i, e, n_ambient, twin);
     }
 
     /// A camera path's connection `e` to the laser, scored into its pixel (`e.l` is the whole
@@ -670,9 +729,20 @@ impl Recorder<'_> {
         self.score(shot.detector, shot.x, shot.y, Some(shot.pixel), e.l, e);
     }
 
-    /// The detectors' share of [`escape`](Self::escape) (a finite path).
+    /// The detectors' share of [`escape`](Self::escape) (a finite path); its twin is the path's
+    /// [`twin::TwinPath`] state.
     #[inline(never)]
     fn detect(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64) {
+        let twin = match &self.twin {
+            None => Twin::Off,
+            Some(t) if !t.touched => Twin::Same,
+            Some(t) => Twin::Other(t.state(e)),
+        };
+        self.detect_with(side, e, specular, n_ambient, twin);
+    }
+
+    /// [`detect`](Self::detect) with the twin's contribution `twin`.
+    fn detect_with(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64, twin: Twin) {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
             if d.side != side
@@ -692,26 +762,84 @@ impl Recorder<'_> {
                     let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
                     let w = p / (p + 1.0 / d.solid_angle());
                     let e = PathState { weight: e.weight * w, ..*e };
-                    self.detect_one(i, &e, n_ambient);
+                    let twin = match twin {
+                        Twin::Other(t) => Twin::Other(PathState { weight: t.weight * w, ..t }),
+                        same_or_off => same_or_off,
+                    };
+                    self.detect_one(i, &e, n_ambient, twin);
                     continue;
                 }
             }
-            self.detect_one(i, e, n_ambient);
+            self.detect_one(i, e, n_ambient, twin);
         }
     }
 
-    /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area.
-    fn detect_one(&mut self, i: usize, e: &PathState, n_ambient: f64) {
-        let DetectorKind::Surface(d) = &self.detectors[i].kind else { return };
+    /// Record `e`, travelling in detector `i`'s cone, into it if it lands on its area; with a
+    /// control variate, `twin`'s share too.
+    fn detect_one(&mut self, i: usize, e: &PathState, n_ambient: f64, twin: Twin) {
+        let (detectors, layout, beat) = (self.detectors, self.layout, self.beat);
+        let DetectorKind::Surface(d) = &detectors[i].kind else { return };
         // Travel on to the detector plane.
         let dist = if d.distance > 0.0 { d.distance / e.dir.z.abs() } else { 0.0 };
         let p = e.pos + dist * e.dir;
-        if !d.area.contains(p.x, p.y) {
-            return;
-        }
         let l = e.l + n_ambient * dist;
-        let pixel = d.image().and_then(|im| im.pixel_at(p.x, p.y));
-        self.score(i, p.x, p.y, pixel, l, e);
+        let pixel = || d.image().and_then(|im| im.pixel_at(p.x, p.y));
+        let (Some(tl), Some(path)) = (&layout.detectors[i].twin, self.twin) else {
+            if d.area.contains(p.x, p.y) {
+                self.score(i, p.x, p.y, pixel(), l, e);
+            }
+            return;
+        };
+        let t = match twin {
+            Twin::Off => {
+                if d.area.contains(p.x, p.y) {
+                    self.score(i, p.x, p.y, pixel(), l, e);
+                }
+                return;
+            }
+            Twin::Same => *e,
+            Twin::Other(t) => t,
+        };
+        let gamma = |b: f64| if b > 0.0 { beat.brownian_hwhm(b) } else { 0.0 };
+        let hit = |s: &PathState, pixel: Option<usize>| Hit {
+            x: p.x,
+            y: p.y,
+            pixel,
+            weight: s.weight,
+            l,
+            dldt: s.dldt,
+            gamma: gamma(s.brownian),
+            order: s.order,
+            doppler_events: s.doppler_events,
+        };
+        let lay = &layout.detectors[i];
+        if d.area.contains(p.x, p.y) {
+            // The path into every part, its twin out of the control variate's (`Same`: both cancel
+            // there, the speckle records keep the path's lines).
+            let px = pixel();
+            let (h, ht) = (hit(e, px), hit(&t, px));
+            self.acc[lay.power] += e.weight;
+            let same = matches!(twin, Twin::Same);
+            for placed in &lay.parts {
+                match (placed.varies(), same) {
+                    (false, _) => placed.record(self, &h),
+                    (true, true) => placed.record_lines(self, &h),
+                    (true, false) => {
+                        placed.record(self, &h);
+                        placed.record_without_lines(self, &Hit { weight: -ht.weight, ..ht });
+                    }
+                }
+            }
+        }
+        // The twin into the kernels (wherever it met the plane: shifted, it may land on the area)
+        // and the ROIs.
+        let ht = hit(&t, None);
+        let mut values = [0.0; 1 + ldh::MAX_BLOCKS];
+        let mut n = 0;
+        for placed in &lay.parts {
+            n += placed.twin_values(self, &ht, path.launch, tl, &mut values[n..]);
+        }
+        tl.record(&mut self.kernels[i], path.launch, (p.x, p.y), &values[..n]);
     }
 
     /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the

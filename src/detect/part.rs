@@ -15,6 +15,7 @@
 //! contrast, the LDH maps) comes after the image.
 
 use super::ldh::{self, Detection, RecordedLine};
+use super::twin::TwinLayout;
 use super::{
     CorrelationLayout, CorrelationSpec, Hit, ImageSpec, LdhLayout, LdhSpec, Place, Recorder, SpectrumLayout,
     SpectrumSpec, TimeLayout, TimeSpec,
@@ -73,6 +74,17 @@ impl Placed {
     /// Record `hit` into this part's tallies of `r`'s batch.
     #[inline(always)]
     pub fn record(&self, r: &mut Recorder, hit: &Hit) {
+        self.record_into(r, hit, true);
+    }
+
+    /// [`record`](Self::record) without the speckle records of an LDH camera (a twin's negative
+    /// share, [`super::twin`]).
+    pub fn record_without_lines(&self, r: &mut Recorder, hit: &Hit) {
+        self.record_into(r, hit, false);
+    }
+
+    #[inline(always)]
+    fn record_into(&self, r: &mut Recorder, hit: &Hit, keep_lines: bool) {
         match self {
             Placed::Spectrum(s, lay) => s.record(lay, r.acc, r.stats, &r.beat, hit),
             Placed::Image(_, start) => ImageSpec::record(*start, r.acc, hit),
@@ -85,22 +97,70 @@ impl Placed {
                 c.record(lay, r.acc, hit.weight, f, rate, hit.pixel, (hit.x, hit.y));
             }
             Placed::Ldh(l, lay) => {
-                // LDH uses a single-frequency laser (checked when resolving).
-                let f = r.beat.frequency(0, hit.l, hit.dldt);
-                if !f.is_finite() {
-                    r.stats.non_finite += 1;
-                    return;
-                }
-                let (w, gamma) = (hit.weight, hit.gamma);
-                let class = ldh::class_of(hit.doppler_events);
-                let lines = &mut r.lines;
-                let d = Detection { pixel: hit.pixel, x: hit.x, y: hit.y, weight: w, frequency: f, gamma, class };
-                l.record(lay, r.acc, d, |roi| {
-                    if let Some(v) = lines.as_deref_mut() {
-                        v.push(RecordedLine { roi: roi as u32, class: class as u8, weight: w, frequency: f, gamma });
-                    }
-                });
+                let Some(d) = detection(r, hit) else { return };
+                let lines = if keep_lines { r.lines.as_deref_mut() } else { None };
+                let mut lines = lines;
+                l.record(lay, r.acc, d, |roi| push_line(lines.as_deref_mut(), roi, &d));
             }
+        }
+    }
+
+    /// Whether the layered control variate covers this part ([`super::twin`]): the image and the
+    /// LDH maps and ROIs.
+    pub fn varies(&self) -> bool {
+        matches!(self, Placed::Image(..) | Placed::Ldh(..))
+    }
+
+    /// The speckle records of `hit` alone (a path whose twin cancels its share of the tallies).
+    pub fn record_lines(&self, r: &mut Recorder, hit: &Hit) {
+        let Placed::Ldh(l, _) = self else { return };
+        if r.lines.is_none() {
+            return;
+        }
+        let Some(d) = detection(r, hit) else { return };
+        for (i, roi) in l.rois.iter().enumerate() {
+            if roi.contains(hit.x, hit.y) {
+                push_line(r.lines.as_deref_mut(), i, &d);
+            }
+        }
+    }
+
+    /// A twin contribution `hit` of a path that entered at `launch`: this part's values per
+    /// kernel channel into `out` (returns how many: the image's intensity, the LDH maps'
+    /// [`super::LdhLayout::blocks`]), and its ROIs' share (the footprint's mass within each ROI
+    /// shifted by the offset, [`TwinLayout::shifted_mass`]) straight into the tallies.
+    pub fn twin_values(
+        &self,
+        r: &mut Recorder,
+        hit: &Hit,
+        launch: (f64, f64),
+        twin: &TwinLayout,
+        out: &mut [f64],
+    ) -> usize {
+        match self {
+            Placed::Image(..) => {
+                out[0] = hit.weight;
+                1
+            }
+            Placed::Ldh(l, lay) => {
+                let n = lay.blocks.len();
+                let Some(d) = detection(r, hit) else {
+                    out[..n].fill(0.0);
+                    return n;
+                };
+                let v = l.pixel_values(lay, d.frequency, d.gamma, d.class);
+                for (o, x) in out[..n].iter_mut().zip(v.of_block) {
+                    *o = hit.weight * x;
+                }
+                for (roi, rl) in l.rois.iter().zip(&lay.rois) {
+                    let m = twin.shifted_mass(roi.min, roi.max, launch, (hit.x, hit.y));
+                    if m > 0.0 {
+                        l.record_roi(lay, rl, r.acc, hit.weight * m, &v, d.frequency, d.gamma, d.class);
+                    }
+                }
+                n
+            }
+            Placed::Spectrum(..) | Placed::Time(..) | Placed::Correlation(..) => 0,
         }
     }
 
@@ -131,6 +191,33 @@ impl Placed {
             Placed::Correlation(..) => "correlation",
             Placed::Ldh(..) => "ldh",
         }
+    }
+}
+
+/// An LDH camera's view of `hit` (`None`, counted, if its frequency is not finite). LDH uses a
+/// single-frequency laser (checked when resolving).
+#[inline(always)]
+fn detection(r: &mut Recorder, hit: &Hit) -> Option<Detection> {
+    let f = r.beat.frequency(0, hit.l, hit.dldt);
+    if !f.is_finite() {
+        r.stats.non_finite += 1;
+        return None;
+    }
+    let class = ldh::class_of(hit.doppler_events);
+    Some(Detection { pixel: hit.pixel, x: hit.x, y: hit.y, weight: hit.weight, frequency: f, gamma: hit.gamma, class })
+}
+
+/// Keep `d`, detected in ROI `roi`, for speckle synthesis (if records are kept).
+#[inline(always)]
+fn push_line(lines: Option<&mut Vec<RecordedLine>>, roi: usize, d: &Detection) {
+    if let Some(v) = lines {
+        v.push(RecordedLine {
+            roi: roi as u32,
+            class: d.class as u8,
+            weight: d.weight,
+            frequency: d.frequency,
+            gamma: d.gamma,
+        });
     }
 }
 

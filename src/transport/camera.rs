@@ -217,7 +217,7 @@ pub fn unscattered(
     let back = |n: f64| down_in(n).map(|d| DVec3::new(-d.x, -d.y, d.z));
     let up_in = |n: f64| down_in(n).map(|d| -d);
     let start = Crossing { pos: top, length: l0, ..Crossing::START };
-    reflections_below(scene, start, true, back, up_in, rng, |Crossing { pos: q, tau, transmit, length: l }| {
+    reflections_below(scene, start, true, back, up_in, rng, |Crossing { pos: q, tau, transmit, length: l, .. }| {
         let (e, l_top) = at_top(q);
         if e > 0.0 && transmit > 0.0 {
             emit(e * transmit * (-tau).exp(), l + l_top);
@@ -322,7 +322,7 @@ pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rn
     let dir = refracted_down(beam, n0, scene.layers[li].n)?;
     // Back up the beam, layer by layer, to the surface.
     let up_in = |n: f64| refracted_down(beam, n0, n).map(|d| -d);
-    let Crossing { pos: p, tau, transmit, length } = trace_up(scene, li, pos, -dir, up_in, Crossing::START, rng)?;
+    let Crossing { pos: p, tau, transmit, length, .. } = trace_up(scene, li, pos, -dir, up_in, Crossing::START, rng)?;
     if transmit <= 0.0 {
         return None;
     }

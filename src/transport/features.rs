@@ -30,7 +30,9 @@ pub struct Features {
     pub doppler: bool,
     /// The optical path length is tracked (a chirp, range gates, a time axis, a time gate).
     pub length: bool,
-    /// Shadow rays toward next-event detectors at every real collision of a forward path.
+    /// Shadow rays toward next-event detectors at every real collision of a forward path, or the
+    /// layered twin's bookkeeping (`WalkContext::twin`), which lives in the same collision
+    /// (without targets it traces no shadow ray).
     pub nee: bool,
     /// The volume tally (`[volume]`) is scored along forward paths.
     pub volume: bool,
@@ -47,7 +49,7 @@ impl Features {
         Features {
             doppler: ctx.scene.is_moving(),
             length,
-            nee: !ctx.nee.is_empty(),
+            nee: !ctx.nee.is_empty() || ctx.twin,
             volume: ctx.volume.is_some(),
             gate: length && ctx.settings.gate.is_some(),
             lateral: ctx.scene.lateral.is_some(),

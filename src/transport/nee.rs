@@ -97,6 +97,23 @@ pub struct ShadowHit {
     pub factor: f64,
     /// Optical path length from the vertex to the surface, m.
     pub length: f64,
+    /// The optical depth its regions add over their layers' filling media (the layered twin's
+    /// way up is without it, [`crate::detect::twin`]).
+    pub excess: f64,
+    /// `factor` per unit phase-function density, without the optical depth: the layered twin's
+    /// factor is [`ShadowHit::twin_factor`].
+    unit: f64,
+    tau: f64,
+}
+
+impl ShadowHit {
+    /// The factor of the layered twin, whose phase-function density toward the ray is `p`: the
+    /// twin's transmittance (without the regions' excess optical depth), the path's multiple
+    /// importance weight (the twin's escapes keep the path's too).
+    #[inline]
+    pub fn twin_factor(&self, p: f64) -> f64 {
+        p * self.unit * (self.excess - self.tau).exp()
+    }
 }
 
 /// The shadow ray toward an aperture: the local estimate of Kalos (1963), as lidar Monte Carlo
@@ -136,27 +153,44 @@ pub fn receiver_ray(
     }
     // Straight up through the layers to z = 0 (every index 1: no refraction, no reflection),
     // then the (clear) ambient medium to the aperture.
-    let Crossing { tau, transmit, .. } = trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
+    let Crossing { tau, transmit, excess, .. } = trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
     let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * transmit * (-tau).exp();
-    Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r })
+    let unit = area * cos_r / r2 * transmit;
+    Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r, excess, unit, tau })
 }
 
 /// Optical depth of the segment `p + s·d`, `0 ≤ s ≤ t`, inside `layer`: its filling medium plus
-/// what its regions add over it (regions assumed not to overlap along the segment).
-pub(super) fn segment_optical_depth(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
+/// what its regions add over it (regions assumed not to overlap along the segment), and that
+/// excess alone.
+#[inline(always)]
+pub(super) fn segment_optical_depth(
+    scene: &Scene,
+    layer: &crate::medium::Layer,
+    p: DVec3,
+    d: DVec3,
+    t: f64,
+) -> (f64, f64) {
     let fill = scene.media[layer.medium].sigma_t();
-    let mut tau = fill * t;
+    let (mut tau, mut excess) = (fill * t, 0.0);
     for &r in &layer.regions {
         let region = &scene.regions[r];
         if let Some((a, b)) = region.shape.intersect(p, d) {
             let (a, b) = (a.max(0.0), b.min(t));
             if b > a {
-                tau += (scene.media[region.medium].sigma_t() - fill) * (b - a);
+                let x = (scene.media[region.medium].sigma_t() - fill) * (b - a);
+                tau += x;
+                excess += x;
             }
         }
     }
-    tau
+    (tau, excess)
+}
+
+/// The optical depth the regions of `layer` add over its filling medium along `p + s·d`,
+/// `0 ≤ s ≤ t` (0 in a layer without regions): a forward path's flight under its layered twin.
+pub fn region_excess(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> f64 {
+    segment_optical_depth(scene, layer, p, d, t).1
 }
 
 /// A direction uniform in the cone of half-angle cosine `cos_acceptance` about `axis` (with
@@ -178,11 +212,13 @@ pub struct Crossing {
     pub tau: f64,
     pub transmit: f64,
     pub length: f64,
+    /// The part of `tau` its regions add over their layers' filling media.
+    pub excess: f64,
 }
 
 impl Crossing {
     /// Nothing crossed yet (`pos` is set by [`trace_up`]).
-    pub const START: Crossing = Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0 };
+    pub const START: Crossing = Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0, excess: 0.0 };
 
     /// Cross the segment `pos + s·d`, `0 ≤ s ≤ t`, inside `layer`: its optical depth (ratio
     /// tracking in a density layer, a factor of `transmit`) and optical length; `pos` moves to its
@@ -192,7 +228,9 @@ impl Crossing {
         if layer.heterogeneous {
             self.transmit *= ratio_transmittance(scene, layer, self.pos, d, t, rng);
         } else {
-            self.tau += segment_optical_depth(scene, layer, self.pos, d, t);
+            let (tau, excess) = segment_optical_depth(scene, layer, self.pos, d, t);
+            self.tau += tau;
+            self.excess += excess;
         }
         self.length += layer.n * t;
         self.pos += t * d;
@@ -301,7 +339,7 @@ pub fn shadow_ray(
     };
     let n_k = scene.layers[li].n;
     let dir_vertex = direction_in(n_k)?;
-    let Crossing { pos: p, tau, transmit, length } =
+    let Crossing { pos: p, tau, transmit, length, excess } =
         trace_up(scene, li, pos, dir_vertex, direction_in, Crossing::START, rng)?;
     if transmit <= 0.0 {
         return None;
@@ -314,5 +352,6 @@ pub fn shadow_ray(
     // never above T·e^{−τ} ≤ 1, so a forward-peaked phase function cannot make a huge weight.
     let pe = phase.eval(dir_in.dot(dir_vertex)) * etendue;
     let factor = pe / (pe + 1.0 / target.solid_angle()) * transmit * (-tau).exp();
-    Some(ShadowHit { pos: p, dir, dir_vertex, factor, length })
+    let unit = etendue / (pe + 1.0 / target.solid_angle()) * transmit;
+    Some(ShadowHit { pos: p, dir, dir_vertex, factor, length, excess, unit, tau })
 }

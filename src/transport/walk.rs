@@ -15,8 +15,9 @@
 
 use glam::DVec3;
 
+use crate::detect::twin::TwinPath;
 use crate::detect::volume::VolumeTally;
-use crate::detect::{Exit, PathState, Recorder, Scalar, Shot, Side};
+use crate::detect::{Exit, PathState, Recorder, Scalar, Shot, Side, Twin};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
@@ -44,6 +45,60 @@ pub struct WalkSettings {
     /// How the forward paths' unscattered reflections at the interfaces below the surface reach
     /// the detectors (`run.reflections`).
     pub reflections: Reflections,
+    /// Whether forward-estimated cameras get the layered control variate
+    /// (`run.control_variate`, [`crate::detect::twin`]).
+    pub control_variate: ControlVariate,
+}
+
+/// `run.control_variate`: the layered twin's control variate of forward-estimated cameras
+/// ([`crate::detect::twin`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ControlVariate {
+    /// Wherever it applies ([`control_variate_obstacle`] finds nothing).
+    #[default]
+    Auto,
+    /// Asked for: a run where it does not apply is refused, naming why.
+    Layered,
+    /// The plain forward estimate.
+    Off,
+}
+
+/// Why the layered control variate cannot cover this scene, source and detectors (`None`: it
+/// can). It needs a camera to cover (a forward-estimated top detector whose image spans its
+/// rectangular area), a twin that is laterally invariant (infinite layers of homogeneous media:
+/// no box phantom, no density field), a beam whose entry points have its profile's density
+/// (normal incidence, no divergence), and every path of the twin among the path's possible ones:
+/// a region's medium scatters wherever its layer's does.
+pub fn control_variate_obstacle(
+    scene: &Scene,
+    source: &Source,
+    detectors: &[crate::detect::Detector],
+) -> Option<String> {
+    if !detectors.iter().any(|d| crate::detect::twin_camera(d).is_some()) {
+        return Some(
+            "no camera to cover (a forward-estimated top detector with an image over its whole rectangular area)"
+                .into(),
+        );
+    }
+    if scene.lateral.is_some() {
+        return Some("the layers end at the box's side faces ([lateral]): the twin is not laterally invariant".into());
+    }
+    if let Some(l) = scene.layers.iter().find(|l| l.heterogeneous) {
+        return Some(format!("layer `{}` has a density field: its twin is not laterally invariant", l.name));
+    }
+    if source.footprint().is_none() {
+        return Some("the beam is tilted or diverges: its footprint on the surface is not its profile".into());
+    }
+    for r in &scene.regions {
+        let fill = &scene.media[scene.layers[r.layer].medium];
+        if fill.sigma_s() > 0.0 && scene.media[r.medium].sigma_s() <= 0.0 {
+            return Some(format!(
+                "region `{}` does not scatter where its layer does: the twin's paths through it cannot be weighted",
+                r.name
+            ));
+        }
+    }
+    None
 }
 
 /// How the laser's unscattered reflections at the interfaces below the surface reach the
@@ -71,6 +126,7 @@ impl Default for WalkSettings {
             max_events: 1_000_000,
             gate: None,
             reflections: Reflections::Auto,
+            control_variate: ControlVariate::Auto,
         }
     }
 }
@@ -94,6 +150,12 @@ pub struct WalkContext<'a> {
     /// change of index below the surface, and no box phantom
     /// ([`WalkContext::deterministic_reflections`]).
     pub reflections: bool,
+    /// Forward paths carry their layered twin for the control variate of the cameras that have
+    /// one (`run.control_variate`, [`crate::detect::twin`]): the likelihood ratio `Λ` of the
+    /// path under the twin (each flight through a region: the twin's transmittance over the
+    /// path's; each collision in a region: `σs,layer·p_layer / (σs·p)` of the particles and
+    /// direction drawn) and the twin's Doppler state, in [`Recorder::twin`].
+    pub twin: bool,
 }
 
 impl WalkContext<'_> {
@@ -273,6 +335,9 @@ pub fn trace_path<
     let t0 = (0.0 - start.z) / dir.z;
     let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
     let mut s = PathState::new(pos, dir, 1.0, if LENGTH { scene.n_above * t0 } else { 0.0 });
+    if NEE && ctx.twin {
+        rec.twin = Some(TwinPath::new(pos.x, pos.y));
+    }
     // Specular reflection at entry, scored deterministically (as MCML).
     let n_top = scene.layers[0].n;
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
@@ -292,7 +357,7 @@ pub fn trace_path<
         // of neither leaves this inlined function (else it lives in memory through the walk;
         // `&s` measured +54 instructions per path on the vdH slab, where this never runs).
         let mut local = rng.clone();
-        unscattered_reflections::<LENGTH, GATE>(ctx, s, dir, &mut local, rec);
+        unscattered_reflections::<NEE, LENGTH, GATE>(ctx, s, dir, &mut local, rec);
         *rng = local;
     }
 
@@ -358,7 +423,7 @@ pub fn trace_path<
 /// becomes a sure, small contribution per path.
 #[cold]
 #[inline(never)]
-fn unscattered_reflections<const LENGTH: bool, const GATE: bool>(
+fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const GATE: bool>(
     ctx: &WalkContext,
     s: PathState,
     b: DVec3,
@@ -373,9 +438,20 @@ fn unscattered_reflections<const LENGTH: bool, const GATE: bool>(
     reflections_below(ctx.scene, start, false, down, up, rng, |c| {
         let l = if LENGTH { c.length } else { 0.0 };
         let weight = s.weight * c.transmit * (-c.tau).exp();
-        if weight > 0.0 && in_gate::<GATE>(ctx.settings, l) {
+        // The twin's way down and up meets no region: without their excess optical depth.
+        let twin = match rec.twin {
+            Some(_) if NEE && c.excess != 0.0 => Twin::Other(PathState::new(
+                c.pos,
+                DVec3::new(b.x, b.y, -b.z),
+                s.weight * c.transmit * (c.excess - c.tau).exp(),
+                l,
+            )),
+            Some(_) if NEE => Twin::Same,
+            _ => Twin::Off,
+        };
+        if (weight > 0.0 || twin != Twin::Off) && in_gate::<GATE>(ctx.settings, l) {
             let e = PathState::new(c.pos, DVec3::new(b.x, b.y, -b.z), weight, l);
-            rec.reflection(&e, n0);
+            rec.reflection(&e, twin, n0);
         }
     });
 }
@@ -520,6 +596,15 @@ fn walk<
                 } else {
                     free_flight(ray, dz, s.dir.z.abs(), settings.tracking, rng, null_collisions)
                 };
+                let t = match flight {
+                    Flight::Collision { t, .. } | Flight::Boundary { t } => t,
+                };
+                if NEE
+                    && !layer.regions.is_empty()
+                    && let Some(tw) = rec.twin.as_mut()
+                {
+                    tw.flight(super::nee::region_excess(scene, layer, s.pos, s.dir, t));
+                }
                 match flight {
                     Flight::Collision { t, medium } => {
                         let m = &scene.media[medium];
@@ -796,6 +881,20 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    // The layered twin collides in the layer's filling medium where the path collides in a region:
+    // its own particles (drawn by the fill's shares) and their velocity.
+    let fill = &scene.media[scene.layers[li].medium];
+    let twin = rec.twin.filter(|_| !std::ptr::eq(m, fill)).map(|_| {
+        let (tpop, tdyn) = fill.pick_dynamic(rng);
+        let tdyn = DOPPLER && tdyn;
+        (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
+    });
+    if let (Some(tw), true) = (rec.twin.as_mut(), twin.is_some()) {
+        // The twin's collision here and its weight after it, over the path's (its flight's share
+        // is in from the flight): `σt,fill·a_fill / (σt·a·σs,pop/σs) = σs,fill/σs,pop`.
+        tw.lambda *= fill.sigma_s() / pop.sigma_s;
+        tw.touched = true;
+    }
     // (This walk runs only with next-event targets, so the roulette's draw is never wasted.)
     let boost = connection_roulette(scene, li, s, rng);
     let targets = if boost > 0.0 { nee } else { &[] };
@@ -816,13 +915,46 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             mis: -1.0,
             ..*s
         };
+        let in_out = s.dir - h.dir_vertex;
+        let twin = match rec.twin {
+            None => Twin::Off,
+            Some(tw) if !tw.touched && twin.is_none() && h.excess == 0.0 => Twin::Same,
+            Some(tw) => {
+                let mut t = tw.state(&e);
+                let p = twin.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
+                t.weight = s.weight * tw.lambda * boost * h.twin_factor(p.eval(s.dir.dot(h.dir_vertex)));
+                match twin {
+                    Some((tpop, true, tv)) => doppler_event(&mut t, tpop, n, tv, in_out),
+                    Some(_) => {}
+                    None if dynamic => doppler_event(&mut t, pop, n, v, in_out),
+                    None => {}
+                }
+                Twin::Other(t)
+            }
+        };
         if dynamic {
-            doppler_event(&mut e, pop, n, v, s.dir - h.dir_vertex);
+            doppler_event(&mut e, pop, n, v, in_out);
         }
-        rec.next_event(target.detector, &e, scene.n_above);
+        rec.next_event(target.detector, &e, twin, scene.n_above);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
+    if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), twin) {
+        // The twin's density of the direction drawn over the path's, and its Doppler event
+        // instead of the path's.
+        tw.lambda *= tpop.phase.eval(d.cos) / pop.phase.eval(d.cos);
+        let mut shift = PathState::new(s.pos, s.dir, 0.0, 0.0);
+        if tdyn {
+            doppler_event(&mut shift, tpop, n, tv, delta);
+        }
+        let mut own = PathState::new(s.pos, s.dir, 0.0, 0.0);
+        if dynamic {
+            doppler_event(&mut own, pop, n, v, delta);
+        }
+        tw.dldt += shift.dldt - own.dldt;
+        tw.brownian += shift.brownian - own.brownian;
+        tw.doppler_events += i64::from(shift.doppler_events) - i64::from(own.doppler_events);
+    }
     if dynamic {
         doppler_event(s, pop, n, v, delta);
     }

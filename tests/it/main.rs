@@ -9,6 +9,7 @@ mod atmosphere;
 mod camera;
 mod cli;
 mod config_fixtures;
+mod control_variate;
 mod converge;
 mod determinism;
 mod doppler;

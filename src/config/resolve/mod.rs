@@ -225,6 +225,14 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         references: Vec::new(),
         volume: resolve_volume(f.volume.as_ref())?,
     };
+    if exp.plan.walk.control_variate == crate::transport::ControlVariate::Layered
+        && let Some(why) = crate::transport::control_variate_obstacle(&exp.scene, &exp.source, &exp.detectors)
+    {
+        return err(
+            "run.control_variate",
+            format!("= \"layered\": the layered control variate does not apply here: {why}; use \"auto\" or \"off\""),
+        );
+    }
     check_speckle_memory(&exp, &ctx.memory)?;
     check_memory(&exp, &ctx.memory)?;
     exp.plan.memory = ctx.memory.blocks.take();

@@ -3,7 +3,7 @@
 use super::{DEFAULT_MEMORY_BUDGET_GIB, R, err};
 use crate::config::schema::*;
 use crate::experiment::RunPlan;
-use crate::transport::{Reflections, Tracking, WalkSettings};
+use crate::transport::{ControlVariate, Reflections, Tracking, WalkSettings};
 
 pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     let batches = r.batches.unwrap_or(32);
@@ -102,6 +102,11 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
                 ReflectionsKind::Auto => Reflections::Auto,
                 ReflectionsKind::Deterministic => Reflections::Deterministic,
                 ReflectionsKind::Sampled => Reflections::Sampled,
+            },
+            control_variate: match r.control_variate.unwrap_or(ControlVariateKind::Auto) {
+                ControlVariateKind::Auto => ControlVariate::Auto,
+                ControlVariateKind::Layered => ControlVariate::Layered,
+                ControlVariateKind::Off => ControlVariate::Off,
             },
         },
         memory_budget,

@@ -1,0 +1,149 @@
+//! The layered control variate of forward-estimated cameras (`run.control_variate`,
+//! `ohd::detect::twin`): the estimate it gives equals the plain one within σ (pixels, ROI values
+//! and spectrum bins) on a small retina with a moving vessel; where the vessel's medium equals its
+//! layer's the twin is the path itself (`Λ ≡ 1`) and the image is the kernel's alone; it is the
+//! same with any number of threads; and it is refused where it cannot apply.
+
+use crate::support::run::{Run, experiment, roi_channel, roi_m0, run};
+use crate::support::scenes;
+use crate::support::stats::chi2_difference;
+
+/// A 1 mm disk beam at normal incidence on a 300 µm retina (σs 15 /mm, g 0.9) over a 400 µm
+/// choroid-like layer, a blood vessel (σs `blood_sigma_s` /mm, g 0.95, radius 80 µm, tilted 15°,
+/// Poiseuille 16 mm/s on the axis) of medium `blood` in the retina, seen by a 12 × 12 LDH camera
+/// of 1.2 mm at 15° with an ROI over the vessel.
+fn retina(samples: u64, blood: &str, control_variate: &str) -> String {
+    let header = scenes::header(samples, 5, 32);
+    format!(
+        r#"{header}control_variate = "{control_variate}"
+[source]
+wavelength_nm = 785
+profile = "disk"
+radius_mm = 1.0
+position_mm = [0.05, -0.02, -1]
+[ambient]
+n_above = 1.336
+n_below = 1.40
+[media.tissue]
+sigma_a_per_mm = 0.1
+sigma_s_per_mm = 15
+phase = {{ type = "hg", g = 0.9 }}
+[media.choroid]
+sigma_a_per_mm = 2
+sigma_s_per_mm = 30
+phase = {{ type = "hg", g = 0.9 }}
+[media.blood]
+{blood}
+[[layers]]
+name = "retina"
+thickness_um = 300
+n = 1.37
+medium = "tissue"
+[[layers]]
+name = "choroid"
+thickness_um = 400
+n = 1.38
+medium = "choroid"
+[[regions]]
+name = "vessel"
+layer = "retina"
+medium = "blood"
+shape = {{ type = "cylinder", center_um = [0, 100, 150], axis = [0.96593, 0, 0.25882], radius_um = 80, length_mm = 0.8 }}
+velocity = {{ type = "poiseuille", v_max_mm_per_s = 16 }}
+{camera}[detectors.ldh]
+frame_rate_khz = 39
+window_samples = 64
+window = "hann"
+band_khz = [6, 18.3]
+by_class = true
+[[detectors.ldh.roi]]
+name = "vessel"
+center_um = [0, 100]
+size_um = [500, 160]
+"#,
+        camera = scenes::camera(1.2, 15.0, 12)
+    )
+}
+
+const BLOOD: &str = "sigma_a_per_mm = 0.4\nsigma_s_per_mm = 20\nphase = { type = \"hg\", g = 0.95 }";
+
+/// An image output's values and standard errors.
+fn image(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
+    let reg = &r.out.layout.registry;
+    let o = reg.outputs.iter().find(|o| o.name == name).unwrap_or_else(|| panic!("no {name}"));
+    o.values(r.out.estimates.mean(), &r.out.estimates.stderr())
+}
+
+/// The control variate's images, ROI values and ROI spectra equal the plain estimate's within
+/// their standard errors (χ² of the differences), and its intensity image is far more precise.
+#[test]
+fn the_control_variate_equals_the_plain_estimate() {
+    let plain = run(&retina(600_000, BLOOD, "off"), &[]);
+    let cv = run(&retina(600_000, BLOOD, "layered"), &[]);
+    assert!(plain.out.layout.detectors[0].twin.is_none() && cv.out.layout.detectors[0].twin.is_some());
+    for name in ["camera.image", "camera.m0_plus", "camera.m0_minus", "camera.m0_plus_multiple_doppler"] {
+        let (a, b) = (image(&plain, name), image(&cv, name));
+        let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
+        assert!(dof >= 100 && p > 1e-4, "{name}: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
+    }
+    let ((p_plus, s_plus), (p_minus, s_minus)) = roi_m0(&plain, 0, 0);
+    let ((c_plus, t_plus), (c_minus, t_minus)) = roi_m0(&cv, 0, 0);
+    for (what, a, sa, b, sb) in [("M0+", p_plus, s_plus, c_plus, t_plus), ("M0−", p_minus, s_minus, c_minus, t_minus)]
+    {
+        let z = (a - b) / sa.hypot(sb);
+        assert!(z.abs() < 4.0, "ROI {what}: {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
+    }
+    for channel in 0..4 {
+        let (a, b) = (roi_channel(&plain, 0, 0, channel), roi_channel(&cv, 0, 0, channel));
+        let (chi2, dof, p) = chi2_difference((&a.values, &a.stderr), (&b.values, &b.stderr));
+        assert!(p > 1e-4, "ROI spectrum channel {channel}: χ² = {chi2:.1} over {dof} bins (p = {p:.2e})");
+    }
+    // The background pools every path: its median relative error falls several times (here the
+    // vessel's footprint, where the paths' corrections stay, is an eighth of the image).
+    let median = |(v, s): (Vec<f64>, Vec<f64>)| {
+        let mut r: Vec<f64> = v.iter().zip(&s).filter(|(v, _)| **v > 0.0).map(|(v, s)| s / v).collect();
+        r.sort_by(f64::total_cmp);
+        r[r.len() / 2]
+    };
+    let (rp, rc) = (median(image(&plain, "camera.image")), median(image(&cv, "camera.image")));
+    assert!(rc < rp / 4.0, "median relative error of the intensity: {rp:.4} plain, {rc:.4} with the control variate");
+}
+
+/// A vessel whose medium is its layer's (moving, so that it is a region of its own): the twin is
+/// the path (`Λ = 1`, the same shadow rays), so the intensity image is the kernel's alone and
+/// equals, to rounding, that of the same run without the vessel; the M0 images still carry the
+/// vessel's Doppler shift.
+#[test]
+fn a_region_of_the_layers_medium_leaves_the_kernel_alone() {
+    let tissue = "sigma_a_per_mm = 0.1\nsigma_s_per_mm = 15\nphase = { type = \"hg\", g = 0.9 }";
+    let with = run(&retina(60_000, tissue, "layered"), &[]);
+    let still = run(&retina(60_000, tissue, "layered"), &["regions.0.velocity.v_max_mm_per_s=0"]);
+    let (a, b) = (image(&with, "camera.image"), image(&still, "camera.image"));
+    for (i, (x, y)) in a.0.iter().zip(&b.0).enumerate() {
+        assert!((x - y).abs() <= 1e-9 * x.abs(), "pixel {i}: {x:e} with the flow, {y:e} without");
+    }
+    let (m_with, m_still) = (image(&with, "camera.m0_plus"), image(&still, "camera.m0_plus"));
+    let (s_with, s_still): (f64, f64) = (m_with.0.iter().sum(), m_still.0.iter().sum());
+    assert!(s_with > 10.0 * s_still, "M0+ with the flow {s_with:e}, without {s_still:e}");
+}
+
+/// Threads change nothing: the kernels are per batch.
+#[test]
+fn the_control_variate_is_the_same_on_any_number_of_threads() {
+    let text = retina(20_000, BLOOD, "layered");
+    let one = run(&text, &["run.threads=1"]);
+    let two = run(&text, &["run.threads=2"]);
+    assert_eq!(one.out.estimates.mean(), two.out.estimates.mean());
+    assert_eq!(one.out.estimates.stderr(), two.out.estimates.stderr());
+}
+
+/// Asked for where it cannot apply (a tilted beam), the run is refused naming the key and why.
+#[test]
+fn the_control_variate_is_refused_where_it_cannot_apply() {
+    let text = retina(1000, BLOOD, "layered");
+    let err = ohd::config::load(&text, "test", &["source.direction=[0.1, 0, 1]".to_string()]).unwrap_err().to_string();
+    assert!(err.contains("run.control_variate") && err.contains("tilted"), "{err}");
+    // `auto` there runs the plain estimate.
+    let e = experiment(&text, &["source.direction=[0.1, 0, 1]", "run.control_variate=\"auto\""]);
+    assert!(!e.control_variate());
+}
