@@ -587,6 +587,22 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 100.0 * pe.median,
                 100.0 * pe.p90
             );
+            // Split by the regions' footprints (`NAME_region_mask.npy`).
+            let im = o.detector.and_then(|d| exp.detectors[d].surface()).and_then(|s| s.image());
+            if let Some(mask) = im.and_then(|im| ohd::detect::image::region_mask(&exp.scene, im)) {
+                // An image's slots are contiguous, in the tally's order (as the mask's).
+                let slots = o.slots.start..o.slots.start + o.slots.len;
+                let r = ohd::output::RegionErrors::of(&mean[slots.clone()], &stderr[slots], &mask);
+                let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}%", 100.0 * x));
+                say!(
+                    "    regions' footprints ({} px): median {}, rest {} (rest σ / region mean {}), top 1% of region pixels {} of their variance",
+                    r.region_pixels,
+                    pct(r.median_region),
+                    pct(r.median_rest),
+                    pct(r.rest_sigma_over_region_mean),
+                    pct(r.region_top_percent_variance_share)
+                );
+            }
         }
     }
     if let Some(t) = &output.target {

@@ -877,6 +877,20 @@ impl Display for Experiment {
             num(moment),
             num(crate::transport::walk::AUTO_REFLECTIONS)
         )?;
+        // Where the forward paths start (`run.launches`).
+        match self.plan.walk.launches {
+            None => writeln!(f, "launches: from the beam's profile")?,
+            Some(l) => match l.launches(&self.scene, &self.source) {
+                None => writeln!(f, "launches: from the beam's profile (nothing near the regions to favour)")?,
+                Some(n) => writeln!(
+                    f,
+                    "launches: {:.0} % from the profile, the rest within {} µm of the regions, which hold {:.2} % of the profile",
+                    100.0 * l.profile_share,
+                    num(l.margin * 1e6),
+                    100.0 * n.p_near
+                )?,
+            },
+        }
         // The cameras' layered control variate (`run.control_variate`).
         let obstacle = crate::transport::control_variate_obstacle(&self.scene, &self.source, &self.detectors);
         match (self.plan.walk.control_variate, obstacle) {

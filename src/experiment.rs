@@ -656,6 +656,7 @@ impl Experiment {
             twin: None,
             kernels: layout.twin_kernels(),
         };
+        let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
             slots: VolumeGrid::slots(&layout.registry),
@@ -675,6 +676,7 @@ impl Experiment {
                 &self.detectors,
             ),
             twin: layout.detectors.iter().any(|d| d.twin.is_some()),
+            launches: launches.as_ref(),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;

@@ -422,6 +422,63 @@ pub struct PixelErrors {
     pub without_signal: usize,
 }
 
+/// An image's per-pixel errors split by a mask of the regions' footprints (the pixels whose
+/// vertical line meets a region, [`crate::detect::image::region_mask`]) and the rest: what a
+/// study of vessels reads, where the all-pixel median mixes pixels of very different signal.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RegionErrors {
+    /// Pixels in the mask.
+    pub region_pixels: usize,
+    /// Median `σ/|value|` over the mask's pixels and over the rest.
+    pub median_region: Option<f64>,
+    pub median_rest: Option<f64>,
+    /// The rest's median `σ` over the mean value of the mask's pixels: the background's noise on
+    /// the scale of the signal a study reads.
+    pub rest_sigma_over_region_mean: Option<f64>,
+    /// The share of the mask's pixels' summed variance held by their largest 1 % (at least one
+    /// pixel): near 0.01 for a converged tail, near 1 when a few contributions dominate.
+    pub region_top_percent_variance_share: Option<f64>,
+    /// The relative error of the sum over the mask's pixels (their variances added).
+    pub region_pooled: Option<f64>,
+}
+
+impl RegionErrors {
+    /// The split of `values` and `stderr` by `mask` (same length).
+    pub fn of(values: &[f64], stderr: &[f64], mask: &[bool]) -> Self {
+        let finite = |v: f64| v.is_finite().then_some(v);
+        let median = |mut r: Vec<f64>| {
+            r.sort_by(f64::total_cmp);
+            (!r.is_empty()).then(|| r[r.len() / 2])
+        };
+        let rel = |inside: bool| {
+            values
+                .iter()
+                .zip(stderr)
+                .zip(mask)
+                .filter(|&((&v, _), &m)| m == inside && v != 0.0)
+                .map(|((&v, &e), _)| e / v.abs())
+                .collect::<Vec<f64>>()
+        };
+        let region: Vec<(f64, f64)> =
+            values.iter().zip(stderr).zip(mask).filter(|(_, m)| **m).map(|((&v, &e), _)| (v, e)).collect();
+        let n = region.len();
+        let mean = region.iter().map(|r| r.0).sum::<f64>() / n.max(1) as f64;
+        let rest_sigma: Vec<f64> = stderr.iter().zip(mask).filter(|(_, m)| !**m).map(|(&e, _)| e).collect();
+        let mut var: Vec<f64> = region.iter().map(|r| r.1 * r.1).collect();
+        var.sort_by(|a, b| b.total_cmp(a));
+        let total: f64 = var.iter().sum();
+        let top = var.iter().take((n / 100).max(1)).sum::<f64>();
+        RegionErrors {
+            region_pixels: n,
+            median_region: median(rel(true)).and_then(finite),
+            median_rest: median(rel(false)).and_then(finite),
+            rest_sigma_over_region_mean: median(rest_sigma).map(|s| s / mean.abs()).and_then(finite),
+            region_top_percent_variance_share: (total > 0.0).then(|| top / total),
+            region_pooled: finite(total.sqrt() / (mean * n as f64).abs()),
+        }
+    }
+}
+
 impl PixelErrors {
     pub fn of(values: &[f64], stderr: &[f64]) -> Self {
         let map: Vec<f64> =

@@ -158,14 +158,7 @@ impl Source {
 
     #[inline(never)]
     fn emit_spread(&self, u1: f64, u2: f64) -> DVec3 {
-        let (x, y) = match self.profile {
-            Profile::Pencil => return self.position,
-            Profile::Disk { radius } => {
-                let (x, y) = warp::uniform_disk(u1, u2);
-                (x * radius, y * radius)
-            }
-            Profile::Gaussian { waist } => warp::gaussian_beam(waist, u1, u2),
-        };
+        let (x, y) = self.plane_point(u1, u2);
         self.position + x * self.basis.0 + y * self.basis.1
     }
 }
@@ -273,5 +266,132 @@ fn disk_quadrant_area(r: f64, x: f64, y: f64) -> f64 {
     } else {
         // |X| > a: the chord lies above y; |X| ≤ a: from −s up to y.
         piece(-a, a, &y_plus_s)
+    }
+}
+
+/// Launches where the regions are (`run.launches = "near_regions"`): a share of the paths start
+/// from the profile as configured, the rest from the profile restricted to the cells of the
+/// emission plane whose surface point lies within a margin of a region (seen straight down), each
+/// path weighted by the profile's density over the mixture's. Unbiased for every output; it spends
+/// the paths where the regions' rare contributions come from.
+///
+/// The near cells are a grid over the emission plane (pitch half the margin), so that their share
+/// of the profile `P` is exact ([`Footprint::mass_in_rect`] in the plane): with the profile's
+/// share `α`, a path starts near with density `(α + (1 − α)/P)·S` and elsewhere `α·S`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Launches {
+    profile_share: f64,
+    /// The grid's lower corner in the emission plane's coordinates, its pitch and size.
+    origin: (f64, f64),
+    pitch: f64,
+    size: (usize, usize),
+    near: Vec<bool>,
+    /// The profile's share of the near cells, and the weights of a path starting near and
+    /// elsewhere.
+    pub p_near: f64,
+    w_near: f64,
+    w_far: f64,
+}
+
+impl Launches {
+    /// The launches of `source` near the `regions` (their shapes, and the depth ranges of their
+    /// layers), `margin` m around them, the profile keeping `profile_share` of the paths. `None`
+    /// for a pencil beam, or when the near cells hold none or all of the profile.
+    pub fn new(
+        source: &Source,
+        regions: &[(crate::medium::Shape, (f64, f64))],
+        margin: f64,
+        profile_share: f64,
+    ) -> Option<Self> {
+        let reach = match source.profile {
+            Profile::Pencil => return None,
+            Profile::Disk { radius } => radius,
+            Profile::Gaussian { waist } => 4.55 * waist,
+        };
+        let pitch = 0.5 * margin;
+        let n = ((2.0 * reach / pitch).ceil() as usize).clamp(1, 1024);
+        let pitch = 2.0 * reach / n as f64;
+        let origin = (-reach, -reach);
+        let plane = Footprint { center: (0.0, 0.0), profile: source.profile };
+        let (mut near, mut p_near) = (vec![false; n * n], 0.0);
+        for j in 0..n {
+            for i in 0..n {
+                let (u, v) = (origin.0 + (i as f64 + 0.5) * pitch, origin.1 + (j as f64 + 0.5) * pitch);
+                let p = source.surface_point(u, v);
+                // The vertical line through the surface point meets a region grown by the margin
+                // within its layer's depth (plus the cell's half-diagonal: the whole cell counts).
+                let grow = margin + std::f64::consts::FRAC_1_SQRT_2 * pitch;
+                let hit = regions.iter().any(|(shape, (z0, z1))| {
+                    shape
+                        .grown(grow)
+                        .intersect(glam::DVec3::new(p.x, p.y, *z0), glam::DVec3::Z)
+                        .is_some_and(|(a, b)| b > a.max(0.0) && a < (z1 - z0))
+                });
+                if hit {
+                    near[j * n + i] = true;
+                    let (x0, y0) = (origin.0 + i as f64 * pitch, origin.1 + j as f64 * pitch);
+                    p_near += plane.mass_in_rect((x0, x0 + pitch), (y0, y0 + pitch));
+                }
+            }
+        }
+        if !(p_near > 1e-6 && p_near < 1.0 - 1e-6) {
+            return None;
+        }
+        let a = profile_share;
+        Some(Launches {
+            profile_share: a,
+            origin,
+            pitch,
+            size: (n, n),
+            near,
+            p_near,
+            w_near: 1.0 / (a + (1.0 - a) / p_near),
+            w_far: 1.0 / a,
+        })
+    }
+
+    /// Whether the emission-plane point `(u, v)` lies in a near cell.
+    #[inline]
+    fn is_near(&self, u: f64, v: f64) -> bool {
+        let i = ((u - self.origin.0) / self.pitch).floor();
+        let j = ((v - self.origin.1) / self.pitch).floor();
+        (0.0..self.size.0 as f64).contains(&i)
+            && (0.0..self.size.1 as f64).contains(&j)
+            && self.near[j as usize * self.size.0 + i as usize]
+    }
+
+    /// A path's emission point and its weight: from the profile with probability `α`, else from
+    /// the profile until the point is near (rejection: `1/P` draws on average).
+    pub fn emit(&self, source: &Source, rng: &mut PathRng) -> (DVec3, f64) {
+        let from_profile = rng.uniform() < self.profile_share;
+        loop {
+            let (u, v) = source.plane_point(rng.uniform(), rng.uniform());
+            let near = self.is_near(u, v);
+            if from_profile || near {
+                let w = if near { self.w_near } else { self.w_far };
+                return (source.position + u * source.basis.0 + v * source.basis.1, w);
+            }
+        }
+    }
+}
+
+impl Source {
+    /// The point of the emission plane's coordinates `(u, v)` on the top surface, along the beam.
+    pub fn surface_point(&self, u: f64, v: f64) -> DVec3 {
+        let p = self.position + u * self.basis.0 + v * self.basis.1;
+        p + (-p.z / self.direction.z) * self.direction
+    }
+
+    /// A point of the profile in the emission plane's coordinates, from two uniforms (as
+    /// [`Source::emit`] draws it).
+    fn plane_point(&self, u1: f64, u2: f64) -> (f64, f64) {
+        match self.profile {
+            Profile::Pencil => (0.0, 0.0),
+            Profile::Disk { radius } => {
+                let (x, y) = warp::uniform_disk(u1, u2);
+                (x * radius, y * radius)
+            }
+            Profile::Gaussian { waist } => warp::gaussian_beam(waist, u1, u2),
+        }
     }
 }

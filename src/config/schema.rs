@@ -188,12 +188,26 @@ pub struct RunSection {
     /// The layered control variate of forward-estimated cameras: `"auto"` (default: wherever it
     /// applies), `"layered"` (refused where it does not) or `"off"`.
     pub control_variate: Option<ControlVariateKind>,
+    /// Where forward paths start: `"profile"` (default) or `"near_regions"` (a share
+    /// `launch_profile_share` from the profile, the rest from within `launch_margin_um` of the
+    /// regions, weighted).
+    pub launches: Option<LaunchesKind>,
+    #[serde(rename = "launch_margin_um", alias = "launch_margin_mm")]
+    pub launch_margin: Option<Quantity<Length>>,
+    pub launch_profile_share: Option<f64>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
     /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
     /// / c from the emission point).
     #[serde(rename = "time_gate_ns", alias = "time_gate_us")]
     pub time_gate: Option<Quantity<PulseWidth, [f64; 2]>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LaunchesKind {
+    Profile,
+    NearRegions,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

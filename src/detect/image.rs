@@ -66,3 +66,23 @@ impl ImageSpec {
         }
     }
 }
+
+/// The pixels of `im` (row-major, row 0 at the lowest `y`) whose centre's vertical line meets a
+/// region of `scene` within its layer: the regions' footprints as the camera sees them from
+/// straight above. `None` without regions or if no pixel is in the mask.
+pub fn region_mask(scene: &crate::medium::Scene, im: &ImageSpec) -> Option<Vec<bool>> {
+    let (hx, hy) = ((im.max[0] - im.min[0]) / im.nx as f64, (im.max[1] - im.min[1]) / im.ny as f64);
+    let mask: Vec<bool> = (0..im.ny)
+        .flat_map(|j| (0..im.nx).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let (x, y) = (im.min[0] + (i as f64 + 0.5) * hx, im.min[1] + (j as f64 + 0.5) * hy);
+            scene.regions.iter().any(|r| {
+                let l = &scene.layers[r.layer];
+                r.shape
+                    .intersect(glam::DVec3::new(x, y, l.z_top), glam::DVec3::Z)
+                    .is_some_and(|(a, b)| b > a.max(0.0) && a < l.z_bottom - l.z_top)
+            })
+        })
+        .collect();
+    mask.iter().any(|&m| m).then_some(mask)
+}

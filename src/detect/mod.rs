@@ -813,31 +813,28 @@ impl Recorder<'_> {
             doppler_events: s.doppler_events,
         };
         let lay = &layout.detectors[i];
-        if d.area.contains(p.x, p.y) {
-            // The path into every part, its twin out of the control variate's (`Same`: both cancel
-            // there, the speckle records keep the path's lines).
-            let px = pixel();
-            let (h, ht) = (hit(e, px), hit(&t, px));
+        let on_area = d.area.contains(p.x, p.y);
+        let same = matches!(twin, Twin::Same);
+        let px = if on_area { pixel() } else { None };
+        if on_area {
+            // The path into every part (`Same`: its share of the covered parts cancels with its
+            // twin's, the speckle records keep its lines).
+            let h = hit(e, px);
             self.acc[lay.power] += e.weight;
-            let same = matches!(twin, Twin::Same);
             for placed in &lay.parts {
                 match (placed.varies(), same) {
-                    (false, _) => placed.record(self, &h),
                     (true, true) => placed.record_lines(self, &h),
-                    (true, false) => {
-                        placed.record(self, &h);
-                        placed.record_without_lines(self, &Hit { weight: -ht.weight, ..ht });
-                    }
+                    _ => placed.record(self, &h),
                 }
             }
         }
         // The twin into the kernels (wherever it met the plane: shifted, it may land on the area)
-        // and the ROIs.
-        let ht = hit(&t, None);
+        // and the ROIs; out of the pixel and ROIs it met if it is not the path itself.
+        let ht = hit(&t, px);
         let mut values = [0.0; 1 + ldh::MAX_BLOCKS];
         let mut n = 0;
         for placed in &lay.parts {
-            n += placed.twin_values(self, &ht, path.launch, tl, &mut values[n..]);
+            n += placed.twin_values(self, &ht, path.launch, tl, on_area && !same, &mut values[n..]);
         }
         tl.record(&mut self.kernels[i], path.launch, (p.x, p.y), &values[..n]);
     }

@@ -77,12 +77,6 @@ impl Placed {
         self.record_into(r, hit, true);
     }
 
-    /// [`record`](Self::record) without the speckle records of an LDH camera (a twin's negative
-    /// share, [`super::twin`]).
-    pub fn record_without_lines(&self, r: &mut Recorder, hit: &Hit) {
-        self.record_into(r, hit, false);
-    }
-
     #[inline(always)]
     fn record_into(&self, r: &mut Recorder, hit: &Hit, keep_lines: bool) {
         match self {
@@ -127,19 +121,27 @@ impl Placed {
 
     /// A twin contribution `hit` of a path that entered at `launch`: this part's values per
     /// kernel channel into `out` (returns how many: the image's intensity, the LDH maps'
-    /// [`super::LdhLayout::blocks`]), and its ROIs' share (the footprint's mass within each ROI
-    /// shifted by the offset, [`TwinLayout::shifted_mass`]) straight into the tallies.
+    /// [`super::LdhLayout::blocks`]) and its ROIs' share (the footprint's mass within each ROI
+    /// shifted by the offset, [`TwinLayout::shifted_mass`]) straight into the tallies; with
+    /// `subtract` (a twin of its own, met on the area), also its share taken out of the maps'
+    /// pixel and the ROIs it lands in (the pixel spectra are not covered: they keep the path's).
+    #[allow(clippy::too_many_arguments)]
     pub fn twin_values(
         &self,
         r: &mut Recorder,
         hit: &Hit,
         launch: (f64, f64),
         twin: &TwinLayout,
+        subtract: bool,
         out: &mut [f64],
     ) -> usize {
+        let w = hit.weight;
         match self {
-            Placed::Image(..) => {
-                out[0] = hit.weight;
+            Placed::Image(_, start) => {
+                if subtract && let Some(p) = hit.pixel {
+                    r.acc[start + p] -= w;
+                }
+                out[0] = w;
                 1
             }
             Placed::Ldh(l, lay) => {
@@ -150,12 +152,22 @@ impl Placed {
                 };
                 let v = l.pixel_values(lay, d.frequency, d.gamma, d.class);
                 for (o, x) in out[..n].iter_mut().zip(v.of_block) {
-                    *o = hit.weight * x;
+                    *o = w * x;
+                }
+                if subtract && let Some(p) = hit.pixel {
+                    for (&block, &x) in lay.blocks.iter().zip(&out[..n]) {
+                        if x != 0.0 {
+                            r.acc[block + p] -= x;
+                        }
+                    }
                 }
                 for (roi, rl) in l.rois.iter().zip(&lay.rois) {
+                    if subtract && roi.contains(hit.x, hit.y) {
+                        l.record_roi(lay, rl, r.acc, -w, &v, d.frequency, d.gamma, d.class);
+                    }
                     let m = twin.shifted_mass(roi.min, roi.max, launch, (hit.x, hit.y));
                     if m > 0.0 {
-                        l.record_roi(lay, rl, r.acc, hit.weight * m, &v, d.frequency, d.gamma, d.class);
+                        l.record_roi(lay, rl, r.acc, w * m, &v, d.frequency, d.gamma, d.class);
                     }
                 }
                 n

@@ -83,6 +83,18 @@ impl Shape {
     }
 
     /// Half-extent of the shape along `z` about its centre (for placing it in its layer).
+    /// The shape grown by `d` on every side (a box's faces moved out, a sphere's or cylinder's
+    /// radius and a cylinder's half-length lengthened): a neighbourhood that holds it.
+    pub fn grown(&self, d: f64) -> Shape {
+        match *self {
+            Shape::Cylinder { center, axis, radius, half_length } => {
+                Shape::Cylinder { center, axis, radius: radius + d, half_length: half_length + d }
+            }
+            Shape::Box { min, max } => Shape::Box { min: min - DVec3::splat(d), max: max + DVec3::splat(d) },
+            Shape::Sphere { center, radius } => Shape::Sphere { center, radius: radius + d },
+        }
+    }
+
     pub fn z_range(&self) -> (f64, f64) {
         match *self {
             Shape::Sphere { center, radius } => (center.z - radius, center.z + radius),

@@ -11,4 +11,4 @@ pub use camera::CameraTarget;
 pub use features::{Features, PATHS_PER_TICK};
 pub use nee::NeeTarget;
 pub use tracking::{Flight, LayerRay, Tracking, free_flight};
-pub use walk::{ControlVariate, Reflections, WalkContext, WalkSettings, control_variate_obstacle};
+pub use walk::{ControlVariate, LaunchSettings, Reflections, WalkContext, WalkSettings, control_variate_obstacle};

@@ -48,6 +48,33 @@ pub struct WalkSettings {
     /// Whether forward-estimated cameras get the layered control variate
     /// (`run.control_variate`, [`crate::detect::twin`]).
     pub control_variate: ControlVariate,
+    /// Launches near the regions (`run.launches = "near_regions"`, [`crate::source::Launches`]);
+    /// `None`: from the profile.
+    pub launches: Option<LaunchSettings>,
+}
+
+/// `run.launches = "near_regions"`: the margin around the regions (m) and the profile's share of
+/// the paths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaunchSettings {
+    pub margin: f64,
+    pub profile_share: f64,
+}
+
+impl LaunchSettings {
+    /// The launches of `source` near the regions of `scene` (`None` where there is nothing to
+    /// bias: a pencil beam, no regions, or near cells holding none or all of the profile).
+    pub fn launches(&self, scene: &Scene, source: &Source) -> Option<crate::source::Launches> {
+        let regions: Vec<_> = scene
+            .regions
+            .iter()
+            .map(|r| (r.shape, (scene.layers[r.layer].z_top, scene.layers[r.layer].z_bottom)))
+            .collect();
+        if regions.is_empty() {
+            return None;
+        }
+        crate::source::Launches::new(source, &regions, self.margin, self.profile_share)
+    }
 }
 
 /// `run.control_variate`: the layered twin's control variate of forward-estimated cameras
@@ -127,6 +154,7 @@ impl Default for WalkSettings {
             gate: None,
             reflections: Reflections::Auto,
             control_variate: ControlVariate::Auto,
+            launches: None,
         }
     }
 }
@@ -156,6 +184,9 @@ pub struct WalkContext<'a> {
     /// path's; each collision in a region: `σs,layer·p_layer / (σs·p)` of the particles and
     /// direction drawn) and the twin's Doppler state, in [`Recorder::twin`].
     pub twin: bool,
+    /// Forward paths start near the regions ([`crate::source::Launches`]; `None`: from the
+    /// profile).
+    pub launches: Option<&'a crate::source::Launches>,
 }
 
 impl WalkContext<'_> {
@@ -329,12 +360,15 @@ pub fn trace_path<
 ) {
     let WalkContext { scene, source, .. } = *ctx;
     rec.stats.paths += 1;
-    let start = source.emit(rng);
+    let (start, w0) = match ctx.launches {
+        None => (source.emit(rng), 1.0),
+        Some(l) => l.emit(source, rng),
+    };
     let dir = source.emit_direction(rng);
     // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
     let t0 = (0.0 - start.z) / dir.z;
     let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
-    let mut s = PathState::new(pos, dir, 1.0, if LENGTH { scene.n_above * t0 } else { 0.0 });
+    let mut s = PathState::new(pos, dir, w0, if LENGTH { scene.n_above * t0 } else { 0.0 });
     if NEE && ctx.twin {
         rec.twin = Some(TwinPath::new(pos.x, pos.y));
     }
@@ -342,11 +376,11 @@ pub fn trace_path<
     let n_top = scene.layers[0].n;
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
     if r_sp > 0.0 {
-        let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: r_sp, ..s };
+        let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: w0 * r_sp, ..s };
         if in_gate::<GATE>(ctx.settings, s.l) {
             rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above);
         }
-        s.weight = 1.0 - r_sp;
+        s.weight = w0 * (1.0 - r_sp);
         if s.weight <= 0.0 {
             return;
         }
@@ -895,8 +929,9 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         tw.lambda *= fill.sigma_s() / pop.sigma_s;
         tw.touched = true;
     }
-    // (This walk runs only with next-event targets, so the roulette's draw is never wasted.)
-    let boost = connection_roulette(scene, li, s, rng);
+    // (Without next-event targets this walk runs for the layered twin alone: no roulette draw, no
+    // shadow ray, no density for the escapes' weights against them.)
+    let boost = if nee.is_empty() { 0.0 } else { connection_roulette(scene, li, s, rng) };
     let targets = if boost > 0.0 { nee } else { &[] };
     rec.stats.work.shadow_rays += targets.len() as u64;
     for target in targets {
@@ -938,7 +973,9 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         rec.next_event(target.detector, &e, twin, scene.n_above);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
-    s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
+    if !nee.is_empty() {
+        s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
+    }
     if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), twin) {
         // The twin's density of the direction drawn over the path's, and its Doppler event
         // instead of the path's.

@@ -147,3 +147,27 @@ fn the_control_variate_is_refused_where_it_cannot_apply() {
     let e = experiment(&text, &["source.direction=[0.1, 0, 1]", "run.control_variate=\"auto\""]);
     assert!(!e.control_variate());
 }
+
+/// Launches near the regions (`run.launches = "near_regions"`) weight each path by the profile's
+/// density over the mixture's: the images, ROI values and spectra equal those of launches from
+/// the profile within σ, with and without the control variate.
+#[test]
+fn launches_near_the_regions_equal_launches_from_the_profile() {
+    let near = ["run.launches=\"near_regions\"", "run.launch_margin_um=150", "run.launch_profile_share=0.4"];
+    for cv in ["off", "layered"] {
+        let plain = run(&retina(400_000, BLOOD, cv), &[]);
+        let biased = run(&retina(400_000, BLOOD, cv), &near);
+        let l = biased.exp.plan.walk.launches.expect("near_regions").launches(&biased.exp.scene, &biased.exp.source);
+        let p = l.expect("the vessel holds part of the profile").p_near;
+        assert!(p > 0.05 && p < 0.6, "share of the profile near the vessel: {p}");
+        for name in ["camera.image", "camera.m0_plus", "camera.m0_minus"] {
+            let (a, b) = (image(&plain, name), image(&biased, name));
+            let (chi2, dof, pv) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
+            assert!(dof >= 100 && pv > 1e-4, "{cv}, {name}: χ² = {chi2:.1} over {dof} pixels (p = {pv:.2e})");
+        }
+        let ((a, sa), _) = roi_m0(&plain, 0, 0);
+        let ((b, sb), _) = roi_m0(&biased, 0, 0);
+        let z = (a - b) / sa.hypot(sb);
+        assert!(z.abs() < 4.0, "{cv}: ROI M0+ {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
+    }
+}

@@ -3,7 +3,7 @@
 use super::{DEFAULT_MEMORY_BUDGET_GIB, R, err};
 use crate::config::schema::*;
 use crate::experiment::RunPlan;
-use crate::transport::{ControlVariate, Reflections, Tracking, WalkSettings};
+use crate::transport::{ControlVariate, LaunchSettings, Reflections, Tracking, WalkSettings};
 
 pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     let batches = r.batches.unwrap_or(32);
@@ -86,6 +86,43 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         }
     };
     let paths_per_batch = samples.div_ceil(batches);
+    let launches = match r.launches.unwrap_or(LaunchesKind::Profile) {
+        LaunchesKind::Profile => {
+            let margin_key = r.launch_margin.as_ref().map(|q| q.key.clone());
+            for (key, given) in [
+                (margin_key.clone().unwrap_or_default(), margin_key.is_some()),
+                ("launch_profile_share".to_string(), r.launch_profile_share.is_some()),
+            ] {
+                if given {
+                    return err(
+                        format!("run.{key}"),
+                        "applies to run.launches = \"near_regions\" only: remove it or set run.launches",
+                    );
+                }
+            }
+            None
+        }
+        LaunchesKind::NearRegions => {
+            let margin = r.launch_margin.as_ref().map_or(200e-6, |q| q.si());
+            if !(margin.is_finite() && margin > 0.0) {
+                let q = r.launch_margin.as_ref().expect("the default is valid");
+                return err(
+                    format!("run.{}", q.key),
+                    format!("= {}: expected a distance > 0 around the regions", q.value),
+                );
+            }
+            let share = r.launch_profile_share.unwrap_or(0.3);
+            if !(0.3..1.0).contains(&share) {
+                return err(
+                    "run.launch_profile_share",
+                    format!(
+                        "= {share}: expected the profile's share of the paths in [0.3, 1) (the rest start near the regions)"
+                    ),
+                );
+            }
+            Some(LaunchSettings { margin, profile_share: share })
+        }
+    };
     Ok(RunPlan {
         requested_samples: samples,
         batches,
@@ -108,6 +145,7 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
                 ControlVariateKind::Layered => ControlVariate::Layered,
                 ControlVariateKind::Off => ControlVariate::Off,
             },
+            launches,
         },
         memory_budget,
         memory_limited_by,

@@ -241,6 +241,24 @@ fn write_run_to<S: super::Sink>(
     let mut put = |name: String, bytes: Vec<u8>| -> Result<()> { writer.put_file(name, bytes) };
     let mut w = Writer::new(&mut put, &out.layout.registry, out.estimates.mean(), stderr);
     w.figures = inv.figures;
+    // The cameras' masks of the regions' footprints, before their images (which are split by them).
+    for (i, d) in exp.detectors.iter().enumerate() {
+        let Some(im) = d.surface().and_then(|s| s.image()) else { continue };
+        let Some(mask) = crate::detect::image::region_mask(&exp.scene, im) else { continue };
+        let written =
+            crate::output::rows_reversed(&mask.iter().map(|&m| f64::from(u8::from(m))).collect::<Vec<_>>(), im.nx);
+        let file = format!("{}_region_mask.npy", d.name);
+        w.put(file.clone(), crate::io::formats::npy::to_bytes(&[im.ny, im.nx], &written))?;
+        let mut entry = super::OutputEntry::made(
+            "region_mask",
+            &[im.ny, im.nx],
+            "1 (1: the pixel's vertical line meets a region; row 0 = the largest y)",
+            Vec::new(),
+        );
+        entry.undefined_nan = false;
+        w.table.insert(file.clone(), entry);
+        w.masks.insert(i, (file, written.iter().map(|&m| m != 0.0).collect()));
+    }
     let reg = &out.layout.registry;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|&s| (s.name().to_string(), Entry::Estimate(w.estimate(reg.at(s as usize))))).collect();

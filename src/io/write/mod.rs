@@ -188,6 +188,9 @@ pub struct Writer<'a, 'p> {
     pub figures: bool,
     /// Every output written so far, by file (the manifest's `outputs`).
     pub table: BTreeMap<String, OutputEntry>,
+    /// Each camera's mask of the regions' footprints, as written (row 0 = the largest `y`), and
+    /// its file, by detector: its main images' errors are also given split by it.
+    pub masks: BTreeMap<usize, (String, Vec<bool>)>,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -199,6 +202,18 @@ pub struct PixelErrorEntry {
     pub p90: Option<f64>,
     /// Pixels with a zero value (no relative error).
     pub pixels_without_signal: usize,
+    /// Split by the detector's mask of the regions' footprints (`NAME_region_mask.npy`), if it
+    /// has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub regions: Option<RegionEntry>,
+}
+
+/// [`PixelErrorEntry::regions`]: the mask's file and the split.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RegionEntry {
+    pub mask_file: String,
+    #[serde(flatten)]
+    pub errors: crate::output::RegionErrors,
 }
 
 impl<'a, 'p> Writer<'a, 'p> {
@@ -210,6 +225,7 @@ impl<'a, 'p> Writer<'a, 'p> {
             stderr,
             written: BTreeSet::new(),
             pixel_errors: BTreeMap::new(),
+            masks: BTreeMap::new(),
             figures: true,
             table: BTreeMap::new(),
         }
@@ -295,11 +311,16 @@ impl<'a, 'p> Writer<'a, 'p> {
             entry.relative_error_file = Some(file.clone());
         }
         let finite = |v: f64| v.is_finite().then_some(v);
+        let regions = o.detector.and_then(|d| self.masks.get(&d)).map(|(mask_file, mask)| RegionEntry {
+            mask_file: mask_file.clone(),
+            errors: crate::output::RegionErrors::of(v, e, mask),
+        });
         let entry = PixelErrorEntry {
             file,
             median: finite(pe.median),
             p90: finite(pe.p90),
             pixels_without_signal: pe.without_signal,
+            regions,
         };
         self.pixel_errors.insert(o.name.clone(), entry);
         Ok(())
