@@ -655,8 +655,11 @@ impl Experiment {
             scratch: Vec::new(),
             twin: None,
             kernels: layout.twin_kernels(),
+            split: None,
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
+        let twin = layout.detectors.iter().any(|d| d.twin.is_some());
+        let twin_scene = twin.then(|| self.scene.layered_twin());
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
             slots: VolumeGrid::slots(&layout.registry),
@@ -675,7 +678,8 @@ impl Experiment {
                 &self.plan.walk,
                 &self.detectors,
             ),
-            twin: layout.detectors.iter().any(|d| d.twin.is_some()),
+            twin,
+            twin_scene: twin_scene.as_ref(),
             launches: launches.as_ref(),
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);

@@ -624,6 +624,8 @@ pub struct Recorder<'a> {
     pub twin: Option<twin::TwinPath>,
     /// This batch's twin kernels, one per detector (empty for those without a control variate).
     pub kernels: Vec<Vec<f64>>,
+    /// Where the current path's twin parted from it, to walk on once the path has ended.
+    pub split: Option<crate::transport::walk::Split>,
 }
 
 /// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).
@@ -636,6 +638,9 @@ pub enum Twin {
     Same,
     /// A state of its own.
     Other(PathState),
+    /// The contribution is the twin's alone (its own walk after parting from its path): out of
+    /// the covered pixels it meets, into the kernels; nothing else records it.
+    Only,
 }
 
 impl Recorder<'_> {
@@ -666,6 +671,12 @@ impl Recorder<'_> {
             return;
         }
         let specular = exit == Exit::Specular;
+        if self.twin.is_some_and(|t| t.only) {
+            // A twin's own walk: the detectors' kernels alone.
+            let e = PathState { ..e };
+            self.detect(side, &e, specular, n_ambient);
+            return;
+        }
         match (side, specular) {
             (Side::Top, true) => self.add(Scalar::ReflectanceSpecular, e.weight),
             (Side::Top, false) => self.add(Scalar::ReflectanceDiffuse, e.weight),
@@ -735,6 +746,7 @@ impl Recorder<'_> {
     fn detect(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64) {
         let twin = match &self.twin {
             None => Twin::Off,
+            Some(t) if t.only => Twin::Only,
             Some(t) if !t.touched => Twin::Same,
             Some(t) => Twin::Other(t.state(e)),
         };
@@ -764,7 +776,7 @@ impl Recorder<'_> {
                     let e = PathState { weight: e.weight * w, ..*e };
                     let twin = match twin {
                         Twin::Other(t) => Twin::Other(PathState { weight: t.weight * w, ..t }),
-                        same_or_off => same_or_off,
+                        same_only_or_off => same_only_or_off,
                     };
                     self.detect_one(i, &e, n_ambient, twin);
                     continue;
@@ -797,7 +809,7 @@ impl Recorder<'_> {
                 }
                 return;
             }
-            Twin::Same => *e,
+            Twin::Same | Twin::Only => *e,
             Twin::Other(t) => t,
         };
         let gamma = |b: f64| if b > 0.0 { beat.brownian_hwhm(b) } else { 0.0 };
@@ -816,7 +828,7 @@ impl Recorder<'_> {
         let on_area = d.area.contains(p.x, p.y);
         let same = matches!(twin, Twin::Same);
         let px = if on_area { pixel() } else { None };
-        if on_area {
+        if on_area && twin != Twin::Only {
             // The path into every part (`Same`: its share of the covered parts cancels with its
             // twin's, the speckle records keep its lines).
             let h = hit(e, px);

@@ -6,10 +6,12 @@
 //! path's entry point and where it meets the camera, convolved with the beam's footprint (CONV,
 //! Wang, Jacques & Zheng 1997). Every forward path carries, beside its own contributions `f`, its
 //! twin's `Λ·f_twin`, `Λ` being the likelihood ratio of the path under the twin (flights and
-//! collisions in regions, perturbation Monte Carlo as Hayakawa et al. 2001; see
-//! `transport::walk`), and `f_twin` what the twin would score at the same vertex (the twin's
-//! phase function and Doppler shift, shadow rays without the regions' optical depth). The image
-//! is then
+//! perturbation Monte Carlo as Hayakawa et al. 2001: the flights' transmittance ratios, and for
+//! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
+//! `Λ` leaves a band and the twin parts from the path to walk on by itself,
+//! `transport::walk::Split`), and `f_twin` what the twin scores (its phase function and Doppler
+//! shift, shadow rays without the regions' optical depth; after parting, its own walk's). The
+//! image is then
 //!
 //! `I(p) = Σ_j m_j·K(p − j) + (1/N)·Σ_paths [f(p) − Λ·f_twin(p)]`,
 //!
@@ -40,7 +42,8 @@ use crate::source::{Footprint, Profile};
 
 /// The twin's bookkeeping along one forward path: where it entered the stack, the likelihood
 /// ratio `Λ` of the path under the twin and how the twin's Doppler state differs from the path's
-/// (events on particles of a region are the twin's on its layer's medium).
+/// (events on particles of a region are the twin's on its layer's medium), until the twin parts
+/// from the path (`transport::walk::Split`) and walks on by itself.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinPath {
     /// The entry point on the top surface, m.
@@ -53,13 +56,23 @@ pub struct TwinPath {
     /// Whether the path has met a region (flown through one, or collided in one): until then its
     /// twin is itself.
     pub touched: bool,
+    /// The twin's own walk after it parted from its path: what it scores is the twin's alone.
+    pub only: bool,
 }
 
 impl TwinPath {
     /// A path entering the stack at `(x, y)`.
     #[inline]
     pub fn new(x: f64, y: f64) -> Self {
-        TwinPath { launch: (x, y), lambda: 1.0, dldt: 0.0, brownian: 0.0, doppler_events: 0, touched: false }
+        TwinPath {
+            launch: (x, y),
+            lambda: 1.0,
+            dldt: 0.0,
+            brownian: 0.0,
+            doppler_events: 0,
+            touched: false,
+            only: false,
+        }
     }
 
     /// A flight whose regions' optical depth exceeded that of the layer's filling medium by

@@ -118,6 +118,18 @@ impl Scene {
 
     /// Derive what each layer caches of its media (the σt bounds, whether it is heterogeneous,
     /// the optical depth above it); call after changing the media or regions.
+    /// The layered twin of this scene: every region removed (its layer's filling medium in its
+    /// place), the layers' majorants and optical depths recomputed ([`crate::detect::twin`]).
+    pub fn layered_twin(&self) -> Scene {
+        let mut twin = self.clone();
+        twin.regions.clear();
+        for l in &mut twin.layers {
+            l.regions.clear();
+        }
+        twin.update_layers();
+        twin
+    }
+
     pub fn update_layers(&mut self) {
         let mut tau_above = 0.0;
         for layer in &mut self.layers {

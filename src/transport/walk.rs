@@ -181,9 +181,12 @@ pub struct WalkContext<'a> {
     /// Forward paths carry their layered twin for the control variate of the cameras that have
     /// one (`run.control_variate`, [`crate::detect::twin`]): the likelihood ratio `Λ` of the
     /// path under the twin (each flight through a region: the twin's transmittance over the
-    /// path's; each collision in a region: `σs,layer·p_layer / (σs·p)` of the particles and
-    /// direction drawn) and the twin's Doppler state, in [`Recorder::twin`].
+    /// path's) until the twin parts from it at the path's first collision in a region
+    /// ([`Split`]), in [`Recorder::twin`].
     pub twin: bool,
+    /// The twin's scene (the regions removed), where a twin walks on once it parts from its path
+    /// ([`Split`]); `None` without a control variate.
+    pub twin_scene: Option<&'a Scene>,
     /// Forward paths start near the regions ([`crate::source::Launches`]; `None`: from the
     /// profile).
     pub launches: Option<&'a crate::source::Launches>,
@@ -440,6 +443,9 @@ pub fn trace_path<
         End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         End::Truncated => rec.stats.truncated_paths += 1,
+    }
+    if NEE && let Some(split) = rec.split.take() {
+        twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
     }
 }
 
@@ -907,6 +913,21 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     checkpoint: &mut u32,
     rec: &mut Recorder,
 ) -> Option<End> {
+    // The layered twin collides in the layer's filling medium where the path collides in a region.
+    // While `Λ` stays within [1/TWIN_BAND, TWIN_BAND] it shares the path's collision (below);
+    // beyond, it parts from the path here and walks on by itself ([`Split`], traced after the
+    // path) from the path's state arriving here, weighted by `Λ` and the collision densities'
+    // ratio `σt,fill / σt,medium`; the path goes on without a twin.
+    let fill = &scene.media[scene.layers[li].medium];
+    let in_region = rec.twin.is_some_and(|t| !t.only) && !std::ptr::eq(m, fill);
+    if in_region
+        && let Some(tw) = rec.twin
+        && !(1.0 / TWIN_BAND..=TWIN_BAND).contains(&tw.lambda)
+    {
+        let weight = s.weight * fill.sigma_t() / m.sigma_t();
+        rec.split = Some(Split { s: tw.state(&PathState { weight, ..*s }), li, twin: tw, rng: rng.clone() });
+        rec.twin = None;
+    }
     if absorb(s, albedo, absorbed) {
         return Some(End::Absorbed);
     }
@@ -915,17 +936,15 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
-    // The layered twin collides in the layer's filling medium where the path collides in a region:
-    // its own particles (drawn by the fill's shares) and their velocity.
-    let fill = &scene.media[scene.layers[li].medium];
-    let twin = rec.twin.filter(|_| !std::ptr::eq(m, fill)).map(|_| {
+    // The coupled twin's particles here (drawn by the fill's shares), their velocity, and its
+    // collision and weight after it over the path's: `σt,fill·a_fill / (σt·a·σs,pop/σs) =
+    // σs,fill/σs,pop` (the flight's share is in from the flight).
+    let coupled = (in_region && rec.twin.is_some()).then(|| {
         let (tpop, tdyn) = fill.pick_dynamic(rng);
         let tdyn = DOPPLER && tdyn;
         (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
     });
-    if let (Some(tw), true) = (rec.twin.as_mut(), twin.is_some()) {
-        // The twin's collision here and its weight after it, over the path's (its flight's share
-        // is in from the flight): `σt,fill·a_fill / (σt·a·σs,pop/σs) = σs,fill/σs,pop`.
+    if let (Some(tw), true) = (rec.twin.as_mut(), coupled.is_some()) {
         tw.lambda *= fill.sigma_s() / pop.sigma_s;
         tw.touched = true;
     }
@@ -951,14 +970,17 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             ..*s
         };
         let in_out = s.dir - h.dir_vertex;
+        // The twin's shadow ray: its phase function (its own particles' where it shares a
+        // collision in a region), without the regions' excess optical depth, its Doppler state.
         let twin = match rec.twin {
             None => Twin::Off,
-            Some(tw) if !tw.touched && twin.is_none() && h.excess == 0.0 => Twin::Same,
+            Some(tw) if tw.only => Twin::Only,
+            Some(tw) if !tw.touched && coupled.is_none() && h.excess == 0.0 => Twin::Same,
             Some(tw) => {
                 let mut t = tw.state(&e);
-                let p = twin.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
+                let p = coupled.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
                 t.weight = s.weight * tw.lambda * boost * h.twin_factor(p.eval(s.dir.dot(h.dir_vertex)));
-                match twin {
+                match coupled {
                     Some((tpop, true, tv)) => doppler_event(&mut t, tpop, n, tv, in_out),
                     Some(_) => {}
                     None if dynamic => doppler_event(&mut t, pop, n, v, in_out),
@@ -976,9 +998,9 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     if !nee.is_empty() {
         s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
     }
-    if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), twin) {
-        // The twin's density of the direction drawn over the path's, and its Doppler event
-        // instead of the path's.
+    if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), coupled) {
+        // The coupled twin's density of the direction drawn over the path's, and its Doppler
+        // event instead of the path's.
         tw.lambda *= tpop.phase.eval(d.cos) / pop.phase.eval(d.cos);
         let mut shift = PathState::new(s.pos, s.dir, 0.0, 0.0);
         if tdyn {
@@ -996,6 +1018,81 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         doppler_event(s, pop, n, v, delta);
     }
     turn(s, out, settings, rng, checkpoint)
+}
+
+/// The layered twin shares its path's collisions in regions while its likelihood ratio `Λ` stays
+/// within `[1/TWIN_BAND, TWIN_BAND]`, and parts from it at the first collision in a region beyond
+/// ([`Split`]): a bound on `Λ`, a product of a phase-function ratio per collision through a vessel.
+/// Measured on retina_ldh (validation/README.md, issue 35): parting at the first collision lost the
+/// correlation of the path and its twin that makes the vessels' intensity converge (vessel-pixel
+/// median 0.44 against 0.11), a band of 2 kept half of it (0.18); at 8 no path parted.
+pub const TWIN_BAND: f64 = 8.0;
+
+/// Where a forward path's layered twin parts from it: a collision of the path in a region with
+/// `Λ` beyond [`TWIN_BAND`], which the twin makes in its layer's filling medium (with the weight
+/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
+/// and walks on from in the twin's scene with a copy of the path's generator ([`twin_walk`];
+/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
+/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
+/// share out of the pixels it meets, into the kernels).
+#[derive(Clone)]
+pub struct Split {
+    pub s: PathState,
+    pub li: usize,
+    pub twin: TwinPath,
+    pub rng: PathRng,
+}
+
+/// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene
+/// (`ctx.twin_scene`: the regions removed): its collision there, then its walk, every
+/// contribution scored as the twin's alone ([`Twin::Only`]); nothing of it reaches the scalar
+/// tallies or the volume tally.
+#[cold]
+#[inline(never)]
+fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    split: Split,
+    rec: &mut Recorder,
+) {
+    let Some(scene) = ctx.twin_scene else { return };
+    let ctx = WalkContext { scene, volume: None, reflections: false, ..*ctx };
+    let Split { mut s, li, twin, mut rng } = split;
+    rec.twin = Some(TwinPath { only: true, ..twin });
+    let layer = &scene.layers[li];
+    let fill = &scene.media[layer.medium];
+    let (mut absorbed, mut nulls) = (0.0, 0);
+    let mut checkpoint = s.order.saturating_add(RENORMALISE_EVERY).min(ctx.settings.max_events);
+    let first = collide_nee::<DOPPLER, LENGTH>(
+        scene,
+        ctx.nee,
+        li,
+        &mut s,
+        fill,
+        fill.albedo(),
+        layer.n,
+        ctx.settings,
+        &mut rng,
+        &mut absorbed,
+        &mut checkpoint,
+        rec,
+    );
+    let end = match first {
+        Some(end) => end,
+        None => walk::<DOPPLER, LENGTH, true, false, false, GATE, false>(
+            &ctx,
+            &mut s,
+            &mut rng,
+            &mut absorbed,
+            &mut nulls,
+            rec,
+        ),
+    };
+    if let End::Escaped { side, n_ambient, .. } = end
+        && in_gate::<GATE>(ctx.settings, s.l)
+    {
+        rec.escape(side, s, Exit::Walked, n_ambient);
+    }
+    rec.twin = None;
 }
 
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
