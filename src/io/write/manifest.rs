@@ -249,13 +249,15 @@ fn write_run_to<S: super::Sink>(
             crate::output::rows_reversed(&mask.iter().map(|&m| f64::from(u8::from(m))).collect::<Vec<_>>(), im.nx);
         let file = format!("{}_region_mask.npy", d.name);
         w.put(file.clone(), crate::io::formats::npy::to_bytes(&[im.ny, im.nx], &written))?;
-        let mut entry = super::OutputEntry::made(
+        // On the image's axes.
+        let axes =
+            out.layout.detectors[i].image().map_or_else(Vec::new, |slot| out.layout.registry.at(slot).axes.clone());
+        let entry = super::OutputEntry::made(
             "region_mask",
             &[im.ny, im.nx],
             "1 (1: the pixel's vertical line meets a region; row 0 = the largest y)",
-            Vec::new(),
+            axes,
         );
-        entry.undefined_nan = false;
         w.table.insert(file.clone(), entry);
         w.masks.insert(i, (file, written.iter().map(|&m| m != 0.0).collect()));
     }
