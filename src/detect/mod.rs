@@ -625,7 +625,7 @@ pub struct Recorder<'a> {
     /// This batch's twin kernels, one per detector (empty for those without a control variate).
     pub kernels: Vec<Vec<f64>>,
     /// Where the current path's twin parted from it, to walk on once the path has ended.
-    pub split: Option<crate::transport::walk::Split>,
+    pub split: Option<twin::Split>,
 }
 
 /// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).

@@ -9,7 +9,7 @@
 //! perturbation Monte Carlo as Hayakawa et al. 2001: the flights' transmittance ratios, and for
 //! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
 //! `Λ` leaves a band and the twin parts from the path to walk on by itself,
-//! `transport::walk::Split`), and `f_twin` what the twin scores (its phase function and Doppler
+//! [`Split`]), and `f_twin` what the twin scores (its phase function and Doppler
 //! shift, shadow rays without the regions' optical depth; after parting, its own walk's). The
 //! image is then
 //!
@@ -38,12 +38,13 @@ use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
 use super::{ImageSpec, PathState};
+use crate::sampling::PathRng;
 use crate::source::{Footprint, Profile};
 
 /// The twin's bookkeeping along one forward path: where it entered the stack, the likelihood
 /// ratio `Λ` of the path under the twin and how the twin's Doppler state differs from the path's
 /// (events on particles of a region are the twin's on its layer's medium), until the twin parts
-/// from the path (`transport::walk::Split`) and walks on by itself.
+/// from the path ([`Split`]) and walks on by itself.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinPath {
     /// The entry point on the top surface, m.
@@ -96,6 +97,21 @@ impl TwinPath {
             ..*e
         }
     }
+}
+
+/// Where a forward path's layered twin parts from it: a collision of the path in a region with
+/// `Λ` beyond `transport::walk::TWIN_BAND`, which the twin makes in its layer's filling medium (with the weight
+/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
+/// and walks on from in the twin's scene with a copy of the path's generator (`transport::walk::twin_walk`;
+/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
+/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
+/// share out of the pixels it meets, into the kernels).
+#[derive(Clone)]
+pub struct Split {
+    pub s: PathState,
+    pub li: usize,
+    pub twin: TwinPath,
+    pub rng: PathRng,
 }
 
 /// Where a camera's twin kernels lie and how they become its images: the offset grid, the

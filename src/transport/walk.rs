@@ -15,7 +15,7 @@
 
 use glam::DVec3;
 
-use crate::detect::twin::TwinPath;
+use crate::detect::twin::{Split, TwinPath};
 use crate::detect::volume::VolumeTally;
 use crate::detect::{Exit, PathState, Recorder, Scalar, Shot, Side, Twin};
 use crate::medium::{Medium, Population, Scene};
@@ -1027,21 +1027,6 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
 /// correlation of the path and its twin that makes the vessels' intensity converge (vessel-pixel
 /// median 0.44 against 0.11), a band of 2 kept half of it (0.18); at 8 no path parted.
 pub const TWIN_BAND: f64 = 8.0;
-
-/// Where a forward path's layered twin parts from it: a collision of the path in a region with
-/// `Λ` beyond [`TWIN_BAND`], which the twin makes in its layer's filling medium (with the weight
-/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
-/// and walks on from in the twin's scene with a copy of the path's generator ([`twin_walk`];
-/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
-/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
-/// share out of the pixels it meets, into the kernels).
-#[derive(Clone)]
-pub struct Split {
-    pub s: PathState,
-    pub li: usize,
-    pub twin: TwinPath,
-    pub rng: PathRng,
-}
 
 /// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene
 /// (`ctx.twin_scene`: the regions removed): its collision there, then its walk, every
