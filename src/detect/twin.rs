@@ -191,6 +191,20 @@ fn fast_size(n: usize) -> usize {
         .expect("a 5-smooth number exists above any n")
 }
 
+/// The offsets of the kernel of a camera with image `im` under the footprint `fp` (per map):
+/// `(nx + cells_x − 1)·(ny + cells_y − 1)`, the launch cells covering the footprint on the
+/// image's pixel grid (saturating: a huge image gives a huge count, never an overflow).
+pub fn kernel_offsets(im: &ImageSpec, fp: Footprint) -> usize {
+    let r = reach(fp.profile);
+    let cells = |n: usize, lo: f64, hi: f64| {
+        let h = (hi - lo) / n as f64;
+        let c = (2.0 * r / h).ceil() + 2.0;
+        (n as f64 + c).min(1e18)
+    };
+    let (x, y) = (cells(im.nx, im.min[0], im.max[0]), cells(im.ny, im.min[1], im.max[1]));
+    (x * y).min(usize::MAX as f64 / 2.0) as usize
+}
+
 impl TwinLayout {
     /// The kernels of a camera with image `im` under the footprint `fp`, convolved into the image
     /// blocks `blocks` (first slot of each per-pixel map).

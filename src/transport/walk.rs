@@ -90,6 +90,11 @@ pub enum ControlVariate {
     Off,
 }
 
+/// The most offsets a twin kernel may have per map (`(pixels + footprint cells)²`): 2²⁴, 128 MiB of
+/// one map and its transform; retina_ldh's are 619², and a 8192² image over a 0.6 mm beam would
+/// need 14,335².
+pub const MAX_TWIN_OFFSETS: usize = 1 << 24;
+
 /// Why the layered control variate cannot cover this scene, source and detectors (`None`: it
 /// can). It needs a camera to cover (a forward-estimated top detector whose image spans its
 /// rectangular area), a twin that is laterally invariant (infinite layers of homogeneous media:
@@ -113,8 +118,18 @@ pub fn control_variate_obstacle(
     if let Some(l) = scene.layers.iter().find(|l| l.heterogeneous) {
         return Some(format!("layer `{}` has a density field: its twin is not laterally invariant", l.name));
     }
-    if source.footprint().is_none() {
+    let Some(fp) = source.footprint() else {
         return Some("the beam is tilted or diverges: its footprint on the surface is not its profile".into());
+    };
+    for d in detectors {
+        let Some(im) = crate::detect::twin_camera(d) else { continue };
+        let offsets = crate::detect::twin::kernel_offsets(im, fp);
+        if offsets > MAX_TWIN_OFFSETS {
+            return Some(format!(
+                "detector `{}`'s kernels would hold {offsets} offsets per map (its pixels against the beam's footprint), more than {MAX_TWIN_OFFSETS}",
+                d.name
+            ));
+        }
     }
     for r in &scene.regions {
         let fill = &scene.media[scene.layers[r.layer].medium];
