@@ -290,8 +290,11 @@ fn retina_roi_spectrum_has_dc_peak_single_shoulder_and_multiple_tail() {
             "source.position_mm=[0, 0.5, -1]",
             "source.radius_mm=0.6",
             "media.blood.motion={ }",
-            // The choroid static, as the retina's vessels are the only moving particles here.
+            // The choroid static, as the retina's vessels are the only moving particles here, and
+            // the plain estimate: the checks of exact zeros below do not hold through the control
+            // variate's subtractions (a path's line less its twin's leaves rounding residue).
             "media.choroid_blood.motion={ }",
+            "run.control_variate=\"off\"",
             "detectors.0.ldh.speckle.windows=1",
             &axis,
         ];
