@@ -389,10 +389,7 @@ impl LdhSpec {
                     acc[block + p] += w * x;
                 }
             }
-            if let Some(o) = lay.pixel_spectra {
-                let s = o + p * lay.stride;
-                self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
-            }
+            self.record_pixel_spectrum(lay, acc, p, w, f, gamma);
         }
         for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
             if !roi.contains(x, y) {
@@ -400,6 +397,29 @@ impl LdhSpec {
             }
             self.record_roi(lay, rl, acc, w, &v(), f, gamma, class);
             in_roi(i);
+        }
+    }
+
+    /// Record of `d` only what the control variate leaves plain: its pixel's spectrum; calls
+    /// `in_roi` with the index of every ROI it fell in, for the speckle records.
+    pub fn record_uncovered(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
+        let Detection { pixel, x, y, weight: w, frequency: f, gamma, .. } = d;
+        if let Some(p) = pixel {
+            self.record_pixel_spectrum(lay, acc, p, w, f, gamma);
+        }
+        for (i, roi) in self.rois.iter().enumerate() {
+            if roi.contains(x, y) {
+                in_roi(i);
+            }
+        }
+    }
+
+    /// Add a line of weight `w` at `f` (half-width `gamma`) to pixel `p`'s spectrum, if recorded.
+    #[inline]
+    fn record_pixel_spectrum(&self, lay: &LdhLayout, acc: &mut [f64], p: usize, w: f64, f: f64, gamma: f64) {
+        if let Some(o) = lay.pixel_spectra {
+            let s = o + p * lay.stride;
+            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
         }
     }
 

@@ -830,12 +830,12 @@ impl Recorder<'_> {
         let px = if on_area { pixel() } else { None };
         if on_area && twin != Twin::Only {
             // The path into every part (`Same`: its share of the covered parts cancels with its
-            // twin's, the speckle records keep its lines).
+            // twin's, the pixel spectra and speckle records keep it).
             let h = hit(e, px);
             self.acc[lay.power] += e.weight;
             for placed in &lay.parts {
                 match (placed.varies(), same) {
-                    (true, true) => placed.record_lines(self, &h),
+                    (true, true) => placed.record_uncovered(self, &h),
                     _ => placed.record(self, &h),
                 }
             }

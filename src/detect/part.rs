@@ -105,18 +105,13 @@ impl Placed {
         matches!(self, Placed::Image(..) | Placed::Ldh(..))
     }
 
-    /// The speckle records of `hit` alone (a path whose twin cancels its share of the tallies).
-    pub fn record_lines(&self, r: &mut Recorder, hit: &Hit) {
-        let Placed::Ldh(l, _) = self else { return };
-        if r.lines.is_none() {
-            return;
-        }
+    /// What the control variate leaves plain of `hit` (a path whose twin cancels its share of
+    /// the covered tallies): the LDH part's per-pixel spectra and speckle records.
+    pub fn record_uncovered(&self, r: &mut Recorder, hit: &Hit) {
+        let Placed::Ldh(l, lay) = self else { return };
         let Some(d) = detection(r, hit) else { return };
-        for (i, roi) in l.rois.iter().enumerate() {
-            if roi.contains(hit.x, hit.y) {
-                push_line(r.lines.as_deref_mut(), i, &d);
-            }
-        }
+        let mut lines = r.lines.as_deref_mut();
+        l.record_uncovered(lay, r.acc, d, |roi| push_line(lines.as_deref_mut(), roi, &d));
     }
 
     /// A twin contribution `hit` of a path that entered at `launch`: this part's values per

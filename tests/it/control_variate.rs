@@ -56,6 +56,7 @@ window_samples = 64
 window = "hann"
 band_khz = [6, 18.3]
 by_class = true
+pixel_spectra = true
 [[detectors.ldh.roi]]
 name = "vessel"
 center_um = [0, 100]
@@ -75,13 +76,16 @@ fn image(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// The control variate's images, ROI values and ROI spectra equal the plain estimate's within
-/// their standard errors (χ² of the differences), and its intensity image is far more precise.
+/// their standard errors (χ² of the differences), and its intensity image is far more precise;
+/// the per-pixel spectra, which it leaves plain, are recorded in full (every path's line).
 #[test]
 fn the_control_variate_equals_the_plain_estimate() {
     let plain = run(&retina(600_000, BLOOD, "off"), &[]);
     let cv = run(&retina(600_000, BLOOD, "layered"), &[]);
     assert!(plain.out.layout.detectors[0].twin.is_none() && cv.out.layout.detectors[0].twin.is_some());
-    for name in ["camera.image", "camera.m0_plus", "camera.m0_minus", "camera.m0_plus_multiple_doppler"] {
+    for name in
+        ["camera.image", "camera.m0_plus", "camera.m0_minus", "camera.m0_plus_multiple_doppler", "camera.pixel_spectra"]
+    {
         let (a, b) = (image(&plain, name), image(&cv, name));
         let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
         assert!(dof >= 100 && p > 1e-4, "{name}: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");

@@ -266,8 +266,15 @@ fn retina_artery_and_vein_have_opposite_m0_minus_beyond_3_sigma() {
 ///   The axis spans ±4 f_max = ±57.8 kHz; its out-of-range tallies must be exactly zero.
 /// * The tail: the share of a class's power at |f| > f_max is larger for multiply Doppler-shifted
 ///   light than for singly shifted light. The in-band contributions are heavy-tailed (rare next-
-///   event hits), so this is judged over 8 independent runs (seeds) by a t-statistic, not by the
+///   event hits), so this is judged over 12 independent runs (seeds) by a t-statistic, not by the
 ///   per-bin errors of one run (bins of one run are correlated through shared paths).
+///
+/// The camera's acceptance is widened from the pupil's 10° to 30° (the spectrum's three parts do
+/// not depend on it; 9× the detected paths per traced one) and the image coarsened to 32² (the
+/// ROIs do not depend on it). Measured at 10° over 3 disjoint sets of 8 seeds, t was 3.7, 4.1 and
+/// 1.9: a single rare single-Doppler path can hold 13 % of a run's single-Doppler power in the
+/// tail, and 8 runs of the pupil's acceptance cannot resolve the excess at the 0.1 % level. At
+/// 30°, seeds 1–12 and 5–16 gave t = 7.1 and 8.2 (11 degrees of freedom).
 #[test]
 fn retina_roi_spectrum_has_dc_peak_single_shoulder_and_multiple_tail() {
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/retina_ldh.toml")).unwrap();
@@ -282,11 +289,13 @@ fn retina_roi_spectrum_has_dc_peak_single_shoulder_and_multiple_tail() {
     let mut tail_excess = Vec::new();
     let mut total = vec![0.0; bins];
     let mut static_power = 0.0;
-    for seed in 1..=8 {
+    for seed in 1..=12 {
         let seed = format!("run.seed={seed}");
         let sets = [
             "run.samples=500000",
             &seed,
+            "detectors.0.acceptance_half_angle_deg=30",
+            "detectors.0.image.pixels=[32, 32]",
             "source.position_mm=[0, 0.5, -1]",
             "source.radius_mm=0.6",
             "media.blood.motion={ }",
@@ -323,8 +332,8 @@ fn retina_roi_spectrum_has_dc_peak_single_shoulder_and_multiple_tail() {
         "tail share beyond f_max = {f_max:.0} Hz: multiple − single = {mean:.2e} ± {:.1e} (t = {t:.2})",
         sd / k.sqrt()
     );
-    // t with 7 degrees of freedom: 4.79 is the one-sided 0.1 % point.
-    assert!(t > 4.79, "multiple-scattering tail share excess {mean:e}, t = {t:.2}");
+    // t with 11 degrees of freedom: 4.02 is the one-sided 0.1 % point.
+    assert!(t > 4.02, "multiple-scattering tail share excess {mean:e}, t = {t:.2}");
 }
 
 /// The run's value and standard error of the declared output `name`, in tally order.
