@@ -574,6 +574,8 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
     // Images are read pixel by pixel: each main image's per-pixel relative errors.
     let (mean, stderr) = (output.estimates.mean(), output.estimates.stderr());
+    let speckle: std::collections::BTreeMap<usize, (f64, usize)> = exp.m0_speckle(&output.layout).collect();
+    let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}%", 100.0 * x));
     for o in output.layout.registry.outputs.iter().filter(|o| o.primary) {
         if let Some(pe) = o.pixel_errors(mean, &stderr) {
             let blank = if pe.without_signal > 0 {
@@ -589,11 +591,12 @@ fn report(exp: &Experiment, output: &RunOutput) {
             );
             // Split by the regions' footprints (`NAME_region_mask.npy`).
             let im = o.detector.and_then(|d| exp.detectors[d].surface()).and_then(|s| s.image());
-            if let Some(mask) = im.and_then(|im| ohd::detect::image::region_mask(&exp.scene, im)) {
+            let regions = im.and_then(|im| ohd::detect::image::region_mask(&exp.scene, im)).map(|mask| {
                 // An image's slots are contiguous, in the tally's order (as the mask's).
                 let slots = o.slots.start..o.slots.start + o.slots.len;
-                let r = ohd::output::RegionErrors::of(&mean[slots.clone()], &stderr[slots], &mask);
-                let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}%", 100.0 * x));
+                ohd::output::RegionErrors::of(&mean[slots.clone()], &stderr[slots], &mask)
+            });
+            if let Some(r) = &regions {
                 say!(
                     "    regions' footprints ({} px): median {}, rest {} (rest σ / region mean {}), top 1% of region pixels {} of their variance",
                     r.region_pixels,
@@ -601,6 +604,25 @@ fn report(exp: &Experiment, output: &RunOutput) {
                     pct(r.median_rest),
                     pct(r.rest_sigma_over_region_mean),
                     pct(r.region_top_percent_variance_share)
+                );
+            }
+            // An M0+ image against the camera's own noise: the speckle of how many windows.
+            if let Some(&(c, frames)) = speckle.get(&o.slots.start) {
+                let s = ohd::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref());
+                let k = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
+                let split = if regions.is_some() {
+                    format!(
+                        " (regions' footprints {}, rest {})",
+                        k(s.windows_at_region_median),
+                        k(s.windows_at_rest_median)
+                    )
+                } else {
+                    String::new()
+                };
+                say!(
+                    "    speckle of one {frames}-frame window {:.1}%: the median error is that of {} windows{split}",
+                    100.0 * c,
+                    k(s.windows_at_median)
                 );
             }
         }

@@ -140,6 +140,14 @@ pub struct OutputConvergence {
     pub stderr_fit: Option<(f64, f64, f64)>,
     /// The ladder's throughput, all rungs' paths over all their seconds.
     pub paths_per_second: f64,
+    /// An image's per-pixel errors, read pixel by pixel: per rung the median of its own
+    /// `σ/|value|` over the pixels, and over the regions' footprints (with a mask of them,
+    /// [`crate::output::RegionErrors`]); empty otherwise.
+    pub pixel_median: Vec<f64>,
+    pub region_median: Vec<f64>,
+    /// Their fits against the rung's paths, as [`stderr_fit`](Self::stderr_fit).
+    pub pixel_median_fit: Option<(f64, f64, f64)>,
+    pub region_median_fit: Option<(f64, f64, f64)>,
 }
 
 impl OutputConvergence {
@@ -317,6 +325,18 @@ pub fn study(
             fit: None,
             stderr_fit: None,
             paths_per_second: f64::NAN,
+            pixel_median: Vec::new(),
+            region_median: Vec::new(),
+            pixel_median_fit: None,
+            region_median_fit: None,
+        })
+        .collect();
+    // Each image's mask of the regions' footprints, in the tally's order.
+    let masks: Vec<Option<Vec<bool>>> = outputs
+        .iter()
+        .map(|o| {
+            let im = o.detector.and_then(|d| exp.detectors[d].surface()).and_then(|s| s.image())?;
+            (o.slots.len == im.nx * im.ny).then(|| crate::detect::image::region_mask(&exp.scene, im)).flatten()
         })
         .collect();
     for (k, &n) in samples.iter().enumerate() {
@@ -335,6 +355,15 @@ pub fn study(
             res.relative.push(res.output.to_relative(err, &r.values));
             res.relative_stderr.push(res.output.to_relative(s, &r.values));
             res.sigma_ratio.push(err / (s * s + ref_se * ref_se).sqrt());
+        }
+        for (res, mask) in results.iter_mut().zip(&masks) {
+            let Some(pe) = res.output.pixel_errors(out.estimates.mean(), &se) else { continue };
+            res.pixel_median.push(pe.median);
+            if let Some(mask) = mask {
+                let (v, e) = res.output.slice(out.estimates.mean(), &se);
+                let r = crate::output::RegionErrors::of(v, e, mask);
+                res.region_median.push(r.median_region.unwrap_or(f64::NAN));
+            }
         }
         log.line(&format!("rung {k}: {} paths in {:.3} s (seed {})", e.plan.samples(), out.wall_seconds, e.plan.seed));
         ladder.push(Rung { samples: e.plan.samples(), seconds: out.wall_seconds, seed: e.plan.seed });
@@ -356,6 +385,8 @@ pub fn study(
         let own = res.relative.iter().map(|e| (e * e - rel_ref * rel_ref).max(0.0).sqrt());
         res.fit = loglog_fit(&ladder, |r| r.seconds, own);
         res.stderr_fit = loglog_fit(&ladder, |r| r.samples as f64, res.relative_stderr.iter().copied());
+        res.pixel_median_fit = loglog_fit(&ladder, |r| r.samples as f64, res.pixel_median.iter().copied());
+        res.region_median_fit = loglog_fit(&ladder, |r| r.samples as f64, res.region_median.iter().copied());
         res.paths_per_second = rate;
         kept.push(res);
     }

@@ -479,6 +479,42 @@ impl RegionErrors {
     }
 }
 
+/// An M0+ image's Monte Carlo error on the scale of the instrument's own noise: one window of the
+/// LDH camera's set-up has the speckle contrast `c` over its band (a flat in-band spectrum,
+/// [`crate::spectrum::stft::Stft::flat_band_contrast`]), the mean of `k` windows `c/√k`, so a
+/// per-pixel relative error `σ` is the speckle noise of `k = (c/σ)²` windows. A simulated image is
+/// as good as a measured one of `k` windows when its error is at most half theirs
+/// (shared/reference/variance-reduction.md §2).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SpeckleScale {
+    /// `c`: `σ/M0` of one window over the band.
+    pub single_window_contrast: f64,
+    /// Frames per window.
+    pub window_frames: usize,
+    /// `(c/σ)²` at the image's median per-pixel relative error, and at the medians of the regions'
+    /// footprints and of the rest (with a mask of them).
+    pub windows_at_median: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub windows_at_region_median: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub windows_at_rest_median: Option<f64>,
+}
+
+impl SpeckleScale {
+    /// The scale of an image with one window's contrast `contrast` over `frames` frames, its
+    /// median per-pixel relative error `median` and, with a mask, its split `regions`.
+    pub fn new(contrast: f64, frames: usize, median: f64, regions: Option<&RegionErrors>) -> Self {
+        let windows = |sigma: Option<f64>| sigma.filter(|s| *s > 0.0 && s.is_finite()).map(|s| (contrast / s).powi(2));
+        SpeckleScale {
+            single_window_contrast: contrast,
+            window_frames: frames,
+            windows_at_median: windows(Some(median)),
+            windows_at_region_median: windows(regions.and_then(|r| r.median_region)),
+            windows_at_rest_median: windows(regions.and_then(|r| r.median_rest)),
+        }
+    }
+}
+
 impl PixelErrors {
     pub fn of(values: &[f64], stderr: &[f64]) -> Self {
         let map: Vec<f64> =

@@ -3,8 +3,8 @@
     python python/examples/default_figure.py [OUT_DIR]
 
 Runs the built-in default experiment (10⁶ paths, seed 1, as `ohd run`) and writes into OUT_DIR
-(default: the current directory) the two figures the README shows, default_spectrum.png and
-default_image.png — the run's own figures, the same bytes as media/readme/ — and the spectrum
+(default: the current directory) the two figures the README shows, default_m0_plus.png and
+default_spectrum.png — the run's own figures, the same bytes as media/readme/ — and the spectrum
 drawn again with matplotlib from the arrays, with its ±σ band (default_spectrum_matplotlib.png).
 """
 import sys
@@ -18,7 +18,7 @@ out = Path(sys.argv[1] if len(sys.argv) > 1 else ".")
 out.mkdir(parents=True, exist_ok=True)
 r = ohd.run()  # the default experiment, with a progress bar on a terminal
 (out / "default_spectrum.png").write_bytes(r.files["camera_spectrum.png"])
-(out / "default_image.png").write_bytes(r.files["camera_image.png"])
+(out / "default_m0_plus.png").write_bytes(r.files["camera_m0_plus.png"])
 
 import matplotlib  # noqa: E402
 
@@ -34,4 +34,4 @@ ax.fill_between(f, db(s.values - s.stderr), db(s.values + s.stderr), alpha=0.3)
 ax.set(xlabel="beat frequency (kHz)", ylabel=f"{s.units} (dB)", ylim=(db(s.values.max()) - 50, db(s.values.max()) + 3))
 ax.set_title(f"{r.manifest['name']}: diffuse reflectance {r.estimates['reflectance_diffuse'].value:.4f}")
 fig.savefig(out / "default_spectrum_matplotlib.png", dpi=120)
-print(f"wrote {out / 'default_spectrum.png'}, {out / 'default_image.png'}, {out / 'default_spectrum_matplotlib.png'}")
+print(f"wrote {out / 'default_m0_plus.png'}, {out / 'default_spectrum.png'}, {out / 'default_spectrum_matplotlib.png'}")

@@ -394,7 +394,7 @@ fn converge_reads_a_reference_run_directory() {
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("converge.json")).unwrap()).unwrap();
     assert!(j["reference_run"].is_null(), "{j}");
-    assert_eq!(j["main_output"], "camera.spectrum");
+    assert_eq!(j["main_output"], "camera.m0_plus");
     for name in ["camera.spectrum", "camera.image", "camera.detected_power", "reflectance_diffuse"] {
         assert_eq!(j["outputs"][name]["reference"], "directory", "{name}: {j}");
         assert_eq!(j["outputs"][name]["sigma_ratio"].as_array().map(Vec::len), Some(2), "{name}");

@@ -308,6 +308,16 @@ fn ldh_camera_files_and_orientation() {
     ] {
         assert!(files.contains(f), "{f} not written: {files:?}");
     }
+    // M0+'s errors on the scale of the camera's own speckle: one window's contrast over the band
+    // (64 Hann frames at 78 kHz, 2–30 kHz) and the windows whose mean has the median's noise.
+    let pe = &m["pixel_errors"]["camera.m0_plus"];
+    let c = pe["speckle"]["single_window_contrast"].as_f64().unwrap();
+    let stft = ohd::spectrum::stft::Stft::new(78e3, 64, ohd::spectrum::stft::Window::Hann).unwrap();
+    assert_eq!(Some(c), stft.flat_band_contrast((2e3, 30e3)));
+    assert_eq!(pe["speckle"]["window_frames"], 64);
+    let k = pe["speckle"]["windows_at_median"].as_f64().unwrap();
+    assert!((k - (c / pe["median"].as_f64().unwrap()).powi(2)).abs() <= 1e-12 * k, "{pe}");
+    assert!(m["pixel_errors"]["camera.m0_minus"].get("speckle").is_none());
     let checked = check_images(&dir, &files);
     for f in [
         "camera_image.npy",

@@ -72,9 +72,9 @@ def test_default_run_is_the_cli_run_byte_for_byte(cli, tmp_path):
     np.testing.assert_array_equal(s.axes["frequency_hz"], np.load(tmp_path / "cli" / "camera_frequency_hz.npy"))
     assert s.units == "fraction of emitted power per bin"
     img = r["camera_image"]
-    assert img.values.shape == (64, 64)
+    assert img.values.shape == (32, 32)
     assert img.axes["x_m"][0] < img.axes["x_m"][-1] and img.axes["y_m"][0] > img.axes["y_m"][-1]  # row 0 = top
-    assert abs(img.axes["x_m"][0] - (-0.0004 + 0.0004 / 64)) < 1e-15
+    assert abs(img.axes["x_m"][0] - (-0.0004 + 0.0004 / 32)) < 1e-15
     e = r.estimates["reflectance_diffuse"]
     m = json.loads((tmp_path / "cli" / "manifest.json").read_text())
     assert (e.value, e.stderr) == (m["estimates"]["reflectance_diffuse"]["value"], m["estimates"]["reflectance_diffuse"]["stderr"])
@@ -343,7 +343,7 @@ def test_example_redraws_the_readme_figures(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
     p = subprocess.run([sys.executable, str(script), str(tmp_path)], capture_output=True, text=True, env=env, timeout=600)
     assert p.returncode == 0, p.stderr
-    for name in ("default_spectrum.png", "default_image.png"):
+    for name in ("default_m0_plus.png", "default_spectrum.png"):
         assert (tmp_path / name).read_bytes() == (ROOT / "media" / "readme" / name).read_bytes(), name
     assert (tmp_path / "default_spectrum_matplotlib.png").stat().st_size > 10_000
 

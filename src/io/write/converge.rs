@@ -123,6 +123,17 @@ pub fn json(study: &Study, config_source: &str) -> Value {
                 "sigma_agrees": ratio >= SIGMA_RATIO_BAND.0 && ratio <= SIGMA_RATIO_BAND.1,
             }),
         );
+        if !o.pixel_median.is_empty() {
+            let entry = outputs.get_mut(&o.output.name).and_then(Value::as_object_mut).expect("just inserted");
+            let slope = |f: Option<(f64, f64, f64)>| num(f.map_or(f64::NAN, |f| f.0));
+            let list = |v: &[f64]| v.iter().map(|&x| num(x)).collect::<Vec<_>>();
+            entry.insert("pixel_median_relative_stderr".into(), json!(list(&o.pixel_median)));
+            entry.insert("pixel_median_slope".into(), slope(o.pixel_median_fit));
+            if !o.region_median.is_empty() {
+                entry.insert("region_median_relative_stderr".into(), json!(list(&o.region_median)));
+                entry.insert("region_median_slope".into(), slope(o.region_median_fit));
+            }
+        }
     }
     let skipped: serde_json::Map<String, Value> =
         study.skipped.iter().map(|(n, why)| (n.clone(), json!(why))).collect();
@@ -133,7 +144,7 @@ pub fn json(study: &Study, config_source: &str) -> Value {
         "rungs": study.rungs.iter().map(|r| json!({ "samples": r.samples, "seconds": r.seconds, "seed": r.seed })).collect::<Vec<_>>(),
         "reference_run": study.reference_run.as_ref().map_or(Value::Null, |r| json!({ "samples": r.samples, "seconds": r.seconds, "seed": r.seed })),
         "sigma_ratio_band": [SIGMA_RATIO_BAND.0, SIGMA_RATIO_BAND.1],
-        "notes": "error: |x − r| for scalars, ‖x − r‖₂/‖r‖₂ for spectra and images; stderr: the run's own σ in the same metric; sigma_ratio: error/√(σ² + σ_ref²) per rung; slope: least squares of ln(relative error) against ln(seconds) (−1/2 for Monte Carlo), the rung's error taken as √(error² − reference_error²) with a reference run; stderr_slope: the fit of the run's own relative σ against paths (not seconds); error_scale: √(mean over rungs of (error² − reference_error²)/σ²); seconds_to_*: from the largest rung along 1/√N (its σ times error_scale), at paths_per_second (a single rung's error is one noisy draw and its wall time is noisy; the slopes check the law)",
+        "notes": "error: |x − r| for scalars, ‖x − r‖₂/‖r‖₂ for spectra and images; stderr: the run's own σ in the same metric; sigma_ratio: error/√(σ² + σ_ref²) per rung; slope: least squares of ln(relative error) against ln(seconds) (−1/2 for Monte Carlo), the rung's error taken as √(error² − reference_error²) with a reference run; stderr_slope: the fit of the run's own relative σ against paths (not seconds); error_scale: √(mean over rungs of (error² − reference_error²)/σ²); seconds_to_*: from the largest rung along 1/√N (its σ times error_scale), at paths_per_second (a single rung's error is one noisy draw and its wall time is noisy; the slopes check the law); images also: pixel_median_relative_stderr, the median over pixels of the run's own σ/|value| per rung, and its slope against paths (−1/2 when every pixel converges as Monte Carlo), and region_median_* the same over the regions' footprints (the pixels whose vertical line meets a region)",
         "outputs": Value::Object(outputs),
         "skipped": Value::Object(skipped),
     })

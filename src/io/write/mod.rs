@@ -191,6 +191,9 @@ pub struct Writer<'a, 'p> {
     /// Each camera's mask of the regions' footprints, as written (row 0 = the largest `y`), and
     /// its file, by detector: its main images' errors are also given split by it.
     pub masks: BTreeMap<usize, (String, Vec<bool>)>,
+    /// The single-window speckle contrast and frames of the LDH cameras' M0+ images, by their first
+    /// tally slot ([`crate::experiment::Experiment::m0_speckle`]).
+    pub speckle: BTreeMap<usize, (f64, usize)>,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -206,6 +209,9 @@ pub struct PixelErrorEntry {
     /// has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub regions: Option<RegionEntry>,
+    /// An M0+ image's errors on the scale of the LDH camera's own speckle noise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub speckle: Option<crate::output::SpeckleScale>,
 }
 
 /// [`PixelErrorEntry::regions`]: the mask's file and the split.
@@ -226,6 +232,7 @@ impl<'a, 'p> Writer<'a, 'p> {
             written: BTreeSet::new(),
             pixel_errors: BTreeMap::new(),
             masks: BTreeMap::new(),
+            speckle: BTreeMap::new(),
             figures: true,
             table: BTreeMap::new(),
         }
@@ -315,12 +322,16 @@ impl<'a, 'p> Writer<'a, 'p> {
             mask_file: mask_file.clone(),
             errors: crate::output::RegionErrors::of(v, e, mask),
         });
+        let speckle = self.speckle.get(&o.slots.start).map(|&(c, frames)| {
+            crate::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref().map(|r| &r.errors))
+        });
         let entry = PixelErrorEntry {
             file,
             median: finite(pe.median),
             p90: finite(pe.p90),
             pixels_without_signal: pe.without_signal,
             regions,
+            speckle,
         };
         self.pixel_errors.insert(o.name.clone(), entry);
         Ok(())
