@@ -367,12 +367,9 @@ impl Experiment {
     /// contrast of one window of their set-up over their band and its frames
     /// ([`crate::output::SpeckleScale`]; M0−'s speckle is on the scale of M0+, not of itself).
     pub fn m0_speckle<'a>(&'a self, layout: &'a TallyLayout) -> impl Iterator<Item = (usize, (f64, usize))> + 'a {
-        self.detectors.iter().zip(&layout.detectors).flat_map(|(d, lay)| {
-            let m0_plus = d.ldh().zip(lay.ldh()).and_then(|(spec, ll)| {
-                let c = spec.stft.flat_band_contrast(spec.band)?;
-                Some((ll.m0_plus, (c, spec.stft.samples())))
-            });
-            m0_plus.into_iter()
+        self.detectors.iter().zip(&layout.detectors).filter_map(|(d, lay)| {
+            let (spec, ll) = d.ldh().zip(lay.ldh())?;
+            Some((ll.m0_plus, (spec.stft.flat_band_contrast(spec.band)?, spec.stft.samples())))
         })
     }
 
