@@ -590,11 +590,9 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 100.0 * pe.p90
             );
             // Split by the regions' footprints (`NAME_region_mask.npy`).
-            let im = o.detector.and_then(|d| exp.detectors[d].surface()).and_then(|s| s.image());
-            let regions = im.and_then(|im| ohd::detect::image::region_mask(&exp.scene, im)).map(|mask| {
-                // An image's slots are contiguous, in the tally's order (as the mask's).
-                let slots = o.slots.start..o.slots.start + o.slots.len;
-                ohd::output::RegionErrors::of(&mean[slots.clone()], &stderr[slots], &mask)
+            let regions = exp.region_mask_of(o).map(|mask| {
+                let (v, e) = o.slice(mean, &stderr);
+                ohd::output::RegionErrors::of(v, e, &mask)
             });
             if let Some(r) = &regions {
                 say!(

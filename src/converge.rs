@@ -332,13 +332,7 @@ pub fn study(
         })
         .collect();
     // Each image's mask of the regions' footprints, in the tally's order.
-    let masks: Vec<Option<Vec<bool>>> = outputs
-        .iter()
-        .map(|o| {
-            let im = o.detector.and_then(|d| exp.detectors[d].surface()).and_then(|s| s.image())?;
-            (o.slots.len == im.nx * im.ny).then(|| crate::detect::image::region_mask(&exp.scene, im)).flatten()
-        })
-        .collect();
+    let masks: Vec<Option<Vec<bool>>> = outputs.iter().map(|o| exp.region_mask_of(o)).collect();
     for (k, &n) in samples.iter().enumerate() {
         let mut e = exp.clone();
         e.plan.seed = exp.plan.seed.wrapping_add(1 + k as u64);

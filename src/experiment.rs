@@ -373,6 +373,14 @@ impl Experiment {
         })
     }
 
+    /// The mask of the regions' footprints over the pixels of the image-shaped output `o` of a
+    /// camera, in the tally's order ([`crate::detect::image::region_mask`]); `None` for other
+    /// outputs and where no region is seen.
+    pub fn region_mask_of(&self, o: &Output) -> Option<Vec<bool>> {
+        let im = o.detector.and_then(|d| self.detectors[d].surface()).and_then(|s| s.image())?;
+        (o.slots.len == im.nx * im.ny).then(|| crate::detect::image::region_mask(&self.scene, im)).flatten()
+    }
+
     /// Every named output of this experiment ([`crate::output::Registry::named`]): the five
     /// scalar tallies, then per detector its power, its total spectrum (per chirp), image, LDH
     /// M0± images and lidar range–Doppler spectra.
