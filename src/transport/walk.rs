@@ -423,6 +423,7 @@ pub fn trace_path<
     let mut local = rng.clone();
     let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(
         ctx,
+        0,
         &mut s,
         &mut local,
         &mut absorbed,
@@ -545,6 +546,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     let (mut absorbed, mut null_collisions) = (0.0, 0);
     let end = walk::<DOPPLER, LENGTH, false, true, false, false, false>(
         &ctx,
+        0,
         &mut s,
         &mut local,
         &mut absorbed,
@@ -558,7 +560,8 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     }
 }
 
-/// The random walk of `s` from the top surface until it ends; the weight deposited by
+/// The random walk of `s` from the top surface (`start = 0`), or from inside layer `start` (a
+/// layered twin parting from its path there), until it ends; the weight deposited by
 /// absorption is added to `absorbed`. A camera path (`CAMERA`) connects to the laser at every
 /// real collision and carries radiance across interfaces (see [`super::camera`]).
 ///
@@ -589,6 +592,7 @@ fn walk<
     const LATERAL: bool,
 >(
     ctx: &WalkContext,
+    start: usize,
     s: &mut PathState,
     rng: &mut PathRng,
     absorbed: &mut f64,
@@ -601,7 +605,7 @@ fn walk<
         Some(b) if LATERAL => b,
         _ => crate::medium::Lateral { x: (0.0, 0.0), y: (0.0, 0.0), n_outside: 1.0 },
     };
-    let mut li = 0usize;
+    let mut li = start;
     let (mut reflected_at, mut reflections) = (u32::MAX, 0u32);
     // The next event count at which `collide` looks at the event cap and renormalises.
     let mut checkpoint = RENORMALISE_EVERY.min(settings.max_events);
@@ -951,16 +955,18 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
-    // The coupled twin's particles here (drawn by the fill's shares), their velocity, and its
-    // collision and weight after it over the path's: `σt,fill·a_fill / (σt·a·σs,pop/σs) =
-    // σs,fill/σs,pop` (the flight's share is in from the flight).
+    // The coupled twin's particles here (drawn by the fill's shares, on its own: no ratio), their
+    // velocity, and its collision and weight after it over the path's: `σt,fill·a_fill / (σt·a)
+    // = σs,fill/σs` (the flight's share is in from the flight). Not over the population's σs:
+    // the path's draw of its particles is no part of the twin's density (measured: a vessel of
+    // two populations, 14 and 6 /mm, gave an image 19 % low, χ² 57 over 16 pixels).
     let coupled = (in_region && rec.twin.is_some()).then(|| {
         let (tpop, tdyn) = fill.pick_dynamic(rng);
         let tdyn = DOPPLER && tdyn;
         (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
     });
     if let (Some(tw), true) = (rec.twin.as_mut(), coupled.is_some()) {
-        tw.lambda *= fill.sigma_s() / pop.sigma_s;
+        tw.lambda *= fill.sigma_s() / m.sigma_s();
         tw.touched = true;
     }
     // (Without next-event targets this walk runs for the layered twin alone: no roulette draw, no
@@ -1080,6 +1086,7 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
         Some(end) => end,
         None => walk::<DOPPLER, LENGTH, true, false, false, GATE, false>(
             &ctx,
+            li,
             &mut s,
             &mut rng,
             &mut absorbed,
