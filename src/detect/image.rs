@@ -68,9 +68,12 @@ impl ImageSpec {
 }
 
 /// The pixels of `im` (row-major, row 0 at the lowest `y`) whose centre's vertical line meets a
-/// region of `scene` within its layer: the regions' footprints as the camera sees them from
-/// straight above. `None` without regions or if no pixel is in the mask.
+/// region of `scene` within its layer, and in a region of a density field meets some density
+/// (by the field's majorant segments: within one majorant cell of it): the regions' footprints
+/// as the camera sees them from straight above (a grid's vessels, not its box). `None` without
+/// regions or if no pixel is in the mask.
 pub fn region_mask(scene: &crate::medium::Scene, im: &ImageSpec) -> Option<Vec<bool>> {
+    use crate::medium::density::{Density, Field};
     let (hx, hy) = ((im.max[0] - im.min[0]) / im.nx as f64, (im.max[1] - im.min[1]) / im.ny as f64);
     let mask: Vec<bool> = (0..im.ny)
         .flat_map(|j| (0..im.nx).map(move |i| (i, j)))
@@ -78,9 +81,16 @@ pub fn region_mask(scene: &crate::medium::Scene, im: &ImageSpec) -> Option<Vec<b
             let (x, y) = (im.min[0] + (i as f64 + 0.5) * hx, im.min[1] + (j as f64 + 0.5) * hy);
             scene.regions.iter().any(|r| {
                 let l = &scene.layers[r.layer];
-                r.shape
-                    .intersect(glam::DVec3::new(x, y, l.z_top), glam::DVec3::Z)
-                    .is_some_and(|(a, b)| b > a.max(0.0) && a < l.z_bottom - l.z_top)
+                let top = glam::DVec3::new(x, y, l.z_top);
+                r.shape.intersect(top, glam::DVec3::Z).is_some_and(|(a, b)| {
+                    let (a, b) = (a.max(0.0), b.min(l.z_bottom - l.z_top));
+                    b > a
+                        && match scene.media[r.medium].density() {
+                            None => true,
+                            Some(Density::Ramp(f)) => f.segments(top, glam::DVec3::Z, a, b).any(|s| s.max > 0.0),
+                            Some(Density::Grid(f)) => f.segments(top, glam::DVec3::Z, a, b).any(|s| s.max > 0.0),
+                        }
+                })
             })
         })
         .collect();

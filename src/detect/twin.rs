@@ -112,6 +112,9 @@ pub struct Split {
     pub li: usize,
     pub twin: TwinPath,
     pub rng: PathRng,
+    /// Parted in a flight through a density region where the path collided and the twin did not
+    /// (`transport::tracking::coupled_flight`): the twin flies on from `s` (else it collides there).
+    pub flying: bool,
 }
 
 /// Where a camera's twin kernels lie and how they become its images: the offset grid, the

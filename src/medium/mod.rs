@@ -352,6 +352,11 @@ impl Medium {
         }
     }
 
+    /// Whether the medium's albedo is a field of its own (an albedo grid).
+    pub fn has_albedo_field(&self) -> bool {
+        matches!(self.heterogeneity.as_deref(), Some(Heterogeneity { albedo: Some(_), .. }))
+    }
+
     /// σt at `p`, m⁻¹.
     pub fn sigma_t_at(&self, p: DVec3) -> f64 {
         self.density().map_or(self.sigma_t, |d| self.sigma_t * d.at(p))

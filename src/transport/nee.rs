@@ -103,6 +103,9 @@ pub struct ShadowHit {
     /// `factor` per unit phase-function density, without the optical depth: the layered twin's
     /// factor is [`ShadowHit::twin_factor`].
     unit: f64,
+    /// `unit` of the twin: its interfaces' transmittances and, through a layer with density
+    /// regions, its filling medium's transmittance (ratio tracking's estimate is the path's).
+    twin_unit: f64,
     tau: f64,
 }
 
@@ -112,7 +115,13 @@ impl ShadowHit {
     /// importance weight (the twin's escapes keep the path's too).
     #[inline]
     pub fn twin_factor(&self, p: f64) -> f64 {
-        p * self.unit * (self.excess - self.tau).exp()
+        p * self.twin_unit * (self.excess - self.tau).exp()
+    }
+
+    /// Whether the layered twin's way up is the path's (no region's optical depth on it).
+    #[inline]
+    pub fn twin_is_path(&self) -> bool {
+        self.excess == 0.0 && self.twin_unit == self.unit
     }
 }
 
@@ -153,11 +162,13 @@ pub fn receiver_ray(
     }
     // Straight up through the layers to z = 0 (every index 1: no refraction, no reflection),
     // then the (clear) ambient medium to the aperture.
-    let Crossing { tau, transmit, excess, .. } = trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
+    let Crossing { tau, transmit, excess, twin_transmit, .. } =
+        trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
     let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * transmit * (-tau).exp();
     let unit = area * cos_r / r2 * transmit;
-    Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r, excess, unit, tau })
+    let twin_unit = area * cos_r / r2 * twin_transmit;
+    Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r, excess, unit, twin_unit, tau })
 }
 
 /// Optical depth of the segment `p + s·d`, `0 ≤ s ≤ t`, inside `layer`: its filling medium plus
@@ -205,7 +216,7 @@ pub fn cone_direction(axis: DVec3, basis: (DVec3, DVec3), cos_acceptance: f64, u
 
 /// What a straight way up to the surface went through ([`trace_up`]): where it ended, the optical
 /// depth of its analytic segments, the product of its Fresnel transmittances (and ratio-tracking
-/// factors) and its optical path length.
+/// factors) and its optical path length; and the layered twin's transmittances.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Crossing {
     pub pos: DVec3,
@@ -214,11 +225,15 @@ pub struct Crossing {
     pub length: f64,
     /// The part of `tau` its regions add over their layers' filling media.
     pub excess: f64,
+    /// `transmit` of the layered twin: through a layer with density regions, instead of ratio
+    /// tracking's estimate, the exact transmittance of its (homogeneous) filling medium.
+    pub twin_transmit: f64,
 }
 
 impl Crossing {
     /// Nothing crossed yet (`pos` is set by [`trace_up`]).
-    pub const START: Crossing = Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0, excess: 0.0 };
+    pub const START: Crossing =
+        Crossing { pos: DVec3::ZERO, tau: 0.0, transmit: 1.0, length: 0.0, excess: 0.0, twin_transmit: 1.0 };
 
     /// Cross the segment `pos + s·d`, `0 ≤ s ≤ t`, inside `layer`: its optical depth (ratio
     /// tracking in a density layer, a factor of `transmit`) and optical length; `pos` moves to its
@@ -227,6 +242,9 @@ impl Crossing {
     pub(super) fn segment(&mut self, scene: &Scene, layer: &crate::medium::Layer, d: DVec3, t: f64, rng: &mut PathRng) {
         if layer.heterogeneous {
             self.transmit *= ratio_transmittance(scene, layer, self.pos, d, t, rng);
+            // Equal to the path's where the ray meets no region (ratio tracking is exact over
+            // a homogeneous span): the twin is then the path.
+            self.twin_transmit *= (-(scene.media[layer.medium].sigma_t() * t)).exp();
         } else {
             let (tau, excess) = segment_optical_depth(scene, layer, self.pos, d, t);
             self.tau += tau;
@@ -262,6 +280,7 @@ pub(super) fn trace_up(
         let n_next = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
         let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
         c.transmit *= 1.0 - r;
+        c.twin_transmit *= 1.0 - r;
     }
     Some(c)
 }
@@ -292,7 +311,9 @@ pub(super) fn reflections_below(
         let Some(d) = down(layer.n) else { return };
         if surface || j > 0 {
             let n_above = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
-            way.transmit *= 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
+            let t_top = 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
+            way.transmit *= t_top;
+            way.twin_transmit *= t_top;
         }
         way.segment(scene, layer, d, (layer.z_bottom - way.pos.z) / d.z, rng);
         way.pos.z = layer.z_bottom;
@@ -301,7 +322,7 @@ pub(super) fn reflections_below(
         if r <= 0.0 || way.transmit <= 0.0 {
             continue;
         }
-        let acc = Crossing { transmit: way.transmit * r, ..way };
+        let acc = Crossing { transmit: way.transmit * r, twin_transmit: way.twin_transmit * r, ..way };
         let Some(first) = up(layer.n) else { return };
         let Some(c) = trace_up(scene, j, way.pos, first, &up, acc, rng) else { return };
         each(c);
@@ -339,8 +360,11 @@ pub fn shadow_ray(
     };
     let n_k = scene.layers[li].n;
     let dir_vertex = direction_in(n_k)?;
-    let Crossing { pos: p, tau, transmit, length, excess } =
+    let Crossing { pos: p, tau, transmit, length, excess, twin_transmit } =
         trace_up(scene, li, pos, dir_vertex, direction_in, Crossing::START, rng)?;
+    // (Ratio tracking's estimate is 0 only where a density equals its segment's majorant at a
+    // point drawn at random, inside a segment where it does not everywhere: never, in practice.
+    // The twin's way would be open there.)
     if transmit <= 0.0 {
         return None;
     }
@@ -353,5 +377,6 @@ pub fn shadow_ray(
     let pe = phase.eval(dir_in.dot(dir_vertex)) * etendue;
     let factor = pe / (pe + 1.0 / target.solid_angle()) * transmit * (-tau).exp();
     let unit = etendue / (pe + 1.0 / target.solid_angle()) * transmit;
-    Some(ShadowHit { pos: p, dir, dir_vertex, factor, length, excess, unit, tau })
+    let twin_unit = etendue / (pe + 1.0 / target.solid_angle()) * twin_transmit;
+    Some(ShadowHit { pos: p, dir, dir_vertex, factor, length, excess, unit, twin_unit, tau })
 }

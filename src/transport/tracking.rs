@@ -384,6 +384,126 @@ fn delta_field<F: Field>(
     None
 }
 
+/// Where a forward path's layered twin parted from it along a [`coupled_flight`]: at distance
+/// `t`, colliding there (`collides`, the path flew on) or flying on (the path collided), with the
+/// generator as it was there (the twin walks on with it: common random numbers).
+#[derive(Clone)]
+pub struct Parting {
+    pub t: f64,
+    pub collides: bool,
+    pub rng: PathRng,
+}
+
+/// The free flight of a forward path and of its layered twin together through a layer whose
+/// regions may hold density fields (the twin's scene has the layer's filling medium, of σt
+/// `fill`, in their place; a filling medium of its own density is refused with the control
+/// variate). Both are delta-tracked on one Poisson process of tentative collisions, at each
+/// region segment's majorant raised to at least `fill`, and one uniform `u` decides each
+/// tentative collision for both: real for the path if `u·σ̄ < σt(x)`, for the twin if
+/// `u·σ̄ < fill`. Each is thus its own scene's exact flight, with no likelihood ratio; they
+/// share the flight while they agree (a collision of both is the coupled collision of
+/// `collide_nee`), and part at the first tentative collision where they do not ([`Parting`]):
+/// from there the path flies on alone. Outside the regions they agree by construction.
+/// (A likelihood ratio over the null collisions, `(1 − fill/σ̄)/(1 − σt(x)/σ̄)`, instead has no
+/// bound where the grid's majorant is tight, and none at all for a clear filling medium, whose
+/// twin never collides: `vessels_ldh`.)
+#[inline(never)]
+pub fn coupled_flight(
+    ray: &LayerRay,
+    t_boundary: f64,
+    fill: f64,
+    rng: &mut PathRng,
+    null_collisions: &mut u64,
+) -> (Flight, Option<Parting>) {
+    let mut st = CoupledState { tau: rng.exponential(), rng: rng.clone(), nulls: 0, fill, parting: None };
+    let hit = for_each_span(ray.scene, ray.layer, ray.pos, ray.dir, t_boundary, |a, b, medium| {
+        let m = &ray.scene.media[medium];
+        let region = medium != ray.layer.medium;
+        let sigma_t = m.sigma_t();
+        let hit = match m.density() {
+            None => st.segment(sigma_t, a, b, region, |_| sigma_t),
+            Some(Density::Ramp(f)) => coupled_field(f, sigma_t, ray, (a, b), region, &mut st),
+            Some(Density::Grid(f)) => coupled_field(f, sigma_t, ray, (a, b), region, &mut st),
+        };
+        match hit {
+            Some(t) => ControlFlow::Break(Flight::Collision { t, medium }),
+            None => ControlFlow::Continue(()),
+        }
+    });
+    *null_collisions += st.nulls;
+    *rng = st.rng;
+    (hit.unwrap_or(Flight::Boundary { t: t_boundary }), st.parting)
+}
+
+/// [`DeltaState`] of a [`coupled_flight`]: the twin's σt and where it parted.
+struct CoupledState {
+    tau: f64,
+    rng: PathRng,
+    nulls: u64,
+    fill: f64,
+    parting: Option<Parting>,
+}
+
+impl CoupledState {
+    /// Delta tracking on `[t0, t1)` at the majorant `majorant` (raised to the twin's σt in a
+    /// region while the twin is coupled), σt at distance `t` being `sigma(t)`. `Some` distance of
+    /// the path's real collision, else the optical depth left is in `self.tau`.
+    #[inline(always)]
+    fn segment(
+        &mut self,
+        majorant: f64,
+        mut t0: f64,
+        t1: f64,
+        region: bool,
+        sigma: impl Fn(f64) -> f64,
+    ) -> Option<f64> {
+        let coupled = region && self.parting.is_none();
+        let majorant = if coupled { majorant.max(self.fill) } else { majorant };
+        if majorant <= 0.0 {
+            return None;
+        }
+        loop {
+            let depth = majorant * (t1 - t0);
+            if self.tau >= depth {
+                self.tau -= depth;
+                return None;
+            }
+            let t = t0 + self.tau / majorant;
+            let u = self.rng.uniform() * majorant;
+            let real = u < sigma(t);
+            if coupled && self.parting.is_none() && real != (u < self.fill) {
+                self.parting = Some(Parting { t, collides: !real, rng: self.rng.clone() });
+            }
+            if real {
+                return Some(t);
+            }
+            self.nulls += 1;
+            t0 = t;
+            self.tau = self.rng.exponential();
+        }
+    }
+}
+
+/// [`CoupledState::segment`] over the majorant segments of a density field `f` scaling σt on the
+/// span `[a, b)` of `ray`.
+#[inline(always)]
+fn coupled_field<F: Field>(
+    f: &F,
+    sigma_t: f64,
+    ray: &LayerRay,
+    (a, b): (f64, f64),
+    region: bool,
+    st: &mut CoupledState,
+) -> Option<f64> {
+    let (pos, dir) = (ray.pos, ray.dir);
+    for seg in f.segments(pos, dir, a, b) {
+        if let Some(t) = st.segment(seg.max * sigma_t, seg.t0, seg.t1, region, |t| sigma_t * f.density(pos + t * dir)) {
+            return Some(t);
+        }
+    }
+    None
+}
+
 /// Transmittance of the straight segment `pos + s·dir`, `0 ≤ s ≤ t`, through `layer`: exact
 /// `exp(−σt·ℓ)` over homogeneous spans, residual ratio tracking (Novák et al. 2014) over density
 /// spans, with the segment bounds `[σc, σ̄]` of the majorant segments: `exp(−σc·ℓ)` analytically

@@ -98,7 +98,8 @@ pub const MAX_TWIN_OFFSETS: usize = 1 << 24;
 /// Why the layered control variate cannot cover this scene, source and detectors (`None`: it
 /// can). It needs a camera to cover (a forward-estimated top detector whose image spans its
 /// rectangular area), a twin that is laterally invariant (infinite layers of homogeneous media:
-/// no box phantom, no density field), a beam whose entry points have its profile's density
+/// no box phantom, no density field filling a layer; regions may hold one, without an albedo
+/// grid), a beam whose entry points have its profile's density
 /// (normal incidence, no divergence), and every path of the twin among the path's possible ones:
 /// a region's medium scatters wherever its layer's does.
 pub fn control_variate_obstacle(
@@ -115,8 +116,14 @@ pub fn control_variate_obstacle(
     if scene.lateral.is_some() {
         return Some("the layers end at the box's side faces ([lateral]): the twin is not laterally invariant".into());
     }
-    if let Some(l) = scene.layers.iter().find(|l| l.heterogeneous) {
-        return Some(format!("layer `{}` has a density field: its twin is not laterally invariant", l.name));
+    if let Some(l) = scene.layers.iter().find(|l| scene.media[l.medium].density().is_some()) {
+        return Some(format!("layer `{}`'s medium has a density field: its twin is not laterally invariant", l.name));
+    }
+    if let Some(r) = scene.regions.iter().find(|r| scene.media[r.medium].has_albedo_field()) {
+        return Some(format!(
+            "region `{}`'s medium has an albedo grid: its collisions cannot be coupled to its twin's",
+            r.name
+        ));
     }
     let Some(fp) = source.footprint() else {
         return Some("the beam is tilted or diverges: its footprint on the surface is not its profile".into());
@@ -496,10 +503,10 @@ fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const GATE: bool
         let weight = s.weight * c.transmit * (-c.tau).exp();
         // The twin's way down and up meets no region: without their excess optical depth.
         let twin = match rec.twin {
-            Some(_) if NEE && c.excess != 0.0 => Twin::Other(PathState::new(
+            Some(_) if NEE && (c.excess != 0.0 || c.twin_transmit != c.transmit) => Twin::Other(PathState::new(
                 c.pos,
                 DVec3::new(b.x, b.y, -b.z),
-                s.weight * c.transmit * (c.excess - c.tau).exp(),
+                s.weight * c.twin_transmit * (c.excess - c.tau).exp(),
                 l,
             )),
             Some(_) if NEE => Twin::Same,
@@ -647,11 +654,33 @@ fn walk<
                 // Distance along z to the boundary plane ahead (either one for a horizontal ray).
                 let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
                 let ray = LayerRay { scene, layer, pos: s.pos, dir: s.dir };
+                // A layer with density regions flies the path and its coupled layered twin
+                // together (`coupled_flight`), the others weight the twin by its flights'
+                // transmittance over the path's.
+                let coupled = NEE && layer.heterogeneous && rec.twin.is_some_and(|t| !t.only);
                 let flight = if LATERAL {
                     // The nearer of the plane ahead and the side face ahead (`min` takes the face
                     // for a horizontal ray, whose distance to the plane is ∞ or NaN).
                     let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs());
                     free_flight_to(ray, t_end, settings.tracking, rng, null_collisions)
+                } else if coupled {
+                    let t_end = dz / s.dir.z.abs();
+                    let (flight, parting) =
+                        super::tracking::coupled_flight(&ray, t_end, fill.sigma_t(), rng, null_collisions);
+                    match parting {
+                        Some(p) => part_in_flight::<LENGTH>(s, li, n, p, rec),
+                        // A collision of both in a region: the coupled collision of `collide_nee`,
+                        // whose `σs,fill/σs` holds the collision densities' ratio that this flight
+                        // has not weighted: `σt/σt,fill` takes it back out.
+                        None => {
+                            if let (Flight::Collision { medium, .. }, Some(tw)) = (flight, rec.twin.as_mut())
+                                && medium != layer.medium
+                            {
+                                tw.lambda *= scene.media[medium].sigma_t() / fill.sigma_t();
+                            }
+                        }
+                    }
+                    flight
                 } else {
                     free_flight(ray, dz, s.dir.z.abs(), settings.tracking, rng, null_collisions)
                 };
@@ -659,6 +688,7 @@ fn walk<
                     Flight::Collision { t, .. } | Flight::Boundary { t } => t,
                 };
                 if NEE
+                    && !coupled
                     && !layer.regions.is_empty()
                     && let Some(tw) = rec.twin.as_mut()
                 {
@@ -944,7 +974,8 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         && !(1.0 / TWIN_BAND..=TWIN_BAND).contains(&tw.lambda)
     {
         let weight = s.weight * fill.sigma_t() / m.sigma_t();
-        rec.split = Some(Split { s: tw.state(&PathState { weight, ..*s }), li, twin: tw, rng: rng.clone() });
+        rec.split =
+            Some(Split { s: tw.state(&PathState { weight, ..*s }), li, twin: tw, rng: rng.clone(), flying: false });
         rec.twin = None;
     }
     if absorb(s, albedo, absorbed) {
@@ -996,7 +1027,7 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         let twin = match rec.twin {
             None => Twin::Off,
             Some(tw) if tw.only => Twin::Only,
-            Some(tw) if !tw.touched && coupled.is_none() && h.excess == 0.0 => Twin::Same,
+            Some(tw) if !tw.touched && coupled.is_none() && h.twin_is_path() => Twin::Same,
             Some(tw) => {
                 let mut t = tw.state(&e);
                 let p = coupled.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
@@ -1049,8 +1080,28 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
 /// median 0.44 against 0.11), a band of 2 kept half of it (0.18); at 8 no path parted.
 pub const TWIN_BAND: f64 = 8.0;
 
+/// Where a [`coupled_flight`](super::tracking::coupled_flight) of the path `s` in layer `li` (of
+/// index `n`) parted it from its twin: the twin walks on from there once the path has ended
+/// ([`Split`]), colliding there or flying on, with the path's weight and Doppler state under
+/// `Λ` and the generator as it was there.
+#[cold]
+#[inline(never)]
+fn part_in_flight<const LENGTH: bool>(
+    s: &PathState,
+    li: usize,
+    n: f64,
+    p: super::tracking::Parting,
+    rec: &mut Recorder,
+) {
+    let Some(tw) = rec.twin.take() else { return };
+    let at = PathState { pos: s.pos + p.t * s.dir, l: if LENGTH { s.l + n * p.t } else { 0.0 }, ..*s };
+    rec.split =
+        Some(Split { s: tw.state(&at), li, twin: TwinPath { touched: true, ..tw }, rng: p.rng, flying: !p.collides });
+}
+
 /// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene
-/// (`ctx.twin_scene`: the regions removed): its collision there, then its walk, every
+/// (`ctx.twin_scene`: the regions removed): its collision there (or, parted in flight, its
+/// flight on from there), then its walk, every
 /// contribution scored as the twin's alone ([`Twin::Only`]); nothing of it reaches the scalar
 /// tallies or the volume tally.
 #[cold]
@@ -1062,26 +1113,30 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
 ) {
     let Some(scene) = ctx.twin_scene else { return };
     let ctx = WalkContext { scene, volume: None, reflections: false, ..*ctx };
-    let Split { mut s, li, twin, mut rng } = split;
+    let Split { mut s, li, twin, mut rng, flying } = split;
     rec.twin = Some(TwinPath { only: true, ..twin });
     let layer = &scene.layers[li];
     let fill = &scene.media[layer.medium];
     let (mut absorbed, mut nulls) = (0.0, 0);
     let mut checkpoint = s.order.saturating_add(RENORMALISE_EVERY).min(ctx.settings.max_events);
-    let first = collide_nee::<DOPPLER, LENGTH>(
-        scene,
-        ctx.nee,
-        li,
-        &mut s,
-        fill,
-        fill.albedo(),
-        layer.n,
-        ctx.settings,
-        &mut rng,
-        &mut absorbed,
-        &mut checkpoint,
-        rec,
-    );
+    let first = if flying {
+        None
+    } else {
+        collide_nee::<DOPPLER, LENGTH>(
+            scene,
+            ctx.nee,
+            li,
+            &mut s,
+            fill,
+            fill.albedo(),
+            layer.n,
+            ctx.settings,
+            &mut rng,
+            &mut absorbed,
+            &mut checkpoint,
+            rec,
+        )
+    };
     let end = match first {
         Some(end) => end,
         None => walk::<DOPPLER, LENGTH, true, false, false, GATE, false>(
