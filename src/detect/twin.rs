@@ -10,7 +10,10 @@
 //! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
 //! `Λ` leaves a band and the twin parts from the path to walk on by itself,
 //! [`Split`]), and `f_twin` what the twin scores (its phase function and Doppler
-//! shift, shadow rays without the regions' optical depth; after parting, its own walk's). The
+//! shift, shadow rays without the regions' optical depth; after parting, its own walk's).
+//! Through a region of a density field (a ramp, a VDB grid) the twin is not weighted but
+//! delta-tracked with its path, one uniform deciding each tentative collision for both, and parts
+//! from it where they disagree (`transport::tracking::coupled_flight`). The
 //! image is then
 //!
 //! `I(p) = Σ_j m_j·K(p − j) + (1/N)·Σ_paths [f(p) − Λ·f_twin(p)]`,
