@@ -141,18 +141,23 @@ fn the_control_variate_equals_the_plain_estimate_below_a_first_layer_on_two_popu
             1,
         )
     };
-    let plain = run(&below("off"), &[]);
-    let cv = run(&below("layered"), &[]);
+    let (plain, cv) = (run(&below("off"), &[]), run(&below("layered"), &[]));
     assert!(cv.exp.scene.regions[0].layer == 1, "the vessel is in the second layer");
+    assert_equal_on_4x4("below a first layer", &plain, &cv);
+}
+
+/// The 4 × 4 images (intensity, M0±) of `plain` and `cv` equal within σ (χ²), and their ROI M0+
+/// within 4σ.
+fn assert_equal_on_4x4(what: &str, plain: &Run, cv: &Run) {
     for name in ["camera.image", "camera.m0_plus", "camera.m0_minus"] {
-        let (a, b) = (image(&plain, name), image(&cv, name));
+        let (a, b) = (image(plain, name), image(cv, name));
         let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-        assert!(dof == 16 && p > 1e-4, "{name}: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
+        assert!(dof == 16 && p > 1e-4, "{what}, {name}: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
     }
-    let ((a, sa), _) = roi_m0(&plain, 0, 0);
-    let ((b, sb), _) = roi_m0(&cv, 0, 0);
+    let ((a, sa), _) = roi_m0(plain, 0, 0);
+    let ((b, sb), _) = roi_m0(cv, 0, 0);
     let z = (a - b) / sa.hypot(sb);
-    assert!(z.abs() < 4.0, "ROI M0+ {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
+    assert!(z.abs() < 4.0, "{what}: ROI M0+ {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
 }
 
 /// The same equality with a density field in the vessel (a ramp along it, 0.2 to 1.5 of the
@@ -171,18 +176,9 @@ fn the_control_variate_equals_the_plain_estimate_through_a_density_region() {
                 1,
             )
         };
-        let plain = run(&scene("off"), &[]);
-        let cv = run(&scene("layered"), &[]);
+        let (plain, cv) = (run(&scene("off"), &[]), run(&scene("layered"), &[]));
         assert!(cv.out.layout.detectors[0].twin.is_some() && cv.exp.scene.layers[0].heterogeneous);
-        for name in ["camera.image", "camera.m0_plus", "camera.m0_minus"] {
-            let (a, b) = (image(&plain, name), image(&cv, name));
-            let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-            assert!(dof == 16 && p > 1e-4, "{fill}, {name}: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
-        }
-        let ((a, sa), _) = roi_m0(&plain, 0, 0);
-        let ((b, sb), _) = roi_m0(&cv, 0, 0);
-        let z = (a - b) / sa.hypot(sb);
-        assert!(z.abs() < 4.0, "{fill}: ROI M0+ {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
+        assert_equal_on_4x4(fill, &plain, &cv);
     }
 }
 
