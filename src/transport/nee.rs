@@ -241,10 +241,13 @@ impl Crossing {
     #[inline(always)]
     pub(super) fn segment(&mut self, scene: &Scene, layer: &crate::medium::Layer, d: DVec3, t: f64, rng: &mut PathRng) {
         if layer.heterogeneous {
-            self.transmit *= ratio_transmittance(scene, layer, self.pos, d, t, rng);
-            // Equal to the path's where the ray meets no region (ratio tracking is exact over
-            // a homogeneous span): the twin is then the path.
-            self.twin_transmit *= (-(scene.media[layer.medium].sigma_t() * t)).exp();
+            let r = ratio_transmittance(scene, layer, self.pos, d, t, rng);
+            self.transmit *= r;
+            // The twin's filling medium: equal to the path's where the ray meets no region (ratio
+            // tracking is exact over a homogeneous span), the twin is then the path. (A layer
+            // without regions is a density medium of its own, which has no twin: no `exp`.)
+            self.twin_transmit *=
+                if layer.regions.is_empty() { r } else { (-(scene.media[layer.medium].sigma_t() * t)).exp() };
         } else {
             let (tau, excess) = segment_optical_depth(scene, layer, self.pos, d, t);
             self.tau += tau;
