@@ -559,6 +559,21 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 
 /// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
 /// written run, on stderr.
+/// The terminal's line of a tail check: the slope of the largest path scores and what MCNP reads
+/// into it.
+fn tail_line(t: &ohd::stats::TailCheck) -> String {
+    match t.slope {
+        Some(s) => {
+            let verdict = if s >= 3.0 { "≥ 3: a finite variance" } else { "< 3: the variance may not exist yet" };
+            format!(
+                "largest scores of {} paths there: slope {s:.1} of their density's tail ({verdict}; from the largest {})",
+                t.scores, t.largest
+            )
+        }
+        None => format!("largest scores: {} paths scored there, too few for a slope", t.scores),
+    }
+}
+
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
     say!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
@@ -575,6 +590,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
     // Images are read pixel by pixel: each main image's per-pixel relative errors.
     let (mean, stderr) = (output.estimates.mean(), output.estimates.stderr());
     let speckle: std::collections::BTreeMap<usize, (f64, usize)> = exp.m0_speckle(&output.layout).collect();
+    let tails = output.tail_checks();
     let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}%", 100.0 * x));
     for o in output.layout.registry.outputs.iter().filter(|o| o.primary) {
         if let Some(pe) = o.pixel_errors(mean, &stderr) {
@@ -592,7 +608,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             // Split by the regions' footprints (`NAME_region_mask.npy`).
             let regions = exp.region_mask_of(o).map(|mask| {
                 let (v, e) = o.slice(mean, &stderr);
-                ohd::output::RegionErrors::of(v, e, &mask)
+                ohd::output::RegionErrors::of(v, e, &mask).with_tail(tails.get(&o.slots.start).copied())
             });
             if let Some(r) = &regions {
                 say!(
@@ -603,6 +619,9 @@ fn report(exp: &Experiment, output: &RunOutput) {
                     pct(r.rest_sigma_over_region_mean),
                     pct(r.region_top_percent_variance_share)
                 );
+                if let Some(t) = r.tail {
+                    say!("    {}", tail_line(&t));
+                }
             }
             // An M0+ image against the camera's own noise: the speckle of how many windows.
             if let Some(&(c, frames)) = speckle.get(&o.slots.start) {

@@ -169,6 +169,21 @@ pub struct RunOutput {
 }
 
 impl RunOutput {
+    /// The tail checks of the cameras' regions ([`crate::detect::tail`]), by the first slot of
+    /// the image each one pools.
+    pub fn tail_checks(&self) -> std::collections::BTreeMap<usize, crate::stats::TailCheck> {
+        let paths = (self.estimates.batches() as u64 * self.paths_per_batch) as f64;
+        let mean = self.estimates.mean();
+        self.layout
+            .detectors
+            .iter()
+            .filter_map(|d| d.tail.as_ref())
+            .flat_map(|t| {
+                t.images.iter().enumerate().filter_map(move |(c, &image)| Some((image?, t.check(c, mean, paths))))
+            })
+            .collect()
+    }
+
     /// The state of this finished run, as a checkpoint holds it: resumed, it finishes at once
     /// with this output.
     pub fn final_state(&self) -> RunState {
@@ -420,6 +435,8 @@ impl Experiment {
         if self.scene.lateral.is_some() {
             layout.declare_lateral();
         }
+        // After them all: the regions' tail checks move no output.
+        layout.declare_tails(&self.detectors, |im| crate::detect::image::region_mask(&self.scene, im));
         // Outside the tally vector: the layout of the outputs is the same with or without it.
         if self.control_variate()
             && let Some(fp) = self.source.footprint()
@@ -674,6 +691,7 @@ impl Experiment {
             twin: None,
             kernels: layout.twin_kernels(),
             split: None,
+            path_scores: layout.tail_scores(),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());

@@ -440,6 +440,10 @@ pub struct RegionErrors {
     pub region_top_percent_variance_share: Option<f64>,
     /// The relative error of the sum over the mask's pixels (their variances added).
     pub region_pooled: Option<f64>,
+    /// The slope of the largest of the paths' scores into the mask's pixels, pooled (MCNP's
+    /// check, [`crate::stats::TailCheck`]; set by the run, [`RegionErrors::with_tail`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tail: Option<crate::stats::TailCheck>,
 }
 
 impl RegionErrors {
@@ -475,7 +479,13 @@ impl RegionErrors {
             rest_sigma_over_region_mean: median(rest_sigma).map(|s| s / mean.abs()).and_then(finite),
             region_top_percent_variance_share: (total > 0.0).then(|| top / total),
             region_pooled: finite(total.sqrt() / (mean * n as f64).abs()),
+            tail: None,
         }
+    }
+
+    /// The same with the run's tail check of the image.
+    pub fn with_tail(self, tail: Option<crate::stats::TailCheck>) -> Self {
+        RegionErrors { tail, ..self }
     }
 }
 

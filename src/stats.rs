@@ -181,3 +181,62 @@ mod tests {
         assert_eq!(acc.stderr()[1], 0.0);
     }
 }
+
+/// MCNP's check of a tally's largest history scores (the slope of the score density's tail,
+/// X-5 Monte Carlo Team 2003, MCNP5 manual vol. I §2.VI [recalled]): the density `f(x)` of the
+/// paths' scores falls as `x^−s` at its high end; the variance of the tally exists for `s > 3`,
+/// and MCNP asks for `s ≥ 3` (it prints 10 for a tail that falls faster than any power). Here
+/// `s = 1 + α` with `α` Hill's estimator of the tail index from the largest `k` scores
+/// (Hill 1975, Ann. Statist. 3(5)): `α = k / Σ_{i≤k} ln(x_i/x_(k+1))`, `k` = min(200, 5 % of
+/// the scores) [MCNP's 201 largest, recalled], at least 20.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TailCheck {
+    /// Paths with a non-zero score.
+    pub scores: u64,
+    /// How many of the largest the slope is fitted to (0: too few scores).
+    pub largest: u64,
+    /// `s`, capped at 10 (`None` with too few scores).
+    pub slope: Option<f64>,
+}
+
+/// The largest number of scores the tail slope is fitted to.
+pub const TAIL_LARGEST: f64 = 200.0;
+/// The smallest.
+const TAIL_FEWEST: f64 = 20.0;
+/// MCNP's cap of the slope.
+pub const TAIL_SLOPE_CAP: f64 = 10.0;
+
+impl TailCheck {
+    /// The check of scores binned by size: `counts[b]` scores in bin `b` with `Σ ln x =
+    /// logs[b]`, bin `b` spanning `[ln_edge(b), ln_edge(b + 1))` of `ln x`, bins in increasing
+    /// size. Within the bin the `k` largest end in, `ln x` is taken as uniform.
+    pub fn of(counts: &[f64], logs: &[f64], ln_edge: impl Fn(usize) -> f64) -> Self {
+        let n: f64 = counts.iter().sum();
+        let k = TAIL_LARGEST.min((0.05 * n).floor());
+        if k < TAIL_FEWEST {
+            return TailCheck { scores: n as u64, largest: 0, slope: None };
+        }
+        // Σ ln x over the k largest and ln x_(k+1), from the top bin down.
+        let (mut taken, mut sum_ln, mut threshold) = (0.0, 0.0, f64::NAN);
+        for b in (0..counts.len()).rev() {
+            let c = counts[b];
+            if c <= 0.0 {
+                continue;
+            }
+            if taken + c < k {
+                taken += c;
+                sum_ln += logs[b];
+                continue;
+            }
+            // Part of this bin: its top fraction f, uniform in ln x over [lo, hi).
+            let (lo, hi) = (ln_edge(b), ln_edge(b + 1));
+            let f = (k - taken) / c;
+            threshold = hi - f * (hi - lo);
+            sum_ln += (k - taken) * (hi - 0.5 * f * (hi - lo));
+            break;
+        }
+        let excess = sum_ln - k * threshold;
+        let slope = if excess > 0.0 { (1.0 + k / excess).min(TAIL_SLOPE_CAP) } else { TAIL_SLOPE_CAP };
+        TailCheck { scores: n as u64, largest: k as u64, slope: Some(slope) }
+    }
+}

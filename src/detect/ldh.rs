@@ -375,15 +375,17 @@ impl LdhSpec {
     }
 
     /// Record one detected path `d`. Calls `in_roi` with the index of every ROI it fell in, for
-    /// the speckle records.
+    /// the speckle records. Returns what it added to its pixel of the M0+ image (0 outside).
     #[inline]
-    pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
+    pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) -> f64 {
         let Detection { pixel, x, y, weight: w, frequency: f, gamma, class } = d;
         // Each evaluated once, when first needed (a path in a pixel and an ROI).
         let mut values: Option<PixelValues> = None;
         let mut v = || *values.get_or_insert_with(|| self.pixel_values(lay, f, gamma, class));
+        let mut m0_plus = 0.0;
         if let Some(p) = pixel {
             let v = v();
+            m0_plus = w * v.of_block[0];
             for (&block, &x) in lay.blocks.iter().zip(&v.of_block) {
                 if x != 0.0 {
                     acc[block + p] += w * x;
@@ -398,6 +400,7 @@ impl LdhSpec {
             self.record_roi(lay, rl, acc, w, &v(), f, gamma, class);
             in_roi(i);
         }
+        m0_plus
     }
 
     /// Record of `d` only what the control variate leaves plain: its pixel's spectrum; calls

@@ -13,6 +13,7 @@ pub mod ldh;
 pub mod lidar;
 pub mod part;
 pub mod spectrum;
+pub mod tail;
 pub mod time;
 pub mod twin;
 pub mod volume;
@@ -358,6 +359,10 @@ pub struct DetectorLayout {
     /// layers and regions, `run.control_variate`). Outside the tally vector: a batch's kernels
     /// are convolved into its images when it ends ([`TallyLayout::convolve_twins`]).
     pub twin: Option<twin::TwinLayout>,
+    /// The histograms of its paths' scores into the regions' footprints ([`tail`]; a camera
+    /// whose image sees regions). Declared after every other tally
+    /// ([`TallyLayout::declare_tails`]).
+    pub tail: Option<tail::TailLayout>,
 }
 
 impl TallyLayout {
@@ -413,6 +418,23 @@ impl TallyLayout {
             ..Output::new(name.to_string(), Kind::Scalar, Slots::contiguous(slot, 1), Vec::new())
         });
         self.lateral = Some(slot);
+    }
+
+    /// Give every camera whose image sees regions (`mask_of` its image: the mask of their
+    /// footprints, [`image::region_mask`]) the histograms of its paths' scores there ([`tail`]).
+    pub fn declare_tails(&mut self, detectors: &[Detector], mask_of: impl Fn(&ImageSpec) -> Option<Vec<bool>>) {
+        for (i, (d, lay)) in detectors.iter().zip(&mut self.detectors).enumerate() {
+            let Some(mask) = d.surface().and_then(|s| s.image()).and_then(&mask_of) else { continue };
+            let images = [lay.image(), lay.ldh().map(|l| l.m0_plus)];
+            lay.tail = Some(tail::TailLayout::declare(i, &d.name, mask, images, &mut self.registry));
+        }
+    }
+
+    /// Empty per-path scores for one batch, one per detector (none if no detector has a
+    /// [`tail`] check).
+    pub fn tail_scores(&self) -> Vec<[f64; tail::CHANNELS]> {
+        let any = self.detectors.iter().any(|d| d.tail.is_some());
+        if any { vec![[0.0; tail::CHANNELS]; self.detectors.len()] } else { Vec::new() }
     }
 
     /// Length of the tally vector.
@@ -506,7 +528,7 @@ impl Detector {
                 vec![],
             )
         });
-        let mut lay = DetectorLayout { power, parts: Vec::new(), lidar: None, twin: None };
+        let mut lay = DetectorLayout { power, parts: Vec::new(), lidar: None, twin: None, tail: None };
         match &self.kind {
             DetectorKind::Surface(s) => {
                 let at = Place { i, name: &self.name, image: s.image(), beat };
@@ -569,6 +591,8 @@ pub struct Place<'a> {
 /// image pixel `pixel`) with the optical path length `l` (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
+    /// The detector's index.
+    pub detector: usize,
     pub x: f64,
     pub y: f64,
     pub pixel: Option<usize>,
@@ -626,6 +650,9 @@ pub struct Recorder<'a> {
     pub kernels: Vec<Vec<f64>>,
     /// Where the current path's twin parted from it, to walk on once the path has ended.
     pub split: Option<twin::Split>,
+    /// The current path's scores into each detector's regions' footprints, per [`tail`]
+    /// channel (empty without a tail check, [`TallyLayout::tail_scores`]).
+    pub path_scores: Vec<[f64; tail::CHANNELS]>,
 }
 
 /// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).
@@ -644,6 +671,40 @@ pub enum Twin {
 }
 
 impl Recorder<'_> {
+    /// Add `v` to the current path's score in channel `c` of `hit`'s detector's [`tail`] check,
+    /// if its pixel is in the regions' footprints.
+    #[inline(always)]
+    pub fn tail_score(&mut self, hit: &Hit, c: usize, v: f64) {
+        if !self.path_scores.is_empty() {
+            self.add_tail_score(hit, c, v);
+        }
+    }
+
+    fn add_tail_score(&mut self, hit: &Hit, c: usize, v: f64) {
+        if self.layout.detectors[hit.detector].tail.as_ref().is_some_and(|t| t.covers(hit.pixel)) {
+            self.path_scores[hit.detector][c] += v;
+        }
+    }
+
+    /// A path has ended: its scores into the [`tail`] histograms.
+    #[inline(always)]
+    pub fn end_path(&mut self) {
+        if !self.path_scores.is_empty() {
+            self.file_path_scores();
+        }
+    }
+
+    fn file_path_scores(&mut self) {
+        for (lay, s) in self.layout.detectors.iter().zip(&mut self.path_scores) {
+            if let Some(t) = &lay.tail
+                && *s != [0.0; tail::CHANNELS]
+            {
+                t.record(self.acc, *s);
+            }
+            *s = [0.0; tail::CHANNELS];
+        }
+    }
+
     #[inline(always)]
     pub fn add(&mut self, s: Scalar, w: f64) {
         self.acc[s as usize] += w;
@@ -814,6 +875,7 @@ impl Recorder<'_> {
         };
         let gamma = |b: f64| if b > 0.0 { beat.brownian_hwhm(b) } else { 0.0 };
         let hit = |s: &PathState, pixel: Option<usize>| Hit {
+            detector: i,
             x: p.x,
             y: p.y,
             pixel,
@@ -859,6 +921,7 @@ impl Recorder<'_> {
         self.acc[lay.power] += e.weight;
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
         let hit = Hit {
+            detector: i,
             x,
             y,
             pixel,

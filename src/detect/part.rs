@@ -15,6 +15,7 @@
 //! contrast, the LDH maps) comes after the image.
 
 use super::ldh::{self, Detection, RecordedLine};
+use super::tail;
 use super::twin::TwinLayout;
 use super::{
     CorrelationLayout, CorrelationSpec, Hit, ImageSpec, LdhLayout, LdhSpec, Place, Recorder, SpectrumLayout,
@@ -81,7 +82,10 @@ impl Placed {
     fn record_into(&self, r: &mut Recorder, hit: &Hit, keep_lines: bool) {
         match self {
             Placed::Spectrum(s, lay) => s.record(lay, r.acc, r.stats, &r.beat, hit),
-            Placed::Image(_, start) => ImageSpec::record(*start, r.acc, hit),
+            Placed::Image(_, start) => {
+                ImageSpec::record(*start, r.acc, hit);
+                r.tail_score(hit, tail::INTENSITY, hit.weight);
+            }
             Placed::Time(t, lay) => t.record(lay, r.acc, hit.weight, hit.l, hit.pixel),
             Placed::Correlation(c, lay) => {
                 // The Doppler frequency alone: a chirp's range term is not a motion of the field.
@@ -94,7 +98,8 @@ impl Placed {
                 let Some(d) = detection(r, hit) else { return };
                 let lines = if keep_lines { r.lines.as_deref_mut() } else { None };
                 let mut lines = lines;
-                l.record(lay, r.acc, d, |roi| push_line(lines.as_deref_mut(), roi, &d));
+                let m0_plus = l.record(lay, r.acc, d, |roi| push_line(lines.as_deref_mut(), roi, &d));
+                r.tail_score(hit, tail::M0_PLUS, m0_plus);
             }
         }
     }
@@ -135,6 +140,7 @@ impl Placed {
             Placed::Image(_, start) => {
                 if subtract && let Some(p) = hit.pixel {
                     r.acc[start + p] -= w;
+                    r.tail_score(hit, tail::INTENSITY, -w);
                 }
                 out[0] = w;
                 1
@@ -155,6 +161,7 @@ impl Placed {
                             r.acc[block + p] -= x;
                         }
                     }
+                    r.tail_score(hit, tail::M0_PLUS, -out[0]);
                 }
                 for (roi, rl) in l.rois.iter().zip(&lay.rois) {
                     if subtract && roi.contains(hit.x, hit.y) {

@@ -179,6 +179,7 @@ fn paths_loop<
     for i in 0..paths {
         let mut rng = key.path(i);
         trace_path::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>(ctx, rec, &mut rng);
+        rec.end_path();
         if (i + 1) % PATHS_PER_TICK == 0 && tick() {
             return true;
         }
@@ -200,5 +201,6 @@ fn camera_pixel<const DOPPLER: bool, const LENGTH: bool>(
     for k in 0..spp {
         let mut rng = key.path(pixel as u64 * spp + k);
         trace_camera_path::<DOPPLER, LENGTH>(ctx, cam, pixel, batch_weight, rec, &mut rng);
+        rec.end_path();
     }
 }

@@ -244,3 +244,31 @@ fn launches_near_the_regions_equal_launches_from_the_profile() {
         assert!(z.abs() < 4.0, "{cv}: ROI M0+ {a:.4e} ± {sa:.1e} against {b:.4e} ± {sb:.1e} (z = {z:.2})");
     }
 }
+
+/// The tail check's histograms ([`ohd::detect::tail`]) hold every path's score into the vessel's
+/// footprint: without the control variate the scores are the pixels' own contributions, so their
+/// sum over the histogram is the footprint's pooled intensity and M0+ (times the paths), to
+/// rounding; the slope of the largest is a power law's (finite: a bounded next-event weight).
+#[test]
+fn the_tail_histograms_add_up_to_the_footprints_pooled_values() {
+    let plain = run(&retina(100_000, BLOOD, "off"), &[]);
+    let (out, lay) = (&plain.out, &plain.out.layout.detectors[0]);
+    let tail = lay.tail.as_ref().expect("the camera sees the vessel");
+    let paths = (out.estimates.batches() as u64 * out.paths_per_batch) as f64;
+    let mean = out.estimates.mean();
+    let checks = out.tail_checks();
+    for (c, image) in tail.images.iter().enumerate() {
+        let start = image.expect("an intensity and an M0+ image");
+        let pooled: f64 = tail.mask.iter().enumerate().filter(|(_, m)| **m).map(|(p, _)| mean[start + p]).sum();
+        let [counts, _, sums] = tail.histogram(c, mean, paths);
+        let (n, total): (f64, f64) = (counts.iter().sum(), sums.iter().sum());
+        assert!(n > 1000.0 && n < paths, "channel {c}: {n} scores of {paths} paths");
+        assert!(
+            (total / (pooled * paths) - 1.0).abs() < 1e-9,
+            "channel {c}: Σ scores {total:e}, pooled {:e}",
+            pooled * paths
+        );
+        let slope = checks[&start].slope.expect("enough scores");
+        assert!((1.0..=10.0).contains(&slope), "channel {c}: slope {slope}");
+    }
+}

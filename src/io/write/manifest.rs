@@ -262,6 +262,7 @@ fn write_run_to<S: super::Sink>(
         w.masks.insert(i, (file, written.iter().map(|&m| m != 0.0).collect()));
     }
     w.speckle = exp.m0_speckle(&out.layout).collect();
+    w.tails = out.tail_checks();
     let reg = &out.layout.registry;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|&s| (s.name().to_string(), Entry::Estimate(w.estimate(reg.at(s as usize))))).collect();

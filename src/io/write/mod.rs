@@ -194,6 +194,9 @@ pub struct Writer<'a, 'p> {
     /// The single-window speckle contrast and frames of the LDH cameras' M0+ images, by their first
     /// tally slot ([`crate::experiment::Experiment::m0_speckle`]).
     pub speckle: BTreeMap<usize, (f64, usize)>,
+    /// The tail checks of the cameras' regions, by the first tally slot of the image they pool
+    /// ([`crate::experiment::RunOutput::tail_checks`]).
+    pub tails: BTreeMap<usize, crate::stats::TailCheck>,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -233,6 +236,7 @@ impl<'a, 'p> Writer<'a, 'p> {
             pixel_errors: BTreeMap::new(),
             masks: BTreeMap::new(),
             speckle: BTreeMap::new(),
+            tails: BTreeMap::new(),
             figures: true,
             table: BTreeMap::new(),
         }
@@ -320,7 +324,7 @@ impl<'a, 'p> Writer<'a, 'p> {
         let finite = |v: f64| v.is_finite().then_some(v);
         let regions = o.detector.and_then(|d| self.masks.get(&d)).map(|(mask_file, mask)| RegionEntry {
             mask_file: mask_file.clone(),
-            errors: crate::output::RegionErrors::of(v, e, mask),
+            errors: crate::output::RegionErrors::of(v, e, mask).with_tail(self.tails.get(&o.slots.start).copied()),
         });
         let speckle = self.speckle.get(&o.slots.start).map(|&(c, frames)| {
             crate::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref().map(|r| &r.errors))
