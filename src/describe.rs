@@ -911,6 +911,19 @@ impl Display for Experiment {
                 }
             }
         }
+        // The importance table (`run.importance`).
+        if self.plan.importance {
+            match crate::importance::obstacle(self) {
+                Some(why) => writeln!(f, "importance table: none ({why})")?,
+                None => writeln!(
+                    f,
+                    "importance table of {}: a pilot of {} paths through the layered stack, {} (written, not yet used by the walk)",
+                    self.main_output().detector.map_or("?", |d| self.detectors[d].name.as_str()),
+                    crate::importance::PILOT_PATHS,
+                    crate::detect::importance::ImportanceGrid::new(&self.scene).describe(&self.scene)
+                )?,
+            }
+        }
         let parts: String = self.plan.memory.iter().map(|b| format!(", {} {:.1} MiB", b.what, mib(b.bytes))).collect();
         writeln!(
             f,

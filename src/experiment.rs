@@ -41,6 +41,12 @@ pub struct RunPlan {
     /// What resolving counted against the budget besides the tallies (the media of the layers
     /// and regions, voxel grids, speckle records), in the order it was counted.
     pub memory: Vec<MemoryBlock>,
+    /// `run.importance = "table"`: a pilot computes the importance table of the main output's
+    /// detector before the run ([`crate::importance`]).
+    pub importance: bool,
+    /// In an importance pilot's own run: the detector whose states' values it tallies
+    /// ([`crate::detect::importance`]); `None` in any other run.
+    pub importance_trace: Option<usize>,
 }
 
 /// A block of memory an experiment holds, as counted against `run.memory_budget_gib`.
@@ -437,6 +443,11 @@ impl Experiment {
         }
         // After them all: the regions' tail checks move no output.
         layout.declare_tails(&self.detectors, |im| crate::detect::image::region_mask(&self.scene, im));
+        if let Some(d) = self.plan.importance_trace {
+            let grid = crate::detect::importance::ImportanceGrid::new(&self.scene);
+            layout.importance =
+                Some(crate::detect::importance::ImportanceLayout::declare(grid, d, &mut layout.registry));
+        }
         // Outside the tally vector: the layout of the outputs is the same with or without it.
         if self.control_variate()
             && let Some(fp) = self.source.footprint()
@@ -692,6 +703,7 @@ impl Experiment {
             kernels: layout.twin_kernels(),
             split: None,
             path_scores: layout.tail_scores(),
+            trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());

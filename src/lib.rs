@@ -75,7 +75,7 @@
 //! | scene | [`medium`], [`flow`], [`source`], [`io::formats`] | media, density fields with their majorant grids, shapes and the layer stack; velocity fields; the laser; file formats read and written (`.npy`, EXR, PNG, phase tables, the OpenVDB reader) |
 //! | recording | [`detect`] | detectors ([`detect::DetectorKind`]) and the tally a finished path is recorded into; each detector declares its outputs in the registry as it lays out its tallies |
 //! | transport | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk from the laser and from a camera's pixels |
-//! | runs | [`experiment`], [`pilot`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); the pilot that decides `estimator = "auto"`; post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
+//! | runs | [`experiment`], [`pilot`], [`importance`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); the pilot that decides `estimator = "auto"`; the importance table's pilot; post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
 //! | configuration | [`config`], [`describe`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types; the resolved experiment printed in human units |
 //! | outputs | [`io`] ([`io::write`], [`io::persist`], [`io::figures`], [`io::outdir`]) | a finished run's files and manifest, read off the registry; shard and checkpoint files; figures; the output directory, held open and locked |
 //! | orchestration | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
@@ -91,6 +91,7 @@ pub mod detect;
 pub mod error;
 pub mod experiment;
 pub mod flow;
+pub mod importance;
 pub mod io;
 pub mod medium;
 pub mod mie;

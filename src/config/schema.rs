@@ -195,6 +195,9 @@ pub struct RunSection {
     #[serde(rename = "launch_margin_um", alias = "launch_margin_mm")]
     pub launch_margin: Option<Quantity<Length>>,
     pub launch_profile_share: Option<f64>,
+    /// The importance table of the main output's detector (`crate::importance`): `"off"`
+    /// (default) or `"table"` (a pilot computes it and the run writes it; nothing uses it yet).
+    pub importance: Option<ImportanceKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
     /// A global time gate `[t0, t1]` on the forward paths (time of flight = optical path length
@@ -208,6 +211,13 @@ pub struct RunSection {
 pub enum LaunchesKind {
     Profile,
     NearRegions,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImportanceKind {
+    Off,
+    Table,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -9,6 +9,7 @@
 
 pub mod correlation;
 pub mod image;
+pub mod importance;
 pub mod ldh;
 pub mod lidar;
 pub mod part;
@@ -346,6 +347,9 @@ pub struct TallyLayout {
     /// The slot of `transmittance_lateral` (the weight leaving a box phantom through its side
     /// faces), declared only with `[lateral]` ([`TallyLayout::declare_lateral`]).
     pub lateral: Option<usize>,
+    /// The sums of an importance pilot ([`importance`]; only in the pilot's own run,
+    /// [`crate::importance`]).
+    pub importance: Option<importance::ImportanceLayout>,
 }
 
 /// Offsets of one detector's block.
@@ -379,7 +383,7 @@ impl TallyLayout {
             });
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
-        TallyLayout { registry: reg, detectors: layouts, lateral: None }
+        TallyLayout { registry: reg, detectors: layouts, lateral: None, importance: None }
     }
 
     /// Give every camera with a control variate (a forward-estimated top detector with an image
@@ -653,6 +657,8 @@ pub struct Recorder<'a> {
     /// The current path's scores into each detector's regions' footprints, per [`tail`]
     /// channel (empty without a tail check, [`TallyLayout::tail_scores`]).
     pub path_scores: Vec<[f64; tail::CHANNELS]>,
+    /// The current path's states and score, in an importance pilot ([`importance`]).
+    pub trace: Option<importance::Trace>,
 }
 
 /// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).
@@ -686,11 +692,34 @@ impl Recorder<'_> {
         }
     }
 
-    /// A path has ended: its scores into the [`tail`] histograms.
+    /// A path has ended: its scores into the [`tail`] histograms, its states' values into an
+    /// importance pilot's sums.
     #[inline(always)]
     pub fn end_path(&mut self) {
         if !self.path_scores.is_empty() {
             self.file_path_scores();
+        }
+        if let (Some(t), Some(lay)) = (self.trace.as_mut(), &self.layout.importance) {
+            t.end(lay, self.acc);
+        }
+    }
+
+    /// A state of the path after a scattering event in layer `li`, for an importance pilot.
+    #[inline(always)]
+    pub fn scattered(&mut self, li: usize, s: &PathState) {
+        if let (Some(t), Some(lay)) = (self.trace.as_mut(), &self.layout.importance) {
+            t.state(lay, li, s.pos.z, s.dir.z, s.weight);
+        }
+    }
+
+    /// Weight `w` detected by detector `i`: into its power (and an importance pilot's score).
+    #[inline(always)]
+    fn detected(&mut self, i: usize, w: f64) {
+        self.acc[self.layout.detectors[i].power] += w;
+        if let (Some(t), Some(lay)) = (self.trace.as_mut(), &self.layout.importance)
+            && lay.detector == i
+        {
+            t.scored(w);
         }
     }
 
@@ -777,7 +806,7 @@ impl Recorder<'_> {
             return;
         }
         if let (DetectorKind::Lidar(spec), Some(ll)) = (&self.detectors[i].kind, &self.layout.detectors[i].lidar) {
-            self.acc[self.layout.detectors[i].power] += e.weight;
+            self.detected(i, e.weight);
             let f = self.beat.frequency(0, e.l, e.dldt);
             spec.record(
                 ll,
@@ -894,7 +923,7 @@ impl Recorder<'_> {
             // The path into every part (`Same`: its share of the covered parts cancels with its
             // twin's, the pixel spectra and speckle records keep it).
             let h = hit(e, px);
-            self.acc[lay.power] += e.weight;
+            self.detected(i, e.weight);
             for placed in &lay.parts {
                 match (placed.varies(), same) {
                     (true, true) => placed.record_uncovered(self, &h),
@@ -918,7 +947,7 @@ impl Recorder<'_> {
     fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &PathState) {
         let (detectors, layout) = (self.detectors, self.layout);
         let (DetectorKind::Surface(_), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
-        self.acc[lay.power] += e.weight;
+        self.detected(i, e.weight);
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
         let hit = Hit {
             detector: i,

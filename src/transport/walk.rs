@@ -757,10 +757,13 @@ fn walk<
                 ) {
                     return end;
                 }
+                rec.scattered(li, s);
             } else if let Some(end) =
                 collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n }, settings, rng, absorbed, &mut checkpoint)
             {
                 return end;
+            } else {
+                rec.scattered(li, s);
             }
         }
 

@@ -17,6 +17,7 @@ mod figures;
 mod fmcw;
 mod grid;
 mod hostile;
+mod importance;
 mod lateral;
 mod ldh;
 mod lidar;

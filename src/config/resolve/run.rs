@@ -151,5 +151,7 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         memory_limited_by,
         camera_pixel_stride: 1,
         memory: Vec::new(),
+        importance: r.importance == Some(ImportanceKind::Table),
+        importance_trace: None,
     })
 }

@@ -72,6 +72,9 @@ pub struct Manifest {
     /// The volume tally's grid and files (`[volume]`; absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume: Option<super::volume::VolumeEntry>,
+    /// `run.importance = "table"`: the importance table's files and bins.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub importance: Option<super::importance::ImportanceEntry>,
     /// Every output written, by file (a `.npy` name, or a JSON pointer into this manifest for a
     /// scalar): its kind, shape, units, axes, standard-error file and figure
     /// ([`super::OutputEntry`]).
@@ -314,6 +317,13 @@ fn write_run_to<S: super::Sink>(
         Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
         None => None,
     };
+    let importance = match exp.plan.importance.then(|| crate::importance::table(exp)).flatten() {
+        Some(t) => {
+            let name = &exp.detectors[t.detector].name;
+            Some(super::importance::write_importance(&mut w, &t, &exp.scene, name)?)
+        }
+        None => None,
+    };
     let pixel_errors = std::mem::take(&mut w.pixel_errors);
     let table = std::mem::take(&mut w.table);
     drop(w);
@@ -387,6 +397,7 @@ fn write_run_to<S: super::Sink>(
         detectors: det_info,
         pixel_errors,
         volume,
+        importance,
         outputs,
         files,
         warnings: f.warnings.clone(),

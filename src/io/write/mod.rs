@@ -9,6 +9,7 @@ pub mod converge;
 pub mod dir;
 pub mod figures;
 pub mod fmcw;
+pub mod importance;
 pub mod ldh;
 pub mod lidar;
 pub mod manifest;

@@ -1,0 +1,193 @@
+//! The tallies of an importance pilot ([`crate::importance`]): every forward path records its
+//! states after each scattering event — layer, depth bin and polar-angle bin of the new
+//! direction ([`ImportanceGrid`]) — with its weight and the score it had made so far into one
+//! detector; when it ends, each state is credited with the score the path made after it, per unit
+//! weight (the state's value: an unbiased sample of the adjoint importance `I*(z, μ)` of that
+//! detector). The sums and counts per bin are an internal tally of the pilot run, so batch
+//! statistics, threads and shards treat them as any other.
+
+use crate::medium::Scene;
+use crate::output::{Kind, Registry, Slots};
+
+/// Depth bins per layer.
+pub const DEPTH_BINS: usize = 16;
+/// Polar-angle bins of the direction (uniform in θ: finer in `μ = cos θ` near ±1, where the
+/// pupil's cone and the laser's direction lie), θ = 0 down into the stack, π up out of it.
+pub const ANGLE_BINS: usize = 48;
+/// Transport lengths of a semi-infinite last layer the depth bins span at most (deeper states
+/// fall into the last bin).
+const OPEN_DEPTH_TRANSPORT_LENGTHS: f64 = 20.0;
+/// Diffusion lengths `1/μ_eff` of a semi-infinite absorbing layer they span at most.
+const OPEN_DEPTH_DIFFUSION_LENGTHS: f64 = 10.0;
+
+/// The bins of the importance table: per layer, [`DEPTH_BINS`] depth bins (uniform over a finite
+/// layer; over [`OPEN_DEPTH_TRANSPORT_LENGTHS`] transport lengths or
+/// [`OPEN_DEPTH_DIFFUSION_LENGTHS`] diffusion lengths of a semi-infinite one) times
+/// [`ANGLE_BINS`] polar-angle bins.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportanceGrid {
+    /// Per layer: its top depth, bin width (m).
+    pub layers: Vec<(f64, f64)>,
+}
+
+impl ImportanceGrid {
+    pub fn new(scene: &Scene) -> Self {
+        let layers = scene
+            .layers
+            .iter()
+            .map(|l| {
+                let depth = if l.z_bottom.is_finite() {
+                    l.z_bottom - l.z_top
+                } else {
+                    // Where the light still is: the nearer of 20 transport lengths and 10
+                    // diffusion lengths `1/μ_eff` (an absorbing layer's light is gone by then).
+                    let m = &scene.media[l.medium];
+                    let transport = m.sigma_a() + m.sigma_s() * (1.0 - m.info.g);
+                    let mu_eff = (3.0 * m.sigma_a() * transport).sqrt();
+                    let span = (OPEN_DEPTH_TRANSPORT_LENGTHS / transport).min(OPEN_DEPTH_DIFFUSION_LENGTHS / mu_eff);
+                    if span.is_finite() && span > 0.0 { span } else { 1.0 }
+                };
+                (l.z_top, depth / DEPTH_BINS as f64)
+            })
+            .collect();
+        ImportanceGrid { layers }
+    }
+
+    /// Bins in all.
+    pub fn len(&self) -> usize {
+        self.layers.len() * DEPTH_BINS * ANGLE_BINS
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.layers.is_empty()
+    }
+
+    /// The bin of a state in layer `li` at depth `z` going along a direction of z-component
+    /// `dir_z`.
+    #[inline]
+    pub fn bin(&self, li: usize, z: f64, dir_z: f64) -> usize {
+        let (top, width) = self.layers[li];
+        let k = (((z - top) / width).max(0.0) as usize).min(DEPTH_BINS - 1);
+        let theta = dir_z.clamp(-1.0, 1.0).acos();
+        let a = ((theta * (ANGLE_BINS as f64 / std::f64::consts::PI)) as usize).min(ANGLE_BINS - 1);
+        (li * DEPTH_BINS + k) * ANGLE_BINS + a
+    }
+
+    /// The polar angle (rad) at the centre of angle bin `a`.
+    pub fn angle(a: usize) -> f64 {
+        (a as f64 + 0.5) * std::f64::consts::PI / ANGLE_BINS as f64
+    }
+
+    /// The bins in words (for `ohd check`): per layer (of `scene`) its depth range.
+    pub fn describe(&self, scene: &Scene) -> String {
+        let layers: Vec<String> = scene
+            .layers
+            .iter()
+            .zip(&self.layers)
+            .map(|(l, &(top, width))| {
+                format!("{} {:.0}–{:.0} µm", l.name, 1e6 * top, 1e6 * (top + width * DEPTH_BINS as f64))
+            })
+            .collect();
+        format!(
+            "{DEPTH_BINS} depth bins per layer ({}) × {ANGLE_BINS} polar-angle bins of {:.2}°",
+            layers.join(", "),
+            180.0 / ANGLE_BINS as f64
+        )
+    }
+
+    /// The depth (m) at the centre of depth bin `k` of layer `li`.
+    pub fn depth(&self, li: usize, k: usize) -> f64 {
+        let (top, width) = self.layers[li];
+        top + (k as f64 + 0.5) * width
+    }
+}
+
+/// Where the pilot's sums lie: per bin of `grid`, `Σ value` then the count, from slot `start`;
+/// the detector whose score is credited.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportanceLayout {
+    pub grid: ImportanceGrid,
+    pub detector: usize,
+    pub start: usize,
+}
+
+impl ImportanceLayout {
+    /// Lay out the sums for detector `detector` from `reg`'s end.
+    pub fn declare(grid: ImportanceGrid, detector: usize, reg: &mut Registry) -> Self {
+        let len = 2 * grid.len();
+        let start = reg.take(len);
+        reg.declare(crate::output::Output::new(
+            "importance.pilot".to_string(),
+            Kind::Internal,
+            Slots::contiguous(start, len),
+            vec![grid.len(), 2],
+        ));
+        ImportanceLayout { grid, detector, start }
+    }
+}
+
+/// One path's states and score, as the pilot records them ([`ImportanceLayout`]).
+#[derive(Debug, Clone, Default)]
+pub struct Trace {
+    /// Per state: its bin, the path's weight and its score so far.
+    states: Vec<(u32, f64, f64)>,
+    score: f64,
+}
+
+impl Trace {
+    /// A state after a scattering event.
+    #[inline]
+    pub fn state(&mut self, lay: &ImportanceLayout, li: usize, z: f64, dir_z: f64, weight: f64) {
+        self.states.push((lay.grid.bin(li, z, dir_z) as u32, weight, self.score));
+    }
+
+    /// A detection of weight `w` by the traced detector.
+    #[inline]
+    pub fn scored(&mut self, w: f64) {
+        self.score += w;
+    }
+
+    /// The path has ended: credit each state with what came after it, per unit weight.
+    pub fn end(&mut self, lay: &ImportanceLayout, acc: &mut [f64]) {
+        for &(bin, w, before) in &self.states {
+            if w > 0.0 {
+                let slot = lay.start + 2 * bin as usize;
+                acc[slot] += (self.score - before) / w;
+                acc[slot + 1] += 1.0;
+            }
+        }
+        self.states.clear();
+        self.score = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each state is credited with the detected weight that came after it over its weight, into
+    /// its bin; a second path starts from nothing.
+    #[test]
+    fn a_state_is_credited_with_what_came_after_it_per_unit_weight() {
+        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)] };
+        let mut reg = Registry::default();
+        let lay = ImportanceLayout::declare(grid, 0, &mut reg);
+        let mut acc = vec![0.0; reg.len];
+        let mut t = Trace::default();
+        // Down at 5 µm, weight 0.5; 0.1 detected; up at 25 µm, weight 0.25; 0.05 detected.
+        t.state(&lay, 0, 5e-6, 1.0, 0.5);
+        t.scored(0.1);
+        t.state(&lay, 0, 25e-6, -1.0, 0.25);
+        t.scored(0.05);
+        t.end(&lay, &mut acc);
+        let (down, up) = (lay.grid.bin(0, 5e-6, 1.0), lay.grid.bin(0, 25e-6, -1.0));
+        assert_eq!((down, up), (0, 2 * ANGLE_BINS + ANGLE_BINS - 1));
+        assert!((acc[lay.start + 2 * down] - 0.15 / 0.5).abs() < 1e-15);
+        assert!((acc[lay.start + 2 * up] - 0.05 / 0.25).abs() < 1e-15);
+        assert_eq!((acc[lay.start + 2 * down + 1], acc[lay.start + 2 * up + 1]), (1.0, 1.0));
+        t.state(&lay, 0, 5e-6, 1.0, 1.0);
+        t.end(&lay, &mut acc);
+        assert!((acc[lay.start + 2 * down] - 0.3).abs() < 1e-15, "nothing detected after: credited 0");
+        assert_eq!(acc[lay.start + 2 * down + 1], 2.0);
+    }
+}
