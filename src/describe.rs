@@ -912,15 +912,21 @@ impl Display for Experiment {
             }
         }
         // The importance table (`run.importance`).
-        if self.plan.importance {
-            match crate::importance::obstacle(self) {
+        if self.plan.importance != crate::transport::windows::Importance::Off {
+            let windows = self.plan.importance == crate::transport::windows::Importance::Windows;
+            match self.importance_obstacle() {
                 Some(why) => writeln!(f, "importance table: none ({why})")?,
                 None => writeln!(
                     f,
-                    "importance table of {}: a pilot of {} paths through the layered stack, {} (written, not yet used by the walk)",
+                    "importance table of {}: a pilot of {} paths through the layered stack, {}; {}",
                     self.main_output().detector.map_or("?", |d| self.detectors[d].name.as_str()),
-                    crate::importance::PILOT_PATHS,
-                    crate::detect::importance::ImportanceGrid::new(&self.scene).describe(&self.scene)
+                    crate::detect::importance::PILOT_PATHS,
+                    crate::detect::importance::ImportanceGrid::new(&self.scene).describe(&self.scene),
+                    if windows {
+                        "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
+                    } else {
+                        "written, not used by the walk"
+                    }
                 )?,
             }
         }

@@ -15,6 +15,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
+use crate::transport::windows::{Importance, Windows};
 use crate::transport::{
     CameraTarget, ControlVariate, Features, NeeTarget, WalkContext, WalkSettings, control_variate_obstacle,
 };
@@ -41,9 +42,9 @@ pub struct RunPlan {
     /// What resolving counted against the budget besides the tallies (the media of the layers
     /// and regions, voxel grids, speckle records), in the order it was counted.
     pub memory: Vec<MemoryBlock>,
-    /// `run.importance = "table"`: a pilot computes the importance table of the main output's
-    /// detector before the run ([`crate::importance`]).
-    pub importance: bool,
+    /// `run.importance`: the importance table of the main output's detector, and the weight
+    /// windows it gives ([`Experiment::importance_table`], [`crate::transport::windows`]).
+    pub importance: Importance,
     /// In an importance pilot's own run: the detector whose states' values it tallies
     /// ([`crate::detect::importance`]); `None` in any other run.
     pub importance_trace: Option<usize>,
@@ -307,6 +308,8 @@ struct BatchRunner<'a> {
     /// batch runs long, few enough to bound memory.
     in_flight: u64,
     spare: Vec<Tallies>,
+    /// The weight windows of `run.importance = "windows"`, from a pilot run here.
+    windows: Option<Windows>,
 }
 
 impl<'a> BatchRunner<'a> {
@@ -314,20 +317,20 @@ impl<'a> BatchRunner<'a> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(exp.plan.effective_threads()).build().ok();
         let layout = exp.tally_layout();
         let (beat, in_flight) = (exp.beat_model(), exp.batches_in_flight());
-        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new() }
+        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), windows: exp.weight_windows() }
     }
 
     /// Run the batches `range` and give each result to `sink` in batch order, stopping at its
     /// first error. A pipeline, not rounds: as each batch is handed over the next one starts, so
     /// no thread waits for the slowest batch of a group (this thread only receives and folds).
     fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress, sink: &mut BatchSink) -> Result<()> {
-        let BatchRunner { exp, pool, layout, beat, in_flight, spare } = self;
-        let (exp, layout, beat, in_flight) = (*exp, &*layout, *beat, *in_flight);
+        let BatchRunner { exp, pool, layout, beat, in_flight, spare, windows } = self;
+        let (exp, layout, beat, in_flight, windows) = (*exp, &*layout, *beat, *in_flight, windows.as_ref());
         let len = layout.tallies();
         let Some(pool) = pool else {
             for b in range {
                 let sums = spare.pop().unwrap_or_else(|| Tallies::new(len));
-                let (sums, s, l) = exp.run_batch(b, sums, layout, beat, progress);
+                let (sums, s, l) = exp.run_batch(b, sums, layout, beat, windows, progress);
                 if progress.cancelled() {
                     return Err(crate::error::Error::Cancelled);
                 }
@@ -344,7 +347,7 @@ impl<'a> BatchRunner<'a> {
             let spawn = |b: u64, sums: Tallies| {
                 let tx = tx.clone();
                 scope.spawn(move |_| {
-                    let run = std::panic::AssertUnwindSafe(|| exp.run_batch(b, sums, layout, beat, progress));
+                    let run = std::panic::AssertUnwindSafe(|| exp.run_batch(b, sums, layout, beat, windows, progress));
                     // The receiver outlives the scope, so the send cannot fail.
                     let _ = tx.send((b, std::panic::catch_unwind(run)));
                 });
@@ -462,6 +465,86 @@ impl Experiment {
     pub fn control_variate(&self) -> bool {
         self.plan.walk.control_variate != ControlVariate::Off
             && control_variate_obstacle(&self.scene, &self.source, &self.detectors).is_none()
+    }
+
+    /// Why this experiment has no importance table (`None`: it has one,
+    /// [`importance_table`](Self::importance_table)): it needs a main output of a detector scored
+    /// by forward paths (a surface detector with the forward estimator, or a lidar receiver).
+    pub fn importance_obstacle(&self) -> Option<String> {
+        let main = self.main_output();
+        let Some(d) = main.detector else {
+            return Some(format!("the main output `{}` is not a detector's", main.name));
+        };
+        match &self.detectors[d].kind {
+            DetectorKind::Surface(s) if s.estimator() == crate::detect::Estimator::Camera => Some(format!(
+                "detector `{}` is estimated from the camera's side (the table is of forward paths)",
+                self.detectors[d].name
+            )),
+            _ => None,
+        }
+    }
+
+    /// The importance table of the main output's detector ([`crate::detect::importance`]; `None`
+    /// where [`importance_obstacle`](Self::importance_obstacle) finds one), from a pilot of
+    /// [`PILOT_PATHS`](crate::detect::importance::PILOT_PATHS) paths on its own streams.
+    pub fn importance_table(&self) -> Option<crate::detect::importance::ImportanceTable> {
+        use crate::detect::importance::{IMPORTANCE_SEED, ImportanceTable, PILOT_BATCHES, PILOT_PATHS};
+        if self.importance_obstacle().is_some() {
+            return None;
+        }
+        let detector = self.main_output().detector?;
+        let start = std::time::Instant::now();
+        let mut pilot = self.clone();
+        if !pilot.scene.regions.is_empty() {
+            pilot.scene = self.scene.layered_twin();
+        }
+        // The detector alone, its power alone (the light it receives), scored as the run scores it.
+        let mut d = self.detectors[detector].clone();
+        if let DetectorKind::Surface(s) = &mut d.kind {
+            s.parts.clear();
+        }
+        pilot.detectors = vec![d];
+        pilot.volume = None;
+        pilot.references.clear();
+        pilot.plan.seed = crate::sampling::rng::mix64(self.plan.seed ^ IMPORTANCE_SEED);
+        pilot.plan.batches = PILOT_BATCHES;
+        pilot.plan.paths_per_batch = PILOT_PATHS / PILOT_BATCHES;
+        pilot.plan.walk.control_variate = ControlVariate::Off;
+        pilot.plan.walk.launches = None;
+        pilot.plan.importance = Importance::Off;
+        pilot.plan.importance_trace = Some(0);
+        let out = pilot.run(&Silent);
+        let lay = out.layout.importance.as_ref().expect("the pilot lays out its sums");
+        let mean = out.estimates.mean();
+        let paths = (out.estimates.batches() as u64 * out.paths_per_batch) as f64;
+        let bins = lay.grid.len();
+        let (mut value, mut states) = (vec![f64::NAN; bins], vec![0; bins]);
+        for b in 0..bins {
+            let (sum, count) = (mean[lay.start + 2 * b], mean[lay.start + 2 * b + 1]);
+            states[b] = (count * paths).round() as u64;
+            if count > 0.0 {
+                value[b] = sum / count;
+            }
+        }
+        Some(ImportanceTable {
+            grid: lay.grid.clone(),
+            detector,
+            value,
+            states,
+            response: mean[out.layout.detectors[0].power],
+            paths: paths as u64,
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The weight windows of `run.importance = "windows"` from the importance table
+    /// ([`crate::transport::windows`]); `None` for any other setting or without a table.
+    pub fn weight_windows(&self) -> Option<crate::transport::windows::Windows> {
+        if self.plan.importance != Importance::Windows {
+            return None;
+        }
+        let t = self.importance_table()?;
+        Some(crate::transport::windows::Windows::new(t.grid, &t.value, t.response))
     }
 
     /// Whether the walk needs the Doppler term (something moves).
@@ -684,6 +767,7 @@ impl Experiment {
         mut sums: Tallies,
         layout: &TallyLayout,
         beat: BeatModel,
+        windows: Option<&Windows>,
         progress: &dyn Progress,
     ) -> BatchResult {
         sums.sums_mut().fill(0.0);
@@ -704,6 +788,7 @@ impl Experiment {
             split: None,
             path_scores: layout.tail_scores(),
             trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
+            copies: Vec::new(),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());
@@ -729,6 +814,7 @@ impl Experiment {
             twin,
             twin_scene: twin_scene.as_ref(),
             launches: launches.as_ref(),
+            windows,
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;

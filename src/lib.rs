@@ -91,7 +91,6 @@ pub mod detect;
 pub mod error;
 pub mod experiment;
 pub mod flow;
-pub mod importance;
 pub mod io;
 pub mod medium;
 pub mod mie;

@@ -195,8 +195,9 @@ pub struct RunSection {
     #[serde(rename = "launch_margin_um", alias = "launch_margin_mm")]
     pub launch_margin: Option<Quantity<Length>>,
     pub launch_profile_share: Option<f64>,
-    /// The importance table of the main output's detector (`crate::importance`): `"off"`
-    /// (default) or `"table"` (a pilot computes it and the run writes it; nothing uses it yet).
+    /// The importance table of the main output's detector (`detect::importance`): `"off"`
+    /// (default), `"table"` (a pilot computes it and the run writes it) or `"windows"` (and the
+    /// forward walk's weight windows follow it, `transport::windows`).
     pub importance: Option<ImportanceKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
@@ -218,6 +219,7 @@ pub enum LaunchesKind {
 pub enum ImportanceKind {
     Off,
     Table,
+    Windows,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

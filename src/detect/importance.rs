@@ -1,10 +1,26 @@
-//! The tallies of an importance pilot ([`crate::importance`]): every forward path records its
-//! states after each scattering event — layer, depth bin and polar-angle bin of the new
-//! direction ([`ImportanceGrid`]) — with its weight and the score it had made so far into one
-//! detector; when it ends, each state is credited with the score the path made after it, per unit
-//! weight (the state's value: an unbiased sample of the adjoint importance `I*(z, μ)` of that
-//! detector). The sums and counts per bin are an internal tally of the pilot run, so batch
-//! statistics, threads and shards treat them as any other.
+//! The importance table `I*(z, θ)` of a detector for the layered stack (`run.importance =
+//! "table"` or `"windows"`): what a unit of weight at depth `z`, leaving a scattering event along a direction of
+//! polar angle θ (`μ = cos θ`; θ = 0 down into the stack, π up out of it), goes on to bring the
+//! detector. It is the adjoint solution that guided directions and weight windows steer by
+//! (issue 36; shared/reference/variance-reduction.md §3: CADIS, and CADIS-Ω's angular importance
+//! for collimated beams): in g 0.95–0.97 tissue under a small pupil, what a path brings the
+//! camera depends mostly on its direction and depth.
+//!
+//! **How.** A pilot of forward paths, on its own random streams (the run's seed mixed with
+//! [`IMPORTANCE_SEED`]: the table is the same whatever the threads, shards or resumes), through the
+//! layered twin of the scene (its regions replaced by their layers' media: the stack the table is
+//! of) into the detector alone (its power: the light it receives, whatever its parts). Each path
+//! records its states after each scattering event and, when it ends, credits each with the
+//! detected weight that came after it over the path's weight there
+//! ([`Trace`]): an unbiased sample of the state's value. A bin's importance is
+//! the mean of its samples (a ratio of the pilot's per-path means: the values' sum over the
+//! states' count). Binned by layer, depth ([`DEPTH_BINS`] per layer) and θ ([`ANGLE_BINS`]), [`ImportanceGrid`].
+//!
+//! **Its cost** is part of the run's time (reported as `importance.seconds`): [`PILOT_PATHS`]
+//! paths, fewer than a hundredth of a shipped LDH run's.
+//!
+//! The pilot itself is [`crate::experiment::Experiment::importance_table`]; the weight windows it
+//! feeds are `transport::windows`.
 
 use crate::medium::Scene;
 use crate::output::{Kind, Registry, Slots};
@@ -19,6 +35,44 @@ pub const ANGLE_BINS: usize = 48;
 const OPEN_DEPTH_TRANSPORT_LENGTHS: f64 = 20.0;
 /// Diffusion lengths `1/μ_eff` of a semi-infinite absorbing layer they span at most.
 const OPEN_DEPTH_DIFFUSION_LENGTHS: f64 = 10.0;
+
+/// Paths of the pilot.
+pub const PILOT_PATHS: u64 = 200_000;
+/// Its batches.
+pub const PILOT_BATCHES: u64 = 8;
+/// Mixed into the seed for the pilot's streams, which the run's never share.
+pub const IMPORTANCE_SEED: u64 = 0x494d_504f_5254;
+
+/// The importance table of one detector ([`crate::experiment::Experiment::importance_table`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportanceTable {
+    pub grid: ImportanceGrid,
+    /// The detector's index.
+    pub detector: usize,
+    /// Per bin (`[layer][depth][angle]`): the mean value of a unit weight in it (fraction of
+    /// the weight the detector receives); NaN where the pilot had no state.
+    pub value: Vec<f64>,
+    /// Per bin: the pilot's states in it.
+    pub states: Vec<u64>,
+    /// The detector's response: its detected weight per pilot path (the windows' scale,
+    /// `transport::windows`).
+    pub response: f64,
+    /// The pilot's paths and wall time (s).
+    pub paths: u64,
+    pub seconds: f64,
+}
+
+impl ImportanceTable {
+    /// The table's shape: layers, depth bins, angle bins.
+    pub fn shape(&self) -> [usize; 3] {
+        [self.grid.layers.len(), DEPTH_BINS, ANGLE_BINS]
+    }
+
+    /// The value of bin (`layer`, `depth`, `angle`).
+    pub fn at(&self, layer: usize, depth: usize, angle: usize) -> f64 {
+        self.value[(layer * DEPTH_BINS + depth) * ANGLE_BINS + angle]
+    }
+}
 
 /// The bins of the importance table: per layer, [`DEPTH_BINS`] depth bins (uniform over a finite
 /// layer; over [`OPEN_DEPTH_TRANSPORT_LENGTHS`] transport lengths or

@@ -659,6 +659,19 @@ pub struct Recorder<'a> {
     pub path_scores: Vec<[f64; tail::CHANNELS]>,
     /// The current path's states and score, in an importance pilot ([`importance`]).
     pub trace: Option<importance::Trace>,
+    /// Copies of the current path split off by its weight windows, waiting to walk on after it
+    /// (`transport::windows`).
+    pub copies: Vec<Pending>,
+}
+
+/// A copy of a forward path made by a weight window's split (`transport::windows`): its state,
+/// layer, own stream and layered twin, to walk on from after the path.
+#[derive(Clone)]
+pub struct Pending {
+    pub s: PathState,
+    pub li: usize,
+    pub rng: crate::sampling::PathRng,
+    pub twin: Option<twin::TwinPath>,
 }
 
 /// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).

@@ -109,6 +109,18 @@ impl PathRng {
         ((r >> 32) as f64 * SCALE, (r & 0xFFFF_FFFF) as f64 * SCALE)
     }
 
+    /// A draw from which the streams of a split's copies are made ([`PathRng::copy`]).
+    #[inline(always)]
+    pub fn split_key(&mut self) -> u64 {
+        self.0.next_u64()
+    }
+
+    /// The stream of copy `k` of a path split with the key `key` ([`PathRng::split_key`], drawn
+    /// from the path's own stream: the same whatever the threads).
+    pub fn copy(key: u64, k: u64) -> PathRng {
+        PathRng(Xoshiro256PlusPlus::seed_from_u64(mix64(key ^ mix64(k))))
+    }
+
     /// Two independent signed 32-bit integers, uniform on `[−2³¹, 2³¹)`, from one draw (the two
     /// halves reinterpreted; for [`warp::azimuth_i32`](super::warp::azimuth_i32)).
     #[inline(always)]

@@ -6,6 +6,7 @@ pub mod fresnel;
 pub mod nee;
 pub mod tracking;
 pub mod walk;
+pub mod windows;
 
 pub use camera::CameraTarget;
 pub use features::{Features, PATHS_PER_TICK};

@@ -17,7 +17,7 @@ use glam::DVec3;
 
 use crate::detect::twin::{Split, TwinPath};
 use crate::detect::volume::VolumeTally;
-use crate::detect::{Exit, PathState, Recorder, Scalar, Shot, Side, Twin};
+use crate::detect::{Exit, PathState, Pending, Recorder, Scalar, Shot, Side, Twin};
 use crate::medium::{Medium, Population, Scene};
 use crate::phase::Deflection;
 use crate::sampling::{PathRng, warp};
@@ -27,6 +27,7 @@ use super::camera::CameraTarget;
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::tracking::{Flight, LayerRay, Tracking, free_flight, free_flight_to};
+use super::windows::{Action, MAX_PENDING};
 
 /// Knobs of the random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -212,6 +213,9 @@ pub struct WalkContext<'a> {
     /// Forward paths start near the regions ([`crate::source::Launches`]; `None`: from the
     /// profile).
     pub launches: Option<&'a crate::source::Launches>,
+    /// The weight windows of `run.importance = "windows"` ([`super::windows`]; `None`: none, and
+    /// in a twin's own walk).
+    pub windows: Option<&'a super::windows::Windows>,
 }
 
 impl WalkContext<'_> {
@@ -438,9 +442,40 @@ pub fn trace_path<
         rec,
     );
     *rng = local;
+    finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, 0));
+    // The copies its weight windows split off, each walked on from where it was made.
+    while let Some(c) = rec.copies.pop() {
+        rec.twin = c.twin;
+        let (mut s, mut local, order) = (c.s, c.rng, c.s.order);
+        let (mut absorbed, mut null_collisions) = (0.0, 0);
+        let end = walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(
+            ctx,
+            c.li,
+            &mut s,
+            &mut local,
+            &mut absorbed,
+            &mut null_collisions,
+            rec,
+        );
+        finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, order));
+    }
+}
+
+/// Record how the walk of `s` ended (`end`), with its absorbed weight, null collisions and the
+/// scattering order it started its walk with (`counts`; 0 for a path from the source, a copy's
+/// at its split), and walk the layered twin that parted from it.
+#[inline(always)]
+fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    s: &PathState,
+    end: End,
+    (absorbed, null_collisions, order): (f64, u64, u32),
+) {
+    let s = *s;
     rec.stats.null_collisions += null_collisions;
     // Every real collision increments `order`, except one that leaves no weight to go on with.
-    rec.stats.scattering_events += u64::from(s.order) + u64::from(end == End::Absorbed);
+    rec.stats.scattering_events += u64::from(s.order - order) + u64::from(end == End::Absorbed);
     rec.add(Scalar::AbsorbedFraction, absorbed);
     match end {
         End::Escaped { side, n_ambient, reflected_once } => {
@@ -469,6 +504,22 @@ pub fn trace_path<
     }
     if NEE && let Some(split) = rec.split.take() {
         twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
+    }
+}
+
+/// Split `s` (in layer `li`) into `n` paths of equal weight ([`super::windows`]): `s` goes on
+/// with its share, `n − 1` copies wait in `rec` to walk on after it, copy `k` on the stream
+/// `PathRng::copy(key, k)`, each with the path's layered twin as it is now. No split once
+/// [`MAX_PENDING`] copies wait.
+#[cold]
+#[inline(never)]
+fn split(rec: &mut Recorder, s: &mut PathState, li: usize, n: u32, key: u64) {
+    if rec.copies.len() + n as usize > MAX_PENDING {
+        return;
+    }
+    s.weight /= f64::from(n);
+    for k in 1..n {
+        rec.copies.push(Pending { s: *s, li, rng: PathRng::copy(key, u64::from(k)), twin: rec.twin });
     }
 }
 
@@ -758,6 +809,18 @@ fn walk<
                     return end;
                 }
                 rec.scattered(li, s);
+                if let Some(w) = ctx.windows {
+                    match w.check(li, s) {
+                        Action::Keep => {}
+                        Action::Split(n) => split(rec, s, li, n, rng.split_key()),
+                        Action::Roulette { p, w } => {
+                            if rng.uniform() >= p {
+                                return End::Roulette;
+                            }
+                            s.weight = w;
+                        }
+                    }
+                }
             } else if let Some(end) =
                 collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n }, settings, rng, absorbed, &mut checkpoint)
             {
@@ -1115,7 +1178,7 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
     rec: &mut Recorder,
 ) {
     let Some(scene) = ctx.twin_scene else { return };
-    let ctx = WalkContext { scene, volume: None, reflections: false, ..*ctx };
+    let ctx = WalkContext { scene, volume: None, reflections: false, windows: None, ..*ctx };
     let Split { mut s, li, twin, mut rng, flying } = split;
     rec.twin = Some(TwinPath { only: true, ..twin });
     let layer = &scene.layers[li];

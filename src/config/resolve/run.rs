@@ -3,6 +3,7 @@
 use super::{DEFAULT_MEMORY_BUDGET_GIB, R, err};
 use crate::config::schema::*;
 use crate::experiment::RunPlan;
+use crate::transport::windows::Importance;
 use crate::transport::{ControlVariate, LaunchSettings, Reflections, Tracking, WalkSettings};
 
 pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
@@ -151,7 +152,11 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         memory_limited_by,
         camera_pixel_stride: 1,
         memory: Vec::new(),
-        importance: r.importance == Some(ImportanceKind::Table),
+        importance: match r.importance.unwrap_or(ImportanceKind::Off) {
+            ImportanceKind::Off => Importance::Off,
+            ImportanceKind::Table => Importance::Table,
+            ImportanceKind::Windows => Importance::Windows,
+        },
         importance_trace: None,
     })
 }

@@ -1,4 +1,4 @@
-//! The importance table of `run.importance = "table"` ([`crate::importance`]): `importance.npy`
+//! The importance table of `run.importance = "table"` ([`crate::detect::importance`]): `importance.npy`
 //! (`[layer][depth][angle]`, NaN where the pilot had no state) and `importance_states.npy` (the
 //! pilot's states per bin), a figure (one panel per layer: depth against the direction's polar
 //! angle, log colour scale) and the manifest's `importance` entry.
@@ -6,9 +6,9 @@
 use serde::Serialize;
 
 use super::{OutputEntry, Writer};
+use crate::detect::importance::ImportanceTable;
 use crate::detect::importance::{ANGLE_BINS, DEPTH_BINS};
 use crate::error::Result;
-use crate::importance::ImportanceTable;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, quantile};
 use crate::io::formats::npy;

@@ -317,7 +317,8 @@ fn write_run_to<S: super::Sink>(
         Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
         None => None,
     };
-    let importance = match exp.plan.importance.then(|| crate::importance::table(exp)).flatten() {
+    let asked = exp.plan.importance != crate::transport::windows::Importance::Off;
+    let importance = match asked.then(|| exp.importance_table()).flatten() {
         Some(t) => {
             let name = &exp.detectors[t.detector].name;
             Some(super::importance::write_importance(&mut w, &t, &exp.scene, name)?)

@@ -1,0 +1,107 @@
+//! Weight windows from an importance table (`run.importance = "windows"`; CADIS, Wagner &
+//! Haghighat 1998 [recalled]; shared/reference/variance-reduction.md §3): after each scattering
+//! event a forward path's weight is held within a window about `R/I*(z, θ)` — `I*` the table's
+//! value of its state ([`crate::importance`]), `R` the detector's response per path — so that
+//! `weight × importance`, what the path goes on to contribute, stays near `R` for every path:
+//! above the window the path is split into copies that share its weight, below it plays Russian
+//! roulette up to the window's centre. Both keep every expectation (the path's and its layered
+//! twin's, whose weight is the path's times `Λ`): unbiased. The copies walk on after the path, each
+//! on a stream of its own drawn from the path's ([`crate::sampling::rng::PathRng::copy`]), and
+//! belong to the path's history (its tail score, its batch).
+
+use crate::detect::PathState;
+use crate::detect::importance::ImportanceGrid;
+
+/// `run.importance`: what the importance table is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Importance {
+    /// No table (default).
+    #[default]
+    Off,
+    /// Computed and written: a diagnostic.
+    Table,
+    /// Computed, written, and the forward walk's weight windows.
+    Windows,
+}
+
+/// The ratio of a window's upper bound to its lower (MCNP's default 5 [recalled]); its centre is
+/// their geometric mean.
+pub const WIDTH: f64 = 5.0;
+/// Copies of one split, at most.
+pub const MAX_SPLIT: u32 = 8;
+/// Copies waiting to walk, at most per path (beyond it no more splits: a bound on the work and
+/// memory of one path).
+pub const MAX_PENDING: usize = 256;
+
+/// The windows of a scene's states.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Windows {
+    pub grid: ImportanceGrid,
+    /// Per bin: the window's centre (weight), 0 where the table has no value (no window).
+    pub center: Vec<f64>,
+}
+
+/// What a window does to a path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Action {
+    Keep,
+    /// Into this many paths of equal weight (the path and `n − 1` copies).
+    Split(u32),
+    /// Survive with probability `p`, then with weight `w`.
+    Roulette {
+        p: f64,
+        w: f64,
+    },
+}
+
+impl Windows {
+    /// The windows of a table of values `value` (per bin of `grid`) for a detector of response
+    /// `response` (its detected weight per path).
+    pub fn new(grid: ImportanceGrid, value: &[f64], response: f64) -> Self {
+        let center = value
+            .iter()
+            .map(|&v| if v > 0.0 && v.is_finite() && response > 0.0 { response / v } else { 0.0 })
+            .collect();
+        Windows { grid, center }
+    }
+
+    /// What the window of the state of `s` in layer `li` does to it.
+    #[inline]
+    pub fn check(&self, li: usize, s: &PathState) -> Action {
+        let c = self.center[self.grid.bin(li, s.pos.z, s.dir.z)];
+        let half = WIDTH.sqrt();
+        if c <= 0.0 || s.weight <= 0.0 {
+            Action::Keep
+        } else if s.weight > c * half {
+            Action::Split(((s.weight / c).round() as u32).clamp(2, MAX_SPLIT))
+        } else if s.weight < c / half {
+            Action::Roulette { p: s.weight / c, w: c }
+        } else {
+            Action::Keep
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// The window about `R/I`: a path far above it splits (at most [`MAX_SPLIT`]), within it is
+    /// kept, below it plays roulette to the centre with survival `w/c` (unbiased: `p·c = w`).
+    #[test]
+    fn a_window_splits_above_keeps_within_and_plays_roulette_below() {
+        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)] };
+        let n = grid.len();
+        let w = Windows::new(grid, &vec![0.5; n], 0.05);
+        let at = |weight: f64| PathState::new(DVec3::new(0.0, 0.0, 1e-6), DVec3::Z, weight, 0.0);
+        assert_eq!(w.center[0], 0.1);
+        assert_eq!(w.check(0, &at(0.1)), Action::Keep);
+        assert_eq!(w.check(0, &at(0.3)), Action::Split(3));
+        assert_eq!(w.check(0, &at(5.0)), Action::Split(MAX_SPLIT));
+        let Action::Roulette { p, w: c } = w.check(0, &at(0.01)) else { panic!("roulette below") };
+        assert!((p * c - 0.01).abs() < 1e-15 && c == 0.1);
+        let none = Windows::new(ImportanceGrid { layers: vec![(0.0, 1e-5)] }, &vec![f64::NAN; n], 0.05);
+        assert_eq!(none.check(0, &at(5.0)), Action::Keep);
+    }
+}
