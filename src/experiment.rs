@@ -173,6 +173,9 @@ pub struct RunOutput {
     pub main_output: (String, f64),
     /// How a run to a target error ended.
     pub target: Option<TargetOutcome>,
+    /// The importance table its weight windows followed (`run.importance = "windows"`; `None`
+    /// otherwise, and after a merge of shards: the writer computes it again).
+    pub importance: Option<crate::detect::importance::ImportanceTable>,
 }
 
 impl RunOutput {
@@ -308,7 +311,9 @@ struct BatchRunner<'a> {
     /// batch runs long, few enough to bound memory.
     in_flight: u64,
     spare: Vec<Tallies>,
-    /// The weight windows of `run.importance = "windows"`, from a pilot run here.
+    /// The importance table of `run.importance = "windows"` and its weight windows, from a
+    /// pilot run here.
+    table: Option<crate::detect::importance::ImportanceTable>,
     windows: Option<Windows>,
 }
 
@@ -317,14 +322,16 @@ impl<'a> BatchRunner<'a> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(exp.plan.effective_threads()).build().ok();
         let layout = exp.tally_layout();
         let (beat, in_flight) = (exp.beat_model(), exp.batches_in_flight());
-        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), windows: exp.weight_windows() }
+        let table = (exp.plan.importance == Importance::Windows).then(|| exp.importance_table()).flatten();
+        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response));
+        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
     }
 
     /// Run the batches `range` and give each result to `sink` in batch order, stopping at its
     /// first error. A pipeline, not rounds: as each batch is handed over the next one starts, so
     /// no thread waits for the slowest batch of a group (this thread only receives and folds).
     fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress, sink: &mut BatchSink) -> Result<()> {
-        let BatchRunner { exp, pool, layout, beat, in_flight, spare, windows } = self;
+        let BatchRunner { exp, pool, layout, beat, in_flight, spare, windows, .. } = self;
         let (exp, layout, beat, in_flight, windows) = (*exp, &*layout, *beat, *in_flight, windows.as_ref());
         let len = layout.tallies();
         let Some(pool) = pool else {
@@ -537,16 +544,6 @@ impl Experiment {
         })
     }
 
-    /// The weight windows of `run.importance = "windows"` from the importance table
-    /// ([`crate::transport::windows`]); `None` for any other setting or without a table.
-    pub fn weight_windows(&self) -> Option<crate::transport::windows::Windows> {
-        if self.plan.importance != Importance::Windows {
-            return None;
-        }
-        let t = self.importance_table()?;
-        Some(crate::transport::windows::Windows::new(t.grid, &t.value, t.response))
-    }
-
     /// Whether the walk needs the Doppler term (something moves).
     pub fn needs_doppler(&self) -> bool {
         self.scene.is_moving()
@@ -697,6 +694,7 @@ impl Experiment {
         }
         let RunState { estimates, stats, lines, end, err, .. } = st;
         let mut out = self.finish(estimates, stats, lines, elapsed + start.elapsed().as_secs_f64());
+        out.importance = runner.table.take();
         out.main_output = (main.name, err);
         out.target = target.map(|t| TargetOutcome {
             output: t.output.name.clone(),
@@ -757,6 +755,7 @@ impl Experiment {
             paths_per_batch: self.plan.paths_per_batch,
             main_output,
             target: None,
+            importance: None,
         }
     }
 

@@ -318,7 +318,7 @@ fn write_run_to<S: super::Sink>(
         None => None,
     };
     let asked = exp.plan.importance != crate::transport::windows::Importance::Off;
-    let importance = match asked.then(|| exp.importance_table()).flatten() {
+    let importance = match asked.then(|| out.importance.clone().or_else(|| exp.importance_table())).flatten() {
         Some(t) => {
             let name = &exp.detectors[t.detector].name;
             Some(super::importance::write_importance(&mut w, &t, &exp.scene, name)?)
