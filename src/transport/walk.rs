@@ -461,8 +461,8 @@ pub fn trace_path<
     }
 }
 
-/// Record how the walk of `s` ended (`end`), with its absorbed weight, null collisions and the
-/// scattering order it started its walk with (`counts`; 0 for a path from the source, a copy's
+/// Record how the walk of `s` ended (`end`), with its absorbed weight, its null collisions and
+/// the scattering order it started its walk with (0 for a path from the source, a copy's order
 /// at its split), and walk the layered twin that parted from it.
 #[inline(always)]
 fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool>(
