@@ -183,12 +183,12 @@ mod tests {
 }
 
 /// MCNP's check of a tally's largest history scores (the slope of the score density's tail,
-/// X-5 Monte Carlo Team 2003, MCNP5 manual vol. I §2.VI [recalled]): the density `f(x)` of the
+/// X-5 Monte Carlo Team 2003, MCNP5 manual vol. I §2.VI (recalled, unchecked)): the density `f(x)` of the
 /// paths' scores falls as `x^−s` at its high end; the variance of the tally exists for `s > 3`,
 /// and MCNP asks for `s ≥ 3` (it prints 10 for a tail that falls faster than any power). Here
 /// `s = 1 + α` with `α` Hill's estimator of the tail index from the largest `k` scores
 /// (Hill 1975, Ann. Statist. 3(5)): `α = k / Σ_{i≤k} ln(x_i/x_(k+1))`, `k` = min(200, 5 % of
-/// the scores) [MCNP's 201 largest, recalled], at least 20.
+/// the scores) (MCNP's 201 largest, recalled), at least 20.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct TailCheck {
     /// Paths with a non-zero score.

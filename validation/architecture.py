@@ -35,7 +35,7 @@ LAYERS = [
     ("scene", ["medium", "flow", "source", "io::formats"]),
     ("recording", ["detect"]),
     ("transport", ["transport"]),
-    ("runs", ["experiment", "pilot", "importance", "post", "scan", "converge"]),
+    ("runs", ["experiment", "pilot", "post", "scan", "converge"]),
     ("configuration", ["config", "describe"]),
     ("outputs", ["io::write", "io::persist", "io::figures", "io"]),
     ("orchestration", ["run"]),

@@ -32,9 +32,9 @@ pub const DEPTH_BINS: usize = 16;
 pub const ANGLE_BINS: usize = 48;
 /// Transport lengths of a semi-infinite last layer the depth bins span at most (deeper states
 /// fall into the last bin).
-const OPEN_DEPTH_TRANSPORT_LENGTHS: f64 = 20.0;
+pub const OPEN_DEPTH_TRANSPORT_LENGTHS: f64 = 20.0;
 /// Diffusion lengths `1/μ_eff` of a semi-infinite absorbing layer they span at most.
-const OPEN_DEPTH_DIFFUSION_LENGTHS: f64 = 10.0;
+pub const OPEN_DEPTH_DIFFUSION_LENGTHS: f64 = 10.0;
 
 /// Paths of the pilot.
 pub const PILOT_PATHS: u64 = 200_000;

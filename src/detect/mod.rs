@@ -348,7 +348,7 @@ pub struct TallyLayout {
     /// faces), declared only with `[lateral]` ([`TallyLayout::declare_lateral`]).
     pub lateral: Option<usize>,
     /// The sums of an importance pilot ([`importance`]; only in the pilot's own run,
-    /// [`crate::importance`]).
+    /// [`crate::experiment::Experiment::importance_table`]).
     pub importance: Option<importance::ImportanceLayout>,
 }
 

@@ -1,7 +1,7 @@
 //! Weight windows from an importance table (`run.importance = "windows"`; CADIS, Wagner &
-//! Haghighat 1998 [recalled]; shared/reference/variance-reduction.md §3): after each scattering
+//! Haghighat 1998 (recalled, unchecked); shared/reference/variance-reduction.md §3): after each scattering
 //! event a forward path's weight is held within a window about `R/I*(z, θ)` — `I*` the table's
-//! value of its state ([`crate::importance`]), `R` the detector's response per path — so that
+//! value of its state ([`crate::detect::importance`]), `R` the detector's response per path — so that
 //! `weight × importance`, what the path goes on to contribute, stays near `R` for every path:
 //! above the window the path is split into copies that share its weight, below it plays Russian
 //! roulette up to the window's centre. Both keep every expectation (the path's and its layered
@@ -24,7 +24,7 @@ pub enum Importance {
     Windows,
 }
 
-/// The ratio of a window's upper bound to its lower (MCNP's default 5 [recalled]); its centre is
+/// The ratio of a window's upper bound to its lower (MCNP's default 5 (recalled, unchecked)); its centre is
 /// their geometric mean.
 pub const WIDTH: f64 = 5.0;
 /// Copies of one split, at most.
