@@ -247,7 +247,8 @@ fn write_run_to<S: super::Sink>(
     // The cameras' masks of the regions' footprints, before their images (which are split by them).
     for (i, d) in exp.detectors.iter().enumerate() {
         let Some(im) = d.surface().and_then(|s| s.image()) else { continue };
-        let Some(mask) = crate::detect::image::region_mask(&exp.scene, im) else { continue };
+        // The layout's (its tail check pools the same pixels).
+        let Some(mask) = out.layout.detectors[i].tail.as_ref().map(|t| &t.mask) else { continue };
         let written =
             crate::output::rows_reversed(&mask.iter().map(|&m| f64::from(u8::from(m))).collect::<Vec<_>>(), im.nx);
         let file = format!("{}_region_mask.npy", d.name);
