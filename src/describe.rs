@@ -27,6 +27,7 @@ use crate::source::{Chirp, Pointing, Profile, Source};
 use crate::spectrum::FrequencyAxis;
 use crate::transport::Tracking;
 use crate::transport::WalkContext;
+use crate::transport::windows::Importance;
 
 /// A unit: its symbol and its size in SI.
 #[derive(Debug, Clone, Copy)]
@@ -912,21 +913,42 @@ impl Display for Experiment {
             }
         }
         // The importance table (`run.importance`).
-        if self.plan.importance != crate::transport::windows::Importance::Off {
-            let windows = self.plan.importance == crate::transport::windows::Importance::Windows;
-            match self.importance_obstacle() {
-                Some(why) => writeln!(f, "importance table: none ({why})")?,
-                None => writeln!(
+        if self.plan.importance != Importance::Off {
+            let windows = match (self.plan.importance, self.plan.importance_auto) {
+                (Importance::Windows, _) => {
+                    "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
+                        .to_string()
+                        + if self.main_output().detector.is_some_and(|d| self.detectors[d].ldh().is_some())
+                            && self.needs_doppler()
+                        {
+                            "; paths shifted into or near the LDH band get windows lower by 1 + P/P_band (the camera's \
+                             power over its in-band power in a pilot of the scene)"
+                        } else {
+                            ""
+                        }
+                }
+                (Importance::Auto, None) => format!(
+                    "the forward walk follows its weight windows where a pilot of 1/{} of the paths, without and with \
+                     them, measures a lower squared relative error × work of the main output",
+                    crate::pilot::PILOT_SHARE
+                ),
+                (Importance::Auto, Some(a)) => format!(
+                    "weight windows {} by the pilot (squared relative error × work {:.3e} without, {:.3e} with)",
+                    if a.windows_chosen() { "chosen" } else { "not chosen" },
+                    a.off,
+                    a.windows
+                ),
+                _ => "written, not used by the walk".to_string(),
+            };
+            match (self.importance_obstacle(), self.main_output().detector) {
+                (Some(why), _) => writeln!(f, "importance table: none ({why})")?,
+                (None, None) => {}
+                (None, Some(d)) => writeln!(
                     f,
-                    "importance table of {}: a pilot of {} paths through the layered stack, {}; {}",
-                    self.main_output().detector.map_or("?", |d| self.detectors[d].name.as_str()),
+                    "importance table of {}: a pilot of {} paths through the layered stack, {}; {windows}",
+                    self.detectors[d].name,
                     crate::detect::importance::PILOT_PATHS,
-                    crate::detect::importance::ImportanceGrid::new(&self.scene).describe(&self.scene),
-                    if windows {
-                        "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
-                    } else {
-                        "written, not used by the walk"
-                    }
+                    self.importance_grid(d).describe(&self.scene),
                 )?,
             }
         }

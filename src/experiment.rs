@@ -45,6 +45,12 @@ pub struct RunPlan {
     /// `run.importance`: the importance table of the main output's detector, and the weight
     /// windows it gives ([`Experiment::importance_table`], [`crate::transport::windows`]).
     pub importance: Importance,
+    /// With `run.importance = "auto"`, once a pilot has decided ([`crate::pilot::decide`]): its
+    /// figures, which say whether the walk uses the windows ([`RunPlan::windows`]).
+    pub importance_auto: Option<crate::transport::windows::AutoWindows>,
+    /// The importance table, once computed (by the pilot of `"auto"`): the run's windows and
+    /// the written table are this one, not computed again.
+    pub importance_table: Option<std::sync::Arc<crate::detect::importance::ImportanceTable>>,
     /// In an importance pilot's own run: the detector whose states' values it tallies
     /// ([`crate::detect::importance`]); `None` in any other run.
     pub importance_trace: Option<usize>,
@@ -60,6 +66,16 @@ pub struct MemoryBlock {
 
 impl RunPlan {
     /// Paths actually traced: the request rounded up to a whole number per batch.
+    /// Whether the forward walk follows weight windows: `run.importance = "windows"`, or
+    /// `"auto"` where its pilot chose them (undecided: not).
+    pub fn windows(&self) -> bool {
+        match self.importance {
+            Importance::Windows => true,
+            Importance::Auto => self.importance_auto.is_some_and(|a| a.windows_chosen()),
+            Importance::Off | Importance::Table => false,
+        }
+    }
+
     pub fn samples(&self) -> u64 {
         self.batches * self.paths_per_batch
     }
@@ -322,8 +338,12 @@ impl<'a> BatchRunner<'a> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(exp.plan.effective_threads()).build().ok();
         let layout = exp.tally_layout();
         let (beat, in_flight) = (exp.beat_model(), exp.batches_in_flight());
-        let table = (exp.plan.importance == Importance::Windows).then(|| exp.importance_table()).flatten();
-        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response));
+        let table = match &exp.plan.importance_table {
+            _ if !exp.plan.windows() => None,
+            Some(t) => Some(t.as_ref().clone()),
+            None => exp.importance_table(),
+        };
+        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response).with_band(t.band));
         BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
     }
 
@@ -454,7 +474,7 @@ impl Experiment {
         // After them all: the regions' tail checks move no output.
         layout.declare_tails(&self.detectors, |im| crate::detect::image::region_mask(&self.scene, im));
         if let Some(d) = self.plan.importance_trace {
-            let grid = crate::detect::importance::ImportanceGrid::new(&self.scene);
+            let grid = self.importance_grid(d);
             layout.importance =
                 Some(crate::detect::importance::ImportanceLayout::declare(grid, d, &mut layout.registry));
         }
@@ -476,7 +496,7 @@ impl Experiment {
 
     /// Why this experiment has no importance table (`None`: it has one,
     /// [`importance_table`](Self::importance_table)): it needs a main output of a detector scored
-    /// by forward paths (a surface detector with the forward estimator, or a lidar receiver).
+    /// by forward paths: a surface detector with the forward estimator (not a lidar receiver).
     pub fn importance_obstacle(&self) -> Option<String> {
         let main = self.main_output();
         let Some(d) = main.detector else {
@@ -487,8 +507,57 @@ impl Experiment {
                 "detector `{}` is estimated from the camera's side (the table is of forward paths)",
                 self.detectors[d].name
             )),
+            // Measured (validation/README.md, issue 36): the plain walk's own batch errors of a
+            // lidar's multiply scattered gates are not reliable (two seeds of a fog differ by
+            // 5–6σ), so windows there cannot be shown to agree with it, and on wind_rainy they
+            // act on the 2–4 % of each gate's light that is not single scattering only.
+            DetectorKind::Lidar(_) => Some(format!(
+                "detector `{}` is a lidar receiver: weight windows on its multiply scattered light are not validated",
+                self.detectors[d].name
+            )),
             _ => None,
         }
+    }
+
+    /// The bins of detector `d`'s importance table: the stack's, and lateral ones if the beam
+    /// enters the stack outside the area of a surface detector.
+    pub fn importance_grid(&self, d: usize) -> crate::detect::importance::ImportanceGrid {
+        use crate::detect::importance::{ImportanceGrid, Lateral};
+        let lateral = match (self.detectors[d].surface(), self.source.footprint()) {
+            (Some(s), Some(fp)) => Lateral::new(s.area, fp.center),
+            _ => None,
+        };
+        ImportanceGrid::new(&self.scene, lateral)
+    }
+
+    /// The Doppler-state splitting of detector `d`, an LDH camera over moving media
+    /// ([`crate::detect::importance::DopplerBand`]): its in-band share of the power from a pilot
+    /// of [`BAND_PILOT_PATHS`](crate::detect::importance::BAND_PILOT_PATHS) paths through the
+    /// scene itself (its vessels in it), the camera alone, on the pilot's own streams.
+    fn doppler_band(&self, d: usize) -> Option<crate::detect::importance::DopplerBand> {
+        use crate::detect::importance::{BAND_PILOT_PATHS, BAND_SEED, DopplerBand, IMPORTANCE_SEED, PILOT_BATCHES};
+        let ldh = self.detectors[d].ldh()?;
+        if !self.needs_doppler() {
+            return None;
+        }
+        let mut pilot = self.clone();
+        pilot.detectors = vec![self.detectors[d].clone()];
+        pilot.volume = None;
+        pilot.references.clear();
+        pilot.plan.seed = crate::sampling::rng::mix64(self.plan.seed ^ IMPORTANCE_SEED ^ BAND_SEED);
+        pilot.plan.batches = PILOT_BATCHES;
+        pilot.plan.paths_per_batch = BAND_PILOT_PATHS / PILOT_BATCHES;
+        pilot.plan.walk.control_variate = ControlVariate::Off;
+        pilot.plan.importance = Importance::Off;
+        pilot.plan.importance_auto = None;
+        pilot.plan.importance_table = None;
+        pilot.plan.importance_trace = None;
+        let out = pilot.run(&Silent);
+        let (mean, lay) = (out.estimates.mean(), &out.layout.detectors[0]);
+        let l = lay.ldh()?;
+        let band: f64 = [l.m0_plus, l.m0_minus].iter().map(|&o| mean[o..o + l.pixels].iter().sum::<f64>()).sum();
+        let power = mean[lay.power];
+        DopplerBand::new(ldh.band, self.source.wavelength, if power > 0.0 { band / power } else { 0.0 })
     }
 
     /// The importance table of the main output's detector ([`crate::detect::importance`]; `None`
@@ -519,25 +588,39 @@ impl Experiment {
         pilot.plan.walk.control_variate = ControlVariate::Off;
         pilot.plan.walk.launches = None;
         pilot.plan.importance = Importance::Off;
+        pilot.plan.importance_auto = None;
+        pilot.plan.importance_table = None;
         pilot.plan.importance_trace = Some(0);
         let out = pilot.run(&Silent);
         let lay = out.layout.importance.as_ref().expect("the pilot lays out its sums");
         let mean = out.estimates.mean();
         let paths = (out.estimates.batches() as u64 * out.paths_per_batch) as f64;
         let bins = lay.grid.len();
-        let (mut value, mut states) = (vec![f64::NAN; bins], vec![0; bins]);
+        let (mut value, mut states, mut relative_error) =
+            (vec![f64::NAN; bins], vec![0; bins], vec![f64::INFINITY; bins]);
         for b in 0..bins {
-            let (sum, count) = (mean[lay.start + 2 * b], mean[lay.start + 2 * b + 1]);
+            let at = lay.start + crate::detect::importance::SLOTS * b;
+            let (sum, sum2, count) = (mean[at], mean[at + 1], mean[at + 2]);
             states[b] = (count * paths).round() as u64;
             if count > 0.0 {
-                value[b] = sum / count;
+                let m = sum / count;
+                value[b] = m;
+                // The σ of the mean of the bin's `n` values, over it.
+                let n = count * paths;
+                if n >= 2.0 && m > 0.0 {
+                    let var = ((sum2 / count - m * m).max(0.0)) / (n - 1.0);
+                    relative_error[b] = var.sqrt() / m;
+                }
             }
         }
+        let band = self.doppler_band(detector);
         Some(ImportanceTable {
             grid: lay.grid.clone(),
             detector,
             value,
             states,
+            relative_error,
+            band,
             response: mean[out.layout.detectors[0].power],
             paths: paths as u64,
             seconds: start.elapsed().as_secs_f64(),

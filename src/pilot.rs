@@ -1,5 +1,7 @@
 //! The pilot that decides `estimator = "auto"`: before a run, a short run of each estimator on
-//! its own random numbers, and the one with the lower per-pixel variance × work is kept.
+//! its own random numbers, and the one with the lower per-pixel variance × work is kept. The
+//! same for `run.importance = "auto"`: with and without the weight windows
+//! ([`importance_pilot`]).
 //!
 //! **What is compared.** For a camera detector, the figure of each estimator is the squared
 //! relative error of the image its users read — M0+ for an LDH camera, the intensity image
@@ -30,10 +32,14 @@
 //! Both compare over the camera pilot's pixels. The pilot's paths are not part of the run's
 //! estimate (they would make its batches unequal); its time is reported.
 
+use std::sync::Arc;
+
+use crate::detect::importance::ImportanceTable;
 use crate::detect::{AutoChoice, DetectorKind, EstimatorChoice};
 use crate::experiment::{Experiment, RunOutput, Silent};
 use crate::sampling::rng::mix64;
 use crate::stats::RunStats;
+use crate::transport::windows::{AutoWindows, Importance};
 
 /// The forward pilot traces `1/PILOT_SHARE` of the run's paths.
 pub const PILOT_SHARE: u64 = 64;
@@ -47,10 +53,14 @@ pub const PILOT_MIN_PATHS: u64 = 2_000;
 pub const CONNECTION_STEPS: f64 = 3.0;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 const PILOT_SEED: u64 = 0x0050_494c_4f54;
+/// Mixed in besides for the pilot of `run.importance = "auto"`.
+const IMPORTANCE_PILOT_SEED: u64 = 0x5757_494e;
 
 /// `exp` with every undecided `estimator = "auto"` decided by a pilot ([`pilot`]; itself,
 /// cloned, when there is none): the pilot's figures kept on the detector, whose
-/// [`crate::detect::Surface::estimator`] is then the one they choose.
+/// [`crate::detect::Surface::estimator`] is then the one they choose. Then an undecided
+/// `run.importance = "auto"` ([`importance_pilot`]; where the experiment has no importance table
+/// it stays undecided: no windows).
 pub fn decide(exp: &Experiment) -> Experiment {
     let mut out = exp.clone();
     for (i, choice) in pilot(exp) {
@@ -58,7 +68,43 @@ pub fn decide(exp: &Experiment) -> Experiment {
             s.auto = Some(choice);
         }
     }
+    if out.plan.importance == Importance::Auto
+        && out.plan.importance_auto.is_none()
+        && let Some(table) = out.importance_table()
+    {
+        let table = Arc::new(table);
+        out.plan.importance_auto = Some(importance_pilot(&out, &table));
+        out.plan.importance_table = Some(table);
+    }
     out
+}
+
+/// The pilot of `run.importance = "auto"`: the run without and with the weight windows of
+/// `table` ([`crate::transport::windows`]), on the same paths (`1/PILOT_SHARE` of the run's in
+/// [`PILOT_BATCHES`] batches, at least [`PILOT_MIN_PATHS`] per batch), and for each the squared
+/// relative error of the main output (`Σσ²/Σm²`, `m` the two pilots' mean: one reference for
+/// both) × its work in collision steps (the windows' copies and roulette in it). Like the
+/// estimators' pilot: counted, not timed, so the choice is the same on any threads, shard or
+/// resume; the figures do not depend on the pilot's size (variance ∝ 1/paths, work ∝ paths).
+pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoWindows {
+    let ppb = (exp.plan.samples() / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS);
+    let variant = |importance: Importance| {
+        let mut v = exp.clone();
+        v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED ^ IMPORTANCE_PILOT_SEED);
+        v.plan.batches = PILOT_BATCHES;
+        v.plan.paths_per_batch = ppb;
+        v.plan.requested_samples = ppb * PILOT_BATCHES;
+        v.plan.importance = importance;
+        v.plan.importance_table = Some(Arc::clone(table));
+        v
+    };
+    let (off, on) = (variant(Importance::Off).run(&Silent), variant(Importance::Windows).run(&Silent));
+    let range = exp.main_output().range();
+    let (m_off, m_on) = (off.estimates.mean(), on.estimates.mean());
+    let m2: f64 = range.clone().map(|k| (0.5 * (m_off[k] + m_on[k])).powi(2)).sum();
+    let var = |o: &RunOutput| o.estimates.stderr()[range.clone()].iter().map(|s| s * s).sum::<f64>();
+    let figure = |o: &RunOutput| if m2 > 0.0 { var(o) / m2 * forward_work(&o.stats) } else { f64::INFINITY };
+    AutoWindows { off: figure(&off), windows: figure(&on) }
 }
 
 /// The pilot's figures for every undecided `estimator = "auto"` detector of `exp`, by detector

@@ -197,7 +197,8 @@ pub struct RunSection {
     pub launch_profile_share: Option<f64>,
     /// The importance table of the main output's detector (`detect::importance`): `"off"`
     /// (default), `"table"` (a pilot computes it and the run writes it) or `"windows"` (and the
-    /// forward walk's weight windows follow it, `transport::windows`).
+    /// forward walk's weight windows follow it, `transport::windows`) or `"auto"` (the table,
+    /// and the windows where a pilot measures that they pay, `pilot`).
     pub importance: Option<ImportanceKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
@@ -220,6 +221,7 @@ pub enum ImportanceKind {
     Off,
     Table,
     Windows,
+    Auto,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

@@ -14,7 +14,10 @@
 //! detected weight that came after it over the path's weight there
 //! ([`Trace`]): an unbiased sample of the state's value. A bin's importance is
 //! the mean of its samples (a ratio of the pilot's per-path means: the values' sum over the
-//! states' count). Binned by layer, depth ([`DEPTH_BINS`] per layer) and θ ([`ANGLE_BINS`]), [`ImportanceGrid`].
+//! states' count). Binned by layer, depth ([`DEPTH_BINS`] per layer) and θ ([`ANGLE_BINS`]), [`ImportanceGrid`],
+//! and for a detector away from the beam (a DCS fibre centimetres from the source) by the
+//! state's lateral distance to the detector's area too ([`LATERAL_BINS`], [`Lateral`]): there what a
+//! path brings depends as much on how far it has still to go sideways as on its depth.
 //!
 //! **Its cost** is part of the run's time (reported as `importance.seconds`): [`PILOT_PATHS`]
 //! paths, fewer than a hundredth of a shipped LDH run's.
@@ -22,11 +25,16 @@
 //! The pilot itself is [`crate::experiment::Experiment::importance_table`]; the weight windows it
 //! feeds are `transport::windows`.
 
+use glam::DVec3;
+
+use crate::detect::Area;
 use crate::medium::Scene;
 use crate::output::{Kind, Registry, Slots};
 
 /// Depth bins per layer.
 pub const DEPTH_BINS: usize = 16;
+/// Bins of the lateral distance to a detector away from the beam ([`Lateral`]).
+pub const LATERAL_BINS: usize = 16;
 /// Polar-angle bins of the direction (uniform in θ: finer in `μ = cos θ` near ±1, where the
 /// pupil's cone and the laser's direction lie), θ = 0 down into the stack, π up out of it.
 pub const ANGLE_BINS: usize = 48;
@@ -42,6 +50,8 @@ pub const PILOT_PATHS: u64 = 200_000;
 pub const PILOT_BATCHES: u64 = 8;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 pub const IMPORTANCE_SEED: u64 = 0x494d_504f_5254;
+/// Mixed in besides for the band pilot's ([`DopplerBand`]).
+pub const BAND_SEED: u64 = 0x4241_4e44;
 
 /// The importance table of one detector ([`crate::experiment::Experiment::importance_table`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -54,23 +64,73 @@ pub struct ImportanceTable {
     pub value: Vec<f64>,
     /// Per bin: the pilot's states in it.
     pub states: Vec<u64>,
+    /// Per bin: the relative error of its value (∞ where it has fewer than two states or no
+    /// value).
+    pub relative_error: Vec<f64>,
     /// The detector's response: its detected weight per pilot path (the windows' scale,
     /// `transport::windows`).
     pub response: f64,
-    /// The pilot's paths and wall time (s).
+    /// For an LDH camera: its Doppler band's splitting ([`DopplerBand`]; `None` for any other
+    /// detector, or when the band pilot saw no light in the band).
+    pub band: Option<DopplerBand>,
+    /// The table pilot's paths, and the wall time of the pilots (the band's included; s).
     pub paths: u64,
     pub seconds: f64,
 }
 
-impl ImportanceTable {
-    /// The table's shape: layers, depth bins, angle bins.
-    pub fn shape(&self) -> [usize; 3] {
-        [self.grid.layers.len(), DEPTH_BINS, ANGLE_BINS]
+/// Doppler-state splitting for a band image (issue 36, item 4): a path whose Doppler shift lies
+/// in or near an LDH camera's band — it has scattered on moving blood — is worth the camera's
+/// band image far more than its importance for the camera's power says, so its weight window is
+/// lowered by `boost` (it is split into more copies; out of the band, nothing changes). `boost =
+/// 1 + P/P_band`, the camera's power over its in-band power (M0+ and M0−) in a short pilot of
+/// the scene itself: the windows then aim at the band's light as much as at all the light
+/// (FW-CADIS's equal weighting of two responses).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct DopplerBand {
+    /// `|dl/dt|` (m/s) of the paths taken as in or near the band: the band's edges ×
+    /// wavelength, widened by [`NEAR`] on both sides.
+    pub lo: f64,
+    pub hi: f64,
+    pub boost: f64,
+}
+
+/// How far beyond its edges (a factor) a shift counts as near the band.
+pub const NEAR: f64 = 1.5;
+/// Paths of the band pilot.
+pub const BAND_PILOT_PATHS: u64 = 50_000;
+/// The largest boost.
+pub const MAX_BOOST: f64 = 1e3;
+
+impl DopplerBand {
+    /// The splitting of band `[f1, f2]` (Hz) at wavelength `lambda` (m), its in-band share of
+    /// the power `share` (`None` without in-band light).
+    pub fn new((f1, f2): (f64, f64), lambda: f64, share: f64) -> Option<Self> {
+        (share > 0.0 && share.is_finite()).then(|| DopplerBand {
+            lo: f1 * lambda / NEAR,
+            hi: f2 * lambda * NEAR,
+            boost: (1.0 + 1.0 / share).min(MAX_BOOST),
+        })
     }
 
-    /// The value of bin (`layer`, `depth`, `angle`).
-    pub fn at(&self, layer: usize, depth: usize, angle: usize) -> f64 {
-        self.value[(layer * DEPTH_BINS + depth) * ANGLE_BINS + angle]
+    /// Whether a path with rate of change of its optical path length `dldt` is in or near the band.
+    #[inline]
+    pub fn holds(&self, dldt: f64) -> bool {
+        (self.lo..=self.hi).contains(&dldt.abs())
+    }
+}
+
+impl ImportanceTable {
+    /// The table's shape: layers, (lateral bins, when the grid has them,) depth bins, angle bins.
+    pub fn shape(&self) -> Vec<usize> {
+        match self.grid.lateral {
+            None => vec![self.grid.layers.len(), DEPTH_BINS, ANGLE_BINS],
+            Some(_) => vec![self.grid.layers.len(), LATERAL_BINS, DEPTH_BINS, ANGLE_BINS],
+        }
+    }
+
+    /// The value of bin (`layer`, `lateral`, `depth`, `angle`) (`lateral` 0 without lateral bins).
+    pub fn at(&self, layer: usize, lateral: usize, depth: usize, angle: usize) -> f64 {
+        self.value[((layer * self.grid.lateral_bins() + lateral) * DEPTH_BINS + depth) * ANGLE_BINS + angle]
     }
 }
 
@@ -82,10 +142,37 @@ impl ImportanceTable {
 pub struct ImportanceGrid {
     /// Per layer: its top depth, bin width (m).
     pub layers: Vec<(f64, f64)>,
+    /// The lateral bins, for a detector away from the beam.
+    pub lateral: Option<Lateral>,
+}
+
+/// The lateral bins of a detector whose area the beam enters outside: [`LATERAL_BINS`] bins
+/// of the distance (in the detector's plane, x and y) to its area, uniform from 0 (over it) to
+/// the beam's entry (farther in the last bin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lateral {
+    pub area: Area,
+    /// Bin width (m).
+    pub width: f64,
+}
+
+impl Lateral {
+    /// The lateral bins of a detector of area `area` for a beam entering at `entry` (x, y in
+    /// m): `None` if it enters over the area (or the area is the whole plane).
+    pub fn new(area: Area, entry: (f64, f64)) -> Option<Self> {
+        let d = area.distance(entry.0, entry.1);
+        (d > 0.0 && d.is_finite()).then_some(Lateral { area, width: d / LATERAL_BINS as f64 })
+    }
+
+    #[inline]
+    fn bin(&self, x: f64, y: f64) -> usize {
+        ((self.area.distance(x, y) / self.width) as usize).min(LATERAL_BINS - 1)
+    }
 }
 
 impl ImportanceGrid {
-    pub fn new(scene: &Scene) -> Self {
+    /// The grid of `scene`'s stack, with `lateral` bins or none.
+    pub fn new(scene: &Scene, lateral: Option<Lateral>) -> Self {
         let layers = scene
             .layers
             .iter()
@@ -104,27 +191,33 @@ impl ImportanceGrid {
                 (l.z_top, depth / DEPTH_BINS as f64)
             })
             .collect();
-        ImportanceGrid { layers }
+        ImportanceGrid { layers, lateral }
+    }
+
+    /// Lateral bins: [`LATERAL_BINS`] or 1 (none).
+    pub fn lateral_bins(&self) -> usize {
+        if self.lateral.is_some() { LATERAL_BINS } else { 1 }
     }
 
     /// Bins in all.
     pub fn len(&self) -> usize {
-        self.layers.len() * DEPTH_BINS * ANGLE_BINS
+        self.layers.len() * self.lateral_bins() * DEPTH_BINS * ANGLE_BINS
     }
 
     pub fn is_empty(&self) -> bool {
         self.layers.is_empty()
     }
 
-    /// The bin of a state in layer `li` at depth `z` going along a direction of z-component
+    /// The bin of a state in layer `li` at `pos` going along a direction of z-component
     /// `dir_z`.
     #[inline]
-    pub fn bin(&self, li: usize, z: f64, dir_z: f64) -> usize {
+    pub fn bin(&self, li: usize, pos: DVec3, dir_z: f64) -> usize {
         let (top, width) = self.layers[li];
-        let k = (((z - top) / width).max(0.0) as usize).min(DEPTH_BINS - 1);
+        let r = self.lateral.as_ref().map_or(0, |l| l.bin(pos.x, pos.y));
+        let k = (((pos.z - top) / width).max(0.0) as usize).min(DEPTH_BINS - 1);
         let theta = dir_z.clamp(-1.0, 1.0).acos();
         let a = ((theta * (ANGLE_BINS as f64 / std::f64::consts::PI)) as usize).min(ANGLE_BINS - 1);
-        (li * DEPTH_BINS + k) * ANGLE_BINS + a
+        ((li * self.lateral_bins() + r) * DEPTH_BINS + k) * ANGLE_BINS + a
     }
 
     /// The polar angle (rad) at the centre of angle bin `a`.
@@ -142,8 +235,15 @@ impl ImportanceGrid {
                 format!("{} {:.0}–{:.0} µm", l.name, 1e6 * top, 1e6 * (top + width * DEPTH_BINS as f64))
             })
             .collect();
+        let lateral = match &self.lateral {
+            None => String::new(),
+            Some(l) => format!(
+                " × {LATERAL_BINS} bins of the distance to the detector's area, 0–{:.1} mm",
+                1e3 * l.width * LATERAL_BINS as f64
+            ),
+        };
         format!(
-            "{DEPTH_BINS} depth bins per layer ({}) × {ANGLE_BINS} polar-angle bins of {:.2}°",
+            "{DEPTH_BINS} depth bins per layer ({}) × {ANGLE_BINS} polar-angle bins of {:.2}°{lateral}",
             layers.join(", "),
             180.0 / ANGLE_BINS as f64
         )
@@ -156,7 +256,10 @@ impl ImportanceGrid {
     }
 }
 
-/// Where the pilot's sums lie: per bin of `grid`, `Σ value` then the count, from slot `start`;
+/// Tally slots per bin: `Σ x`, `Σ x²`, the count (`x` a state's credited value).
+pub const SLOTS: usize = 3;
+
+/// Where the pilot's sums lie: per bin of `grid`, `Σ x`, `Σ x²` and the count, from slot `start`;
 /// the detector whose score is credited.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImportanceLayout {
@@ -168,13 +271,13 @@ pub struct ImportanceLayout {
 impl ImportanceLayout {
     /// Lay out the sums for detector `detector` from `reg`'s end.
     pub fn declare(grid: ImportanceGrid, detector: usize, reg: &mut Registry) -> Self {
-        let len = 2 * grid.len();
+        let len = SLOTS * grid.len();
         let start = reg.take(len);
         reg.declare(crate::output::Output::new(
             "importance.pilot".to_string(),
             Kind::Internal,
             Slots::contiguous(start, len),
-            vec![grid.len(), 2],
+            vec![grid.len(), SLOTS],
         ));
         ImportanceLayout { grid, detector, start }
     }
@@ -191,8 +294,8 @@ pub struct Trace {
 impl Trace {
     /// A state after a scattering event.
     #[inline]
-    pub fn state(&mut self, lay: &ImportanceLayout, li: usize, z: f64, dir_z: f64, weight: f64) {
-        self.states.push((lay.grid.bin(li, z, dir_z) as u32, weight, self.score));
+    pub fn state(&mut self, lay: &ImportanceLayout, li: usize, pos: DVec3, dir_z: f64, weight: f64) {
+        self.states.push((lay.grid.bin(li, pos, dir_z) as u32, weight, self.score));
     }
 
     /// A detection of weight `w` by the traced detector.
@@ -205,9 +308,11 @@ impl Trace {
     pub fn end(&mut self, lay: &ImportanceLayout, acc: &mut [f64]) {
         for &(bin, w, before) in &self.states {
             if w > 0.0 {
-                let slot = lay.start + 2 * bin as usize;
-                acc[slot] += (self.score - before) / w;
-                acc[slot + 1] += 1.0;
+                let slot = lay.start + SLOTS * bin as usize;
+                let x = (self.score - before) / w;
+                acc[slot] += x;
+                acc[slot + 1] += x * x;
+                acc[slot + 2] += 1.0;
             }
         }
         self.states.clear();
@@ -223,25 +328,27 @@ mod tests {
     /// its bin; a second path starts from nothing.
     #[test]
     fn a_state_is_credited_with_what_came_after_it_per_unit_weight() {
-        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)] };
+        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)], lateral: None };
         let mut reg = Registry::default();
         let lay = ImportanceLayout::declare(grid, 0, &mut reg);
         let mut acc = vec![0.0; reg.len];
         let mut t = Trace::default();
         // Down at 5 µm, weight 0.5; 0.1 detected; up at 25 µm, weight 0.25; 0.05 detected.
-        t.state(&lay, 0, 5e-6, 1.0, 0.5);
+        let at = |z: f64| DVec3::new(0.0, 0.0, z);
+        t.state(&lay, 0, at(5e-6), 1.0, 0.5);
         t.scored(0.1);
-        t.state(&lay, 0, 25e-6, -1.0, 0.25);
+        t.state(&lay, 0, at(25e-6), -1.0, 0.25);
         t.scored(0.05);
         t.end(&lay, &mut acc);
-        let (down, up) = (lay.grid.bin(0, 5e-6, 1.0), lay.grid.bin(0, 25e-6, -1.0));
+        let (down, up) = (lay.grid.bin(0, at(5e-6), 1.0), lay.grid.bin(0, at(25e-6), -1.0));
         assert_eq!((down, up), (0, 2 * ANGLE_BINS + ANGLE_BINS - 1));
-        assert!((acc[lay.start + 2 * down] - 0.15 / 0.5).abs() < 1e-15);
-        assert!((acc[lay.start + 2 * up] - 0.05 / 0.25).abs() < 1e-15);
-        assert_eq!((acc[lay.start + 2 * down + 1], acc[lay.start + 2 * up + 1]), (1.0, 1.0));
-        t.state(&lay, 0, 5e-6, 1.0, 1.0);
+        assert!((acc[lay.start + SLOTS * down] - 0.15 / 0.5).abs() < 1e-15);
+        assert!((acc[lay.start + SLOTS * up] - 0.05 / 0.25).abs() < 1e-15);
+        assert_eq!((acc[lay.start + SLOTS * down + 2], acc[lay.start + SLOTS * up + 2]), (1.0, 1.0));
+        t.state(&lay, 0, at(5e-6), 1.0, 1.0);
         t.end(&lay, &mut acc);
-        assert!((acc[lay.start + 2 * down] - 0.3).abs() < 1e-15, "nothing detected after: credited 0");
-        assert_eq!(acc[lay.start + 2 * down + 1], 2.0);
+        assert!((acc[lay.start + SLOTS * down] - 0.3).abs() < 1e-15, "nothing detected after: credited 0");
+        assert_eq!(acc[lay.start + SLOTS * down + 2], 2.0);
+        assert!((acc[lay.start + SLOTS * down + 1] - 0.09).abs() < 1e-15, "Σ x²: 0.3² + 0²");
     }
 }

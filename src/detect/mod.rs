@@ -83,6 +83,23 @@ impl Area {
         }
     }
 
+    /// The distance (m) from (`x`, `y`) to the area: 0 over it.
+    pub fn distance(&self, x: f64, y: f64) -> f64 {
+        match *self {
+            Area::All => 0.0,
+            Area::Disk { center, radius } => ((x - center[0]).hypot(y - center[1]) - radius).max(0.0),
+            Area::Rect { min, max } => {
+                let dx = (min[0] - x).max(x - max[0]).max(0.0);
+                let dy = (min[1] - y).max(y - max[1]).max(0.0);
+                dx.hypot(dy)
+            }
+            Area::Annulus { center, inner, outer } => {
+                let r = (x - center[0]).hypot(y - center[1]);
+                (inner - r).max(r - outer).max(0.0)
+            }
+        }
+    }
+
     /// Bounding rectangle (`None` for the whole plane).
     pub fn bounds(&self) -> Option<([f64; 2], [f64; 2])> {
         match *self {
@@ -721,7 +738,7 @@ impl Recorder<'_> {
     #[inline(always)]
     pub fn scattered(&mut self, li: usize, s: &PathState) {
         if let (Some(t), Some(lay)) = (self.trace.as_mut(), &self.layout.importance) {
-            t.state(lay, li, s.pos.z, s.dir.z, s.weight);
+            t.state(lay, li, s.pos, s.dir.z, s.weight);
         }
     }
 

@@ -507,6 +507,24 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
     }
 }
 
+/// The weight window of `s` after a scattering event in layer `li` (`run.importance =
+/// "windows"`, [`super::windows`]): split it, play roulette (`Some`: it has ended) or keep it.
+#[inline]
+fn window(ctx: &WalkContext, rec: &mut Recorder, s: &mut PathState, li: usize, rng: &mut PathRng) -> Option<End> {
+    let w = ctx.windows?;
+    match w.check(li, s, rec.twin.as_ref()) {
+        Action::Keep => {}
+        Action::Split(n) => split(rec, s, li, n, rng.split_key()),
+        Action::Roulette { p, w } => {
+            if rng.uniform() >= p {
+                return Some(End::Roulette);
+            }
+            s.weight = w;
+        }
+    }
+    None
+}
+
 /// Split `s` (in layer `li`) into `n` paths of equal weight ([`super::windows`]): `s` goes on
 /// with its share, `n − 1` copies wait in `rec` to walk on after it, copy `k` on the stream
 /// `PathRng::copy(key, k)`, each with the path's layered twin as it is now. No split once
@@ -809,17 +827,8 @@ fn walk<
                     return end;
                 }
                 rec.scattered(li, s);
-                if let Some(w) = ctx.windows {
-                    match w.check(li, s) {
-                        Action::Keep => {}
-                        Action::Split(n) => split(rec, s, li, n, rng.split_key()),
-                        Action::Roulette { p, w } => {
-                            if rng.uniform() >= p {
-                                return End::Roulette;
-                            }
-                            s.weight = w;
-                        }
-                    }
+                if let Some(end) = window(ctx, rec, s, li, rng) {
+                    return end;
                 }
             } else if let Some(end) =
                 collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n }, settings, rng, absorbed, &mut checkpoint)
@@ -827,6 +836,9 @@ fn walk<
                 return end;
             } else {
                 rec.scattered(li, s);
+                if let Some(end) = window(ctx, rec, s, li, rng) {
+                    return end;
+                }
             }
         }
 

@@ -8,9 +8,15 @@
 //! twin's, whose weight is the path's times `Λ`): unbiased. The copies walk on after the path, each
 //! on a stream of its own drawn from the path's ([`crate::sampling::rng::PathRng::copy`]), and
 //! belong to the path's history (its tail score, its batch).
+//!
+//! **Doppler-state splitting** (item 4 of issue 36): for an LDH camera over moving media the
+//! window of a path shifted into or near the camera's band is lowered by the table's
+//! [`DopplerBand::boost`] — and with the control variate only where the regions (the vessels)
+//! shifted it, which the layered twin does not cancel.
 
 use crate::detect::PathState;
-use crate::detect::importance::ImportanceGrid;
+use crate::detect::importance::{DopplerBand, ImportanceGrid};
+use crate::detect::twin::TwinPath;
 
 /// `run.importance`: what the importance table is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -22,6 +28,26 @@ pub enum Importance {
     Table,
     /// Computed, written, and the forward walk's weight windows.
     Windows,
+    /// Computed and written; the windows where a pilot measures that they pay
+    /// ([`AutoWindows`]).
+    Auto,
+}
+
+/// What the pilot of `run.importance = "auto"` measured (`crate::pilot`): the squared relative
+/// error of the main output × the work (collision steps) of a run without and with the weight
+/// windows, on the same paths; the windows are chosen where strictly cheaper.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct AutoWindows {
+    pub off: f64,
+    pub windows: f64,
+}
+
+impl AutoWindows {
+    /// Whether these figures choose the windows (not on a tie, nor on figures that are not
+    /// numbers).
+    pub fn windows_chosen(self) -> bool {
+        self.windows < self.off
+    }
 }
 
 /// The ratio of a window's upper bound to its lower (MCNP's default 5 (recalled, unchecked)); its centre is
@@ -39,6 +65,9 @@ pub struct Windows {
     pub grid: ImportanceGrid,
     /// Per bin: the window's centre (weight), 0 where the table has no value (no window).
     pub center: Vec<f64>,
+    /// An LDH camera's Doppler-state splitting: the centre over `boost` for a path in or near its
+    /// band.
+    pub band: Option<DopplerBand>,
 }
 
 /// What a window does to a path.
@@ -62,13 +91,28 @@ impl Windows {
             .iter()
             .map(|&v| if v > 0.0 && v.is_finite() && response > 0.0 { response / v } else { 0.0 })
             .collect();
-        Windows { grid, center }
+        Windows { grid, center, band: None }
     }
 
-    /// What the window of the state of `s` in layer `li` does to it.
+    /// The same windows with the Doppler-state splitting of `band`.
+    pub fn with_band(self, band: Option<DopplerBand>) -> Self {
+        Windows { band, ..self }
+    }
+
+    /// What the window of the state of `s` in layer `li` (with its layered twin `twin`, if it
+    /// has one) does to it.
     #[inline]
-    pub fn check(&self, li: usize, s: &PathState) -> Action {
-        let c = self.center[self.grid.bin(li, s.pos.z, s.dir.z)];
+    pub fn check(&self, li: usize, s: &PathState, twin: Option<&TwinPath>) -> Action {
+        let mut c = self.center[self.grid.bin(li, s.pos, s.dir.z)];
+        // In or near the band, and — with the control variate — shifted there by the regions
+        // (the twin's shift differs from the path's by a shift near the band): what the twin
+        // does not cancel.
+        if let Some(b) = &self.band
+            && b.holds(s.dldt)
+            && twin.is_none_or(|t| t.only || t.dldt.abs() >= b.lo)
+        {
+            c /= b.boost;
+        }
         let half = WIDTH.sqrt();
         if c <= 0.0 || s.weight <= 0.0 {
             Action::Keep
@@ -90,18 +134,44 @@ mod tests {
     /// The window about `R/I`: a path far above it splits (at most [`MAX_SPLIT`]), within it is
     /// kept, below it plays roulette to the centre with survival `w/c` (unbiased: `p·c = w`).
     #[test]
-    fn a_window_splits_above_keeps_within_and_plays_roulette_below() {
-        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)] };
+    fn a_window_splits_above_keeps_within_and_plays_roulette_below_and_bounds_the_weights() {
+        let grid = ImportanceGrid { layers: vec![(0.0, 1e-5)], lateral: None };
         let n = grid.len();
         let w = Windows::new(grid, &vec![0.5; n], 0.05);
         let at = |weight: f64| PathState::new(DVec3::new(0.0, 0.0, 1e-6), DVec3::Z, weight, 0.0);
         assert_eq!(w.center[0], 0.1);
-        assert_eq!(w.check(0, &at(0.1)), Action::Keep);
-        assert_eq!(w.check(0, &at(0.3)), Action::Split(3));
-        assert_eq!(w.check(0, &at(5.0)), Action::Split(MAX_SPLIT));
-        let Action::Roulette { p, w: c } = w.check(0, &at(0.01)) else { panic!("roulette below") };
+        assert_eq!(w.check(0, &at(0.1), None), Action::Keep);
+        assert_eq!(w.check(0, &at(0.3), None), Action::Split(3));
+        assert_eq!(w.check(0, &at(5.0), None), Action::Split(MAX_SPLIT));
+        let Action::Roulette { p, w: c } = w.check(0, &at(0.01), None) else { panic!("roulette below") };
         assert!((p * c - 0.01).abs() < 1e-15 && c == 0.1);
-        let none = Windows::new(ImportanceGrid { layers: vec![(0.0, 1e-5)] }, &vec![f64::NAN; n], 0.05);
-        assert_eq!(none.check(0, &at(5.0)), Action::Keep);
+        // Bounded: whatever the weight up to MAX_SPLIT·√WIDTH times the centre, the paths that
+        // leave the window weigh within it (a split's copies share the weight; roulette's
+        // survivors weigh the centre).
+        for k in 0..=2000 {
+            let weight = 0.1 * 10f64.powf(-2.0 + 3.25 * f64::from(k) / 2000.0);
+            let out = match w.check(0, &at(weight), None) {
+                Action::Keep => weight,
+                Action::Split(n) => weight / f64::from(n),
+                Action::Roulette { w, .. } => w,
+            };
+            assert!(
+                (0.1 / WIDTH.sqrt() - 1e-15..=0.1 * WIDTH.sqrt() + 1e-15).contains(&out),
+                "weight {weight:.4e} leaves at {out:.4e}"
+            );
+        }
+        // Doppler-state splitting: in or near the band the centre is lower by the boost, unless
+        // the layered twin shares the shift (then the twin cancels it).
+        let band = DopplerBand { lo: 1e-3, hi: 2e-2, boost: 10.0 };
+        let wb = w.clone().with_band(Some(band));
+        let shifted = |dldt: f64| PathState { dldt, ..at(0.1) };
+        let mut twin = TwinPath::new(0.0, 0.0);
+        assert_eq!(wb.check(0, &shifted(5e-3), None), Action::Split(MAX_SPLIT));
+        assert_eq!(wb.check(0, &shifted(5e-2), None), Action::Keep);
+        assert_eq!(wb.check(0, &shifted(5e-3), Some(&twin)), Action::Keep, "the twin shares the shift");
+        twin.dldt = -5e-3;
+        assert_eq!(wb.check(0, &shifted(5e-3), Some(&twin)), Action::Split(MAX_SPLIT));
+        let none = Windows::new(ImportanceGrid { layers: vec![(0.0, 1e-5)], lateral: None }, &vec![f64::NAN; n], 0.05);
+        assert_eq!(none.check(0, &at(5.0), None), Action::Keep);
     }
 }

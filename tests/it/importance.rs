@@ -51,7 +51,7 @@ fn the_importance_table_is_high_for_states_heading_up_near_the_surface() {
     assert_eq!(exp.importance_obstacle(), None);
     let t = exp.importance_table().expect("a forward-estimated camera");
     let (top, bottom, up, down) = (0, DEPTH_BINS - 1, ANGLE_BINS - 1, 0);
-    let (up_top, down_top, up_bottom) = (t.at(0, top, up), t.at(0, top, down), t.at(0, bottom, up));
+    let (up_top, down_top, up_bottom) = (t.at(0, 0, top, up), t.at(0, 0, top, down), t.at(0, 0, bottom, up));
     assert!(up_top > 20.0 * down_top, "up {up_top:.3e} against down {down_top:.3e} at the top");
     assert!(up_top > 2.0 * up_bottom, "up at the top {up_top:.3e} against at the bottom {up_bottom:.3e}");
     assert!(t.states[..DEPTH_BINS * ANGLE_BINS].iter().all(|&n| n > 0), "a bin of the first layer without states");
@@ -77,7 +77,7 @@ fn a_run_writes_the_table_with_its_figure() {
             .status()
             .expect("ohd runs");
         assert!(st.success());
-        for f in ["importance.npy", "importance_states.npy", "importance.png"] {
+        for f in ["importance.npy", "importance_states.npy", "importance_relative_error.npy", "importance.png"] {
             assert_eq!(out.join(f).exists(), written, "{f} with {set}");
         }
         let m: serde_json::Value =
@@ -121,4 +121,97 @@ fn weight_windows_keep_the_estimate_and_the_determinism() {
     let one = run(&slab(1), &sets("windows").iter().map(String::as_str).collect::<Vec<_>>());
     let bits = |r: &crate::support::run::Run| r.out.estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&windowed), bits(&one), "the windowed run depends on the threads");
+}
+
+/// A semi-infinite Brownian medium (n = 1, isotropic, μs = 1 /mm, μa = 0.01 /mm) under a pencil
+/// beam, and a DCS fibre ring 14.5–15.5 mm from it with a time axis and g1: light that must go
+/// ~15 transport lengths sideways, most of it deep.
+fn dcs_ring(threads: u32, importance: &str) -> String {
+    let ring = r#"[[detectors]]
+name = "ring"
+area = { type = "annulus", inner_radius_mm = 14.5, outer_radius_mm = 15.5 }
+[detectors.time]
+t_min_ns = 0
+t_max_ns = 2
+bins = 40
+[detectors.correlation]
+tau_min_s = 1e-7
+tau_max_s = 1e-2
+points = 21
+beta = 0.5
+"#;
+    let pencil = "[source]\nwavelength_nm = 785\nposition_mm = [0, 0, 0]\ndirection = [0, 0, 1]\n";
+    let tissue = scenes::brownian_half_space(0.01, 1.0);
+    format!(
+        "{}threads = {threads}\nimportance = \"{importance}\"\n{pencil}{tissue}{ring}",
+        scenes::header(300_000, 7, 16)
+    )
+}
+
+/// An output's values and standard errors, by name.
+fn named(r: &crate::support::run::Run, name: &str) -> (Vec<f64>, Vec<f64>) {
+    let o = r.out.layout.registry.expect(name);
+    o.values(r.out.estimates.mean(), &r.out.estimates.stderr())
+}
+
+/// For a fibre away from the beam the table has lateral bins (the distance to the ring): a state
+/// over the ring heading up is worth more than one at the beam heading up, at the same depth.
+/// With its weight windows (`"windows"`) the ring's power, TPSF and g1 equal the plain walk's
+/// within their standard errors (z; χ² over the time bins and the delays), the power's σ is
+/// at most half the plain walk's at the same paths, and the run is bit-identical on 1 and 2
+/// threads. `"auto"` measures that the windows pay here and takes them: the same numbers as
+/// `"windows"` (the pilot's paths are its own).
+#[test]
+fn weight_windows_keep_a_distant_dcs_fibre_estimate_and_auto_takes_them() {
+    use crate::support::run::run;
+    use crate::support::stats::chi2_difference;
+    use ohd::detect::importance::LATERAL_BINS;
+    let exp = experiment(&dcs_ring(2, "table"), &[]);
+    let t = exp.importance_table().expect("a forward-estimated fibre");
+    assert_eq!(t.shape(), vec![1, LATERAL_BINS, DEPTH_BINS, ANGLE_BINS]);
+    let (over, at_beam) = (t.at(0, 0, 2, ANGLE_BINS - 1), t.at(0, LATERAL_BINS - 1, 2, ANGLE_BINS - 1));
+    assert!(over > 10.0 * at_beam, "up over the ring {over:.3e} against up at the beam {at_beam:.3e}");
+
+    let windowed = run(&dcs_ring(2, "windows"), &[]);
+    let plain = run(&dcs_ring(2, "off"), &[]);
+    let ((pw, sw), (pp, sp)) = (windowed.power(0), plain.power(0));
+    let z = (pw - pp) / sw.hypot(sp);
+    assert!(z.abs() < 4.0, "power {pw:.5e} ± {sw:.1e} with windows, {pp:.5e} ± {sp:.1e} plain (z = {z:.2})");
+    assert!(sw < 0.5 * sp, "the windows' power σ {sw:.2e} against the plain walk's {sp:.2e}");
+    for name in ["ring.tpsf", "ring.g1"] {
+        let (a, b) = (named(&windowed, name), named(&plain, name));
+        let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
+        assert!(dof >= 10 && p > 1e-4, "{name}: χ² = {chi2:.1} over {dof} values (p = {p:.2e})");
+    }
+    let bits = |r: &crate::support::run::Run| r.out.estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let one = run(&dcs_ring(1, "windows"), &[]);
+    assert_eq!(bits(&windowed), bits(&one), "the windowed run depends on the threads");
+
+    let auto = ohd::pilot::decide(&experiment(&dcs_ring(2, "auto"), &[]));
+    let a = auto.plan.importance_auto.expect("the pilot decided");
+    assert!(a.windows_chosen(), "auto: figures {:.3e} without, {:.3e} with the windows", a.off, a.windows);
+    assert_eq!(
+        bits(&windowed),
+        auto.run(&ohd::experiment::Silent).estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
+}
+
+/// A lidar receiver gets no table and no windows (`ohd check` says why): the plain walk's own
+/// errors of its multiply scattered gates are not reliable enough to validate windows against
+/// (measured, validation/README.md).
+#[test]
+fn a_lidar_receiver_gets_no_importance_table() {
+    use crate::support::scenes::{Gates, UPWARD_1550};
+    let fog = "[media.fog]\nsigma_s_per_m = 2e-2\nsigma_a_per_m = 1e-4\nphase = { type = \"hg\", g = 0.8 }\n\
+               [[layers]]\nthickness_m = 150\nn = 1.0\nmedium = \"fog\"\n";
+    let receiver = scenes::lidar_receiver(10, Gates { first_gate_m: 30, gate_points: 10, gates: 8, fft_points: 64 });
+    let text = format!("{}{UPWARD_1550}{fog}{receiver}", scenes::header(20_000, 11, 16));
+    let exp = experiment(&text, &["run.importance = \"windows\""]);
+    let why = exp.importance_obstacle().expect("an obstacle");
+    assert!(why.contains("lidar") && why.contains("not validated"), "{why}");
+    assert!(exp.importance_table().is_none());
+    assert!(exp.to_string().contains("importance table: none (detector `lidar` is a lidar receiver"), "{exp}");
+    let auto = ohd::pilot::decide(&experiment(&text, &["run.importance = \"auto\""]));
+    assert_eq!(auto.plan.importance_auto, None);
+    assert!(!auto.plan.windows());
 }

@@ -156,7 +156,10 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
             ImportanceKind::Off => Importance::Off,
             ImportanceKind::Table => Importance::Table,
             ImportanceKind::Windows => Importance::Windows,
+            ImportanceKind::Auto => Importance::Auto,
         },
+        importance_auto: None,
+        importance_table: None,
         importance_trace: None,
     })
 }

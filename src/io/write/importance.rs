@@ -1,13 +1,15 @@
 //! The importance table of `run.importance = "table"` ([`crate::detect::importance`]): `importance.npy`
-//! (`[layer][depth][angle]`, NaN where the pilot had no state) and `importance_states.npy` (the
-//! pilot's states per bin), a figure (one panel per layer: depth against the direction's polar
-//! angle, log colour scale) and the manifest's `importance` entry.
+//! (`[layer][depth][angle]`, or `[layer][lateral][depth][angle]` for a detector away from the
+//! beam; NaN where the pilot had no state), `importance_states.npy` (the pilot's states per
+//! bin) and `importance_relative_error.npy` (each value's σ over it), a figure (per layer: depth against the direction's polar angle over the detector, and
+//! for a detector away from the beam depth against the lateral distance too; log colour scale)
+//! and the manifest's `importance` entry.
 
 use serde::Serialize;
 
 use super::{OutputEntry, Writer};
 use crate::detect::importance::ImportanceTable;
-use crate::detect::importance::{ANGLE_BINS, DEPTH_BINS};
+use crate::detect::importance::{ANGLE_BINS, DEPTH_BINS, LATERAL_BINS};
 use crate::error::Result;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, quantile};
@@ -29,12 +31,29 @@ pub struct ImportanceEntry {
     pub layers: Vec<(String, [f64; 2])>,
     pub depth_bins: usize,
     pub angle_bins: usize,
+    /// For a detector away from the beam: the lateral bins and the distances to the detector's
+    /// area they span (m; farther in the last bin).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lateral_bins: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lateral_range: Option<[f64; 2]>,
     pub pilot_paths: u64,
     pub seconds: f64,
+    /// Whether the forward walk followed the table's weight windows.
+    pub windows: bool,
+    /// For an LDH camera: the Doppler-state splitting of its band (`|dl/dt|` range in m/s, the
+    /// boost of the windows there).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub doppler_band: Option<crate::detect::importance::DopplerBand>,
+    /// With `run.importance = "auto"`: the pilot's relative variance × work of the main output
+    /// without and with the windows (the lower was chosen).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub auto: Option<crate::transport::windows::AutoWindows>,
 }
 
-/// The layout of `importance.npy`.
+/// The layout of `importance.npy`, and with lateral bins.
 pub const LAYOUT: &str = "[layer][depth][angle]: the mean detected weight per unit weight of a path leaving a scattering event in the bin (fraction of its weight the detector receives); depth bins uniform over each layer (a semi-infinite one: over the nearer of 20 transport lengths and 10 diffusion lengths, deeper in the last bin); angle bins uniform in the polar angle θ of the direction over [0°, 180°] (0° down into the stack, 180° up out of it); NaN where the pilot had no state";
+pub const LAYOUT_LATERAL: &str = "[layer][lateral][depth][angle]: the mean detected weight per unit weight of a path leaving a scattering event in the bin (fraction of its weight the detector receives); lateral bins uniform in the distance (x, y) to the detector's area over lateral_range (farther in the last bin); depth bins uniform over each layer (a semi-infinite one: over the nearer of 20 transport lengths and 10 diffusion lengths, deeper in the last bin); angle bins uniform in the polar angle θ of the direction over [0°, 180°] (0° down into the stack, 180° up out of it); NaN where the pilot had no state";
 
 /// Write `t` (of `scene`'s stack) and return its manifest entry.
 pub fn write_importance(w: &mut Writer, t: &ImportanceTable, scene: &Scene, detector: &str) -> Result<ImportanceEntry> {
@@ -47,6 +66,12 @@ pub fn write_importance(w: &mut Writer, t: &ImportanceTable, scene: &Scene, dete
     entry.undefined_nan = true;
     w.table.insert(file.clone(), entry);
     w.table.insert(states_file.clone(), OutputEntry::made("importance_states", &shape, "states", Vec::new()));
+    // Each bin's relative error (∞ → NaN: fewer than two states, or no value).
+    let rel: Vec<f64> = t.relative_error.iter().map(|&e| if e.is_finite() { e } else { f64::NAN }).collect();
+    w.put("importance_relative_error.npy".to_string(), npy::to_bytes(&shape, &rel))?;
+    let mut entry = OutputEntry::made("importance_relative_error", &shape, "1", Vec::new());
+    entry.undefined_nan = true;
+    w.table.insert("importance_relative_error.npy".to_string(), entry);
     w.figure("importance", &figure(t, scene, detector))?;
     let layers = scene
         .layers
@@ -58,46 +83,84 @@ pub fn write_importance(w: &mut Writer, t: &ImportanceTable, scene: &Scene, dete
         detector: detector.to_string(),
         file,
         states_file,
-        layout: LAYOUT,
+        layout: if t.grid.lateral.is_some() { LAYOUT_LATERAL } else { LAYOUT },
         layers,
         depth_bins: DEPTH_BINS,
         angle_bins: ANGLE_BINS,
+        lateral_bins: t.grid.lateral.map(|_| LATERAL_BINS),
+        lateral_range: t.grid.lateral.map(|l| [0.0, l.width * LATERAL_BINS as f64]),
         pilot_paths: t.paths,
         seconds: t.seconds,
+        windows: false,
+        doppler_band: t.band,
+        auto: None,
     })
 }
 
-/// One panel per layer: depth (µm, down) against θ (°), `log₁₀` of the importance on one colour
-/// scale.
+/// Per layer: depth (µm, down) against θ (°) over the detector (the first lateral bin), and with
+/// lateral bins depth against the lateral distance (mm; the bins' mean over θ, weighted by the
+/// pilot's states); `log₁₀` of the importance on one colour scale.
 fn figure(t: &ImportanceTable, scene: &Scene, detector: &str) -> ImageFigure {
-    let logs: Vec<f64> = t.value.iter().map(|&v| if v > 0.0 { v.log10() } else { f64::NAN }).collect();
-    let finite: Vec<f64> = logs.iter().copied().filter(|x| x.is_finite()).collect();
+    let log = |v: f64| if v > 0.0 { v.log10() } else { f64::NAN };
+    let finite: Vec<f64> = t.value.iter().map(|&v| log(v)).filter(|x| x.is_finite()).collect();
     let top = quantile(&finite, TOP_QUANTILE).unwrap_or(0.0);
-    let per_layer = DEPTH_BINS * ANGLE_BINS;
-    let panels = scene
-        .layers
-        .iter()
-        .enumerate()
-        .map(|(li, l)| {
-            let (z0, z1) = (t.grid.depth(li, 0), t.grid.depth(li, DEPTH_BINS - 1));
-            let half = 0.5 * (z1 - z0) / (DEPTH_BINS - 1).max(1) as f64;
-            let mut p = Panel::new(
-                format!("importance for `{detector}` in layer `{}`", l.name),
-                logs[li * per_layer..(li + 1) * per_layer].to_vec(),
-                (ANGLE_BINS, DEPTH_BINS),
-                (0.0, 180.0),
-                // Row 0 is the layer's top: depth grows downwards.
-                (1e6 * (z1 + half), 1e6 * (z0 - half)),
+    let nr = t.grid.lateral_bins();
+    let per_lateral = DEPTH_BINS * ANGLE_BINS;
+    let mut panels = Vec::new();
+    for (li, l) in scene.layers.iter().enumerate() {
+        let (z0, z1) = (t.grid.depth(li, 0), t.grid.depth(li, DEPTH_BINS - 1));
+        let half = 0.5 * (z1 - z0) / (DEPTH_BINS - 1).max(1) as f64;
+        // Row 0 is the layer's top: depth grows downwards.
+        let depths = (1e6 * (z1 + half), 1e6 * (z0 - half));
+        let start = li * nr * per_lateral;
+        let over = if nr > 1 { " over it" } else { "" };
+        let mut p = Panel::new(
+            format!("importance for `{detector}`{over} in layer `{}`", l.name),
+            t.value[start..start + per_lateral].iter().map(|&v| log(v)).collect(),
+            (ANGLE_BINS, DEPTH_BINS),
+            (0.0, 180.0),
+            depths,
+            Colormap::Viridis,
+            (top - DECADES, top),
+            "log₁₀ detected weight per unit weight",
+        );
+        p.x_label = "direction's polar angle θ (°; 0 down, 180 up)".into();
+        p.y_label = "depth z (µm)".into();
+        p.equal = false;
+        p.caption = format!("{} pilot paths; grey: no state; {DECADES} decades shown", t.paths);
+        panels.push(p);
+        if let Some(lat) = t.grid.lateral {
+            // [depth][lateral]: each bin's mean over the angles, weighted by its states.
+            let mut values = vec![f64::NAN; DEPTH_BINS * nr];
+            for r in 0..nr {
+                for k in 0..DEPTH_BINS {
+                    let bins = start + (r * DEPTH_BINS + k) * ANGLE_BINS..start + (r * DEPTH_BINS + k + 1) * ANGLE_BINS;
+                    let (mut sum, mut n) = (0.0, 0.0);
+                    for b in bins.filter(|&b| t.value[b].is_finite()) {
+                        sum += t.value[b] * t.states[b] as f64;
+                        n += t.states[b] as f64;
+                    }
+                    if n > 0.0 {
+                        values[k * nr + r] = log(sum / n);
+                    }
+                }
+            }
+            let mut q = Panel::new(
+                format!("importance for `{detector}` by distance to it, layer `{}`", l.name),
+                values,
+                (nr, DEPTH_BINS),
+                (0.0, 1e3 * lat.width * nr as f64),
+                depths,
                 Colormap::Viridis,
                 (top - DECADES, top),
                 "log₁₀ detected weight per unit weight",
             );
-            p.x_label = "direction's polar angle θ (°; 0 down, 180 up)".into();
-            p.y_label = "depth z (µm)".into();
-            p.equal = false;
-            p.caption = format!("{} pilot paths; grey: no state; {DECADES} decades shown", t.paths);
-            p
-        })
-        .collect();
+            q.x_label = "lateral distance to the detector's area (mm)".into();
+            q.y_label = "depth z (µm)".into();
+            q.equal = false;
+            q.caption = "mean over directions, weighted by the pilot's states; grey: no state".into();
+            panels.push(q);
+        }
+    }
     ImageFigure { panels }
 }

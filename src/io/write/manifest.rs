@@ -319,10 +319,19 @@ fn write_run_to<S: super::Sink>(
         None => None,
     };
     let asked = exp.plan.importance != crate::transport::windows::Importance::Off;
-    let importance = match asked.then(|| out.importance.clone().or_else(|| exp.importance_table())).flatten() {
+    let table = || {
+        out.importance
+            .clone()
+            .or_else(|| exp.plan.importance_table.as_deref().cloned())
+            .or_else(|| exp.importance_table())
+    };
+    let importance = match asked.then(table).flatten() {
         Some(t) => {
             let name = &exp.detectors[t.detector].name;
-            Some(super::importance::write_importance(&mut w, &t, &exp.scene, name)?)
+            let mut entry = super::importance::write_importance(&mut w, &t, &exp.scene, name)?;
+            entry.auto = exp.plan.importance_auto;
+            entry.windows = exp.plan.windows();
+            Some(entry)
         }
         None => None,
     };
