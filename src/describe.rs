@@ -918,14 +918,6 @@ impl Display for Experiment {
                 (Importance::Windows, _) => {
                     "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
                         .to_string()
-                        + if self.main_output().detector.is_some_and(|d| self.detectors[d].ldh().is_some())
-                            && self.needs_doppler()
-                        {
-                            "; paths shifted into or near the LDH band get windows lower by 1 + P/P_band (the camera's \
-                             power over its in-band power in a pilot of the scene)"
-                        } else {
-                            ""
-                        }
                 }
                 (Importance::Auto, None) => format!(
                     "the forward walk follows its weight windows where a pilot of 1/{} of the paths, without and with \

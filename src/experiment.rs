@@ -343,7 +343,7 @@ impl<'a> BatchRunner<'a> {
             Some(t) => Some(t.as_ref().clone()),
             None => exp.importance_table(),
         };
-        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response).with_band(t.band));
+        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response));
         BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
     }
 
@@ -530,36 +530,6 @@ impl Experiment {
         ImportanceGrid::new(&self.scene, lateral)
     }
 
-    /// The Doppler-state splitting of detector `d`, an LDH camera over moving media
-    /// ([`crate::detect::importance::DopplerBand`]): its in-band share of the power from a pilot
-    /// of [`BAND_PILOT_PATHS`](crate::detect::importance::BAND_PILOT_PATHS) paths through the
-    /// scene itself (its vessels in it), the camera alone, on the pilot's own streams.
-    fn doppler_band(&self, d: usize) -> Option<crate::detect::importance::DopplerBand> {
-        use crate::detect::importance::{BAND_PILOT_PATHS, BAND_SEED, DopplerBand, IMPORTANCE_SEED, PILOT_BATCHES};
-        let ldh = self.detectors[d].ldh()?;
-        if !self.needs_doppler() {
-            return None;
-        }
-        let mut pilot = self.clone();
-        pilot.detectors = vec![self.detectors[d].clone()];
-        pilot.volume = None;
-        pilot.references.clear();
-        pilot.plan.seed = crate::sampling::rng::mix64(self.plan.seed ^ IMPORTANCE_SEED ^ BAND_SEED);
-        pilot.plan.batches = PILOT_BATCHES;
-        pilot.plan.paths_per_batch = BAND_PILOT_PATHS / PILOT_BATCHES;
-        pilot.plan.walk.control_variate = ControlVariate::Off;
-        pilot.plan.importance = Importance::Off;
-        pilot.plan.importance_auto = None;
-        pilot.plan.importance_table = None;
-        pilot.plan.importance_trace = None;
-        let out = pilot.run(&Silent);
-        let (mean, lay) = (out.estimates.mean(), &out.layout.detectors[0]);
-        let l = lay.ldh()?;
-        let band: f64 = [l.m0_plus, l.m0_minus].iter().map(|&o| mean[o..o + l.pixels].iter().sum::<f64>()).sum();
-        let power = mean[lay.power];
-        DopplerBand::new(ldh.band, self.source.wavelength, if power > 0.0 { band / power } else { 0.0 })
-    }
-
     /// The importance table of the main output's detector ([`crate::detect::importance`]; `None`
     /// where [`importance_obstacle`](Self::importance_obstacle) finds one), from a pilot of
     /// [`PILOT_PATHS`](crate::detect::importance::PILOT_PATHS) paths on its own streams.
@@ -613,14 +583,12 @@ impl Experiment {
                 }
             }
         }
-        let band = self.doppler_band(detector);
         Some(ImportanceTable {
             grid: lay.grid.clone(),
             detector,
             value,
             states,
             relative_error,
-            band,
             response: mean[out.layout.detectors[0].power],
             paths: paths as u64,
             seconds: start.elapsed().as_secs_f64(),

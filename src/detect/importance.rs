@@ -50,8 +50,6 @@ pub const PILOT_PATHS: u64 = 200_000;
 pub const PILOT_BATCHES: u64 = 8;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 pub const IMPORTANCE_SEED: u64 = 0x494d_504f_5254;
-/// Mixed in besides for the band pilot's ([`DopplerBand`]).
-pub const BAND_SEED: u64 = 0x4241_4e44;
 
 /// The importance table of one detector ([`crate::experiment::Experiment::importance_table`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -70,53 +68,9 @@ pub struct ImportanceTable {
     /// The detector's response: its detected weight per pilot path (the windows' scale,
     /// `transport::windows`).
     pub response: f64,
-    /// For an LDH camera: its Doppler band's splitting ([`DopplerBand`]; `None` for any other
-    /// detector, or when the band pilot saw no light in the band).
-    pub band: Option<DopplerBand>,
-    /// The table pilot's paths, and the wall time of the pilots (the band's included; s).
+    /// The pilot's paths and wall time (s).
     pub paths: u64,
     pub seconds: f64,
-}
-
-/// Doppler-state splitting for a band image (issue 36, item 4): a path whose Doppler shift lies
-/// in or near an LDH camera's band — it has scattered on moving blood — is worth the camera's
-/// band image far more than its importance for the camera's power says, so its weight window is
-/// lowered by `boost` (it is split into more copies; out of the band, nothing changes). `boost =
-/// 1 + P/P_band`, the camera's power over its in-band power (M0+ and M0−) in a short pilot of
-/// the scene itself: the windows then aim at the band's light as much as at all the light
-/// (FW-CADIS's equal weighting of two responses).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct DopplerBand {
-    /// `|dl/dt|` (m/s) of the paths taken as in or near the band: the band's edges ×
-    /// wavelength, widened by [`NEAR`] on both sides.
-    pub lo: f64,
-    pub hi: f64,
-    pub boost: f64,
-}
-
-/// How far beyond its edges (a factor) a shift counts as near the band.
-pub const NEAR: f64 = 1.5;
-/// Paths of the band pilot.
-pub const BAND_PILOT_PATHS: u64 = 50_000;
-/// The largest boost.
-pub const MAX_BOOST: f64 = 1e3;
-
-impl DopplerBand {
-    /// The splitting of band `[f1, f2]` (Hz) at wavelength `lambda` (m), its in-band share of
-    /// the power `share` (`None` without in-band light).
-    pub fn new((f1, f2): (f64, f64), lambda: f64, share: f64) -> Option<Self> {
-        (share > 0.0 && share.is_finite()).then(|| DopplerBand {
-            lo: f1 * lambda / NEAR,
-            hi: f2 * lambda * NEAR,
-            boost: (1.0 + 1.0 / share).min(MAX_BOOST),
-        })
-    }
-
-    /// Whether a path with rate of change of its optical path length `dldt` is in or near the band.
-    #[inline]
-    pub fn holds(&self, dldt: f64) -> bool {
-        (self.lo..=self.hi).contains(&dldt.abs())
-    }
 }
 
 impl ImportanceTable {

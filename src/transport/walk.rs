@@ -512,7 +512,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
 #[inline]
 fn window(ctx: &WalkContext, rec: &mut Recorder, s: &mut PathState, li: usize, rng: &mut PathRng) -> Option<End> {
     let w = ctx.windows?;
-    match w.check(li, s, rec.twin.as_ref()) {
+    match w.check(li, s) {
         Action::Keep => {}
         Action::Split(n) => split(rec, s, li, n, rng.split_key()),
         Action::Roulette { p, w } => {

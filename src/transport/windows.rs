@@ -8,15 +8,9 @@
 //! twin's, whose weight is the path's times `Λ`): unbiased. The copies walk on after the path, each
 //! on a stream of its own drawn from the path's ([`crate::sampling::rng::PathRng::copy`]), and
 //! belong to the path's history (its tail score, its batch).
-//!
-//! **Doppler-state splitting** (item 4 of issue 36): for an LDH camera over moving media the
-//! window of a path shifted into or near the camera's band is lowered by the table's
-//! [`DopplerBand::boost`] — and with the control variate only where the regions (the vessels)
-//! shifted it, which the layered twin does not cancel.
 
 use crate::detect::PathState;
-use crate::detect::importance::{DopplerBand, ImportanceGrid};
-use crate::detect::twin::TwinPath;
+use crate::detect::importance::ImportanceGrid;
 
 /// `run.importance`: what the importance table is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -65,9 +59,6 @@ pub struct Windows {
     pub grid: ImportanceGrid,
     /// Per bin: the window's centre (weight), 0 where the table has no value (no window).
     pub center: Vec<f64>,
-    /// An LDH camera's Doppler-state splitting: the centre over `boost` for a path in or near its
-    /// band.
-    pub band: Option<DopplerBand>,
 }
 
 /// What a window does to a path.
@@ -91,28 +82,13 @@ impl Windows {
             .iter()
             .map(|&v| if v > 0.0 && v.is_finite() && response > 0.0 { response / v } else { 0.0 })
             .collect();
-        Windows { grid, center, band: None }
+        Windows { grid, center }
     }
 
-    /// The same windows with the Doppler-state splitting of `band`.
-    pub fn with_band(self, band: Option<DopplerBand>) -> Self {
-        Windows { band, ..self }
-    }
-
-    /// What the window of the state of `s` in layer `li` (with its layered twin `twin`, if it
-    /// has one) does to it.
+    /// What the window of the state of `s` in layer `li` does to it.
     #[inline]
-    pub fn check(&self, li: usize, s: &PathState, twin: Option<&TwinPath>) -> Action {
-        let mut c = self.center[self.grid.bin(li, s.pos, s.dir.z)];
-        // In or near the band, and — with the control variate — shifted there by the regions
-        // (the twin's shift differs from the path's by a shift near the band): what the twin
-        // does not cancel.
-        if let Some(b) = &self.band
-            && b.holds(s.dldt)
-            && twin.is_none_or(|t| t.only || t.dldt.abs() >= b.lo)
-        {
-            c /= b.boost;
-        }
+    pub fn check(&self, li: usize, s: &PathState) -> Action {
+        let c = self.center[self.grid.bin(li, s.pos, s.dir.z)];
         let half = WIDTH.sqrt();
         if c <= 0.0 || s.weight <= 0.0 {
             Action::Keep
@@ -140,17 +116,17 @@ mod tests {
         let w = Windows::new(grid, &vec![0.5; n], 0.05);
         let at = |weight: f64| PathState::new(DVec3::new(0.0, 0.0, 1e-6), DVec3::Z, weight, 0.0);
         assert_eq!(w.center[0], 0.1);
-        assert_eq!(w.check(0, &at(0.1), None), Action::Keep);
-        assert_eq!(w.check(0, &at(0.3), None), Action::Split(3));
-        assert_eq!(w.check(0, &at(5.0), None), Action::Split(MAX_SPLIT));
-        let Action::Roulette { p, w: c } = w.check(0, &at(0.01), None) else { panic!("roulette below") };
+        assert_eq!(w.check(0, &at(0.1)), Action::Keep);
+        assert_eq!(w.check(0, &at(0.3)), Action::Split(3));
+        assert_eq!(w.check(0, &at(5.0)), Action::Split(MAX_SPLIT));
+        let Action::Roulette { p, w: c } = w.check(0, &at(0.01)) else { panic!("roulette below") };
         assert!((p * c - 0.01).abs() < 1e-15 && c == 0.1);
         // Bounded: whatever the weight up to MAX_SPLIT·√WIDTH times the centre, the paths that
         // leave the window weigh within it (a split's copies share the weight; roulette's
         // survivors weigh the centre).
         for k in 0..=2000 {
             let weight = 0.1 * 10f64.powf(-2.0 + 3.25 * f64::from(k) / 2000.0);
-            let out = match w.check(0, &at(weight), None) {
+            let out = match w.check(0, &at(weight)) {
                 Action::Keep => weight,
                 Action::Split(n) => weight / f64::from(n),
                 Action::Roulette { w, .. } => w,
@@ -160,18 +136,7 @@ mod tests {
                 "weight {weight:.4e} leaves at {out:.4e}"
             );
         }
-        // Doppler-state splitting: in or near the band the centre is lower by the boost, unless
-        // the layered twin shares the shift (then the twin cancels it).
-        let band = DopplerBand { lo: 1e-3, hi: 2e-2, boost: 10.0 };
-        let wb = w.clone().with_band(Some(band));
-        let shifted = |dldt: f64| PathState { dldt, ..at(0.1) };
-        let mut twin = TwinPath::new(0.0, 0.0);
-        assert_eq!(wb.check(0, &shifted(5e-3), None), Action::Split(MAX_SPLIT));
-        assert_eq!(wb.check(0, &shifted(5e-2), None), Action::Keep);
-        assert_eq!(wb.check(0, &shifted(5e-3), Some(&twin)), Action::Keep, "the twin shares the shift");
-        twin.dldt = -5e-3;
-        assert_eq!(wb.check(0, &shifted(5e-3), Some(&twin)), Action::Split(MAX_SPLIT));
         let none = Windows::new(ImportanceGrid { layers: vec![(0.0, 1e-5)], lateral: None }, &vec![f64::NAN; n], 0.05);
-        assert_eq!(none.check(0, &at(5.0), None), Action::Keep);
+        assert_eq!(none.check(0, &at(5.0)), Action::Keep);
     }
 }

@@ -41,10 +41,6 @@ pub struct ImportanceEntry {
     pub seconds: f64,
     /// Whether the forward walk followed the table's weight windows.
     pub windows: bool,
-    /// For an LDH camera: the Doppler-state splitting of its band (`|dl/dt|` range in m/s, the
-    /// boost of the windows there).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub doppler_band: Option<crate::detect::importance::DopplerBand>,
     /// With `run.importance = "auto"`: the pilot's relative variance × work of the main output
     /// without and with the windows (the lower was chosen).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -92,7 +88,6 @@ pub fn write_importance(w: &mut Writer, t: &ImportanceTable, scene: &Scene, dete
         pilot_paths: t.paths,
         seconds: t.seconds,
         windows: false,
-        doppler_band: t.band,
         auto: None,
     })
 }
@@ -112,31 +107,41 @@ fn figure(t: &ImportanceTable, scene: &Scene, detector: &str) -> ImageFigure {
         let half = 0.5 * (z1 - z0) / (DEPTH_BINS - 1).max(1) as f64;
         // Row 0 is the layer's top: depth grows downwards.
         let depths = (1e6 * (z1 + half), 1e6 * (z0 - half));
+        // A panel of depth against `x` (its label, range and `nx` columns), `ny = DEPTH_BINS`.
+        let panel = |title: String, values: Vec<f64>, (nx, x): (usize, (f64, f64)), x_label: &str, caption: String| {
+            let mut p = Panel::new(
+                title,
+                values,
+                (nx, DEPTH_BINS),
+                x,
+                depths,
+                Colormap::Viridis,
+                (top - DECADES, top),
+                "log₁₀ detected weight per unit weight",
+            );
+            p.x_label = x_label.into();
+            p.y_label = "depth z (µm)".into();
+            p.equal = false;
+            p.caption = caption;
+            p
+        };
         let start = li * nr * per_lateral;
         let over = if nr > 1 { " over it" } else { "" };
-        let mut p = Panel::new(
+        panels.push(panel(
             format!("importance for `{detector}`{over} in layer `{}`", l.name),
             t.value[start..start + per_lateral].iter().map(|&v| log(v)).collect(),
-            (ANGLE_BINS, DEPTH_BINS),
-            (0.0, 180.0),
-            depths,
-            Colormap::Viridis,
-            (top - DECADES, top),
-            "log₁₀ detected weight per unit weight",
-        );
-        p.x_label = "direction's polar angle θ (°; 0 down, 180 up)".into();
-        p.y_label = "depth z (µm)".into();
-        p.equal = false;
-        p.caption = format!("{} pilot paths; grey: no state; {DECADES} decades shown", t.paths);
-        panels.push(p);
+            (ANGLE_BINS, (0.0, 180.0)),
+            "direction's polar angle θ (°; 0 down, 180 up)",
+            format!("{} pilot paths; grey: no state; {DECADES} decades shown", t.paths),
+        ));
         if let Some(lat) = t.grid.lateral {
             // [depth][lateral]: each bin's mean over the angles, weighted by its states.
             let mut values = vec![f64::NAN; DEPTH_BINS * nr];
             for r in 0..nr {
                 for k in 0..DEPTH_BINS {
-                    let bins = start + (r * DEPTH_BINS + k) * ANGLE_BINS..start + (r * DEPTH_BINS + k + 1) * ANGLE_BINS;
+                    let first = start + (r * DEPTH_BINS + k) * ANGLE_BINS;
                     let (mut sum, mut n) = (0.0, 0.0);
-                    for b in bins.filter(|&b| t.value[b].is_finite()) {
+                    for b in (first..first + ANGLE_BINS).filter(|&b| t.value[b].is_finite()) {
                         sum += t.value[b] * t.states[b] as f64;
                         n += t.states[b] as f64;
                     }
@@ -145,21 +150,13 @@ fn figure(t: &ImportanceTable, scene: &Scene, detector: &str) -> ImageFigure {
                     }
                 }
             }
-            let mut q = Panel::new(
+            panels.push(panel(
                 format!("importance for `{detector}` by distance to it, layer `{}`", l.name),
                 values,
-                (nr, DEPTH_BINS),
-                (0.0, 1e3 * lat.width * nr as f64),
-                depths,
-                Colormap::Viridis,
-                (top - DECADES, top),
-                "log₁₀ detected weight per unit weight",
-            );
-            q.x_label = "lateral distance to the detector's area (mm)".into();
-            q.y_label = "depth z (µm)".into();
-            q.equal = false;
-            q.caption = "mean over directions, weighted by the pilot's states; grey: no state".into();
-            panels.push(q);
+                (nr, (0.0, 1e3 * lat.width * nr as f64)),
+                "lateral distance to the detector's area (mm)",
+                "mean over directions, weighted by the pilot's states; grey: no state".into(),
+            ));
         }
     }
     ImageFigure { panels }
