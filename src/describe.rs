@@ -919,16 +919,28 @@ impl Display for Experiment {
                     "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
                         .to_string()
                 }
+                (Importance::Guided, _) => {
+                    "the forward walk's weight windows follow it, and where its importance varies over the directions \
+                     a scattering reaches, each continuation is one of 4 phase-function directions resampled on it"
+                        .to_string()
+                }
                 (Importance::Auto, None) => format!(
-                    "the forward walk follows its weight windows where a pilot of 1/{} of the paths, without and with \
-                     them, measures a lower squared relative error × work of the main output",
+                    "the forward walk follows its weight windows, or its windows and guided directions, where a pilot \
+                     of 1/{} of the paths, without, with the windows and with both, measures a lower squared relative \
+                     error × work of the main output",
                     crate::pilot::PILOT_SHARE
                 ),
                 (Importance::Auto, Some(a)) => format!(
-                    "weight windows {} by the pilot (squared relative error × work {:.3e} without, {:.3e} with)",
-                    if a.windows_chosen() { "chosen" } else { "not chosen" },
+                    "{} by the pilot (squared relative error × work {:.3e} without, {:.3e} with the windows, {:.3e} \
+                     with the windows and guided directions)",
+                    match a.choice() {
+                        Importance::Guided => "weight windows and guided directions chosen",
+                        Importance::Windows => "weight windows chosen",
+                        _ => "neither weight windows nor guided directions chosen",
+                    },
                     a.off,
-                    a.windows
+                    a.windows,
+                    a.guided
                 ),
                 _ => "written, not used by the walk".to_string(),
             };

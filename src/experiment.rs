@@ -70,9 +70,19 @@ impl RunPlan {
     /// `"auto"` where its pilot chose them (undecided: not).
     pub fn windows(&self) -> bool {
         match self.importance {
-            Importance::Windows => true,
+            Importance::Windows | Importance::Guided => true,
             Importance::Auto => self.importance_auto.is_some_and(|a| a.windows_chosen()),
             Importance::Off | Importance::Table => false,
+        }
+    }
+
+    /// Whether the forward walk's directions are guided by the importance table as well:
+    /// `run.importance = "guided"`, or `"auto"` where its pilot chose them.
+    pub fn guided(&self) -> bool {
+        match self.importance {
+            Importance::Guided => true,
+            Importance::Auto => self.importance_auto.is_some_and(|a| a.choice() == Importance::Guided),
+            Importance::Off | Importance::Table | Importance::Windows => false,
         }
     }
 
@@ -343,7 +353,10 @@ impl<'a> BatchRunner<'a> {
             Some(t) => Some(t.as_ref().clone()),
             None => exp.importance_table(),
         };
-        let windows = table.as_ref().map(|t| Windows::new(t.grid.clone(), &t.value, t.response));
+        let windows = table.as_ref().map(|t| {
+            let w = Windows::new(t.grid.clone(), &t.value, t.response);
+            if exp.plan.guided() { w.guided(&exp.scene, &t.value) } else { w }
+        });
         BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
     }
 

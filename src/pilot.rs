@@ -51,6 +51,10 @@ pub const PILOT_MIN_PATHS: u64 = 2_000;
 /// (Fresnel, phase function, optical depth of each) — measured on the shipped LDH scenes
 /// (validation/README.md).
 pub const CONNECTION_STEPS: f64 = 3.0;
+/// The cost of consulting the guide at a vertex ([`crate::transport::guide`]: its cell, and where
+/// it acts the candidates), in collision steps: measured on dcs_forearm, where the guide's
+/// consults added half the walk's time of the weight windows alone.
+pub const GUIDE_STEPS: f64 = 0.5;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 const PILOT_SEED: u64 = 0x0050_494c_4f54;
 /// Mixed in besides for the pilot of `run.importance = "auto"`.
@@ -79,11 +83,13 @@ pub fn decide(exp: &Experiment) -> Experiment {
     out
 }
 
-/// The pilot of `run.importance = "auto"`: the run without and with the weight windows of
-/// `table` ([`crate::transport::windows`]), on the same paths (`1/PILOT_SHARE` of the run's in
+/// The pilot of `run.importance = "auto"`: the run without the weight windows of `table`
+/// ([`crate::transport::windows`]), with them, and with them and guided directions
+/// ([`crate::transport::guide`]), on the same paths (`1/PILOT_SHARE` of the run's in
 /// [`PILOT_BATCHES`] batches, at least [`PILOT_MIN_PATHS`] per batch), and for each the squared
-/// relative error of the main output (`Σσ²/Σm²`, `m` the two pilots' mean: one reference for
-/// both) × its work in collision steps (the windows' copies and roulette in it). Like the
+/// relative error of the main output (`Σσ²/Σm²`, `m` the three pilots' mean: one reference for
+/// all) × its work in collision steps (the windows' copies and roulette in it, the guide's
+/// vertices). Like the
 /// estimators' pilot: counted, not timed, so the choice is the same on any threads, shard or
 /// resume; the figures do not depend on the pilot's size (variance ∝ 1/paths, work ∝ paths).
 pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoWindows {
@@ -98,13 +104,14 @@ pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoW
         v.plan.importance_table = Some(Arc::clone(table));
         v
     };
-    let (off, on) = (variant(Importance::Off).run(&Silent), variant(Importance::Windows).run(&Silent));
+    let runs = [Importance::Off, Importance::Windows, Importance::Guided].map(|i| variant(i).run(&Silent));
     let range = exp.main_output().range();
-    let (m_off, m_on) = (off.estimates.mean(), on.estimates.mean());
-    let m2: f64 = range.clone().map(|k| (0.5 * (m_off[k] + m_on[k])).powi(2)).sum();
+    let means = runs.each_ref().map(|o| o.estimates.mean());
+    let m2: f64 = range.clone().map(|k| (means.iter().map(|m| m[k]).sum::<f64>() / 3.0).powi(2)).sum();
     let var = |o: &RunOutput| o.estimates.stderr()[range.clone()].iter().map(|s| s * s).sum::<f64>();
     let figure = |o: &RunOutput| if m2 > 0.0 { var(o) / m2 * forward_work(&o.stats) } else { f64::INFINITY };
-    AutoWindows { off: figure(&off), windows: figure(&on) }
+    let [off, windows, guided] = runs.each_ref().map(figure);
+    AutoWindows { off, windows, guided }
 }
 
 /// The pilot's figures for every undecided `estimator = "auto"` detector of `exp`, by detector
@@ -178,7 +185,9 @@ fn per_pixel(exp: &Experiment, i: usize, ppb: u64) -> u64 {
 
 /// Work of the forward paths, in collision steps.
 fn forward_work(st: &RunStats) -> f64 {
-    (st.scattering_events + st.null_collisions) as f64 + CONNECTION_STEPS * st.work.shadow_rays as f64
+    (st.scattering_events + st.null_collisions) as f64
+        + CONNECTION_STEPS * st.work.shadow_rays as f64
+        + GUIDE_STEPS * st.work.guided as f64
 }
 
 /// Work of the camera paths, in collision steps.

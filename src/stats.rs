@@ -36,6 +36,9 @@ pub struct Work {
     pub shadow_rays: u64,
     /// Connections traced by camera paths (to the laser, and the beam-lobe flights).
     pub camera_connections: u64,
+    /// Scattering vertices whose continuation the importance table guided
+    /// ([`crate::transport::guide`]).
+    pub guided: u64,
 }
 
 impl RunStats {
@@ -49,6 +52,7 @@ impl RunStats {
         self.work.camera_events += o.work.camera_events;
         self.work.shadow_rays += o.work.shadow_rays;
         self.work.camera_connections += o.work.camera_connections;
+        self.work.guided += o.work.guided;
     }
 }
 

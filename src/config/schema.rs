@@ -197,8 +197,9 @@ pub struct RunSection {
     pub launch_profile_share: Option<f64>,
     /// The importance table of the main output's detector (`detect::importance`): `"off"`
     /// (default), `"table"` (a pilot computes it and the run writes it) or `"windows"` (and the
-    /// forward walk's weight windows follow it, `transport::windows`) or `"auto"` (the table,
-    /// and the windows where a pilot measures that they pay, `pilot`).
+    /// forward walk's weight windows follow it, `transport::windows`), `"guided"` (the windows
+    /// and directions guided by it, `transport::guide`) or `"auto"` (the table, and the windows
+    /// or the windows and guided directions where a pilot measures that they pay, `pilot`).
     pub importance: Option<ImportanceKind>,
     /// Largest memory the tallies may take (GiB); configurations above it are refused.
     pub memory_budget_gib: Option<f64>,
@@ -221,6 +222,7 @@ pub enum ImportanceKind {
     Off,
     Table,
     Windows,
+    Guided,
     Auto,
 }
 

@@ -3,6 +3,7 @@
 pub mod camera;
 pub mod features;
 pub mod fresnel;
+pub mod guide;
 pub mod nee;
 pub mod tracking;
 pub mod walk;

@@ -27,7 +27,7 @@ use super::camera::CameraTarget;
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::tracking::{Flight, LayerRay, Tracking, free_flight, free_flight_to};
-use super::windows::{Action, MAX_PENDING};
+use super::windows::{Action, MAX_PENDING, Windows};
 
 /// Knobs of the random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -289,6 +289,8 @@ struct Vertex<'a> {
     medium: &'a Medium,
     albedo: f64,
     n: f64,
+    /// Its layer.
+    li: usize,
 }
 
 /// Rotate `dir` by the deflection `d` at azimuth `(cos φ, sin φ)`.
@@ -512,6 +514,9 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
 #[inline]
 fn window(ctx: &WalkContext, rec: &mut Recorder, s: &mut PathState, li: usize, rng: &mut PathRng) -> Option<End> {
     let w = ctx.windows?;
+    if w.guide.is_some() {
+        rec.stats.work.guided += 1;
+    }
     match w.check(li, s) {
         Action::Keep => {}
         Action::Split(n) => split(rec, s, li, n, rng.split_key()),
@@ -813,6 +818,7 @@ fn walk<
                 if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
                     scene,
                     ctx.nee,
+                    ctx.windows,
                     li,
                     s,
                     medium,
@@ -831,7 +837,7 @@ fn walk<
                     return end;
                 }
             } else if let Some(end) =
-                collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n }, settings, rng, absorbed, &mut checkpoint)
+                collide::<DOPPLER, LENGTH>(s, t, Vertex { medium, albedo, n, li }, ctx, rng, absorbed, &mut checkpoint)
             {
                 return end;
             } else {
@@ -985,19 +991,20 @@ fn side_face<const LENGTH: bool, const VOLUME: bool, const GATE: bool>(
     Some(End::Lateral)
 }
 
-/// A real collision `v` of `s` at distance `t`: absorption weighting, a new direction, the
-/// Doppler term, the event cap and Russian roulette. `Some` if the path ends here.
+/// A real collision `v` of `s` at distance `t` in layer `li`: absorption weighting, a new
+/// direction (guided where the weight windows have a guide), the Doppler term, the event cap and
+/// Russian roulette. `Some` if the path ends here.
 #[inline(always)]
 fn collide<const DOPPLER: bool, const LENGTH: bool>(
     s: &mut PathState,
     t: f64,
     v: Vertex,
-    settings: &WalkSettings,
+    ctx: &WalkContext,
     rng: &mut PathRng,
     absorbed: &mut f64,
     checkpoint: &mut u32,
 ) -> Option<End> {
-    let Vertex { medium: m, albedo, n } = v;
+    let Vertex { medium: m, albedo, n, li } = v;
     s.pos += t * s.dir;
     if LENGTH {
         s.l += n * t;
@@ -1006,12 +1013,45 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
         return Some(End::Absorbed);
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
-    let (_, out, delta) = deflect(s.dir, &pop.phase, rng);
+    let (out, delta) = match ctx.windows {
+        Some(w) if w.guide.is_some() => {
+            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
+            let (_, out, delta) = continue_guided(s, &pop.phase, cell, rng);
+            (out, delta)
+        }
+        _ => {
+            let (_, out, delta) = deflect(s.dir, &pop.phase, rng);
+            (out, delta)
+        }
+    };
     if DOPPLER && dynamic {
         let v = particle_velocity(pop, s.pos, rng);
         doppler_event(s, pop, n, v, delta);
     }
-    turn(s, out, settings, rng, checkpoint)
+    turn(s, out, ctx.settings, rng, checkpoint)
+}
+
+/// The continuation of `s` from a scatterer of phase function `phase` where the guide acts with
+/// the table's values `cell` ([`super::guide`]): one of several directions drawn from the phase
+/// function, resampled on their importance, and the weight times the resampling's factor; the
+/// phase function's draw alone (weight unchanged) where it does not (`cell` `None`). Returns
+/// `(cos θ, out, dir − out)` of the deflection.
+#[inline(never)]
+fn continue_guided(
+    s: &mut PathState,
+    phase: &crate::phase::PhaseFunction,
+    cell: Option<&[f64]>,
+    rng: &mut PathRng,
+) -> (f64, DVec3, DVec3) {
+    let dir = s.dir;
+    let draw = |rng: &mut PathRng| {
+        let (d, out, delta) = deflect(dir, phase, rng);
+        (d.cos, out, delta)
+    };
+    let Some(cell) = cell else { return draw(rng) };
+    let (chosen, factor) = super::guide::resample(cell, rng, draw);
+    s.weight *= factor;
+    chosen
 }
 
 /// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
@@ -1029,6 +1069,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
 fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     scene: &Scene,
     nee: &[NeeTarget],
+    windows: Option<&Windows>,
     li: usize,
     s: &mut PathState,
     m: &Medium,
@@ -1124,14 +1165,26 @@ fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         }
         rec.next_event(target.detector, &e, twin, scene.n_above);
     }
-    let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
+    // The continuation: guided where the weight windows have a guide that acts here, but not at
+    // a collision the twin shares in a region (its likelihood ratio takes the phase function's own
+    // draw).
+    let (cos, out, delta) = match windows {
+        Some(w) if w.guide.is_some() && coupled.is_none() => {
+            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
+            continue_guided(s, &pop.phase, cell, rng)
+        }
+        _ => {
+            let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
+            (d.cos, out, delta)
+        }
+    };
     if !nee.is_empty() {
-        s.mis = pop.phase.eval(d.cos) / (n * n * out.z.abs());
+        s.mis = pop.phase.eval(cos) / (n * n * out.z.abs());
     }
     if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), coupled) {
         // The coupled twin's density of the direction drawn over the path's, and its Doppler
         // event instead of the path's.
-        tw.lambda *= tpop.phase.eval(d.cos) / pop.phase.eval(d.cos);
+        tw.lambda *= tpop.phase.eval(cos) / pop.phase.eval(cos);
         let mut shift = PathState::new(s.pos, s.dir, 0.0, 0.0);
         if tdyn {
             doppler_event(&mut shift, tpop, n, tv, delta);
@@ -1203,6 +1256,7 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
         collide_nee::<DOPPLER, LENGTH>(
             scene,
             ctx.nee,
+            None,
             li,
             &mut s,
             fill,

@@ -12,6 +12,8 @@
 use crate::detect::PathState;
 use crate::detect::importance::ImportanceGrid;
 
+use super::guide::Guide;
+
 /// `run.importance`: what the importance table is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Importance {
@@ -22,25 +24,41 @@ pub enum Importance {
     Table,
     /// Computed, written, and the forward walk's weight windows.
     Windows,
-    /// Computed and written; the windows where a pilot measures that they pay
-    /// ([`AutoWindows`]).
+    /// The weight windows, and the forward walk's directions guided by the table
+    /// ([`super::guide`]).
+    Guided,
+    /// Computed and written; the windows, or the windows and guided directions, where a pilot
+    /// measures that they pay ([`AutoWindows`]).
     Auto,
 }
 
 /// What the pilot of `run.importance = "auto"` measured (`crate::pilot`): the squared relative
-/// error of the main output × the work (collision steps) of a run without and with the weight
-/// windows, on the same paths; the windows are chosen where strictly cheaper.
+/// error of the main output × the work (collision steps) of a run without the table's help, with
+/// the weight windows, and with the windows and guided directions, on the same paths; the
+/// cheapest is chosen, a change only where strictly cheaper.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct AutoWindows {
     pub off: f64,
     pub windows: f64,
+    pub guided: f64,
 }
 
 impl AutoWindows {
-    /// Whether these figures choose the windows (not on a tie, nor on figures that are not
-    /// numbers).
+    /// What these figures choose: [`Importance::Off`], [`Importance::Windows`] or
+    /// [`Importance::Guided`] (the plainer on a tie; figures that are not numbers never win).
+    pub fn choice(self) -> Importance {
+        let mut best = (Importance::Off, self.off);
+        for (i, f) in [(Importance::Windows, self.windows), (Importance::Guided, self.guided)] {
+            if f < best.1 || (best.1.is_nan() && !f.is_nan()) {
+                best = (i, f);
+            }
+        }
+        best.0
+    }
+
+    /// Whether these figures choose the windows (alone or with guided directions).
     pub fn windows_chosen(self) -> bool {
-        self.windows < self.off
+        self.choice() != Importance::Off
     }
 }
 
@@ -59,6 +77,8 @@ pub struct Windows {
     pub grid: ImportanceGrid,
     /// Per bin: the window's centre (weight), 0 where the table has no value (no window).
     pub center: Vec<f64>,
+    /// The guided directions of `run.importance = "guided"` ([`Guide`]), if any.
+    pub guide: Option<Guide>,
 }
 
 /// What a window does to a path.
@@ -82,7 +102,25 @@ impl Windows {
             .iter()
             .map(|&v| if v > 0.0 && v.is_finite() && response > 0.0 { response / v } else { 0.0 })
             .collect();
-        Windows { grid, center }
+        Windows { grid, center, guide: None }
+    }
+
+    /// These windows with directions guided by the same table (`value`, of `scene`).
+    pub fn guided(self, scene: &crate::medium::Scene, value: &[f64]) -> Self {
+        Windows { guide: Some(Guide::new(scene, value)), ..self }
+    }
+
+    /// The table's values at a vertex where the guide acts there ([`Guide::cell`]); `None`
+    /// without a guide.
+    #[inline]
+    pub fn guide_cell(
+        &self,
+        li: usize,
+        pos: glam::DVec3,
+        dir_in: glam::DVec3,
+        phase: &crate::phase::PhaseFunction,
+    ) -> Option<&[f64]> {
+        self.guide.as_ref()?.cell(&self.grid, li, pos, dir_in, phase)
     }
 
     /// What the window of the state of `s` in layer `li` does to it.

@@ -156,6 +156,7 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
             ImportanceKind::Off => Importance::Off,
             ImportanceKind::Table => Importance::Table,
             ImportanceKind::Windows => Importance::Windows,
+            ImportanceKind::Guided => Importance::Guided,
             ImportanceKind::Auto => Importance::Auto,
         },
         importance_auto: None,

@@ -41,8 +41,11 @@ pub struct ImportanceEntry {
     pub seconds: f64,
     /// Whether the forward walk followed the table's weight windows.
     pub windows: bool,
+    /// Whether its directions were guided by the table as well.
+    pub guided: bool,
     /// With `run.importance = "auto"`: the pilot's relative variance × work of the main output
-    /// without and with the windows (the lower was chosen).
+    /// without the table's help, with the windows and with the windows and guided directions
+    /// (the lowest was chosen).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub auto: Option<crate::transport::windows::AutoWindows>,
 }
@@ -88,6 +91,7 @@ pub fn write_importance(w: &mut Writer, t: &ImportanceTable, scene: &Scene, dete
         pilot_paths: t.paths,
         seconds: t.seconds,
         windows: false,
+        guided: false,
         auto: None,
     })
 }

@@ -331,6 +331,7 @@ fn write_run_to<S: super::Sink>(
             let mut entry = super::importance::write_importance(&mut w, &t, &exp.scene, name)?;
             entry.auto = exp.plan.importance_auto;
             entry.windows = exp.plan.windows();
+            entry.guided = exp.plan.guided();
             Some(entry)
         }
         None => None,
