@@ -88,8 +88,9 @@ enum Command {
         /// Wall-time budget of the whole study, seconds (the ladder and an on-the-fly reference).
         #[arg(long, default_value_t = 120.0, allow_negative_numbers = true)]
         budget_seconds: f64,
-        /// Paths of the largest rung (instead of sizing the ladder from the budget).
-        #[arg(long)]
+        /// Paths of the largest rung (instead of sizing the ladder from the budget; `1e6` is
+        /// taken).
+        #[arg(long, value_parser = whole_count)]
         samples: Option<u64>,
         /// Number of rungs, each twice the paths of the one before.
         #[arg(long, default_value_t = 6)]
@@ -125,8 +126,8 @@ struct RunArgs {
     /// Output directory [default: out/<experiment name>, else out/<config file stem>].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Number of paths (same as --set run.samples=N).
-    #[arg(long)]
+    /// Number of paths (same as --set run.samples=N; `1e6` is taken).
+    #[arg(long, value_parser = whole_count)]
     samples: Option<u64>,
     #[command(flatten)]
     overrides: Overrides,
@@ -136,7 +137,7 @@ struct RunArgs {
     target_error: Option<f64>,
     /// With --target-error: stop at this many paths even if the target is not met
     /// [default: 1000 × run.samples].
-    #[arg(long, requires = "target_error")]
+    #[arg(long, requires = "target_error", value_parser = whole_count)]
     max_samples: Option<u64>,
     /// Save the run's state to OUT/checkpoint.ohd every S seconds (atomically), so that
     /// `--resume` can finish it after the process dies. Removed when the run completes.
@@ -157,6 +158,15 @@ struct RunArgs {
     /// Write no figures (PNG/SVG), only the data files (for batch work).
     #[arg(long)]
     no_figures: bool,
+}
+
+/// A count of paths: an integer (`1000000`, `1_000_000`) or a float of a whole value (`1e6`).
+fn whole_count(s: &str) -> Result<u64, String> {
+    let t = s.trim().replace('_', "");
+    t.parse::<u64>()
+        .ok()
+        .or_else(|| t.parse::<f64>().ok().and_then(ohd::config::schema::whole))
+        .ok_or_else(|| format!("expected a whole number of paths such as 1000000 or 1e6; got {s:?}"))
 }
 
 /// `I/N` with 0 ≤ I < N.

@@ -262,12 +262,24 @@ def _sets(overrides: Overrides, samples=None, seed=None, threads=None) -> List[s
         sets = [overrides]
     else:
         sets = [str(s) for s in overrides]
-    for key, v in (("run.samples", samples), ("run.seed", seed), ("run.threads", threads)):
+    if samples is not None:
+        sets.append(f"run.samples={_count(samples)}")
+    for key, v in (("run.seed", seed), ("run.threads", threads)):
         if v is not None:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise ValueError(f"{key.split('.')[1]}={v!r}: expected an integer ≥ 0")
             sets.append(f"{key}={int(v)}")
     return sets
+
+
+def _count(samples) -> int:
+    """A number of paths: an integer ≥ 0, or a float of a whole value (`1e6`, as pmcx takes it)."""
+    if not isinstance(samples, bool):
+        if isinstance(samples, (int, np.integer)) and samples >= 0:
+            return int(samples)
+        if isinstance(samples, (float, np.floating)) and float(samples).is_integer() and 0 <= samples <= 2.0**53:
+            return int(samples)
+    raise ValueError(f"samples={samples!r}: expected a whole number of paths ≥ 0, such as 1000000 or 1e6")
 
 
 def _source(config: Config):
@@ -323,7 +335,7 @@ def _reporter(progress: Union[bool, Report]) -> Optional[Report]:
 def run(
     config: Config = None,
     *,
-    samples: Optional[int] = None,
+    samples: Union[None, int, float] = None,
     seed: Optional[int] = None,
     threads: Optional[int] = None,
     overrides: Overrides = None,
@@ -381,7 +393,7 @@ def sweep(
     values: Optional[Iterable[Any]] = None,
     *,
     points: Optional[Iterable[Overrides]] = None,
-    samples: Optional[int] = None,
+    samples: Union[None, int, float] = None,
     seed: Optional[int] = None,
     threads: Optional[int] = None,
     overrides: Overrides = None,
@@ -464,7 +476,7 @@ def converge(
     out: Union[str, "os.PathLike[str]"],
     reference: Union[None, str, "os.PathLike[str]"] = None,
     budget_seconds: float = 120.0,
-    samples: Optional[int] = None,
+    samples: Union[None, int, float] = None,
     rungs: int = 6,
     overrides: Overrides = None,
     seed: Optional[int] = None,
@@ -482,7 +494,7 @@ def converge(
         os.fspath(out),
         None if reference is None else os.fspath(reference),
         float(budget_seconds),
-        samples,
+        None if samples is None else _count(samples),
         int(rungs),
         figures,
     )

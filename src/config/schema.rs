@@ -18,6 +18,37 @@ use super::units::{
 /// The schema version this build reads.
 pub const SCHEMA_VERSION: i64 = 1;
 
+/// The largest count a float can give exactly (2⁵³).
+const EXACT_FLOAT_COUNT: f64 = 9_007_199_254_740_992.0;
+
+/// `v` as a count, if it is a whole number in [0, 2⁵³].
+pub fn whole(v: f64) -> Option<u64> {
+    (v >= 0.0 && v.fract() == 0.0 && v <= EXACT_FLOAT_COUNT).then_some(v as u64)
+}
+
+/// A count (`run.samples`) from an integer or a float of a whole value (`1e6`, `2.5e5`): what the
+/// field's users write (pmcx takes `1e6`); a fraction, a negative value or one beyond 2⁵³ is
+/// refused with what is expected.
+fn whole_count<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> {
+    struct Count;
+    impl serde::de::Visitor<'_> for Count {
+        type Value = u64;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a whole number of paths such as 1000000 or 1e6")
+        }
+        fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<u64, E> {
+            Ok(v)
+        }
+        fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<u64, E> {
+            u64::try_from(v).map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(v), &self))
+        }
+        fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<u64, E> {
+            whole(v).ok_or_else(|| E::invalid_value(serde::de::Unexpected::Float(v), &self))
+        }
+    }
+    d.deserialize_any(Count).map(Some)
+}
+
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExperimentFile {
@@ -173,6 +204,8 @@ pub enum HeightProfileSection {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RunSection {
+    /// Paths: a whole number, also written as a float (`1e6`, as pmcx takes it).
+    #[serde(default, deserialize_with = "whole_count")]
     pub samples: Option<u64>,
     pub seed: Option<u64>,
     pub batches: Option<u64>,

@@ -175,6 +175,36 @@ fn malformed_set_exits_2() {
     assert!(!out.exists());
 }
 
+/// A number of paths may be written as pmcx takes it, `2e4` (on the command line and in
+/// `--set`): the same run as `20000`; a fraction or a negative count is refused with exit 2,
+/// naming what is expected, and nothing is written.
+#[test]
+fn samples_take_a_whole_float_and_refuse_a_fraction() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = vdh_slab();
+    let run = |name: &str, args: &[&str]| {
+        let out = tmp.path().join(name);
+        let mut all = vec!["run", path_str(&config), "--quiet", "--out", path_str(&out), "--set", "run.seed=5"];
+        all.extend_from_slice(args);
+        (ohd(tmp.path(), &all), out)
+    };
+    let estimate = |out: &Path| read_manifest(out)["estimates"]["absorbed_fraction"]["value"].as_f64().unwrap();
+    let (whole, a) = run("whole", &["--samples", "20000"]);
+    let (float, b) = run("float", &["--samples", "2e4"]);
+    let (set, c) = run("set", &["--set", "run.samples=2.0e4"]);
+    for o in [&whole, &float, &set] {
+        assert_eq!(o.status.code(), Some(0), "{}", describe(o));
+    }
+    assert_eq!(estimate(&a).to_bits(), estimate(&b).to_bits());
+    assert_eq!(estimate(&a).to_bits(), estimate(&c).to_bits());
+    for (name, args) in [("half", ["--samples", "2.5"]), ("minus", ["--set", "run.samples=-3e4"])] {
+        let (o, out) = run(name, &args);
+        assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+        assert!(text(&o.stderr).contains("whole number of paths"), "{}", describe(&o));
+        assert!(!out.exists());
+    }
+}
+
 #[test]
 fn default_experiment_without_config() {
     let tmp = tempfile::tempdir().unwrap();

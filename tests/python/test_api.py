@@ -181,6 +181,11 @@ def test_overrides_as_dict_list_and_keywords_agree():
     assert a.files["camera_spectrum.npy"] != c.files["camera_spectrum.npy"]
     assert a.manifest["overrides"] == ["run.samples=10000", "run.seed=3", "source.wavelength_nm=780"]
     assert a.manifest["config"]["source"]["wavelength_nm"] == 780
+    # A number of paths written as pmcx takes it: 1e4 is 10000; a fraction is refused.
+    d = ohd.run(overrides=["source.wavelength_nm=780"], samples=1e4, seed=3, progress=False, figures=False)
+    assert d.files["camera_spectrum.npy"] == b.files["camera_spectrum.npy"]
+    with pytest.raises(ValueError, match="whole number of paths"):
+        ohd.run(samples=2.5, progress=False, figures=False)
 
 
 def test_config_errors_are_value_errors_with_the_key_and_the_cli_message(cli, tmp_path):
