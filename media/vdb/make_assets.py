@@ -10,7 +10,7 @@ Two assets, both deterministic (fixed seeds), both small:
   10 um voxels (the vessels fill 1.8 % of it). Grid "density" (FloatGrid, 1 inside a vessel, background 0) and grid "velocity"
   (Vec3SGrid, m/s, background 0): Poiseuille profile v = 2 v_mean (1 - (d/R)^2) along each
   segment's axis, flow conserved at every split (Q_daughter = Q_parent / 2). The root has D = 105 um
-  and centre-line speed 34 mm/s (Guan et al. 2003, scene-parameters A3). Every segment runs 5 deg
+  and centre-line speed 34 mm/s (Guan et al. 2003, media/references.md A3). Every segment runs 5 deg
   out of the x-y plane (the retinal surface), away from the camera (+z) along the flow, so its
   Doppler shift is that of v_axial = v sin 5 deg.
   Index (0,0,0) is the box's corner; the file's map is index * 0.01 (UniformScaleMap) in
@@ -23,7 +23,7 @@ Two assets, both deterministic (fixed seeds), both small:
   amplitudes |a_n| ~ |k_n|^(-4/3), so that each mode's velocity
   |k x a| ~ |k|^(-1/3) and, with log-spaced |k|, E(k) dk ~ |k|^(-2/3) per log step, i.e.
   E(k) ~ k^(-5/3) (Kolmogorov), scaled to an rms of 0.8 m/s per component (turbulence
-  intensity 0.1 at 8 m/s, IEC 61400-1 class C-like, scene-parameters B5). The background is the
+  intensity 0.1 at 8 m/s, IEC 61400-1 class C-like, media/references.md B5). The background is the
   mean wind (8, 0, 0): outside the box the wind is uniform. ScaleTranslateMap centring the box on
   x = y = 0, from z = 0 (the ground) to 320 m.
 

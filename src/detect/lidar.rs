@@ -119,7 +119,7 @@ const PULSE_SUPPORT_SIGMAS: f64 = 6.0;
 pub const PLANCK: f64 = 6.626_070_15e-34;
 
 /// Default transmitted pulse energy, J: 100 µJ, the USTC/NUIST coherent Doppler wind lidar
-/// (Wu et al. 2024, Acta Opt. Sin. 44:1636001, Table 1; scene-parameters §B1), also the Halo
+/// (Wu et al. 2024, Acta Opt. Sin. 44:1636001, Table 1; media/references.md §B1), also the Halo
 /// StreamLine XR's ≈100 µJ.
 pub const DEFAULT_PULSE_ENERGY: f64 = 100e-6;
 /// Default detector quantum efficiency (InGaAs photodiodes at 1.55 µm: 0.7–0.9).

@@ -11,7 +11,7 @@ use glam::DVec3;
 use crate::medium::density::GridField;
 use crate::sampling::{Discrete, PathRng, warp};
 
-/// Von Kármán's constant of the logarithmic wind profile (scene-parameters §B5).
+/// Von Kármán's constant of the logarithmic wind profile (media/references.md §B5).
 pub const VON_KARMAN: f64 = 0.40;
 
 /// Wind as a function of height. In an atmosphere the scene's `z` is the height above the ground
@@ -317,7 +317,7 @@ mod tests {
 
     #[test]
     fn atlas_fall_speeds_match_gunn_and_kinzer() {
-        // Atlas et al. 1973 against the Gunn & Kinzer values of scene-parameters §B4.
+        // Atlas et al. 1973 against the Gunn & Kinzer values of media/references.md §B4.
         for (d_mm, v) in [(0.5, 2.0), (2.0, 6.5), (5.0, 9.1)] {
             assert!((atlas_fall_speed(d_mm * 1e-3) - v).abs() < 0.1, "{d_mm} mm");
         }

@@ -142,7 +142,7 @@ fn raindrops_fall_at_their_atlas_speeds_with_their_class_phase_functions() {
         m.sigma_t(),
         m.sigma_t() / b0
     );
-    // scene-parameters §B4 (Mie over 0.05–6 mm, 5 mm/h): extinction 1.01 /km, S ≈ 510 sr, 2.2 m/s.
+    // media/references.md §B4 (Mie over 0.05–6 mm, 5 mm/h): extinction 1.01 /km, S ≈ 510 sr, 2.2 m/s.
     assert!((m.sigma_t() / 1.01e-3 - 1.0).abs() < 0.03, "σt = {}", m.sigma_t());
     check_lags(&r, [Complex64::new(b0, 0.0), b1], m.sigma_t(), 900.0);
 }

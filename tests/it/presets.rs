@@ -1,5 +1,5 @@
 //! Media presets: every shipped file is registered and resolves at its wavelength; the Mie-based
-//! presets reproduce the bulk optics of `../shared/reference/scene-parameters.md` (values derived
+//! presets reproduce the bulk optics of `media/references.md` (values derived
 //! there with miepython, so the tolerances allow for quadrature and truncation choices we cannot
 //! see); hematocrit overrides scale blood as the model says.
 
@@ -41,7 +41,7 @@ fn every_preset_file_is_registered_and_resolves() {
 
 #[test]
 fn aerosol_and_rain_presets_match_the_derived_bulk_optics() {
-    // (preset, extinction /km, albedo, g, lidar ratio sr) from scene-parameters §B2, §B4.
+    // (preset, extinction /km, albedo, g, lidar ratio sr) from media/references.md §B2, §B4.
     for (name, ext, albedo, g, s, tol) in [
         ("continental_aerosol_1550", 0.0151, 0.82, 0.63, 52.0, 0.05),
         ("maritime_aerosol_1550", 0.075, 0.99, 0.79, 66.0, 0.10),

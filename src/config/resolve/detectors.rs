@@ -105,7 +105,7 @@ fn checked_axis(
 }
 
 /// Defaults of an LDH camera: Kim et al. 2025's replica of Puyo et al. 2018 (39 kHz, N_w = 512)
-/// with HoloDoppler's M0 band (6–18.3 kHz); see `scene-parameters.md` §A4.
+/// with HoloDoppler's M0 band (6–18.3 kHz); see `media/references.md` §A4.
 pub const LDH_DEFAULT_FRAME_RATE_HZ: f64 = 39_000.0;
 pub const LDH_DEFAULT_WINDOW_SAMPLES: u64 = 512;
 pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];

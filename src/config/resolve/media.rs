@@ -396,7 +396,7 @@ fn particle_specs(path: &str, list: &OneOrMany<ParticlesSection>, ctx: &Ctx) -> 
                         format!("= {rain_rate_mm_per_h} mm/h: expected a rain rate in (0, 500] mm/h"),
                     );
                 }
-                // Defaults: 0.05–6 mm, the range of scene-parameters §B4.
+                // Defaults: 0.05–6 mm, the range of media/references.md §B4.
                 let (d_min, d_max) = size_range(
                     &sp,
                     ("min_diameter", "max_diameter"),
