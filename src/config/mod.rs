@@ -171,6 +171,6 @@ pub fn deserialize(doc: &toml::Table) -> Result<schema::ExperimentFile, ConfigEr
         let message = e.into_inner().message().to_string();
         marked
             .duplicate(&path, &message)
-            .unwrap_or_else(|| ConfigError::new(path, units::order_expected_keys(&message)))
+            .unwrap_or_else(|| ConfigError::new(path, units::readable(&units::order_expected_keys(&message))))
     })
 }

@@ -354,9 +354,92 @@ pub fn order_expected_keys(message: &str) -> String {
     format!("{}{}", &message[..i], keys.join(", "))
 }
 
+/// A serde message in the words of the experiment file rather than of Rust: the integer and float
+/// types named as what they mean (`expected u64` → `expected a whole number ≥ 0`), and for an
+/// unknown key the nearest expected one suggested (`unknown field `sampels` (did you mean
+/// `samples`?), expected one of …`) when it is within a third of its length in edits.
+pub fn readable(message: &str) -> String {
+    let mut m = message.to_string();
+    for (rust, words) in [
+        ("expected u64", "expected a whole number ≥ 0"),
+        ("expected u32", "expected a whole number ≥ 0"),
+        ("expected usize", "expected a whole number ≥ 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected f64", "expected a number"),
+    ] {
+        if m.ends_with(rust) {
+            m.replace_range(m.len() - rust.len().., words);
+        }
+    }
+    const UNKNOWN: &str = "unknown field `";
+    const AT: &str = "expected one of ";
+    let given = m.strip_prefix(UNKNOWN).and_then(|u| u.split('`').next()).unwrap_or("").to_string();
+    // (A key of hundreds of characters is no typo of a key.)
+    if let Some(e) = m.find(AT)
+        && !given.is_empty()
+        && given.len() <= 64
+    {
+        let nearest = m[e + AT.len()..]
+            .split(", ")
+            .map(|k| k.trim_matches('`'))
+            .map(|k| (edit_distance(&given, k), k))
+            .min_by_key(|&(d, _)| d);
+        if let Some((d, k)) = nearest
+            && d > 0
+            && 3 * d <= given.chars().count().max(3)
+        {
+            let suggestion = format!(" (did you mean `{k}`?)");
+            m.insert_str(UNKNOWN.len() + given.len() + 1, &suggestion);
+        }
+    }
+    m
+}
+
+/// The Levenshtein distance of two keys (insertions, deletions and substitutions of characters).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let next = (row[j + 1] + 1).min(row[j] + 1).min(diagonal + usize::from(ca != cb));
+            diagonal = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn messages_speak_the_files_words_and_suggest_the_nearest_key() {
+        assert_eq!(
+            readable("invalid type: floating point `2.5`, expected u64"),
+            "invalid type: floating point `2.5`, expected a whole number ≥ 0"
+        );
+        assert_eq!(
+            readable("invalid type: string \"a\", expected f64"),
+            "invalid type: string \"a\", expected a number"
+        );
+        assert_eq!(
+            readable("unknown field `sampels`, expected one of `samples`, `seed`, `batches`"),
+            "unknown field `sampels` (did you mean `samples`?), expected one of `samples`, `seed`, `batches`"
+        );
+        assert_eq!(
+            readable("unknown field `thickness_nm`, expected one of `name`, `thickness_um`, `thickness_mm`"),
+            "unknown field `thickness_nm` (did you mean `thickness_um`?), expected one of `name`, `thickness_um`, `thickness_mm`"
+        );
+        // Nothing near: no suggestion.
+        assert_eq!(
+            readable("unknown field `zz`, expected one of `samples`"),
+            "unknown field `zz`, expected one of `samples`"
+        );
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+    }
 
     #[test]
     fn units_and_quantities() {

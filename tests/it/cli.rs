@@ -910,11 +910,18 @@ fn error_messages_are_bounded() {
         (format!("media.tissue.phase.g={big}"), "media.tissue.phase.g: = 1e300: expected"),
         (format!("layers.0.thickness_mm=-{big}"), "= -1e300: expected a thickness"),
         ("source.wavelength_nm=1e-320".into(), "= 1e-320: expected a vacuum wavelength"),
-        (format!("run.samples={big}"), "invalid type: floating point `1e300`, expected u64"),
+        (format!("run.samples={big}"), "floating point `1e300`, expected a whole number of paths"),
+        ("run.seed=2.5".into(), "run.seed: invalid type: floating point `2.5`, expected a whole number ≥ 0"),
     ] {
         refused(&["check", "--set", &set], &[expect], 300);
     }
     refused(&["run", "--target-error", big], &["--target-error 1e300: expected"], 300);
+    // A typo'd key: the nearest key suggested before the list of them all.
+    refused(
+        &["check", "--set", "run.sampels=3"],
+        &["unknown field `sampels` (did you mean `samples`?), expected one of"],
+        1000,
+    );
     let mut many = String::from("schema_version = 1\n[source]\nwavelength_nm = 785\n");
     for i in 0..10_000 {
         many.push_str(&format!("[media.m{i}]\nsigma_a_per_mm = 0.1\nsigma_s_per_mm = 1\n"));
