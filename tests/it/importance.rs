@@ -96,55 +96,43 @@ fn image(r: &crate::support::run::Run, name: &str) -> (Vec<f64>, Vec<f64>) {
     o.values(r.out.estimates.mean(), &r.out.estimates.stderr())
 }
 
-/// With weight windows (`run.importance = "windows"`) the camera's image and power equal the
-/// plain walk's within their standard errors (χ² over the pixels, z of the power), the power is
-/// more precise, and the run is the same bit for bit on 1 and 2 threads (the copies' streams come
-/// from their paths').
-#[test]
-fn weight_windows_keep_the_estimate_and_the_determinism() {
-    use crate::support::run::run;
+/// The slab's camera with `run.importance = importance` against the plain walk, 8·10⁵ paths
+/// each: its image and power equal the plain walk's within their standard errors (χ² over the
+/// pixels, z of the power), and the run is the same bit for bit on 1 and 2 threads (the copies'
+/// streams come from their paths'). Returns the power's σ with it and plain.
+fn against_the_plain_walk(importance: &str) -> (f64, f64) {
+    use crate::support::run::{Run, run};
     use crate::support::stats::chi2_difference;
-    let sets = |w: &'static str| ["run.samples = 800000".to_string(), format!("run.importance = \"{w}\"")];
-    let windowed = run(&slab(2), &sets("windows").iter().map(String::as_str).collect::<Vec<_>>());
-    let plain = run(&slab(2), &sets("off").iter().map(String::as_str).collect::<Vec<_>>());
-    let (a, b) = (image(&windowed, "camera.image"), image(&plain, "camera.image"));
+    let sets = |w: &str| ["run.samples = 800000".to_string(), format!("run.importance = \"{w}\"")];
+    let with = |threads: u32, w: &str| run(&slab(threads), &sets(w).iter().map(String::as_str).collect::<Vec<_>>());
+    let (steered, plain) = (with(2, importance), with(2, "off"));
+    let (a, b) = (image(&steered, "camera.image"), image(&plain, "camera.image"));
     let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-    assert!(dof == 16 && p > 1e-4, "image: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
-    let power = |r: &crate::support::run::Run| {
-        let slot = r.out.layout.detectors[0].power;
-        (r.out.estimates.mean()[slot], r.out.estimates.stderr()[slot])
-    };
-    let ((pw, sw), (pp, sp)) = (power(&windowed), power(&plain));
+    assert!(dof == 16 && p > 1e-4, "{importance}: image χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
+    let ((pw, sw), (pp, sp)) = (steered.power(0), plain.power(0));
     let z = (pw - pp) / sw.hypot(sp);
-    assert!(z.abs() < 4.0, "power {pw:.5e} ± {sw:.1e} with windows, {pp:.5e} ± {sp:.1e} plain (z = {z:.2})");
-    assert!(sw < sp, "the windows' power σ {sw:.2e} against the plain walk's {sp:.2e}");
-    let one = run(&slab(1), &sets("windows").iter().map(String::as_str).collect::<Vec<_>>());
-    let bits = |r: &crate::support::run::Run| r.out.estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&windowed), bits(&one), "the windowed run depends on the threads");
+    assert!(z.abs() < 4.0, "power {pw:.5e} ± {sw:.1e} {importance}, {pp:.5e} ± {sp:.1e} plain (z = {z:.2})");
+    let bits = |r: &Run| r.out.estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&steered), bits(&with(1, importance)), "the {importance} run depends on the threads");
+    (sw, sp)
 }
 
-/// Guided directions (`run.importance = "guided"`: the windows, and continuations drawn half
-/// from the phase function, half from phase × importance): the camera's image and power equal
-/// the plain walk's within their standard errors, the power's σ is below 0.75 of the plain
-/// walk's at the same paths (measured 0.69 / 0.51 / 0.33 with seeds 1 / 2 / 3 at 8·10⁵ paths;
-/// this is seed 3), and the run is the same bit for bit on 1 and 2 threads.
+/// With weight windows (`run.importance = "windows"`) the camera's estimate is the plain walk's
+/// ([`against_the_plain_walk`]), and its power is more precise.
+#[test]
+fn weight_windows_keep_the_estimate_and_the_determinism() {
+    let (sw, sp) = against_the_plain_walk("windows");
+    assert!(sw < sp, "the windows' power σ {sw:.2e} against the plain walk's {sp:.2e}");
+}
+
+/// Guided directions (`run.importance = "guided"`: the windows, and continuations resampled on
+/// the importance): the camera's estimate is the plain walk's ([`against_the_plain_walk`]), and
+/// its power's σ is below 0.75 of the plain walk's at the same paths (measured 0.69 / 0.51 / 0.33
+/// with seeds 1 / 2 / 3; this is seed 3).
 #[test]
 fn guided_directions_keep_the_camera_estimate_and_gain_under_a_small_pupil() {
-    use crate::support::run::run;
-    use crate::support::stats::chi2_difference;
-    let sets = |w: &'static str| ["run.samples = 800000".to_string(), format!("run.importance = \"{w}\"")];
-    let guided = run(&slab(2), &sets("guided").iter().map(String::as_str).collect::<Vec<_>>());
-    let plain = run(&slab(2), &sets("off").iter().map(String::as_str).collect::<Vec<_>>());
-    let (a, b) = (image(&guided, "camera.image"), image(&plain, "camera.image"));
-    let (chi2, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-    assert!(dof == 16 && p > 1e-4, "image: χ² = {chi2:.1} over {dof} pixels (p = {p:.2e})");
-    let ((pg, sg), (pp, sp)) = (guided.power(0), plain.power(0));
-    let z = (pg - pp) / sg.hypot(sp);
-    assert!(z.abs() < 4.0, "power {pg:.5e} ± {sg:.1e} guided, {pp:.5e} ± {sp:.1e} plain (z = {z:.2})");
+    let (sg, sp) = against_the_plain_walk("guided");
     assert!(sg < 0.75 * sp, "the guided power σ {sg:.2e} against the plain walk's {sp:.2e}");
-    let one = run(&slab(1), &sets("guided").iter().map(String::as_str).collect::<Vec<_>>());
-    let bits = |r: &crate::support::run::Run| r.out.estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&guided), bits(&one), "the guided run depends on the threads");
 }
 
 /// A semi-infinite Brownian medium (n = 1, isotropic, μs = 1 /mm, μa = 0.01 /mm) under a pencil
