@@ -145,6 +145,22 @@ mod tests {
     use super::*;
     use glam::DVec3;
 
+    /// `auto` takes the cheapest of plain, windows and guided; the plainer on a tie; a figure
+    /// that is not a number never wins.
+    #[test]
+    fn auto_takes_the_cheapest_and_the_plainer_on_a_tie() {
+        let a = |off, windows, guided| AutoWindows { off, windows, guided }.choice();
+        assert_eq!(a(3.0, 2.0, 1.0), Importance::Guided);
+        assert_eq!(a(3.0, 1.0, 2.0), Importance::Windows);
+        assert_eq!(a(1.0, 2.0, 3.0), Importance::Off);
+        assert_eq!(a(1.0, 1.0, 1.0), Importance::Off);
+        assert_eq!(a(2.0, 1.0, 1.0), Importance::Windows);
+        assert_eq!(a(1.0, f64::NAN, f64::NAN), Importance::Off);
+        assert_eq!(a(f64::NAN, 2.0, f64::NAN), Importance::Windows);
+        assert_eq!(a(f64::INFINITY, f64::INFINITY, f64::INFINITY), Importance::Off);
+        assert!(!AutoWindows { off: 1.0, windows: 2.0, guided: 3.0 }.windows_chosen());
+    }
+
     /// The window about `R/I`: a path far above it splits (at most [`MAX_SPLIT`]), within it is
     /// kept, below it plays roulette to the centre with survival `w/c` (unbiased: `p·c = w`).
     #[test]
