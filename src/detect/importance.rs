@@ -169,9 +169,15 @@ impl ImportanceGrid {
         let (top, width) = self.layers[li];
         let r = self.lateral.as_ref().map_or(0, |l| l.bin(pos.x, pos.y));
         let k = (((pos.z - top) / width).max(0.0) as usize).min(DEPTH_BINS - 1);
-        let theta = dir_z.clamp(-1.0, 1.0).acos();
-        let a = ((theta * (ANGLE_BINS as f64 / std::f64::consts::PI)) as usize).min(ANGLE_BINS - 1);
+        let a = Self::angle_bin(dir_z);
         ((li * self.lateral_bins() + r) * DEPTH_BINS + k) * ANGLE_BINS + a
+    }
+
+    /// The angle bin of a direction of z-component `dir_z` (θ from +z, uniform in θ).
+    #[inline]
+    pub fn angle_bin(dir_z: f64) -> usize {
+        let theta = dir_z.clamp(-1.0, 1.0).acos();
+        ((theta * (ANGLE_BINS as f64 / std::f64::consts::PI)) as usize).min(ANGLE_BINS - 1)
     }
 
     /// The polar angle (rad) at the centre of angle bin `a`.

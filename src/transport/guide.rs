@@ -118,7 +118,7 @@ impl Guide {
         let (_, acts) = self.acts.iter().find(|(k, _)| *k == key)?;
         // The table's bins at this depth (and lateral bin) start at the bin of θ = 0.
         let base = grid.bin(li, pos, 1.0);
-        acts[base + band(dir_in.z)].then(|| &self.value[base..base + ANGLE_BINS])
+        acts[base + ImportanceGrid::angle_bin(dir_in.z)].then(|| &self.value[base..base + ANGLE_BINS])
     }
 }
 
@@ -135,7 +135,7 @@ pub fn resample(
     mut draw: impl FnMut(&mut PathRng) -> Candidate,
 ) -> (Candidate, f64) {
     let candidates: [Candidate; CANDIDATES] = std::array::from_fn(|_| draw(rng));
-    let mut w = candidates.map(|(_, out, _)| values[band(out.z)]);
+    let mut w = candidates.map(|(_, out, _)| values[ImportanceGrid::angle_bin(out.z)]);
     let mean = w.iter().sum::<f64>() / CANDIDATES as f64;
     if !(mean > 0.0 && mean.is_finite()) {
         // No value among them: the first, as the phase function drew it.
@@ -165,13 +165,6 @@ fn spread(r: &[f64], values: &[f64]) -> f64 {
         second += r * v * v;
     }
     if first > 0.0 && first.is_finite() { second / (first * first) - 1.0 } else { -1.0 }
-}
-
-/// The polar band of a direction of z-component `z` (θ from +z).
-#[inline]
-fn band(z: f64) -> usize {
-    let theta = z.clamp(-1.0, 1.0).acos();
-    ((theta * (ANGLE_BINS as f64 / std::f64::consts::PI)) as usize).min(ANGLE_BINS - 1)
 }
 
 /// `(cos θ_{b+1}, cos θ_b)`: the z-components bounding band `b`.
@@ -211,7 +204,8 @@ fn redistribution_matrix(phase: &PhaseFunction) -> Vec<f64> {
         for &(cos, sin, w) in &weights {
             let (c, r) = (mu_in * cos, s_in * sin);
             // Only the bands that [c − r, c + r] overlaps.
-            let (first, last) = (band((c + r).min(1.0)), band((c - r).max(-1.0)));
+            let (first, last) =
+                (ImportanceGrid::angle_bin((c + r).min(1.0)), ImportanceGrid::angle_bin((c - r).max(-1.0)));
             for (b, cell) in row.iter_mut().enumerate().take(last + 1).skip(first) {
                 let (lo, hi) = band_cos(b);
                 *cell += w * (below(hi, c, r) - below(lo, c, r));

@@ -139,21 +139,8 @@ fn guided_directions_keep_the_camera_estimate_and_gain_under_a_small_pupil() {
 /// beam, and a DCS fibre ring 14.5–15.5 mm from it with a time axis and g1: light that must go
 /// ~15 transport lengths sideways, most of it deep.
 fn dcs_ring(threads: u32, importance: &str) -> String {
-    let ring = r#"[[detectors]]
-name = "ring"
-area = { type = "annulus", inner_radius_mm = 14.5, outer_radius_mm = 15.5 }
-[detectors.time]
-t_min_ns = 0
-t_max_ns = 2
-bins = 40
-[detectors.correlation]
-tau_min_s = 1e-7
-tau_max_s = 1e-2
-points = 21
-beta = 0.5
-"#;
-    let pencil = "[source]\nwavelength_nm = 785\nposition_mm = [0, 0, 0]\ndirection = [0, 0, 1]\n";
-    let tissue = scenes::brownian_half_space(0.01, 1.0);
+    let ring = scenes::dcs_ring(14.5, 15.5, 40, 21);
+    let (pencil, tissue) = (scenes::PENCIL_785, scenes::brownian_half_space(0.01, 1.0));
     format!(
         "{}threads = {threads}\nimportance = \"{importance}\"\n{pencil}{tissue}{ring}",
         scenes::header(300_000, 7, 16)

@@ -14,22 +14,8 @@ const C: f64 = 299_792_458.0;
 /// 1/mm), μa = 0.01/mm, every scatterer Brownian with D_B; a pencil beam at the origin and a
 /// ring detector 9.5–10.5 mm from it, with a time axis and g1.
 fn semi_infinite() -> String {
-    let ring = r#"[[detectors]]
-name = "ring"
-area = { type = "annulus", inner_radius_mm = 9.5, outer_radius_mm = 10.5 }
-[detectors.time]
-t_min_ns = 0
-t_max_ns = 2
-bins = 100
-[detectors.correlation]
-tau_min_s = 1e-7
-tau_max_s = 1e-2
-points = 41
-beta = 0.5
-exposures_s = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2]
-"#;
-    let pencil =
-        "[source]\nwavelength_nm = 785\nprofile = \"pencil\"\nposition_mm = [0, 0, 0]\ndirection = [0, 0, 1]\n";
+    let ring = format!("{}exposures_s = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2]\n", scenes::dcs_ring(9.5, 10.5, 100, 41));
+    let pencil = scenes::PENCIL_785;
     let tissue = scenes::brownian_half_space(0.01, 1.0);
     format!("name = \"semi_infinite\"{}{pencil}{tissue}{ring}", scenes::header(2_000_000, 5, 32))
 }

@@ -93,6 +93,30 @@ image = {{ pixels = [{pixels}, {pixels}] }}
     )
 }
 
+/// A pencil beam at 785 nm from the origin, straight down.
+pub const PENCIL_785: &str =
+    "[source]\nwavelength_nm = 785\nprofile = \"pencil\"\nposition_mm = [0, 0, 0]\ndirection = [0, 0, 1]\n";
+
+/// A DCS detector "ring" between `inner_mm` and `outer_mm` from the axis, with a time axis of
+/// `time_bins` bins over 0–2 ns and g1 at `points` delays over 1e-7–1e-2 s (β = 0.5).
+pub fn dcs_ring(inner_mm: f64, outer_mm: f64, time_bins: u32, points: u32) -> String {
+    format!(
+        r#"[[detectors]]
+name = "ring"
+area = {{ type = "annulus", inner_radius_mm = {inner_mm:?}, outer_radius_mm = {outer_mm:?} }}
+[detectors.time]
+t_min_ns = 0
+t_max_ns = 2
+bins = {time_bins}
+[detectors.correlation]
+tau_min_s = 1e-7
+tau_max_s = 1e-2
+points = {points}
+beta = 0.5
+"#
+    )
+}
+
 /// A semi-infinite medium "tissue" of n = 1 under air (no Fresnel anywhere): isotropic
 /// scattering, `sigma_s` and `sigma_a` per mm, every scatterer Brownian with D = 1e-12 m²/s.
 pub fn brownian_half_space(sigma_a: f64, sigma_s: f64) -> String {
