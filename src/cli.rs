@@ -33,7 +33,8 @@ macro_rules! say {
     ($($t:tt)*) => { emit(std::io::stderr(), format_args!($($t)*), true) };
 }
 
-/// A line on standard output (what a command prints as its result: `check`, `mie`).
+/// A line on standard output (what a command prints as its result: `check`, `mie`, a run's
+/// report, a study's table).
 macro_rules! out {
     ($($t:tt)*) => { emit(std::io::stdout(), format_args!($($t)*), true) };
 }
@@ -406,7 +407,58 @@ fn after_transport(t: &ohd::io::write::manifest::Timing) -> String {
 
 fn fail(e: &Error) -> ExitCode {
     say!("ohd: {e}");
-    ExitCode::from(if e.is_input_error() { 2 } else { 1 })
+    ExitCode::from(match e {
+        _ if e.is_input_error() => 2,
+        // 128 + SIGINT, as a shell reports a command ended by Ctrl-C.
+        Error::Interrupted { .. } | Error::Cancelled => 130,
+        _ => 1,
+    })
+}
+
+/// Set by the first Ctrl-C (SIGINT) of `ohd run`: the run ends at its next batch boundary and
+/// writes what it has ([`ohd::experiment::Progress::stopping`]); the second ends the process at
+/// once (status 130).
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Whether the first Ctrl-C has been answered on stderr.
+static STOP_TOLD: AtomicBool = AtomicBool::new(false);
+
+/// Ctrl-C as `ohd run` takes it ([`STOP`]). The second one exits from the signal handler, before
+/// the first one's flag is set again (signal-hook runs a signal's actions in the order registered).
+fn keep_work_on_ctrl_c() {
+    use signal_hook::consts::SIGINT;
+    let registered = signal_hook::flag::register_conditional_shutdown(SIGINT, 130, &STOP)
+        .and_then(|_| signal_hook::flag::register(SIGINT, &STOP));
+    if let Err(e) = registered {
+        say!("ohd: Ctrl-C will stop the run without keeping its work (the handler could not be set: {e})");
+    }
+}
+
+/// A run's progress reporter that also passes on the first Ctrl-C ([`STOP`]).
+struct CtrlC<'a>(Box<dyn Progress + 'a>);
+
+impl Progress for CtrlC<'_> {
+    fn advance(&self, paths: u64) {
+        self.0.advance(paths);
+    }
+
+    fn set_total(&self, paths: u64) {
+        self.0.set_total(paths);
+    }
+
+    fn error(&self, relative: f64) {
+        self.0.error(relative);
+    }
+
+    fn stopping(&self) -> bool {
+        let stop = STOP.load(Ordering::SeqCst);
+        if stop && !STOP_TOLD.swap(true, Ordering::SeqCst) {
+            say!(
+                "\nohd: Ctrl-C: finishing the batches in flight, then writing the result of the batches done and a checkpoint for --resume (Ctrl-C again stops at once, and nothing more is written)"
+            );
+        }
+        stop
+    }
 }
 
 pub fn main() -> ExitCode {
@@ -465,11 +517,15 @@ fn run(a: RunArgs) -> Result<(), Error> {
         shard: a.shard,
         no_figures: a.no_figures,
     };
+    if req.shard.is_none() {
+        keep_work_on_ctrl_c();
+    }
     ohd::run::run(&loaded, &req, &Terminal { quiet: a.quiet }).map(drop)
 }
 
-/// Tells the user on stderr: a progress bar per run (when stderr is a terminal and not `quiet`;
-/// cleared after), and a line or a report per event.
+/// Tells the user: a progress bar per run on stderr (when stderr is a terminal and not `quiet`;
+/// cleared after), a line per event (on stdout what was written and the run's report, on stderr
+/// what happens on the way).
 struct Terminal {
     quiet: bool,
 }
@@ -477,9 +533,9 @@ struct Terminal {
 impl Observer for Terminal {
     fn progress(&self, paths: u64, target: Option<f64>) -> Box<dyn Progress + '_> {
         if self.quiet || !std::io::stderr().is_terminal() {
-            return Box::new(ohd::experiment::Silent);
+            return Box::new(CtrlC(Box::new(ohd::experiment::Silent)));
         }
-        Box::new(Bar::new(paths, target))
+        Box::new(CtrlC(Box::new(Bar::new(paths, target))))
     }
 
     fn postprocess(&self) -> Box<dyn Progress + '_> {
@@ -498,7 +554,7 @@ impl Observer for Terminal {
                 say!("ohd: resuming at batch {} of {} from {}", state.next, state.end, path.display());
             }
             Event::Written { exp, output, dir, timing } => {
-                say!(
+                out!(
                     "ohd: {} paths in {:.2} s ({:.0} paths/ms){} → {}",
                     output.samples(),
                     output.wall_seconds,
@@ -509,7 +565,7 @@ impl Observer for Terminal {
                 report(exp, output);
             }
             Event::Merged { exp, output, dir, shards, timing } => {
-                say!(
+                out!(
                     "ohd: merged {shards} shards ({} batches){} → {}",
                     output.batches,
                     after_transport(timing),
@@ -517,7 +573,7 @@ impl Observer for Terminal {
                 );
                 report(exp, output);
             }
-            Event::ShardWritten(s) => say!(
+            Event::ShardWritten(s) => out!(
                 "ohd: shard {}/{}: batches {}..{} of {}, {} paths in {:.2} s → {}",
                 s.index,
                 s.count,
@@ -529,8 +585,8 @@ impl Observer for Terminal {
                 s.path.display()
             ),
             Event::VadWritten { path, timing } => {
-                say!("ohd: VAD wind per gate → {}", path.display());
-                say!("ohd: the scan's time: transport {:.2} s{}", timing.transport_seconds, after_transport(timing));
+                out!("ohd: VAD wind per gate → {}", path.display());
+                out!("ohd: the scan's time: transport {:.2} s{}", timing.transport_seconds, after_transport(timing));
             }
             Event::StudyingFirstPointing(p) => {
                 say!("ohd converge: a scan: studying its first pointing ({}°, {}°)", p.azimuth_deg, p.elevation_deg);
@@ -567,8 +623,6 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
     Figures { scalars, fmcw }
 }
 
-/// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
-/// written run, on stderr.
 /// The terminal's line of a tail check: the slope of the largest path scores and what MCNP reads
 /// into it.
 fn tail_line(t: &ohd::stats::TailCheck) -> String {
@@ -584,12 +638,15 @@ fn tail_line(t: &ohd::stats::TailCheck) -> String {
     }
 }
 
+/// The main output's error, the target's outcome, the scalar estimates and FMCW retrievals of a
+/// written run: on stdout, as the command's result (`ohd run x.toml > log` keeps it); warnings on
+/// stderr.
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
-    say!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
+    out!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
     for d in &exp.detectors {
         if let Some(a) = d.surface().and_then(|s| s.auto) {
-            say!(
+            out!(
                 "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
                 d.name,
                 d.surface().map_or("forward", |s| s.estimator().name()),
@@ -609,7 +666,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             } else {
                 String::new()
             };
-            say!(
+            out!(
                 "  {}: per-pixel relative error median {:.1}%, p90 {:.1}%{blank}",
                 o.name,
                 100.0 * pe.median,
@@ -621,7 +678,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 ohd::output::RegionErrors::of(v, e, &mask).with_tail(tails.get(&o.slots.start).copied())
             });
             if let Some(r) = &regions {
-                say!(
+                out!(
                     "    regions' footprints ({} px): median {}, rest {} (rest σ / region mean {}), top 1% of region pixels {} of their variance",
                     r.region_pixels,
                     pct(r.median_region),
@@ -630,7 +687,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
                     pct(r.region_top_percent_variance_share)
                 );
                 if let Some(t) = r.tail {
-                    say!("    {}", tail_line(&t));
+                    out!("    {}", tail_line(&t));
                 }
             }
             // An M0+ image against the camera's own noise: the speckle of how many windows.
@@ -646,7 +703,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 } else {
                     String::new()
                 };
-                say!(
+                out!(
                     "    speckle of one {frames}-frame window {:.1}%: the median error is that of {} windows{split}",
                     100.0 * c,
                     k(s.windows_at_median)
@@ -656,7 +713,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
     if let Some(t) = &output.target {
         if t.met {
-            say!(
+            out!(
                 "  target error {:.4}% met after {} round(s) of {} paths",
                 100.0 * t.target,
                 t.rounds,
@@ -673,11 +730,11 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
     let f = figures(exp, output);
     for (k, v, s) in &f.scalars {
-        say!("  {k:<24} {v:.6} ± {s:.6}");
+        out!("  {k:<24} {v:.6} ± {s:.6}");
     }
     for (name, result) in &f.fmcw {
         if let Ok(e) = result {
-            say!(
+            out!(
                 "  {name}: FMCW range {:.4} m, radial velocity {:+.4} m/s (bins {:.4} m, {:.4} m/s)",
                 e.range_m,
                 e.radial_velocity_m_per_s,
@@ -686,7 +743,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             );
         }
         if let Some(note) = ohd::io::write::fmcw::note(result) {
-            say!("  {name}: FMCW {note}");
+            out!("  {name}: FMCW {note}");
         }
     }
     // Last, where they are seen: what the run could not get right (also in the manifest).
@@ -695,14 +752,14 @@ fn report(exp: &Experiment, output: &RunOutput) {
     }
 }
 
-/// `ohd converge`: the study, then a table of its outputs on stderr.
+/// `ohd converge`: the study, then a table of its outputs on stdout.
 fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
     let StudyWritten { study, dir } = ohd::run::converge::converge(req, &Terminal { quiet }, &mut StderrLog { quiet })?;
-    say!("ohd converge: → {}", dir.display());
-    say!("  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}", "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio");
+    out!("ohd converge: → {}", dir.display());
+    out!("  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}", "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio");
     let fmt = |v: Option<f64>| v.map_or("—".to_string(), |t| format!("{t:.3e}"));
     for o in &study.outputs {
-        say!(
+        out!(
             "  {:<28} {:>9} {:>7.3} {:>12} {:>12} {:>8.3}{}",
             o.output.name,
             o.reference_kind,
@@ -714,7 +771,7 @@ fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
         );
     }
     for (name, why) in &study.skipped {
-        say!("  {name:<28} skipped: {why}");
+        out!("  {name:<28} skipped: {why}");
     }
     Ok(())
 }

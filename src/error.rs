@@ -81,9 +81,17 @@ pub enum Error {
     )]
     NotFinite { what: String, count: usize },
     /// A run stopped before its end because its caller asked ([`crate::experiment::Progress::cancelled`]:
-    /// Ctrl-C in the Python package); nothing is written.
+    /// a second Ctrl-C in the Python package; or stopping before any batch was done); nothing is
+    /// written.
     #[error("the run was cancelled")]
     Cancelled,
+    /// A run ended early because its caller asked ([`crate::experiment::Progress::stopping`]: the
+    /// first Ctrl-C), after writing the result of the batches done and a checkpoint of them.
+    #[error(
+        "interrupted: the result of {batches} of {planned} batches is written into {} (its errors from those batches, the manifest's `interrupted` says so); `--resume` with the same command finishes the run",
+        dir.display()
+    )]
+    Interrupted { dir: std::path::PathBuf, batches: u64, planned: u64 },
 }
 
 impl Error {

@@ -165,10 +165,16 @@ pub trait Progress: Sync {
     fn set_total(&self, _paths: u64) {}
     /// The estimated relative error of the main output, after each batch is folded in.
     fn error(&self, _relative: f64) {}
-    /// Whether the caller wants the run stopped (the Python package on Ctrl-C): checked as each
+    /// Whether the caller wants the run stopped (the Python package on a second Ctrl-C): checked as each
     /// batch is handed over, which then fails with [`crate::error::Error::Cancelled`], and every
     /// [`PROGRESS_EVERY`] paths inside a batch, which then ends early (its result is discarded).
     fn cancelled(&self) -> bool {
+        false
+    }
+    /// Whether the caller wants the run to end early and keep its work (the first Ctrl-C of
+    /// `ohd run`, and in the Python package): no batch starts after it is seen, the batches in
+    /// flight finish and are folded, and the run ends as [`RunOutput::interrupted`].
+    fn stopping(&self) -> bool {
         false
     }
 }
@@ -202,6 +208,10 @@ pub struct RunOutput {
     /// The importance table its weight windows followed (`run.importance = "windows"`; `None`
     /// otherwise, and after a merge of shards: the writer computes it again).
     pub importance: Option<crate::detect::importance::ImportanceTable>,
+    /// `Some(planned batches)` when the run ended early because its caller asked
+    /// ([`Progress::stopping`]): its estimates and errors are those of the `batches` done, and
+    /// [`final_state`](Self::final_state) continues it to the plan.
+    pub interrupted: Option<u64>,
 }
 
 impl RunOutput {
@@ -220,15 +230,15 @@ impl RunOutput {
             .collect()
     }
 
-    /// The state of this finished run, as a checkpoint holds it: resumed, it finishes at once
-    /// with this output.
+    /// The state of this run, as a checkpoint holds it: resumed, it finishes at once with this
+    /// output, or an interrupted run goes on to its planned batches.
     pub fn final_state(&self) -> RunState {
         RunState {
             estimates: self.estimates.clone(),
             stats: self.stats,
             lines: self.lines.clone(),
             next: self.batches,
-            end: self.batches,
+            end: self.interrupted.unwrap_or(self.batches).max(self.batches),
             err: self.main_output.1,
             elapsed: self.wall_seconds,
         }
@@ -376,6 +386,9 @@ impl<'a> BatchRunner<'a> {
                 }
                 sink(sums.sums(), s, l)?;
                 spare.push(sums);
+                if progress.stopping() {
+                    break;
+                }
             }
             return Ok(());
         };
@@ -399,7 +412,9 @@ impl<'a> BatchRunner<'a> {
             }
             // Finished batches waiting for an earlier one, by index.
             let mut waiting = std::collections::BTreeMap::new();
-            while handed < range.end {
+            // Once the caller asks to stop, nothing more starts; every batch started is handed over.
+            let mut stop = false;
+            while handed < started {
                 let Ok((b, sent)) = rx.recv() else {
                     unreachable!("a sender is held here and every batch started sends once");
                 };
@@ -413,7 +428,8 @@ impl<'a> BatchRunner<'a> {
                     }
                     sink(sums.sums(), s, l)?;
                     handed += 1;
-                    if started < range.end {
+                    stop = stop || progress.stopping();
+                    if started < range.end && !stop {
                         spawn(started, sums);
                         started += 1;
                     } else {
@@ -731,10 +747,15 @@ impl Experiment {
         progress.advance(st.next * self.plan.paths_per_batch);
         let main = target.map_or_else(|| self.main_output(), |t| t.output.clone());
         let max_rounds = target.map_or(1, |t| (t.max_samples / self.plan.samples()).max(1));
+        let mut interrupted = None;
         loop {
             if st.next == st.end {
                 let rounds = st.end / round;
                 match target {
+                    Some(t) if st.err > t.relative_error && rounds < max_rounds && progress.stopping() => {
+                        interrupted = Some(st.end);
+                        break;
+                    }
                     Some(t) if st.err > t.relative_error && rounds < max_rounds => {
                         st.end = round * rounds_needed(rounds, st.err, t.relative_error, max_rounds);
                         progress.set_total(st.end * self.plan.paths_per_batch);
@@ -755,10 +776,19 @@ impl Experiment {
                 }
                 Ok(())
             })?;
+            if st.next < st.end && progress.stopping() {
+                interrupted = Some(st.end);
+                break;
+            }
+        }
+        if st.next == 0 && interrupted.is_some() {
+            // Stopped before a batch was done: there is no result to keep.
+            return Err(crate::error::Error::Cancelled);
         }
         let RunState { estimates, stats, lines, end, err, .. } = st;
         let mut out = self.finish(estimates, stats, lines, elapsed + start.elapsed().as_secs_f64());
         out.importance = runner.table.take();
+        out.interrupted = interrupted;
         out.main_output = (main.name, err);
         out.target = target.map(|t| TargetOutcome {
             output: t.output.name.clone(),
@@ -788,7 +818,13 @@ impl Experiment {
         sink: &mut BatchSink,
     ) -> Result<()> {
         progress.set_total((range.end - range.start) * self.plan.paths_per_batch);
-        BatchRunner::new(self).run(range, progress, sink)
+        let (mut handed, end) = (range.start, range.end);
+        BatchRunner::new(self).run(range, progress, &mut |sums, s, l| {
+            handed += 1;
+            sink(sums, s, l)
+        })?;
+        // A part of a run is whole or nothing: stopped early, it is not handed on.
+        if handed < end { Err(crate::error::Error::Cancelled) } else { Ok(()) }
     }
 
     /// The output of a run whose batches (`estimates.batches()` of them) were folded into
@@ -820,6 +856,7 @@ impl Experiment {
             main_output,
             target: None,
             importance: None,
+            interrupted: None,
         }
     }
 

@@ -10,7 +10,8 @@
 A configuration is a path, a TOML string or a nested dict, in the schema of configs/README.md,
 checked with the CLI's error messages (`ohd.ConfigError`, a ValueError with `.key`). A run is the
 CLI's run, from the same library: for the same configuration and seed its arrays are the bytes
-`ohd run --out` writes. Runs release the GIL and stop on Ctrl-C (KeyboardInterrupt).
+`ohd run --out` writes. Runs release the GIL; Ctrl-C ends a run early and keeps its work
+(KeyboardInterrupt with `.result`).
 """
 from __future__ import annotations
 
@@ -359,7 +360,10 @@ def run(
     For the same configuration and seed the arrays are the bytes `ohd run --out` writes.
     A scan (several pointings) returns one `Result` per pointing in `.pointings`.
     Raises ConfigError (a ValueError) on an invalid configuration, an OSError on a file that
-    cannot be read or written, KeyboardInterrupt on Ctrl-C (nothing is written).
+    cannot be read or written. Ctrl-C ends the run at its next batch boundary and raises
+    KeyboardInterrupt with the result of the batches done as `.result` (its manifest's
+    `interrupted` gives the batches done and planned; with `out`, that result is written there);
+    a second Ctrl-C stops at once, with nothing kept.
     """
     if isinstance(config, Experiment):
         if overrides is not None or samples is not None or seed is not None or threads is not None:
@@ -375,16 +379,31 @@ def _run(exp: Experiment, out, report, figures: bool) -> Result:
         _ohd.check_writable(os.fspath(out))
     if exp.pointings > 1:
         if out is not None:
-            exp.run_to_dir(os.fspath(out), figures, report)
-            return Result._from_dir(Path(out))
+            stopped = exp.run_to_dir(os.fspath(out), figures, report)
+            return _stopped(Result._from_dir(Path(out)), stopped)
         with tempfile.TemporaryDirectory(prefix="ohd-scan-") as tmp:
-            exp.run_to_dir(tmp, figures, report)
-            return Result._from_dir(Path(tmp))
-    _, files = exp.run(figures, report)
+            stopped = exp.run_to_dir(tmp, figures, report)
+            return _stopped(Result._from_dir(Path(tmp)), stopped)
+    _, files, stopped = exp.run(figures, report)
     result = Result(dict(files))
     if out is not None:
         result.save(out)
-    return result
+    return _stopped(result, stopped)
+
+
+def _stopped(result: Result, stopped: bool) -> Result:
+    """`result`, or after Ctrl-C a KeyboardInterrupt carrying it as `.result`."""
+    if not stopped:
+        return result
+    runs = result.pointings or [result]
+    cut = [r.manifest["interrupted"] for r in runs if "interrupted" in r.manifest]
+    if cut:
+        what = f"the result of {cut[0]['batches']} of {cut[0]['planned_batches']} batches (errors from those)"
+    else:
+        what = "the complete result (Ctrl-C came after the paths were traced)"
+    e = KeyboardInterrupt(f"ohd: interrupted: {what} is in .result")
+    e.result = result  # type: ignore[attr-defined]
+    raise e
 
 
 def sweep(

@@ -226,12 +226,14 @@ impl Experiment {
         self.loaded.exp.source.pointings.len().max(1)
     }
 
-    /// Run it; returns `(manifest JSON text, [(file name, bytes)])`, the manifest last.
+    /// Run it; returns `(manifest JSON text, [(file name, bytes)], stopped)`, the manifest last;
+    /// `stopped`: Ctrl-C was pressed (the run then ended early, `manifest.interrupted`, unless it
+    /// had traced its paths already).
     #[pyo3(signature = (figures, report=None))]
-    fn run(&self, py: Python<'_>, figures: bool, report: Option<Py<PyAny>>) -> PyResult<(String, Files)> {
+    fn run(&self, py: Python<'_>, figures: bool, report: Option<Py<PyAny>>) -> PyResult<(String, Files, bool)> {
         let loaded = &self.loaded;
         let exp = &loaded.exp;
-        let (manifest, files) = watched(py, exp.plan.samples(), report.as_ref(), |progress| {
+        let ((manifest, files), stopped) = watched(py, exp.plan.samples(), report.as_ref(), Keep::Work, |progress| {
             let output = exp.run_resumable(progress, None, None, None)?;
             let inv = ohd::io::write::manifest::Invocation { figures, ..loaded.invocation() };
             let (_, memory) = ohd::io::write::manifest::write_run_memory(
@@ -247,20 +249,25 @@ impl Experiment {
         })?;
         // Each file's bytes move into one Python bytes object (the arrays view them, uncopied).
         let files = files.into_iter().map(|(n, b)| (n, PyBytes::new(py, &b).unbind())).collect();
-        Ok((manifest, files))
+        Ok((manifest, files, stopped))
     }
 
-    /// Run it as `ohd run --out dir` does (a scan: every pointing and the VAD wind).
+    /// Run it as `ohd run --out dir` does (a scan: every pointing and the VAD wind); returns
+    /// whether Ctrl-C was pressed (the run then ended early and wrote what it had, as the CLI's).
     #[pyo3(signature = (dir, figures, report=None))]
-    fn run_to_dir(&self, py: Python<'_>, dir: PathBuf, figures: bool, report: Option<Py<PyAny>>) -> PyResult<()> {
+    fn run_to_dir(&self, py: Python<'_>, dir: PathBuf, figures: bool, report: Option<Py<PyAny>>) -> PyResult<bool> {
         let req = RunRequest { dir, no_figures: !figures, ..Default::default() };
         let total = self.loaded.exp.plan.samples() * self.pointings() as u64;
-        watched(py, total, report.as_ref(), |progress| {
+        let (_, stopped) = watched(py, total, report.as_ref(), Keep::Work, |progress| {
             let obs = Watching { progress };
-            match ohd::run::run(&self.loaded, &req, &obs)? {
-                Finished::Run(_) | Finished::Scan { .. } | Finished::Shards(_) => Ok(()),
+            match ohd::run::run(&self.loaded, &req, &obs) {
+                Ok(Finished::Run(_) | Finished::Scan { .. } | Finished::Shards(_)) => Ok(()),
+                // Written, with its checkpoint: told as `stopped`.
+                Err(Error::Interrupted { .. }) => Ok(()),
+                Err(e) => Err(e),
             }
-        })
+        })?;
+        Ok(stopped)
     }
 }
 
@@ -268,7 +275,19 @@ impl Experiment {
 struct Shared {
     done: AtomicU64,
     total: AtomicU64,
+    /// Set by the first Ctrl-C of a run ([`Keep::Work`]): it ends at its next batch boundary.
+    stop: AtomicBool,
     cancel: AtomicBool,
+}
+
+/// What the first Ctrl-C does to the work [`watched`] runs.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Keep {
+    /// A run ends at its next batch boundary and returns what it has (`Progress::stopping`);
+    /// the second Ctrl-C cancels it.
+    Work,
+    /// The work is cancelled (a convergence study: a rung cut short is no rung).
+    Nothing,
 }
 
 impl Progress for Shared {
@@ -281,6 +300,9 @@ impl Progress for Shared {
     fn cancelled(&self) -> bool {
         self.cancel.load(Ordering::Relaxed)
     }
+    fn stopping(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
 }
 
 /// Progress of the runs of a scan: one counter over all pointings.
@@ -292,6 +314,9 @@ impl Progress for Forward<'_> {
     }
     fn cancelled(&self) -> bool {
         self.0.cancelled()
+    }
+    fn stopping(&self) -> bool {
+        self.0.stopping()
     }
 }
 
@@ -307,15 +332,24 @@ impl Observer for Watching<'_> {
 }
 
 /// Run `work` on a thread of its own with the GIL released, while this thread looks for Ctrl-C
-/// (`check_signals`: a KeyboardInterrupt cancels the run, which stops within a few thousand
-/// paths) and calls `report(done, total)` every [`POLL`].
+/// (`check_signals`) and calls `report(done, total)` every [`POLL`]. With [`Keep::Work`] the first
+/// KeyboardInterrupt asks the run to stop at its next batch boundary and keep its work (returned
+/// with `true`: Ctrl-C was pressed), the second cancels it; with [`Keep::Nothing`] the first
+/// cancels. A cancelled run stops within a few thousand paths and raises the KeyboardInterrupt.
 fn watched<T: Send>(
     py: Python<'_>,
     total: u64,
     report: Option<&Py<PyAny>>,
+    keep: Keep,
     work: impl FnOnce(&Shared) -> ohd::error::Result<T> + Send,
-) -> PyResult<T> {
-    let shared = Shared { done: AtomicU64::new(0), total: AtomicU64::new(total), cancel: AtomicBool::new(false) };
+) -> PyResult<(T, bool)> {
+    let shared = Shared {
+        done: AtomicU64::new(0),
+        total: AtomicU64::new(total),
+        stop: AtomicBool::new(false),
+        cancel: AtomicBool::new(false),
+    };
+    let mut stopped = false;
     let finished = (Mutex::new(false), Condvar::new());
     let result = std::thread::scope(|s| -> PyResult<Option<std::thread::Result<ohd::error::Result<T>>>> {
         let handle = s.spawn(|| {
@@ -335,6 +369,11 @@ fn watched<T: Send>(
                 break;
             }
             if let Err(e) = py.check_signals() {
+                if keep == Keep::Work && !stopped && e.is_instance_of::<PyKeyboardInterrupt>(py) {
+                    shared.stop.store(true, Ordering::Relaxed);
+                    stopped = true;
+                    continue;
+                }
                 shared.cancel.store(true, Ordering::Relaxed);
                 interrupted = Some(e);
                 break;
@@ -360,7 +399,7 @@ fn watched<T: Send>(
         report.call1(py, (t, t))?;
     }
     match result {
-        Some(Ok(r)) => r.map_err(to_py),
+        Some(Ok(r)) => r.map(|t| (t, stopped)).map_err(to_py),
         Some(Err(panic)) => Err(panic_error(panic)),
         None => Err(PyRuntimeError::new_err("the run ended without a result")),
     }
@@ -513,11 +552,12 @@ fn converge(
         no_figures: !figures,
     };
     guarded(|| {
-        watched(py, 0, None, |progress| {
+        let (lines, _) = watched(py, 0, None, Keep::Nothing, |progress| {
             let mut log = Log { lines: Vec::new(), progress };
             ohd::run::converge::converge(&req, &ohd::run::Unobserved, &mut log)?;
             Ok(log.lines)
-        })
+        })?;
+        Ok(lines)
     })
 }
 

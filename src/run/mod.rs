@@ -229,27 +229,40 @@ pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Fini
     let opts = RunOptions { target, checkpoint_seconds: req.checkpoint_seconds, resume: req.resume };
     let inv = Invocation { figures: !req.no_figures, ..loaded.invocation() };
     if let [part] = parts.as_slice() {
-        return Ok(Finished::Run(Box::new(run_part(part, &loaded.table, &inv, &opts, false, obs)?)));
+        let output = run_part(part, &loaded.table, &inv, &opts, false, obs)?;
+        interrupted(part, &output)?;
+        return Ok(Finished::Run(Box::new(output)));
     }
     let mut scan = scan::Scan::default();
     for part in &parts {
         let output = simulate_part(part, &opts, true, obs)?;
         scan.writing(&out, &parts, part)?;
         let timing = write_part(part, &output, &loaded.table, &inv, &opts, true, obs)?;
+        // The scan's directory stays marked incomplete: `--resume` finishes it.
+        interrupted(part, &output)?;
         scan.add(part, &output, timing);
     }
     let vad = scan.finish(exp, inv.figures, obs)?;
-    if opts.saving() {
-        // The whole scan is written: the pointings' checkpoints have served.
-        parts.iter().for_each(|p| drop(p.dir.remove_file(CHECKPOINT)));
-    }
+    // The whole scan is written: the pointings' checkpoints have served.
+    parts.iter().for_each(|p| drop(p.dir.remove_file(CHECKPOINT)));
     Ok(Finished::Scan { pointings: parts.len(), vad })
+}
+
+/// [`Error::Interrupted`] if `output` of `part` ended early (written, with its checkpoint).
+fn interrupted(part: &Part, output: &RunOutput) -> Result<()> {
+    match output.interrupted {
+        Some(planned) => {
+            Err(Error::Interrupted { dir: part.dir.path().to_path_buf(), batches: output.batches, planned })
+        }
+        None => Ok(()),
+    }
 }
 
 /// Run `part` (to a target error, with checkpoints, resumed: `opts`) and write its outputs into
 /// its directory, with `config` and `inv` in the manifest. A pointing of a scan (`keep`) keeps
 /// its checkpoint, saved as complete, until the whole scan is written, so that a resumed scan
-/// finds its finished pointings; a plain run removes its checkpoint once written.
+/// finds its finished pointings; a plain run removes its checkpoint once written. A run that
+/// ended early ([`RunOutput::interrupted`]) is written as it is, and its checkpoint saved.
 pub fn run_part(
     part: &Part,
     config: &toml::Table,
@@ -301,7 +314,9 @@ fn write_part(
 ) -> Result<Timing> {
     let exp = &part.exp;
     let manifest = write_run_with(&part.dir, exp, output, config, inv, &*obs.postprocess())?;
-    if opts.saving() && keep {
+    if keep || output.interrupted.is_some() {
+        // A pointing of a scan keeps its state until the whole scan is written, so that a scan
+        // interrupted later resumes past it; an interrupted run keeps it for `--resume`.
         checkpoint::save_final(part, output)?;
     } else if opts.saving() {
         // The run is complete and written: its checkpoint has served.

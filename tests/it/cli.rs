@@ -155,9 +155,11 @@ fn run_writes_the_manifest() {
     assert!(overrides.contains(&"run.samples=20000"), "{overrides:?}");
     assert_eq!(m["config"]["run"]["seed"].as_u64(), Some(5), "the config as run carries the override");
     assert!(m["config_source"].as_str().unwrap().contains("vdh_slab.toml"), "{m}");
-    // The summary goes to stderr; stdout stays clean.
-    let err = text(&o.stderr);
-    assert!(err.contains("reflectance_diffuse"), "{err}");
+    // The summary is the command's result, on stdout (`ohd run x.toml > log` keeps it); nothing
+    // but messages on stderr.
+    let (out, err) = (text(&o.stdout), text(&o.stderr));
+    assert!(out.contains("reflectance_diffuse") && out.contains("20000 paths in"), "{}", describe(&o));
+    assert!(!err.contains("reflectance_diffuse"), "{err}");
     // Nothing is written outside --out.
     let entries: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(entries, vec![std::ffi::OsString::from("vdh")]);
@@ -249,8 +251,11 @@ fn no_progress_bar_when_not_a_terminal() {
     assert!(!err.contains('\u{1b}'), "escape sequences (a progress bar?) in piped stderr: {err:?}");
     assert!(!err.contains("ETA"), "{err:?}");
     assert!(out.join("manifest.json").is_file());
-    // Only the summary: one line per estimate plus the header.
-    assert!(err.lines().count() <= 8, "{err}");
+    // Nothing on stderr (no warnings here); the summary on stdout: one line per estimate plus
+    // the header.
+    assert!(err.is_empty(), "{err}");
+    let summary = text(&o.stdout);
+    assert!(summary.lines().count() <= 8 && summary.contains("reflectance_diffuse"), "{summary}");
 }
 
 /// `ohd mie` prints exactly {"x", "qext", "qsca", "qback", "g"}.
@@ -486,7 +491,7 @@ fn run_to_a_target_error() {
     let rd = &m["estimates"]["reflectance_diffuse"];
     let rel = rd["stderr"].as_f64().unwrap() / rd["value"].as_f64().unwrap();
     assert!((rel - reached).abs() < 1e-12, "{rel} vs {reached}");
-    assert!(text(&o.stderr).contains("target error 1.0000% met"), "{}", describe(&o));
+    assert!(text(&o.stdout).contains("target error 1.0000% met"), "{}", describe(&o));
     for bad in ["0", "1.5", "nan", "-0.1"] {
         let o = ohd(tmp.path(), &["run", path_str(&vdh_slab()), "--target-error", bad, "--out", path_str(&out)]);
         assert_eq!(o.status.code(), Some(2), "{bad}: {}", describe(&o));
@@ -556,6 +561,70 @@ fn resume_after_sigkill_equals_an_uninterrupted_run() {
     let o = ohd(tmp.path(), &a.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(o.status.code(), Some(2), "no checkpoint left: {}", describe(&o));
     assert!(text(&o.stderr).contains("checkpoint.ohd"), "{}", describe(&o));
+}
+
+/// Start `ohd ARGS` in `cwd`, send it SIGINT `times` times (20 ms apart) as soon as `dir` exists
+/// (the handler is set by then), and return how it ended.
+fn interrupt_once_started(cwd: &Path, args: &[String], dir: &Path, times: usize) -> Output {
+    let child = Command::new(env!("CARGO_BIN_EXE_ohd"))
+        .args(args)
+        .current_dir(cwd)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ohd starts");
+    let t0 = std::time::Instant::now();
+    while !dir.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    for _ in 0..times {
+        rustix::process::kill_process(rustix::process::Pid::from_child(&child), rustix::process::Signal::INT)
+            .expect("SIGINT");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Ctrl-C keeps the work (issue 37): the first SIGINT lets the batches in flight finish, writes
+/// the result of the batches done (the manifest says how many of how many; exit 130) and a
+/// checkpoint, which `--resume` finishes into exactly the uninterrupted run. A second SIGINT
+/// stops at once and writes nothing.
+#[test]
+fn ctrl_c_writes_the_batches_done_and_resume_finishes_the_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (whole, cut, stopped) = (tmp.path().join("whole"), tmp.path().join("cut"), tmp.path().join("stopped"));
+    let args = |dir: &Path| -> Vec<String> {
+        ["run", "--samples", "1000000", "--set", "run.batches=64", "--seed", "5", "-q", "--no-figures", "--out"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain([path_str(dir).to_string()])
+            .collect()
+    };
+    let o = interrupt_once_started(tmp.path(), &args(&cut), &cut, 1);
+    assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
+    let err = text(&o.stderr);
+    assert!(err.contains("Ctrl-C: finishing the batches in flight") && err.contains("--resume"), "{err}");
+    let m = read_manifest(&cut);
+    let (done, planned) = (m["interrupted"]["batches"].as_u64().unwrap(), m["interrupted"]["planned_batches"].as_u64());
+    assert!((1..64).contains(&done) && planned == Some(64), "{}", m["interrupted"]);
+    assert_eq!((m["batches"].as_u64(), m["samples"].as_u64()), (Some(done), Some(done * 1_000_000 / 64)));
+    assert!(err.contains(&format!("the result of {done} of 64 batches")), "{err}");
+    assert!(m["estimates"]["reflectance_diffuse"]["stderr"].as_f64().unwrap() > 0.0, "σ from the batches done");
+    assert!(cut.join("checkpoint.ohd").exists() && !cut.join("ohd_incomplete.txt").exists());
+
+    let mut a = args(&cut);
+    a.extend(["--resume".into(), "--threads".into(), "1".into()]);
+    let o = ohd(tmp.path(), &a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(text(&o.stderr).contains(&format!("resuming at batch {done} of 64")), "{}", describe(&o));
+    let o = ohd(tmp.path(), &args(&whole).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(assert_same_run(&whole, &cut) >= 6);
+    assert!(read_manifest(&cut).get("interrupted").is_none() && !cut.join("checkpoint.ohd").exists());
+
+    let o = interrupt_once_started(tmp.path(), &args(&stopped), &stopped, 2);
+    assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
+    assert!(!stopped.join("manifest.json").exists() && !stopped.join("checkpoint.ohd").exists());
 }
 
 /// Every data file of run directory `a` (all but the manifest) is byte-identical in `b`, and the
@@ -753,6 +822,20 @@ fn scans_shard_merge_and_resume_like_a_single_scan() {
             "pointing {i}'s checkpoint outlives the scan"
         );
     }
+
+    // Ctrl-C: the pointing in progress is written with its batches done, the scan's directory
+    // stays marked incomplete, and `--resume` finishes the scan to the same files.
+    let cut = tmp.path().join("cut");
+    let o = interrupt_once_started(tmp.path(), &base(&cut, "200000"), &cut, 1);
+    assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
+    assert!(cut.join("ohd_incomplete.txt").exists() && !cut.join("vad.csv").exists(), "{}", describe(&o));
+    let mut a = base(&cut, "200000");
+    a.push("--resume".into());
+    let o = run(&a);
+    assert_eq!(o.status.code(), Some(0), "{}", describe(&o));
+    assert!(text(&o.stderr).contains("resuming at batch"), "{}", describe(&o));
+    compare(&whole, &cut);
+    assert!((0..4).all(|i| !cut.join(format!("pointing_{i:02}/checkpoint.ohd")).exists()));
 }
 
 /// A checkpoint interval beyond `Duration`'s range (issue 21: `--checkpoint-seconds 1e300`

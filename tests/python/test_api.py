@@ -275,23 +275,55 @@ def test_hostile_configs_raise_python_errors_never_panics():
             pass
 
 
-def test_ctrl_c_raises_keyboard_interrupt_within_a_batch(tmp_path):
+def test_second_ctrl_c_raises_keyboard_interrupt_within_a_batch(tmp_path):
     script = textwrap.dedent(
         """
         import os, signal, threading, time, ohd
-        threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+        for t in (1.0, 1.3):
+            threading.Timer(t, os.kill, (os.getpid(), signal.SIGINT)).start()
         t = time.monotonic()
         try:
             ohd.run(samples=10**9, progress=False, figures=False, out="out")
-        except KeyboardInterrupt:
-            print(time.monotonic() - t)
+        except KeyboardInterrupt as e:
+            print(time.monotonic() - t, hasattr(e, "result"))
         """
     )
     p = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    elapsed = float(p.stdout)
-    assert 1.0 <= elapsed < 2.0, elapsed  # one batch of 10⁹ paths is minutes
+    elapsed, kept = p.stdout.split()
+    # The first Ctrl-C waits for the batches in flight (of 10⁹/32 paths: minutes); the second
+    # cancels them within a few thousand paths, keeping nothing.
+    assert 1.3 <= float(elapsed) < 2.3, elapsed
+    assert kept == "False"
     assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_ctrl_c_keeps_the_batches_done(tmp_path):
+    script = textwrap.dedent(
+        """
+        import json, os, signal, threading, ohd
+        threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+        try:
+            ohd.run(samples=4_000_000, overrides={"run.batches": 64}, progress=False, figures=False, out="out")
+            print("finished")
+        except KeyboardInterrupt as e:
+            r = e.result
+            print(json.dumps([r.manifest["interrupted"], r.manifest["samples"], r.manifest["batches"],
+                              r.estimates["reflectance_diffuse"].value, r.estimates["reflectance_diffuse"].stderr,
+                              str(e)]))
+        """
+    )
+    p = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() != "finished", "the run ended before Ctrl-C (4·10⁶ paths take ≈ 20 s)"
+    cut, samples, batches, rd, rd_err, message = json.loads(p.stdout)
+    assert 1 <= cut["batches"] < cut["planned_batches"] == 64, cut
+    assert batches == cut["batches"] and samples == batches * (4_000_000 // 64)
+    assert "of 64 batches" in message
+    # An estimate with the σ of the batches done (a few 10⁵ paths: a few 0.1 %).
+    assert rd > 0 and 0 < rd_err < 0.02 * rd, (rd, rd_err)
+    written = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert written["interrupted"] == cut
 
 
 def test_progress_callback_sees_the_run():

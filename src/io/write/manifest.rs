@@ -55,6 +55,10 @@ pub struct Manifest {
     pub batches: u64,
     pub main_output: MainOutput,
     pub target_error: Option<TargetEntry>,
+    /// A run that ended early at its caller's request (the first Ctrl-C): the batches done of
+    /// those planned. Its estimates and errors are those of the batches done; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interrupted: Option<InterruptedEntry>,
     pub threads: usize,
     pub wall_seconds: f64,
     pub timing: Timing,
@@ -107,6 +111,13 @@ pub struct TargetEntry {
     pub met: bool,
     pub rounds: u64,
     pub max_samples: u64,
+}
+
+/// How far an interrupted run got ([`Manifest::interrupted`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct InterruptedEntry {
+    pub batches: u64,
+    pub planned_batches: u64,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -380,6 +391,7 @@ fn write_run_to<S: super::Sink>(
             rounds: t.rounds,
             max_samples: t.max_samples,
         }),
+        interrupted: out.interrupted.map(|planned| InterruptedEntry { batches: out.batches, planned_batches: planned }),
         threads: out.threads,
         wall_seconds: out.wall_seconds,
         timing: Timing {
