@@ -331,7 +331,10 @@ impl TwinLayout {
                 continue;
             }
             let mut buf = vec![Complex64::new(0.0, 0.0); nx * ny];
+            // Per channel: the bound on the transform's rounding of an output pixel.
+            let mut floor = [0.0; 2];
             for (slot, &c) in pair.iter().enumerate() {
+                floor[slot] = rounding_floor(channel(c).map(|v| v.abs()).sum(), (nx, ny));
                 for ky in 0..self.size.1 {
                     for kx in 0..self.size.0 {
                         let v = kernel[(ky * self.size.0 + kx) * channels + c];
@@ -355,12 +358,26 @@ impl TwinLayout {
                 for y in 0..py {
                     for x in 0..px {
                         let v = out[(y + self.cells.1 - 1) * nx + x + self.cells.0 - 1];
-                        sums[block + y * px + x] += scale * if slot == 0 { v.re } else { v.im };
+                        let v = scale * if slot == 0 { v.re } else { v.im };
+                        // Rounding residue where the convolution is 0 (beyond the footprint's
+                        // reach) is given as 0: it was ±10⁻²³ of either sign, a negative M0+.
+                        if v.abs() > floor[slot] {
+                            sums[block + y * px + x] += v;
+                        }
                     }
                 }
             }
         }
     }
+}
+
+/// The bound on the rounding of one output of an FFT convolution of size `nx × ny` of a kernel
+/// with `Σ|K| = kernel_l1` and the footprint's masses (each ≤ 1): `4 ε log₂(nx·ny) Σ|K|`, from
+/// the FFT's `O(ε log N)` error per transform (forward, product, inverse), bounded by the largest
+/// possible output `Σ|K|·max m` (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd
+/// ed., §24.1). Below it a value is zero as far as the transform can tell.
+fn rounding_floor(kernel_l1: f64, (nx, ny): (usize, usize)) -> f64 {
+    4.0 * f64::EPSILON * ((nx * ny) as f64).log2().max(1.0) * kernel_l1
 }
 
 /// The 2-D FFT of the row-major `[y][x]` array `a` (sizes `(nx, ny)`), returned transposed
@@ -437,6 +454,27 @@ mod tests {
             .map(|(i, j)| fp.mass_in_rect((i as f64 * h, (i + 1) as f64 * h), (j as f64 * h, (j + 1) as f64 * h)))
             .sum();
         assert!((total - 1.0).abs() < 1e-12, "{total}");
+    }
+
+    /// A non-negative kernel of compact support convolves to exactly 0 beyond the footprint's
+    /// reach, never to FFT residue of either sign (issue 37: M0+ images had −10⁻²³ there).
+    #[test]
+    fn convolution_is_exactly_zero_beyond_its_support() {
+        let im = image(9);
+        let fp = Footprint { center: (0.0, 0.0), profile: Profile::Pencil };
+        let lay = TwinLayout::new(&im, fp, vec![0]);
+        let n = lay.size.0 * lay.size.1;
+        // One offset cell lit, at widely different scales: the pencil puts it on one pixel.
+        let mut kernel = vec![0.0; n];
+        let lit = (lay.size.1 / 2) * lay.size.0 + lay.size.0 / 2;
+        kernel[lit] = 2.3e-6;
+        kernel[lit + 1] = 1e-30;
+        let mut sums = vec![0.0; 9 * 12];
+        lay.convolve(&kernel, &mut sums);
+        let nonzero: Vec<f64> = sums.iter().copied().filter(|v| *v != 0.0).collect();
+        assert!(sums.iter().all(|v| *v >= 0.0), "{sums:?}");
+        assert!(!nonzero.is_empty() && nonzero.len() <= 2, "{nonzero:?}");
+        assert!(nonzero.iter().any(|v| (v - 2.3e-6).abs() < 1e-18), "{nonzero:?}");
     }
 
     #[test]

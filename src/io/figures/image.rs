@@ -42,6 +42,11 @@ pub struct Panel {
     pub caption: String,
 }
 
+/// What a panel whose every value is exactly 0 says in place of its colour bar: the cells are
+/// grey ([`NO_DATA`]), with no colour scale, so that an output zero by construction (a class of
+/// paths that never reaches the band) is not drawn as data.
+pub const ZERO_EVERYWHERE: &str = "0 at every cell: nothing to scale";
+
 impl Panel {
     /// A panel with the defaults: no second axis, colours from `cmap`.
     #[allow(clippy::too_many_arguments)]
@@ -207,8 +212,10 @@ fn finish<DB: DrawingBackend>(
 ) -> DrawResult<Raster, DB> {
     let (w, h) = (PANEL.0 as i32, PANEL.1 as i32);
     let shape_ok = p.nx.checked_mul(p.ny).is_some_and(|n| n == p.values.len() && n > 0);
+    let zero = p.colors.is_none() && shape_ok && p.values.iter().all(|v| *v == 0.0);
     let cells = match &p.colors {
         Some(c) if shape_ok && c.len() == p.values.len() => c.clone(),
+        _ if zero => vec![NO_DATA; p.values.len()],
         _ if shape_ok => p.cmap.colors(&p.values, p.range),
         _ => vec![NO_DATA],
     };
@@ -220,6 +227,19 @@ fn finish<DB: DrawingBackend>(
     // The colour bar beside the plot box, as tall.
     let bx = w - BAR_W - PAD + 14;
     let (top, bottom) = (py.start - oy, py.end - oy);
+    if zero {
+        area.draw(&Text::new(
+            ZERO_EVERYWHERE,
+            (bx + 9, (top + bottom) / 2),
+            (FAMILY, 15)
+                .into_font()
+                .transform(FontTransform::Rotate270)
+                .color(&BLACK)
+                .pos(Pos::new(HPos::Center, VPos::Center)),
+        ))?;
+        caption(p, area)?;
+        return Ok(Raster { x0: px.start, y0: py.start, x1: px.end, y1: py.end, nx, ny, rgb: cells });
+    }
     let (lo, hi) = p.range;
     let (factor, suffix) = engineering(lo.abs().max(hi.abs()));
     let steps = 128;
@@ -252,6 +272,13 @@ fn finish<DB: DrawingBackend>(
             .color(&BLACK)
             .pos(Pos::new(HPos::Center, VPos::Center)),
     ))?;
+    caption(p, area)?;
+    Ok(Raster { x0: px.start, y0: py.start, x1: px.end, y1: py.end, nx, ny, rgb: cells })
+}
+
+/// The panel's caption under it, if any.
+fn caption<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> DrawResult<(), DB> {
+    let (w, h) = (PANEL.0 as i32, PANEL.1 as i32);
     if !p.caption.is_empty() {
         area.draw(&Text::new(
             fit(&p.caption, (w - 2 * PAD) * 10 / 8),
@@ -259,7 +286,7 @@ fn finish<DB: DrawingBackend>(
             (FAMILY, 13).into_font().color(&RGBColor(70, 70, 70)).pos(Pos::new(HPos::Left, VPos::Center)),
         ))?;
     }
-    Ok(Raster { x0: px.start, y0: py.start, x1: px.end, y1: py.end, nx, ny, rgb: cells })
+    Ok(())
 }
 
 /// About 6 nice ticks inside `(lo, hi)` with their labels.
@@ -334,6 +361,25 @@ mod tests {
         assert!(!rows.is_empty());
         let mid = (TITLE_H + (PANEL.1 as i32 - TITLE_H - BOTTOM - CAPTION_H) / 2) as usize;
         assert!(rows.iter().all(|&y| y < mid), "{rows:?}");
+    }
+
+    /// An image zero at every pixel (an LDH camera's static-class M0±) is not drawn as data: grey
+    /// cells, and no colour bar — none of the colour map's colours anywhere in the figure.
+    #[test]
+    fn a_zero_image_is_not_drawn_as_data() {
+        let fig = ImageFigure { panels: vec![panel(vec![0.0; 32 * 32], 32, 32)] };
+        let figure = render(&fig).unwrap();
+        let (_, _, rgb) = check_figure(&figure, PANEL);
+        let viridis: Vec<[u8; 3]> = (0..=16).map(|k| Colormap::Viridis.color(k as f64 / 16.0)).collect();
+        let colored = rgb.chunks(3).filter(|c| viridis.iter().any(|v| v == c)).count();
+        assert_eq!(colored, 0, "colour-map pixels in a zero image");
+        assert!(rgb.chunks(3).filter(|c| *c == NO_DATA).count() > 100_000, "the plot box is grey");
+        assert!(figure.svg.contains(ZERO_EVERYWHERE));
+        // One non-zero pixel and it is data again, with its colour bar.
+        let mut v = vec![0.0; 32 * 32];
+        v[7] = 1e-21;
+        let figure = render(&ImageFigure { panels: vec![panel(v, 32, 32)] }).unwrap();
+        assert!(!figure.svg.contains(ZERO_EVERYWHERE));
     }
 
     #[test]

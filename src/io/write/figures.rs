@@ -72,12 +72,20 @@ fn above(v: &[f64], hi: f64) -> usize {
     v.iter().filter(|&&x| x > hi).count()
 }
 
+/// The caption of an image zero at every pixel, drawn grey without a colour scale
+/// ([`crate::io::figures::image::ZERO_EVERYWHERE`]).
+const ZERO_CAPTION: &str = "every pixel is exactly 0: drawn grey, without a colour scale";
+
 /// An image panel of `v` on the grid of `o`: sequential from 0, or diverging if `signed`.
 pub fn image_panel(o: &Output, v: &[f64], title: &str, unit: &str, signed: bool) -> Panel {
     let (x, y, n) = extent_mm(o);
     let (cmap, range) =
         if signed { (Colormap::Diverging, symmetric_range(v)) } else { (Colormap::Viridis, sequential_range(v)) };
     let mut p = Panel::new(title, v.to_vec(), n, x, y, cmap, range, unit);
+    if v.iter().all(|x| *x == 0.0) {
+        p.caption = ZERO_CAPTION.into();
+        return p;
+    }
     let sat = if signed { v.iter().filter(|x| x.abs() > range.1).count() } else { above(v, range.1) };
     p.caption = format!(
         "colour scale: {} the {:.1}th percentile{}; {} pixels saturate",
@@ -111,7 +119,9 @@ fn spread_panel(o: &Output, v: &[f64], title: &str, unit: &str) -> Panel {
 fn error_panel(o: &Output, v: &[f64], e: &[f64]) -> Panel {
     let (x, y, n) = extent_mm(o);
     let pe = PixelErrors::of(v, e);
-    let pct: Vec<f64> = pe.map.iter().map(|r| 100.0 * r).collect();
+    // Of an output zero everywhere, no error either: a blank panel.
+    let zero = v.iter().all(|x| *x == 0.0);
+    let pct: Vec<f64> = if zero { vec![0.0; v.len()] } else { pe.map.iter().map(|r| 100.0 * r).collect() };
     // Up to 100 %: beyond that a pixel has no meaningful value; a map of small errors keeps detail.
     let hi = quantile(&pct, TOP_QUANTILE).unwrap_or(100.0).clamp(1e-6, 100.0);
     let mut p = Panel::new(
