@@ -331,10 +331,11 @@ impl TwinLayout {
                 continue;
             }
             let mut buf = vec![Complex64::new(0.0, 0.0); nx * ny];
-            // Per channel: the bound on the transform's rounding of an output pixel.
-            let mut floor = [0.0; 2];
+            // The bound on the transform's rounding of an output pixel, of both channels: the
+            // pair shares one transform, so one channel's rounding reaches the other's output.
+            let l1: f64 = pair.iter().map(|&c| channel(c).map(|v| v.abs()).sum::<f64>()).sum();
+            let floor = rounding_floor(l1, (nx, ny));
             for (slot, &c) in pair.iter().enumerate() {
-                floor[slot] = rounding_floor(channel(c).map(|v| v.abs()).sum(), (nx, ny));
                 for ky in 0..self.size.1 {
                     for kx in 0..self.size.0 {
                         let v = kernel[(ky * self.size.0 + kx) * channels + c];
@@ -361,7 +362,7 @@ impl TwinLayout {
                         let v = scale * if slot == 0 { v.re } else { v.im };
                         // Rounding residue where the convolution is 0 (beyond the footprint's
                         // reach) is given as 0: it was ±10⁻²³ of either sign, a negative M0+.
-                        if v.abs() > floor[slot] {
+                        if v.abs() > floor {
                             sums[block + y * px + x] += v;
                         }
                     }
@@ -371,7 +372,7 @@ impl TwinLayout {
     }
 }
 
-/// The bound on the rounding of one output of an FFT convolution of size `nx × ny` of a kernel
+/// The bound on the rounding of one output of an FFT convolution of size `nx × ny` of kernels
 /// with `Σ|K| = kernel_l1` and the footprint's masses (each ≤ 1): `4 ε log₂(nx·ny) Σ|K|`, from
 /// the FFT's `O(ε log N)` error per transform (forward, product, inverse), bounded by the largest
 /// possible output `Σ|K|·max m` (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd
@@ -462,19 +463,22 @@ mod tests {
     fn convolution_is_exactly_zero_beyond_its_support() {
         let im = image(9);
         let fp = Footprint { center: (0.0, 0.0), profile: Profile::Pencil };
-        let lay = TwinLayout::new(&im, fp, vec![0]);
+        // Two channels sharing one transform: the second is 0 everywhere (a static class's M0+).
+        let lay = TwinLayout::new(&im, fp, vec![0, 9 * 12]);
         let n = lay.size.0 * lay.size.1;
         // One offset cell lit, at widely different scales: the pencil puts it on one pixel.
-        let mut kernel = vec![0.0; n];
+        let mut kernel = vec![0.0; 2 * n];
         let lit = (lay.size.1 / 2) * lay.size.0 + lay.size.0 / 2;
-        kernel[lit] = 2.3e-6;
-        kernel[lit + 1] = 1e-30;
-        let mut sums = vec![0.0; 9 * 12];
+        kernel[2 * lit] = 2.3e-6;
+        kernel[2 * (lit + 1)] = 1e-30;
+        let mut sums = vec![0.0; 2 * 9 * 12];
         lay.convolve(&kernel, &mut sums);
-        let nonzero: Vec<f64> = sums.iter().copied().filter(|v| *v != 0.0).collect();
-        assert!(sums.iter().all(|v| *v >= 0.0), "{sums:?}");
+        let (first, second) = sums.split_at(9 * 12);
+        let nonzero: Vec<f64> = first.iter().copied().filter(|v| *v != 0.0).collect();
+        assert!(first.iter().all(|v| *v >= 0.0), "{first:?}");
         assert!(!nonzero.is_empty() && nonzero.len() <= 2, "{nonzero:?}");
         assert!(nonzero.iter().any(|v| (v - 2.3e-6).abs() < 1e-18), "{nonzero:?}");
+        assert!(second.iter().all(|v| *v == 0.0), "the zero channel: {second:?}");
     }
 
     #[test]

@@ -39,6 +39,14 @@ fn version() {
     let out = text(&o.stdout);
     assert!(out.contains("ohd"), "{out}");
     assert!(out.contains(env!("CARGO_PKG_VERSION")), "{out}");
+    // The changelog's newest entry and the Python package are this version (the manifest's
+    // `ohd_version` is `CARGO_PKG_VERSION` itself).
+    let changelog = std::fs::read_to_string(repo().join("CHANGELOG.md")).unwrap();
+    let newest = changelog.lines().find_map(|l| l.strip_prefix("## [")).and_then(|l| l.split(']').next());
+    assert_eq!(newest, Some(env!("CARGO_PKG_VERSION")), "CHANGELOG.md's newest entry");
+    let pyproject = std::fs::read_to_string(repo().join("python/pyproject.toml")).unwrap();
+    let line = format!("version = \"{}\"", env!("CARGO_PKG_VERSION"));
+    assert!(pyproject.lines().any(|l| l.trim() == line), "python/pyproject.toml: no `{line}`");
 }
 
 #[test]

@@ -373,6 +373,13 @@ def test_stubs_and_docs_are_installed():
     assert "overrides" in ohd.run.__doc__ and "KeyboardInterrupt" in ohd.run.__doc__
 
 
+def test_version_is_the_changelogs_and_the_manifests():
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    newest = next(line[4:].split("]")[0] for line in changelog.splitlines() if line.startswith("## ["))
+    assert ohd.__version__ == newest
+    assert ohd.run(samples=1000, progress=False, figures=False).manifest["ohd_version"] == newest
+
+
 def test_example_redraws_the_readme_figures(tmp_path):
     """python/examples/default_figure.py runs the default experiment and writes the README's two
     figures: the same PNG bytes as media/readme/."""
