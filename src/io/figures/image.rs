@@ -210,7 +210,7 @@ fn finish<DB: DrawingBackend>(
     px: std::ops::Range<i32>,
     py: std::ops::Range<i32>,
 ) -> DrawResult<Raster, DB> {
-    let (w, h) = (PANEL.0 as i32, PANEL.1 as i32);
+    let w = PANEL.0 as i32;
     let shape_ok = p.nx.checked_mul(p.ny).is_some_and(|n| n == p.values.len() && n > 0);
     let zero = p.colors.is_none() && shape_ok && p.values.iter().all(|v| *v == 0.0);
     let cells = match &p.colors {
