@@ -1,4 +1,8 @@
-//! Argument parsing and the `run` / `check` commands.
+//! The `ohd` command line: argument parsing, the commands, progress, printing and exit codes. No
+//! physics here. It lives in the library so that the binary (`src/main.rs`) and the Python
+//! package's `ohd` console script (one build for both) run the same code ([`status_from`]).
+//! Exit status: 0 success, 2 bad input (configuration or unreadable file; nothing is written),
+//! 1 failure while running or writing, 130 a run stopped by Ctrl-C.
 
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -7,12 +11,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
-use ohd::converge::StudyLog;
-use ohd::error::Error;
-use ohd::experiment::{Experiment, Progress, RunOutput};
-use ohd::retrieval::{FmcwEstimate, RetrievalError};
-use ohd::run::converge::{ConvergeRequest, StudyWritten};
-use ohd::run::{Event, Loaded, Observer, RunRequest};
+use crate::converge::StudyLog;
+use crate::error::Error;
+use crate::experiment::{Experiment, Progress, RunOutput};
+use crate::retrieval::{FmcwEstimate, RetrievalError};
+use crate::run::converge::{ConvergeRequest, StudyWritten};
+use crate::run::{Event, Loaded, Observer, RunRequest};
 
 /// Whether writing to standard output or standard error failed (a closed pipe, a full disk;
 /// issue 33: `ohd check > /dev/full` and `ohd run 2>/dev/full` panicked): the command goes on and
@@ -166,7 +170,7 @@ fn whole_count(s: &str) -> Result<u64, String> {
     let t = s.trim().replace('_', "");
     t.parse::<u64>()
         .ok()
-        .or_else(|| t.parse::<f64>().ok().and_then(ohd::config::schema::whole))
+        .or_else(|| t.parse::<f64>().ok().and_then(crate::config::schema::whole))
         .ok_or_else(|| format!("expected a whole number of paths such as 1000000 or 1e6; got {s:?}"))
 }
 
@@ -243,8 +247,8 @@ struct MieArgs {
 fn mie(a: &MieArgs) -> Result<(), Error> {
     use std::collections::BTreeMap;
 
-    use ohd::io::formats::table::{Normalisation, TableOptics, phase_table_text};
-    use ohd::mie::{MieSolution, angle_grid};
+    use crate::io::formats::table::{Normalisation, TableOptics, phase_table_text};
+    use crate::mie::{MieSolution, angle_grid};
 
     let input = |m: String| Error::Input(m);
     let finite = |name: &str, v: f64, ok: bool, expected: &str| -> Result<f64, Error> {
@@ -277,7 +281,7 @@ fn mie(a: &MieArgs) -> Result<(), Error> {
                 size_distribution: Some(format!("monodisperse, diameter {d} µm")),
                 ..Default::default()
             };
-            ohd::medium::relative_sphere(d * 1e-6, np, kp, nm, wl * 1e-9)
+            crate::medium::relative_sphere(d * 1e-6, np, kp, nm, wl * 1e-9)
         }
         _ => {
             return Err(input(
@@ -309,7 +313,7 @@ fn mie(a: &MieArgs) -> Result<(), Error> {
         let degrees: Vec<f64> = theta.iter().map(|t| t.to_degrees()).collect();
         let description = format!("Mie phase function of one sphere, x = {x}, m = {n} − {k}i");
         let text = phase_table_text(&description, Normalisation::PerSr, &optics, &provenance, &degrees, &p);
-        ohd::io::write_atomic(path, text.as_bytes())?;
+        crate::io::write_atomic(path, text.as_bytes())?;
     }
     let json = serde_json::json!({ "x": x, "qext": q.qext, "qsca": q.qsca, "qback": q.qback, "g": q.g });
     out!("{json}");
@@ -399,24 +403,24 @@ impl Progress for Steps {
 
 /// `, post-processing 0.12 s (gate fits 0.11 s), writing 0.05 s`: where a run's time went after
 /// its transport (which the caller prints), so that the transport's time is not taken for the run's.
-fn after_transport(t: &ohd::io::write::manifest::Timing) -> String {
+fn after_transport(t: &crate::io::write::manifest::Timing) -> String {
     let fits =
         if t.gate_fit_seconds > 0.0 { format!(" (gate fits {:.2} s)", t.gate_fit_seconds) } else { String::new() };
     format!(", post-processing {:.2} s{fits}, writing {:.2} s", t.postprocess_seconds, t.writing_seconds)
 }
 
-fn fail(e: &Error) -> ExitCode {
+fn fail(e: &Error) -> u8 {
     say!("ohd: {e}");
-    ExitCode::from(match e {
+    match e {
         _ if e.is_input_error() => 2,
         // 128 + SIGINT, as a shell reports a command ended by Ctrl-C.
         Error::Interrupted { .. } | Error::Cancelled => 130,
         _ => 1,
-    })
+    }
 }
 
 /// Set by the first Ctrl-C (SIGINT) of `ohd run`: the run ends at its next batch boundary and
-/// writes what it has ([`ohd::experiment::Progress::stopping`]); the second ends the process at
+/// writes what it has ([`crate::experiment::Progress::stopping`]); the second ends the process at
 /// once (status 130).
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -461,11 +465,22 @@ impl Progress for CtrlC<'_> {
     }
 }
 
+/// The `ohd` command with the process's arguments.
 pub fn main() -> ExitCode {
+    ExitCode::from(status_from(std::env::args_os()))
+}
+
+/// The `ohd` command with the arguments `args` (the command's name first); returns its exit
+/// status. `--help`, `--version` and argument errors end the process, as for any clap command.
+pub fn status_from<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     // A file-size limit (`ulimit -f`) makes a write fail with EFBIG, reported as a write error
     // (exit 1, the directory marked incomplete), instead of killing the process by SIGXFSZ.
     let _ = signal_hook::flag::register(signal_hook::consts::SIGXFSZ, std::sync::Arc::new(AtomicBool::new(false)));
-    let cli = Cli::parse();
+    let cli = Cli::parse_from(args);
     let result = match cli.command {
         Command::Mie(a) => mie(&a),
         Command::Converge { config, out, reference, budget_seconds, samples, rungs, overrides, quiet, no_figures } => {
@@ -487,7 +502,7 @@ pub fn main() -> ExitCode {
         }),
         Command::Run(a) => run(a),
         Command::Merge { dirs, out, no_figures } => {
-            ohd::run::merge(&dirs, &out, !no_figures, &Terminal { quiet: false }).map(drop)
+            crate::run::merge(&dirs, &out, !no_figures, &Terminal { quiet: false }).map(drop)
         }
     };
     match result {
@@ -497,9 +512,9 @@ pub fn main() -> ExitCode {
                 std::io::stderr(),
                 "ohd: standard output or standard error could not be written (closed or full): messages were lost; the files were written"
             );
-            ExitCode::from(1)
+            1
         }
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(e) => fail(&e),
     }
 }
@@ -520,7 +535,7 @@ fn run(a: RunArgs) -> Result<(), Error> {
     if req.shard.is_none() {
         keep_work_on_ctrl_c();
     }
-    ohd::run::run(&loaded, &req, &Terminal { quiet: a.quiet }).map(drop)
+    crate::run::run(&loaded, &req, &Terminal { quiet: a.quiet }).map(drop)
 }
 
 /// Tells the user: a progress bar per run on stderr (when stderr is a terminal and not `quiet`;
@@ -533,14 +548,14 @@ struct Terminal {
 impl Observer for Terminal {
     fn progress(&self, paths: u64, target: Option<f64>) -> Box<dyn Progress + '_> {
         if self.quiet || !std::io::stderr().is_terminal() {
-            return Box::new(CtrlC(Box::new(ohd::experiment::Silent)));
+            return Box::new(CtrlC(Box::new(crate::experiment::Silent)));
         }
         Box::new(CtrlC(Box::new(Bar::new(paths, target))))
     }
 
     fn postprocess(&self) -> Box<dyn Progress + '_> {
         if self.quiet || !std::io::stderr().is_terminal() {
-            return Box::new(ohd::experiment::Silent);
+            return Box::new(crate::experiment::Silent);
         }
         Box::new(Steps::new("gate fits"))
     }
@@ -607,7 +622,7 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
     let (mean, se) = (output.estimates.mean(), output.estimates.stderr());
     let outputs = exp.outputs();
     // A box phantom's side faces after the transmittance (its name only where it is declared).
-    let lateral = exp.scene.lateral.map(|_| ohd::detect::LATERAL_SCALAR);
+    let lateral = exp.scene.lateral.map(|_| crate::detect::LATERAL_SCALAR);
     let scalars = ["reflectance_specular", "reflectance_diffuse", "transmittance_total"]
         .into_iter()
         .chain(lateral)
@@ -625,7 +640,7 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 
 /// The terminal's line of a tail check: the slope of the largest path scores and what MCNP reads
 /// into it.
-fn tail_line(t: &ohd::stats::TailCheck) -> String {
+fn tail_line(t: &crate::stats::TailCheck) -> String {
     match t.slope {
         Some(s) => {
             let verdict = if s >= 3.0 { "≥ 3: a finite variance" } else { "< 3: the variance may not exist yet" };
@@ -675,7 +690,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             // Split by the regions' footprints (`NAME_region_mask.npy`).
             let regions = exp.region_mask_of(o).map(|mask| {
                 let (v, e) = o.slice(mean, &stderr);
-                ohd::output::RegionErrors::of(v, e, &mask).with_tail(tails.get(&o.slots.start).copied())
+                crate::output::RegionErrors::of(v, e, &mask).with_tail(tails.get(&o.slots.start).copied())
             });
             if let Some(r) = &regions {
                 out!(
@@ -692,7 +707,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
             }
             // An M0+ image against the camera's own noise: the speckle of how many windows.
             if let Some(&(c, frames)) = speckle.get(&o.slots.start) {
-                let s = ohd::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref());
+                let s = crate::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref());
                 let k = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
                 let split = if regions.is_some() {
                     format!(
@@ -742,19 +757,20 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 e.velocity_bin_m_per_s
             );
         }
-        if let Some(note) = ohd::io::write::fmcw::note(result) {
+        if let Some(note) = crate::io::write::fmcw::note(result) {
             out!("  {name}: FMCW {note}");
         }
     }
     // Last, where they are seen: what the run could not get right (also in the manifest).
-    for w in ohd::post::warnings(exp, output) {
+    for w in crate::post::warnings(exp, output) {
         say!("ohd: warning: {}", w.message);
     }
 }
 
 /// `ohd converge`: the study, then a table of its outputs on stdout.
 fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
-    let StudyWritten { study, dir } = ohd::run::converge::converge(req, &Terminal { quiet }, &mut StderrLog { quiet })?;
+    let StudyWritten { study, dir } =
+        crate::run::converge::converge(req, &Terminal { quiet }, &mut StderrLog { quiet })?;
     out!("ohd converge: → {}", dir.display());
     out!("  {:<28} {:>9} {:>7} {:>12} {:>12} {:>8}", "output", "reference", "slope", "s to 1%", "s to 0.1%", "σ ratio");
     let fmt = |v: Option<f64>| v.map_or("—".to_string(), |t| format!("{t:.3e}"));
@@ -789,6 +805,6 @@ impl StudyLog for StderrLog {
     }
 
     fn progress(&self) -> &dyn Progress {
-        &ohd::experiment::Silent
+        &crate::experiment::Silent
     }
 }

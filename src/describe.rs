@@ -86,6 +86,11 @@ fn speed(v: f64) -> String {
     scaled(SPEED, 1, v)
 }
 
+/// An energy in the unit that fits it (`100 µJ`), for figures and reports.
+pub fn energy(v: f64) -> String {
+    scaled(ENERGY, 3, v)
+}
+
 /// A number with up to four significant digits and no trailing zeros; in scientific notation
 /// outside 10⁻⁴ … 10⁷.
 fn num(v: f64) -> String {

@@ -84,6 +84,7 @@
 //! Closed sets on the per-collision path are enums with `match` (phase functions, media, velocity
 //! fields, detectors); trait objects only at cold seams (progress, observers, checkpoints).
 
+pub mod cli;
 pub mod config;
 pub mod converge;
 pub mod describe;

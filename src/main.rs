@@ -1,9 +1,7 @@
-//! The `ohd` command line. No physics here: argument parsing, progress and exit codes.
+//! The `ohd` command line ([`ohd::cli`]; the Python package's `ohd` console script runs the same).
 //! Exit status: 0 success, 2 bad input (configuration or unreadable file; nothing is written),
-//! 1 failure while running or writing.
-
-mod cli;
+//! 1 failure while running or writing, 130 a run stopped by Ctrl-C.
 
 fn main() -> std::process::ExitCode {
-    cli::main()
+    ohd::cli::main()
 }

@@ -561,6 +561,14 @@ fn converge(
     })
 }
 
+/// The `ohd` command line (`ohd::cli`, the binary's own code) with `argv` (the command's name
+/// first); returns its exit status. The package's `ohd` console script calls it: one build gives
+/// the package and the command.
+#[pyfunction]
+fn cli(py: Python<'_>, argv: Vec<String>) -> u8 {
+    py.detach(|| ohd::cli::status_from(argv))
+}
+
 #[pymodule]
 fn _ohd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ConfigError", m.py().get_type::<ConfigError>())?;
@@ -575,5 +583,6 @@ fn _ohd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mie_sphere, m)?)?;
     m.add_function(wrap_pyfunction!(relative_sphere, m)?)?;
     m.add_function(wrap_pyfunction!(converge, m)?)?;
+    m.add_function(wrap_pyfunction!(cli, m)?)?;
     Ok(())
 }

@@ -94,3 +94,31 @@ fn no_figures_writes_no_png_or_svg() {
         assert!(files.iter().any(|f| f.ends_with(".npy")) && !files.iter().any(|f| f.ends_with(".png")));
     }
 }
+
+/// A lidar's figures name the detector and where it points (issue 37: a scan's four pointings
+/// drew four figures that could not be told apart), in the title; the vertical stare names its
+/// elevation only.
+#[test]
+fn lidar_figures_name_the_detector_and_the_pointing() {
+    for (sets, says) in [
+        (vec!["source.pointings_deg=[[90, 60]]"], "lidar, azimuth 90°, elevation 60°"),
+        (vec!["source.pointings_deg=[[0, 90]]"], "lidar, elevation 90°"),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut sets = sets.clone();
+        sets.extend(["detectors.0.lidar.gates=6", "detectors.0.lidar.fft_points=256"]);
+        run_into("configs/wind_sunny.toml", tmp.path(), false, &sets);
+        for fig in ["lidar_range_doppler.svg", "lidar_gate_spectra.svg"] {
+            let svg = std::fs::read_to_string(tmp.path().join(fig)).unwrap();
+            assert!(svg.contains(says), "{fig}: no `{says}` in its text");
+        }
+        let spectra = std::fs::read_to_string(tmp.path().join("lidar_gate_spectra.svg")).unwrap();
+        // In its unit (`100 µJ`), not programmer notation (`1.000e-4 J`).
+        let energy = spectra
+            .split("pulse energy ")
+            .find(|t| t.starts_with(|c: char| c.is_ascii_digit()))
+            .and_then(|t| t.split(',').next())
+            .unwrap_or("?");
+        assert!(energy.ends_with('J') && !energy.contains('e'), "pulse energy `{energy}`");
+    }
+}

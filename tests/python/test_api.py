@@ -31,7 +31,7 @@ def cli():
 
         binary = ohdpy.binary()
 
-    def run(*args, check=True):
+    def run(*args, check=True, binary=binary):
         p = subprocess.run([binary, *map(str, args)], capture_output=True, text=True)
         if check:
             assert p.returncode == 0, p.stderr
@@ -371,6 +371,24 @@ def test_stubs_and_docs_are_installed():
     for f in (ohd.run, ohd.check, ohd.sweep, ohd.mie, ohd.converge, ohd.Result):
         assert f.__doc__ and len(f.__doc__) > 80, f
     assert "overrides" in ohd.run.__doc__ and "KeyboardInterrupt" in ohd.run.__doc__
+
+
+def test_console_script_is_the_binary(cli, tmp_path):
+    """`pip install ./python` also installs the `ohd` command (one build): it is the binary's code,
+    so its run writes the binary's bytes, its report and exit statuses are the binary's."""
+    script = Path(sys.executable).parent / "ohd"
+    assert script.is_file(), f"no console script beside {sys.executable}"
+    runs = {}
+    for name, binary in (("script", {"binary": str(script)}), ("binary", {})):
+        out = tmp_path / name
+        p = cli("run", "--samples", "2e4", "--seed", "3", "--out", out, **binary)
+        assert "reflectance_diffuse" in p.stdout, p.stdout
+        runs[name] = {f.name: f.read_bytes() for f in out.iterdir() if f.suffix == ".npy"}
+    assert len(runs["script"]) >= 6 and runs["script"] == runs["binary"]
+    version = subprocess.run([str(script), "--version"], capture_output=True, text=True)
+    assert version.returncode == 0 and ohd.__version__ in version.stdout
+    bad = subprocess.run([str(script), "run", "--set", "run.samples=-1"], cwd=tmp_path, capture_output=True, text=True)
+    assert bad.returncode == 2 and "run.samples" in bad.stderr, bad.stderr
 
 
 def test_version_is_the_changelogs_and_the_manifests():

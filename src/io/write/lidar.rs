@@ -53,8 +53,10 @@ pub fn write_lidar(
         (&mean[o..o + bins], &se[o..o + bins])
     };
     let total = &mean[reg.at(lay.spectra).range()];
-    w.figure(&format!("{name}_range_doppler"), &range_doppler_figure(spec, &range, total))?;
-    w.figure(&format!("{name}_gate_spectra"), &gate_spectra_plot(spec, &range, &velocity, |c, g| spectrum(c, g).0))?;
+    let who = receiver_label(name, spec.axis);
+    w.figure(&format!("{name}_range_doppler"), &range_doppler_figure(spec, &who, &range, total))?;
+    let plot = gate_spectra_plot(spec, &who, &range, &velocity, |c, g| spectrum(c, g).0);
+    w.figure(&format!("{name}_gate_spectra"), &plot)?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
     // the SNR D_0/(Mσ²) and the retrievals from the total spectrum.
@@ -232,7 +234,22 @@ fn gate_columns(csv: &mut String, row: &mut serde_json::Map<String, Value>, gate
 
 /// The total range–Doppler map in dB re its peak: x = radial velocity, y = range (the farthest
 /// gate at the top), with the height of each range on the right (`z0 + range · sin(elevation)`).
-fn range_doppler_figure(spec: &LidarSpec, range: &[f64], total: &[f64]) -> ImageFigure {
+/// `receiver, azimuth 90°, elevation 60°`: which detector a lidar figure shows, and where it
+/// points (`axis`: x east, y north, z up; azimuth clockwise from north), so that the figures of a
+/// scan's pointings tell themselves apart.
+pub fn receiver_label(name: &str, axis: glam::DVec3) -> String {
+    let elevation = axis.z.clamp(-1.0, 1.0).asin().to_degrees();
+    let azimuth = axis.x.atan2(axis.y).to_degrees().rem_euclid(360.0);
+    // A vertical beam has no azimuth.
+    if axis.x.hypot(axis.y) < 1e-9 {
+        return format!("{name}, elevation {elevation:.0}°");
+    }
+    // Whole degrees unless the pointing needs a decimal (0.5° steps of a fine scan).
+    let deg = |v: f64| if (v - v.round()).abs() < 0.05 { format!("{v:.0}") } else { format!("{v:.1}") };
+    format!("{name}, azimuth {}°, elevation {}°", deg(azimuth % 360.0), deg(elevation))
+}
+
+fn range_doppler_figure(spec: &LidarSpec, who: &str, range: &[f64], total: &[f64]) -> ImageFigure {
     let (gates, bins) = (spec.gates, spec.fft_points);
     let peak = total.iter().cloned().fold(0.0, f64::max);
     // Row 0 of the figure is the top: the last gate.
@@ -248,14 +265,15 @@ fn range_doppler_figure(spec: &LidarSpec, range: &[f64], total: &[f64]) -> Image
     let half_gate = 0.25 * crate::SPEED_OF_LIGHT * spec.gate_points as f64 / spec.sample_rate;
     let y = (range[0] - half_gate, range[gates - 1] + half_gate);
     let height = |r: f64| spec.position.z + r * spec.axis.z;
-    let title = format!("Range–Doppler spectrum (total), {gates} gates × {bins} bins");
+    let title = format!("{who}: range–Doppler spectrum");
     let mut p =
         Panel::new(title, db_map, (bins, gates), x, y, Colormap::Viridis, (-MAP_RANGE_DB, 0.0), "power (dB re peak)");
     p.x_label = "radial velocity (m/s), + receding".into();
     p.y_label = "range (m)".into();
     p.equal = false;
     p.right_axis = Some(("height (m)".into(), (height(y.0), height(y.1))));
-    p.caption = format!("grey: no power; {MAP_RANGE_DB:.0} dB below the peak; height = z0 + range · sin(elevation)");
+    p.caption =
+        format!("all light; {gates} gates × {bins} bins; grey: no power, or {MAP_RANGE_DB:.0} dB below the peak");
     ImageFigure { panels: vec![p] }
 }
 
@@ -270,6 +288,7 @@ fn tint(c: [u8; 3]) -> [u8; 3] {
 /// `spectrum(c, g)`: channel `c`'s spectrum in gate `g`.
 fn gate_spectra_plot<'a>(
     spec: &LidarSpec,
+    who: &str,
     range: &[f64],
     velocity: &[f64],
     spectrum: impl Fn(usize, usize) -> &'a [f64],
@@ -280,8 +299,10 @@ fn gate_spectra_plot<'a>(
         (0..n).map(|i| if n == 1 { 0 } else { (i * (gates - 1) + (n - 1) / 2) / (n - 1) }).collect();
     chosen.dedup();
     let to_db = |p: &[f64]| -> Vec<f64> { p.iter().map(|&v| db(v)).collect() };
-    let title = format!("Gate spectra, E_p = {:.3e} J, η = {:.2}", spec.pulse_energy, spec.efficiency());
+    let title = format!("{who}: gate spectra");
     let mut plot = LinePlot::new(title, "radial velocity (m/s), + receding", "dB re pulse energy per bin");
+    plot.note =
+        format!("pulse energy {}, efficiency η = {:.2}", crate::describe::energy(spec.pulse_energy), spec.efficiency());
     for (i, &g) in chosen.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         plot.curves.push(Curve::line(
@@ -309,7 +330,7 @@ fn gate_spectra_plot<'a>(
         .map(|c| c.label.clone())
         .collect();
     if !hidden.is_empty() {
-        plot.note = format!("below the plotted range or without power (not drawn): {}", hidden.join(", "));
+        plot.note = format!("{}; not drawn (below the range or no power): {}", plot.note, hidden.join(", "));
     }
     plot
 }
