@@ -122,6 +122,7 @@ class Result:
     * `manifest`: manifest.json as a dict; `files`: {file name: bytes}, in the order written.
     * `save(dir)`: write the files into `dir` as `ohd run --out dir` does.
     * `pointings`: for a scan, one `Result` per pointing (this one holds the scan's own files).
+    * `main_figure()`: the main output's PNG; in Jupyter a `Result` shows it with its estimates.
     """
 
     def __init__(self, files: Dict[str, bytes], pointings: Optional[List["Result"]] = None):
@@ -134,6 +135,8 @@ class Result:
 
     @property
     def outputs(self) -> Dict[str, Output]:
+        """Every array output of the run, by file stem (`camera_m0_plus`, …), as an `Output`
+        with its values, standard errors, axes and units; read from the files when first asked."""
         if self._outputs is None:
             self._outputs = self._read_outputs()
         return self._outputs
@@ -199,12 +202,14 @@ class Result:
         return out
 
     def __getitem__(self, name: str) -> Output:
+        """`result["camera_m0_plus"]`: the output of that file stem; a KeyError lists them all."""
         try:
             return self.outputs[name]
         except KeyError:
             raise KeyError(f"{name!r}: no such output; outputs: {', '.join(self.outputs)}") from None
 
     def __contains__(self, name: str) -> bool:
+        """Whether the run has an output of that file stem."""
         return name in self.outputs
 
     def save(self, dir: Union[str, "os.PathLike[str]"]) -> None:
@@ -221,6 +226,55 @@ class Result:
                 os.replace(tmp, dir / name)
             return
         _ohd.save(dir, list(self.files.items()))
+
+    def main_figure(self) -> Optional[bytes]:
+        """The PNG of the run's main output (the one `--target-error` controls), if figures were
+        drawn; else None."""
+        main = (self.manifest.get("main_output") or {}).get("name")
+        for entry in (self.manifest.get("outputs") or {}).values():
+            if entry.get("output") == main and entry.get("figure") in self.files:
+                return self.files[entry["figure"]]
+        return None
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view of a run: its name and size, the main output's figure, and the table of
+        its scalar estimates with standard errors."""
+        import base64
+        import html
+
+        m = self.manifest
+        head = html.escape(f"{m.get('name', '?')}: {m.get('samples')} paths, seed {m.get('seed')}")
+        main = m.get("main_output") or {}
+        err = main.get("relative_error")
+        lines = [f"<b>ohd.Result</b> {head}"]
+        if err is not None:
+            lines.append(html.escape(f"main output {main.get('name')}: relative error {100 * err:.3g} %"))
+        if "interrupted" in m:
+            cut = m["interrupted"]
+            lines.append(html.escape(f"interrupted: {cut['batches']} of {cut['planned_batches']} batches"))
+        if self.pointings:
+            lines.append(f"{len(self.pointings)} pointings (<code>.pointings</code>)")
+        parts = ["<div>" + "<br>".join(lines) + "</div>"]
+        png = self.main_figure()
+        if png is not None:
+            data = base64.b64encode(png).decode("ascii")
+            parts.append(f'<img src="data:image/png;base64,{data}" style="max-width:100%">')
+        rows = []
+
+        def walk(prefix: str, tree: Any) -> None:
+            for k, v in tree.items():
+                if isinstance(v, Estimate):
+                    rows.append((prefix + k, v))
+                elif isinstance(v, dict):
+                    walk(prefix + k + ".", v)
+
+        walk("", self.estimates)
+        if rows:
+            cells = "".join(
+                f"<tr><td>{html.escape(k)}</td><td>{v.value:.6g}</td><td>{v.stderr:.2g}</td></tr>" for k, v in rows
+            )
+            parts.append(f"<table><tr><th>estimate</th><th>value</th><th>standard error</th></tr>{cells}</table>")
+        return "\n".join(parts)
 
     def __repr__(self) -> str:
         name = self.manifest.get("name", "?")

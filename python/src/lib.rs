@@ -220,7 +220,7 @@ impl Experiment {
         self.loaded.exp.plan.samples()
     }
 
-    /// Whether it is a scan of several pointings (run into a directory, one per pointing).
+    /// The number of pointings: more than 1 for a scan (run into a directory, one per pointing).
     #[getter]
     fn pointings(&self) -> usize {
         self.loaded.exp.source.pointings.len().max(1)

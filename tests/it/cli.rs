@@ -407,9 +407,14 @@ fn converge_writes_csv_json_and_png() {
     assert!(j["skipped"]["reflectance_specular"].is_string(), "{j}");
     let png = std::fs::read(out.join("converge.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-    // -q leaves out the log of each run; the summary table stays.
-    let err = text(&o.stderr);
-    assert!(!err.contains("rung 0") && err.contains("reflectance_diffuse") && err.contains("(main)"), "{err}");
+    // -q leaves out the log of each run (stderr); the summary table, the study's result, is on
+    // stdout.
+    let (out, err) = (text(&o.stdout), text(&o.stderr));
+    assert!(
+        !err.contains("rung 0") && out.contains("reflectance_diffuse") && out.contains("(main)"),
+        "{}",
+        describe(&o)
+    );
 }
 
 #[test]
@@ -442,8 +447,8 @@ fn converge_reads_a_reference_run_directory() {
         assert_eq!(j["outputs"][name]["reference"], "directory", "{name}: {j}");
         assert_eq!(j["outputs"][name]["sigma_ratio"].as_array().map(Vec::len), Some(2), "{name}");
     }
-    let err = text(&o.stderr);
-    assert!(err.contains("camera.spectrum") && err.contains("(main)"), "{err}");
+    let table = text(&o.stdout);
+    assert!(table.contains("camera.spectrum") && table.contains("(main)"), "{}", describe(&o));
 }
 
 #[test]

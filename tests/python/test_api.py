@@ -416,3 +416,38 @@ def test_converge_writes_the_study(tmp_path):
     assert study["log"] and isinstance(study, dict)
     with pytest.raises(ohd.ConfigError):
         ohd.converge(out=tmp_path / "d", overrides={"run.samples": -1}, samples=1000, rungs=2)
+
+
+def test_result_shows_itself_in_jupyter():
+    r = ohd.run(samples=2000, seed=1, progress=False)
+    page = r._repr_html_()
+    assert page.startswith("<div><b>ohd.Result</b>") and "2000 paths" in page
+    # The main output's figure inline, and every scalar estimate in the table.
+    assert r.main_figure() is not None and r.main_figure().startswith(b"\x89PNG")
+    assert "data:image/png;base64," in page and "reflectance_diffuse" in page and "<table>" in page
+    assert "data:image/png" not in ohd.run(samples=2000, seed=1, progress=False, figures=False)._repr_html_()
+
+
+def test_api_reference_is_current_and_complete():
+    """python/API.md is what python/apidoc.py generates from the installed package, and every
+    public name (ohd.__all__, their public methods and properties) is documented."""
+    p = subprocess.run([sys.executable, str(ROOT / "python" / "apidoc.py"), "--check"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+
+
+@pytest.mark.parametrize(
+    "script, args, figure",
+    [
+        ("ldh_image.py", ["--samples", "20000"], "ldh_image.png"),
+        ("lidar_vad.py", ["--samples", "20000"], "lidar_vad.png"),
+        ("dcs_fit.py", ["--samples", "20000"], "dcs_fit.png"),
+        ("mie_table.py", [], "mie_table.png"),
+    ],
+)
+def test_gallery_examples_run(tmp_path, script, args, figure):
+    """Every example of python/examples/ runs (at reduced samples) and writes its figure."""
+    path = ROOT / "python" / "examples" / script
+    env = dict(os.environ, MPLBACKEND="Agg")
+    p = subprocess.run([sys.executable, str(path), *args, str(tmp_path)], capture_output=True, text=True, env=env, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / figure).read_bytes().startswith(b"\x89PNG")
