@@ -539,6 +539,7 @@ fn kill_once_written(cwd: &Path, args: &[String], file: &Path) -> std::process::
 /// A run killed with SIGKILL after a checkpoint finishes with `--resume` (on another thread
 /// count) exactly as an uninterrupted run: every `.npy` byte-identical, the same estimates.
 #[test]
+#[ignore = "deep tier (tens of seconds to minutes): bash .ci/deep"]
 fn resume_after_sigkill_equals_an_uninterrupted_run() {
     let tmp = tempfile::tempdir().unwrap();
     let (whole, killed) = (tmp.path().join("whole"), tmp.path().join("killed"));
@@ -666,6 +667,7 @@ fn assert_same_run(a: &Path, b: &Path) -> usize {
 /// order, and a camera-estimated LDH camera (camera paths by batch and pixel). Mismatched,
 /// missing, repeated and truncated shards are refused (exit 2, nothing written).
 #[test]
+#[ignore = "deep tier (tens of seconds to minutes): bash .ci/deep"]
 fn shards_merge_into_a_single_run() {
     let tmp = tempfile::tempdir().unwrap();
     let retina = repo().join("configs/retina_ldh.toml");

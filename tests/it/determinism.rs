@@ -3,6 +3,7 @@
 use ohd::io::write::manifest::{Invocation, write_run};
 
 #[test]
+#[ignore = "deep tier (tens of seconds to minutes): bash .ci/deep"]
 fn one_and_two_threads_write_identical_outputs() {
     for (name, text) in [
         ("default", ohd::DEFAULT_CONFIG),

@@ -419,13 +419,13 @@ def test_converge_writes_the_study(tmp_path):
 
 
 def test_result_shows_itself_in_jupyter():
-    r = ohd.run(samples=2000, seed=1, progress=False)
+    r = ohd.run(samples=3200, seed=1, progress=False)
     page = r._repr_html_()
-    assert page.startswith("<div><b>ohd.Result</b>") and "2000 paths" in page
+    assert page.startswith("<div><b>ohd.Result</b>") and f"{r.manifest['samples']} paths" in page
     # The main output's figure inline, and every scalar estimate in the table.
     assert r.main_figure() is not None and r.main_figure().startswith(b"\x89PNG")
     assert "data:image/png;base64," in page and "reflectance_diffuse" in page and "<table>" in page
-    assert "data:image/png" not in ohd.run(samples=2000, seed=1, progress=False, figures=False)._repr_html_()
+    assert "data:image/png" not in ohd.run(samples=3200, seed=1, progress=False, figures=False)._repr_html_()
 
 
 def test_api_reference_is_current_and_complete():

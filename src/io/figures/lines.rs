@@ -175,6 +175,9 @@ fn pad((lo, hi): (f64, f64), log: bool, margin: f64) -> (f64, f64) {
             return (1.0, 10.0);
         }
         let (a, b) = pad((lo.log10(), hi.log10()), false, margin);
+        // Ticks fall on powers of ten: an axis holding fewer than two of them is widened to the
+        // decades around its data (issue 37: converge.png had a single tick, or none).
+        let (a, b) = if b.floor() - a.ceil() < 1.0 { (a.floor(), b.ceil().max(a.floor() + 1.0)) } else { (a, b) };
         return (10f64.powf(a), 10f64.powf(b));
     }
     if !(lo.is_finite() && hi.is_finite()) || lo > hi {
@@ -372,7 +375,7 @@ impl LinePlot {
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(self.legend_corner(xr, yr))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(160, 160, 160))
             .label_font((FAMILY, 14))
@@ -385,6 +388,61 @@ impl LinePlot {
             ))?;
         }
         Ok(())
+    }
+}
+
+impl LinePlot {
+    /// The corner of the plot whose legend covers the fewest drawn points (issue 37: legends over
+    /// the data): the legend's box estimated from its entries (27 px each, 8 px a character, in
+    /// the plot area of this size), the curves sampled along their segments in the axes' own
+    /// (linear or log) coordinates; ties go to the upper right, then upper left, lower right,
+    /// lower left.
+    fn legend_corner(&self, xr: (f64, f64), yr: (f64, f64)) -> SeriesLabelPosition {
+        let labels: Vec<&str> = self
+            .curves
+            .iter()
+            .map(|c| c.label.as_str())
+            .chain(self.spans.iter().map(|s| s.label.as_str()))
+            .chain(self.vlines.iter().map(|v| v.label.as_str()))
+            .filter(|l| !l.is_empty())
+            .collect();
+        let note = if self.note.is_empty() { 0.0 } else { 26.0 };
+        let (pw, ph) = ((self.size.0 as f64 - 130.0).max(100.0), (self.size.1 as f64 - 150.0 - note).max(100.0));
+        let widest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+        // Measured on the drawn figures: about 27 px an entry and 8 px a character.
+        let w = ((widest * 8.0 + 60.0) / pw).min(0.6);
+        let h = ((labels.len() as f64 * 27.0 + 20.0) / ph).min(0.9);
+        let unit = |v: f64, (lo, hi): (f64, f64), log: bool| {
+            if log { (v.ln() - lo.ln()) / (hi.ln() - lo.ln()) } else { (v - lo) / (hi - lo) }
+        };
+        let to_unit = |(x, y): (f64, f64)| (unit(x, xr, self.log_x), unit(y, yr, self.log_y));
+        let corners = [
+            (SeriesLabelPosition::UpperRight, (1.0 - w, 1.0), (1.0 - h, 1.0)),
+            (SeriesLabelPosition::UpperLeft, (0.0, w), (1.0 - h, 1.0)),
+            (SeriesLabelPosition::LowerRight, (1.0 - w, 1.0), (0.0, h)),
+            (SeriesLabelPosition::LowerLeft, (0.0, w), (0.0, h)),
+        ];
+        let mut covered = [0usize; 4];
+        let shown = |p: &(f64, f64)| self.shown(p.0, false) && self.shown(p.1, true);
+        for c in &self.curves {
+            let pts: Vec<(f64, f64)> = c.points().filter(shown).map(to_unit).collect();
+            // Each segment sampled at 8 points, so that a sparse curve's lines count too.
+            let samples = pts.windows(2).flat_map(|s| {
+                (0..8).map(move |k| {
+                    let t = k as f64 / 8.0;
+                    (s[0].0 + t * (s[1].0 - s[0].0), s[0].1 + t * (s[1].1 - s[0].1))
+                })
+            });
+            for (u, v) in samples.chain(pts.last().copied()) {
+                for (k, (_, xs, ys)) in corners.iter().enumerate() {
+                    if (xs.0..=xs.1).contains(&u) && (ys.0..=ys.1).contains(&v) {
+                        covered[k] += 1;
+                    }
+                }
+            }
+        }
+        let best = (0..4).min_by_key(|&k| (covered[k], k)).unwrap_or(0);
+        corners[best].0.clone()
     }
 }
 

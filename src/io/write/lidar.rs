@@ -301,19 +301,22 @@ fn gate_spectra_plot<'a>(
     let to_db = |p: &[f64]| -> Vec<f64> { p.iter().map(|&v| db(v)).collect() };
     let title = format!("{who}: gate spectra");
     let mut plot = LinePlot::new(title, "radial velocity (m/s), + receding", "dB re pulse energy per bin");
-    plot.note =
-        format!("pulse energy {}, efficiency η = {:.2}", crate::describe::energy(spec.pulse_energy), spec.efficiency());
+    plot.note = format!(
+        "all light; lighter: the same gate's multiple scattering; pulse energy {}, efficiency η = {:.2}",
+        crate::describe::energy(spec.pulse_energy),
+        spec.efficiency()
+    );
     for (i, &g) in chosen.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         plot.curves.push(Curve::line(
-            format!("{:.0} m total", range[g]),
+            format!("gate at {:.0} m", range[g]),
             velocity.to_vec(),
             to_db(spectrum(0, g)),
             color,
         ));
-        let multiple =
-            Curve::line(format!("{:.0} m multiple", range[g]), velocity.to_vec(), to_db(spectrum(2, g)), tint(color));
-        plot.curves.push(multiple);
+        // The same gate's multiply scattered light, in its lighter colour (said in the note; its
+        // own legend entries made the legend cover the spectra).
+        plot.curves.push(Curve::line("", velocity.to_vec(), to_db(spectrum(2, g)), tint(color)));
     }
     let floor_db = db(spec.noise_floor_per_bin());
     plot.y_range = db_range(plot.curves.iter().flat_map(|c| &c.y), MAP_RANGE_DB).map(|(lo, hi)| {
@@ -323,11 +326,16 @@ fn gate_spectra_plot<'a>(
     floor.mark = crate::io::figures::lines::Mark::Dashed;
     plot.curves.push(floor);
     let (lo, _) = plot.y_range.unwrap_or((f64::NEG_INFINITY, 0.0));
+    // (A multiple-scattering curve is named after its gate's total, the curve before it.)
     let hidden: Vec<String> = plot
         .curves
         .iter()
-        .filter(|c| !c.y.iter().any(|&y| y.is_finite() && y >= lo))
-        .map(|c| c.label.clone())
+        .enumerate()
+        .filter(|(_, c)| !c.y.iter().any(|&y| y.is_finite() && y >= lo))
+        .map(|(i, c)| match c.label.as_str() {
+            "" => format!("{}, multiple", plot.curves[i - 1].label),
+            label => label.to_string(),
+        })
         .collect();
     if !hidden.is_empty() {
         plot.note = format!("{}; not drawn (below the range or no power): {}", plot.note, hidden.join(", "));
