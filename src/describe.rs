@@ -93,7 +93,7 @@ pub fn energy(v: f64) -> String {
 
 /// A number with up to four significant digits and no trailing zeros; in scientific notation
 /// outside 10⁻⁴ … 10⁷.
-fn num(v: f64) -> String {
+pub fn num(v: f64) -> String {
     if v == 0.0 {
         return "0".into();
     }

@@ -397,6 +397,7 @@ def run(
     out: Union[None, str, "os.PathLike[str]"] = None,
     progress: Union[bool, Report] = True,
     figures: bool = True,
+    grids: Optional[Mapping[str, Any]] = None,
 ) -> Result:
     """Run an experiment, as `ohd run` does, and return its outputs in memory.
 
@@ -409,6 +410,11 @@ def run(
     progress   True: a progress line on a terminal or in Jupyter; False: none; or a callable
                `progress(done_paths, total_paths)` called about every 50 ms.
     figures    write the PNG/SVG figures (as the CLI; False as `--no-figures`).
+    grids      NumPy volumes by name, for a dict `config` whose `density` or `velocity` tables
+               say `{"type": "npy", "array": NAME, "voxel_size_um": …}`: `array[i, j, k]` is voxel
+               (i, j, k) along x, y, z (a density of shape (nx, ny, nz); a velocity in m/s of
+               shape (nx, ny, nz, 3)). They run as `.npy` files given by `file` would, the same
+               grids an OpenVDB file gives (configs/README.md, "NumPy volumes").
 
     Returns a `Result` (`estimates`, `outputs`/`result[name]`, `manifest`, `files`, `save()`).
     For the same configuration and seed the arrays are the bytes `ohd run --out` writes.
@@ -419,6 +425,13 @@ def run(
     `interrupted` gives the batches done and planned; with `out`, that result is written there);
     a second Ctrl-C stops at once, with nothing kept.
     """
+    if grids is not None:
+        if not isinstance(config, Mapping):
+            raise TypeError("run(…, grids=…): give the configuration as a dict whose volumes name the arrays")
+        with tempfile.TemporaryDirectory(prefix="ohd-grids-") as tmp:
+            config = _with_grid_files(config, grids, Path(tmp))
+            exp = check(config, overrides=_sets(overrides, samples, seed, threads))
+            return _run(exp, out, _reporter(progress), figures)
     if isinstance(config, Experiment):
         if overrides is not None or samples is not None or seed is not None or threads is not None:
             raise TypeError("run(Experiment, …): give overrides, samples, seed, threads to check() instead")
@@ -426,6 +439,40 @@ def run(
     else:
         exp = check(config, overrides=_sets(overrides, samples, seed, threads))
     return _run(exp, out, _reporter(progress), figures)
+
+
+def _with_grid_files(config: Mapping[str, Any], grids: Mapping[str, Any], tmp: Path) -> Dict[str, Any]:
+    """A copy of `config` whose `{"type": "npy", "array": NAME}` tables name `.npy` files in `tmp`
+    holding `grids[NAME]` (float32), each written once."""
+    written: Dict[str, str] = {}
+    used = set()
+
+    def walk(v: Any, key: str) -> Any:
+        if isinstance(v, Mapping):
+            out = {k: walk(x, f"{key}.{k}" if key else str(k)) for k, x in v.items()}
+            if out.get("type") == "npy" and "array" in out:
+                name = out.pop("array")
+                if name not in grids:
+                    given = ", ".join(map(str, grids)) or "none"
+                    err = ConfigError(f"config error: {key}.array: = {name!r}: no such array in grids (given: {given})")
+                    err.key = f"{key}.array"  # type: ignore[attr-defined]
+                    raise err
+                if name not in written:
+                    path = tmp / f"grid_{len(written)}.npy"
+                    np.save(path, np.asarray(grids[name], dtype=np.float32))
+                    written[name] = str(path)
+                used.add(name)
+                out["file"] = written[name]
+            return out
+        if isinstance(v, list):
+            return [walk(x, f"{key}.{i}") for i, x in enumerate(v)]
+        return v
+
+    result = walk(config, "")
+    unused = set(grids) - used
+    if unused:
+        raise ValueError(f"grids: {', '.join(sorted(map(str, unused)))} not named by any `array` of the configuration")
+    return result
 
 
 def _run(exp: Experiment, out, report, figures: bool) -> Result:

@@ -52,6 +52,7 @@ def run(
     out: Optional[Path] = ...,
     progress: Union[bool, Report] = ...,
     figures: bool = ...,
+    grids: Optional[Mapping[str, Any]] = ...,
 ) -> Result: ...
 def sweep(
     config: Config,

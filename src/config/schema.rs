@@ -416,6 +416,25 @@ pub enum DensitySection {
         /// Edge of a majorant cell in voxels (default 4).
         majorant_cell_voxels: Option<u64>,
     },
+    /// A float volume from a NumPy `.npy` file: `array[i, j, k]` is voxel `(i, j, k)` along x, y
+    /// and z (shape `(nx, ny, nz)`, float32 or float64, C or Fortran order), 0 outside it; read
+    /// as an OpenVDB grid is (the same majorant grid and lookup).
+    Npy {
+        /// The `.npy` file, relative to the config file.
+        file: String,
+        /// The voxels' edge (cubic voxels).
+        #[serde(rename = "voxel_size_um", alias = "voxel_size_mm", alias = "voxel_size_m")]
+        voxel_size: Option<Quantity<Length>>,
+        /// Where the centre of voxel (0, 0, 0) lies (default the origin).
+        #[serde(rename = "translate_um", alias = "translate_mm", alias = "translate_m")]
+        translate: Option<Quantity<Length, [f64; 3]>>,
+        /// "trilinear" (default) or "nearest".
+        interpolation: Option<InterpolationSection>,
+        /// "grid" (default: per-cell bounds) or "global" (one bound for the whole grid).
+        majorant: Option<MajorantSection>,
+        /// Edge of a majorant cell in voxels (default: chosen per grid).
+        majorant_cell_voxels: Option<u64>,
+    },
 }
 
 /// How a grid is read between its voxel points.
@@ -616,6 +635,20 @@ pub enum VelocitySection {
         /// Moves the grid after scaling.
         #[serde(rename = "translate_um", alias = "translate_mm", alias = "translate_m")]
         translate: Option<Quantity<Length, [f64; 3]>>,
+    },
+    /// A velocity volume (m/s) from a NumPy `.npy` file of shape `(nx, ny, nz, 3)`, placed as a
+    /// `density = { type = "npy" }` is.
+    Npy {
+        /// The `.npy` file, relative to the config file.
+        file: String,
+        /// The voxels' edge (cubic voxels).
+        #[serde(rename = "voxel_size_um", alias = "voxel_size_mm", alias = "voxel_size_m")]
+        voxel_size: Option<Quantity<Length>>,
+        /// Where the centre of voxel (0, 0, 0) lies (default the origin).
+        #[serde(rename = "translate_um", alias = "translate_mm", alias = "translate_m")]
+        translate: Option<Quantity<Length, [f64; 3]>>,
+        /// "trilinear" (default) or "nearest".
+        interpolation: Option<InterpolationSection>,
     },
 }
 

@@ -142,6 +142,16 @@ impl Scene {
         }
     }
 
+    /// The `[wind]` the scene's particles are carried by (the first population moved by it), for
+    /// figures that set a retrieved wind against it.
+    pub fn wind(&self) -> Option<&crate::flow::WindProfile> {
+        use crate::flow::VelocityField;
+        self.media.iter().flat_map(|m| m.populations()).find_map(|p| match &p.velocity {
+            VelocityField::Wind(w) | VelocityField::TerminalFall { wind: w, .. } => Some(w),
+            _ => None,
+        })
+    }
+
     /// Whether any particle in the scene moves (otherwise no Doppler term is computed at all).
     pub fn is_moving(&self) -> bool {
         self.media.iter().any(|m| m.is_dynamic())

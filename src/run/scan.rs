@@ -123,7 +123,15 @@ impl Scan {
         if pointings.len() > 1 && self.velocities.len() == pointings.len() {
             let gates = crate::scan::vad_per_gate(pointings, exp.source.position.z, &self.ranges, &self.velocities);
             let path = out.dir().join(VAD);
-            crate::io::write::scan::write_scan(out, pointings, &self.runs, &gates, figures, &self.timings)?;
+            crate::io::write::scan::write_scan(
+                out,
+                pointings,
+                &self.runs,
+                &gates,
+                exp.scene.wind(),
+                figures,
+                &self.timings,
+            )?;
             obs.event(Event::VadWritten { path: &path, timing: &Timing::sum(&self.timings) });
             return Ok(Some(gates));
         }

@@ -22,6 +22,7 @@ mod lateral;
 mod ldh;
 mod lidar;
 mod mie;
+mod npy_volume;
 mod outputs;
 mod phase_table;
 mod pixel_speckle;

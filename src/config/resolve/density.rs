@@ -12,7 +12,7 @@ use crate::error::ConfigError;
 use crate::medium::density::{
     CellSize, Density, DensityInfo, GridDensity, GridError, Interpolation, MajorantKind, MajorantSpec, Placement, Ramp,
 };
-use crate::medium::grid::VoxelGrid;
+use crate::medium::grid::{IndexTransform, VoxelGrid};
 use crate::medium::{Heterogeneity, Medium};
 
 /// A grid's placement from its keys `scale` and `translate_*` under `path`.
@@ -88,7 +88,27 @@ pub(super) fn check_density_keys(path: &str, d: &DensitySection, sigma_t: f64, c
             resolve_placement(path, *scale, translate)?;
             resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t).map(drop)
         }
+        DensitySection::Npy { voxel_size, translate, majorant, majorant_cell_voxels, .. } => {
+            npy_transform(path, voxel_size, translate)?;
+            resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t).map(drop)
+        }
     }
+}
+
+/// Where a `.npy` volume's voxels lie: its `voxel_size_*` (required, > 0) and `translate_*` (the
+/// centre of voxel (0, 0, 0)).
+pub(super) fn npy_transform(
+    path: &str,
+    voxel_size: &Option<Quantity<Length>>,
+    translate: &Option<Quantity<Length, [f64; 3]>>,
+) -> R<IndexTransform> {
+    let (size, key, shown) = require(path, "voxel_size", voxel_size, "the voxels' edge")?;
+    if !(size > 0.0 && size.is_finite()) {
+        let unit = unit_of(&key);
+        return err(key, format!("= {shown}: expected a voxel edge > 0 {unit}"));
+    }
+    let translation = resolve_placement(path, None, translate)?.translation;
+    Ok(IndexTransform { voxel_size: DVec3::splat(size), translation })
 }
 
 fn majorant_kind(m: Option<MajorantSection>) -> MajorantKind {
@@ -153,6 +173,15 @@ fn resolve_density_field(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx
             )?;
             h.info.kind = "vdb".into();
             h.info.source = Some(format!("{file}:{}", grid.as_deref().unwrap_or("(first float grid)")));
+            Ok(h)
+        }
+        DensitySection::Npy { file, voxel_size, translate, interpolation: i, majorant, majorant_cell_voxels } => {
+            let transform = npy_transform(path, voxel_size, translate)?;
+            let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t)?;
+            let grid = super::GridFiles::npy::<f32, 1>(path, (ctx.base, &ctx.memory), file, transform, 2, |v| v[0])?;
+            let mut h = grid_heterogeneity(path, grid, None, Placement::default(), interpolation(*i), majorant)?;
+            h.info.kind = "npy".into();
+            h.info.source = Some(file.clone());
             Ok(h)
         }
         DensitySection::Ramp { axis, from, to, density_from, density_to, majorant } => {

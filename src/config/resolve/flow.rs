@@ -11,7 +11,8 @@ use crate::config::schema::*;
 use crate::config::units::{Speed, UnitSet};
 use crate::error::ConfigError;
 use crate::flow::{FallSpeeds, VON_KARMAN, VelocityField, WindProfile, atlas_fall_speed};
-use crate::medium::density::GridField;
+use crate::medium::density::{GridField, Placement};
+use crate::medium::grid::VoxelGrid;
 use crate::medium::{Motion, Shape, stokes_einstein};
 
 /// What a velocity field may draw on besides its own keys: the region's cylinder (Poiseuille), the
@@ -61,6 +62,9 @@ pub(super) fn check_velocity(path: &str, v: &VelocitySection) -> R<()> {
         VelocitySection::None {} | VelocitySection::Wind {} | VelocitySection::TerminalFall {} => Ok(()),
         // Its placement's numbers (the file is not read for an unused medium).
         VelocitySection::Vdb { scale, translate, .. } => resolve_placement(path, *scale, translate).map(drop),
+        VelocitySection::Npy { voxel_size, translate, .. } => {
+            super::density::npy_transform(path, voxel_size, translate).map(drop)
+        }
         VelocitySection::Uniform { velocity } => {
             let Some(q) = velocity else { return Ok(()) };
             let (v, key) = require_arr(path, "velocity", velocity, "the velocity vector")?;
@@ -144,39 +148,58 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             }
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
+        VelocitySection::Npy { file, voxel_size, translate, interpolation: i } => {
+            let transform = super::density::npy_transform(path, voxel_size, translate)?;
+            let g = super::GridFiles::npy::<[f32; 3], 3>(path, (fc.base, fc.memory), file, transform, 1, |v| {
+                [v[0], v[1], v[2]]
+            })?;
+            grid_velocity(path, file, Arc::new(g), interpolation(*i), Placement::default())?
+        }
         VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {
             let g = fc.files.vec3(path, (fc.base, fc.memory), file, grid.as_deref())?;
             let place = resolve_placement(path, *scale, translate)?;
-            if !g.background.iter().all(|c| c.is_finite()) {
-                return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));
-            }
-            if let Some(o) = g.data.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
-                let ijk = g.index_of(o);
-                return err(join(path, "file"), format!("{file}: voxel {ijk:?} of the velocity grid is not finite"));
-            }
-            let speed = |v: &[f32; 3]| DVec3::new(v[0].into(), v[1].into(), v[2].into()).length();
-            if speed(&g.background) >= SPEED_LIMIT {
-                return err(
-                    join(path, "file"),
-                    format!(
-                        "{file}: the velocity grid's background, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
-                        g.background
-                    ),
-                );
-            }
-            if let Some(o) = g.data.iter().position(|v| speed(v) >= SPEED_LIMIT) {
-                return err(
-                    join(path, "file"),
-                    format!(
-                        "{file}: voxel {:?} of the velocity grid, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
-                        g.index_of(o),
-                        g.data[o]
-                    ),
-                );
-            }
-            VelocityField::Grid(Arc::new(GridField::new(g, interpolation(*i), place)))
+            grid_velocity(path, file, g, interpolation(*i), place)?
         }
     })
+}
+
+/// A velocity field from the voxel grid `g` of `file` (a `.vdb` or `.npy`; `path` its key),
+/// checked: finite, and below the speed of light everywhere.
+fn grid_velocity(
+    path: &str,
+    file: &str,
+    g: Arc<VoxelGrid<[f32; 3]>>,
+    interp: crate::medium::density::Interpolation,
+    place: Placement,
+) -> R<VelocityField> {
+    if !g.background.iter().all(|c| c.is_finite()) {
+        return err(join(path, "file"), format!("{file}: the velocity grid's background is not finite"));
+    }
+    if let Some(o) = g.data.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+        let ijk = g.index_of(o);
+        return err(join(path, "file"), format!("{file}: voxel {ijk:?} of the velocity grid is not finite"));
+    }
+    let speed = |v: &[f32; 3]| DVec3::new(v[0].into(), v[1].into(), v[2].into()).length();
+    if speed(&g.background) >= SPEED_LIMIT {
+        return err(
+            join(path, "file"),
+            format!(
+                "{file}: the velocity grid's background, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
+                g.background
+            ),
+        );
+    }
+    if let Some(o) = g.data.iter().position(|v| speed(v) >= SPEED_LIMIT) {
+        return err(
+            join(path, "file"),
+            format!(
+                "{file}: voxel {:?} of the velocity grid, {:?} m/s, is not below the speed of light, c = {SPEED_LIMIT} m/s (a physical bound)",
+                g.index_of(o),
+                g.data[o]
+            ),
+        );
+    }
+    Ok(VelocityField::Grid(Arc::new(GridField::new(g, interp, place))))
 }
 
 /// `[wind]`: the wind profile.

@@ -478,6 +478,62 @@ struct GridFiles {
 type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>;
 
 impl GridFiles {
+    /// The `.npy` volume `file` (relative to `base`) as a voxel grid of `C` components per voxel
+    /// (1: a density, a `(nx, ny, nz)` array; 3: a velocity, `(nx, ny, nz, 3)`), indexed
+    /// `array[i, j, k]` = voxel `(i, j, k)` along x, y, z, with voxel `(0, 0, 0)`'s centre at
+    /// `transform.translation` and 0 outside the array. Counted in `memory` `copies` times (as a
+    /// VDB grid, [`GridFiles::get`]); errors name `key`.
+    fn npy<T: Copy + Default, const C: usize>(
+        key: &str,
+        (base, memory): (&Path, &Memory),
+        file: &str,
+        transform: crate::medium::grid::IndexTransform,
+        copies: u64,
+        voxel: impl Fn(&[f32]) -> T,
+    ) -> R<VoxelGrid<T>> {
+        let path = base.join(file);
+        let key = join(key, "file");
+        // (A float64 file is twice the float32 grid it becomes, plus its header.)
+        let limit = memory.remaining().saturating_mul(2).saturating_add(4096);
+        let a = crate::io::formats::npy::read_floats_file(&path, limit).map_err(|m| ConfigError::new(&key, m))?;
+        let expected = if C == 1 { "(nx, ny, nz)" } else { "(nx, ny, nz, 3)" };
+        let shape_ok = a.shape.len() == if C == 1 { 3 } else { 4 } && (C == 1 || a.shape[3] == 3);
+        let dims = [
+            a.shape.first().copied().unwrap_or(0),
+            a.shape.get(1).copied().unwrap_or(0),
+            a.shape.get(2).copied().unwrap_or(0),
+        ];
+        if !shape_ok || dims.iter().any(|&d| d == 0 || d > i32::MAX as usize) {
+            return err(
+                &key,
+                format!("{}: an array of shape {:?}: expected {expected}, each size ≥ 1", path.display(), a.shape),
+            );
+        }
+        memory.charge(
+            &key,
+            &format!("= \"{file}\""),
+            &format!("the volume {file}"),
+            &format!(
+                "{} bytes per voxel{}",
+                std::mem::size_of::<T>(),
+                if copies > 1 { format!(", {copies} copies while resolving") } else { String::new() }
+            ),
+            (a.values.len() / C * std::mem::size_of::<T>()) as u64 * copies,
+        )?;
+        let mut g = VoxelGrid::new([0, 0, 0], dims, T::default(), transform);
+        let [nx, ny, nz] = dims;
+        // C order `[i][j][k]` (k fastest) into the grid's x-fastest block.
+        for i in 0..nx {
+            for j in 0..ny {
+                for k in 0..nz {
+                    let at = ((i * ny + j) * nz + k) * C;
+                    g.data[(k * ny + j) * nx + i] = voxel(&a.values[at..at + C]);
+                }
+            }
+        }
+        Ok(g)
+    }
+
     /// The float grid `grid` (or the first) of `file` (relative to `base`); errors name `key`.
     /// Counted in `memory` `copies` times (see [`GridFiles::get`]).
     fn float(

@@ -77,6 +77,8 @@ pub struct LinePlot {
     pub log_y: bool,
     /// Fixed y range (else from the data); non-finite or empty counts as none.
     pub y_range: Option<(f64, f64)>,
+    /// Fixed x range (a zoom onto narrow lines; else from the data), likewise.
+    pub x_range: Option<(f64, f64)>,
     /// A line of text under the plot (what was left out, how the range was chosen).
     pub note: String,
     pub size: (u32, u32),
@@ -109,6 +111,7 @@ impl LinePlot {
             log_x: false,
             log_y: false,
             y_range: None,
+            x_range: None,
             note: String::new(),
             size: SIZE,
         }
@@ -163,7 +166,14 @@ impl LinePlot {
             .y_range
             .map(|(a, b)| (a.min(b), a.max(b)))
             .filter(|&(a, b)| self.shown(a, true) && self.shown(b, true) && b > a && (b - a).is_finite());
-        (bound(pad(xs, self.log_x, 0.0)), bound(fixed.unwrap_or_else(|| pad(ys, self.log_y, 0.05))))
+        let fixed_x = self
+            .x_range
+            .map(|(a, b)| (a.min(b), a.max(b)))
+            .filter(|&(a, b)| self.shown(a, false) && self.shown(b, false) && b > a && (b - a).is_finite());
+        // A log axis gets 2 % of its decades each side: a tick on the data's edge (the 1 µs of a
+        // DCS K(T)) is otherwise lost to rounding at the boundary (issue 37).
+        let xs = fixed_x.unwrap_or_else(|| pad(xs, self.log_x, if self.log_x { 0.02 } else { 0.0 }));
+        (bound(xs), bound(fixed.unwrap_or_else(|| pad(ys, self.log_y, 0.05))))
     }
 }
 

@@ -92,15 +92,18 @@ pub fn symmetric_range(values: &[f64]) -> (f64, f64) {
     if m > 0.0 { (-m, m) } else { (-1.0, 1.0) }
 }
 
-/// The power of 1000 that brings `|x|` into [1, 1000), for scaled tick labels: `(factor,
-/// suffix)` with values to be multiplied by `factor` and the suffix (`"×10⁻⁶"`) for the label;
-/// `(1, "")` for 0.01 ≤ |x| < 10⁴ and for 0 or non-finite.
+/// The power of ten that brings `|x|` into [1, 10), for scaled tick labels: `(factor, suffix)`
+/// with values to be multiplied by `factor` and the suffix (`"×10⁻⁷"`) for the label; `(1, "")`
+/// for 0.01 ≤ |x| < 10⁴ and for 0 or non-finite. (Powers of 1000 left ticks in the hundreds
+/// under a `×10⁻¹²`, issue 37.)
 pub fn engineering(x: f64) -> (f64, String) {
     let a = x.abs();
     if !(a.is_finite() && a > 0.0) || (1e-2..1e4).contains(&a) {
         return (1.0, String::new());
     }
-    let e = 3 * (a.log10() / 3.0).floor() as i32;
+    let e = a.log10().floor() as i32;
+    // (log10 of a power of ten may round below it: keep the mantissa in [1, 10).)
+    let e = if a * 10f64.powi(-e) >= 10.0 { e + 1 } else { e };
     (10f64.powi(-e), format!("×10{}", superscript(e)))
 }
 
@@ -176,9 +179,14 @@ mod tests {
 
     #[test]
     fn labels_and_units() {
-        assert_eq!(engineering(3.2e-7), (1e9, "×10⁻⁹".into()));
+        assert_eq!(engineering(3.2e-7), (1e7, "×10⁻⁷".into()));
         assert_eq!(engineering(0.5).0, 1.0);
-        assert_eq!(engineering(2.5e5).1, "×10³");
+        assert_eq!(engineering(2.5e5).1, "×10⁵");
+        assert_eq!(engineering(3.6e-10).1, "×10⁻¹⁰");
+        for x in [1e-7, 9.99e-7, 1e5, 4.2e-12] {
+            let m = x * engineering(x).0;
+            assert!((1.0..10.0).contains(&m), "{x}: {m}");
+        }
         assert_eq!(tick_label(0.25, 0.05), "0.25");
         assert_eq!(tick_label(-30.0, 10.0), "-30");
         assert_eq!(tick_label(2e-6, 1e-6), "2e-6");

@@ -1,4 +1,6 @@
-//! NumPy `.npy` (format 1.0) for little-endian `f64` arrays in C order.
+//! NumPy `.npy`: written as format 1.0, little-endian `f64` in C order ([`to_bytes`]); read as
+//! any format version of little-endian `f4`/`f8` arrays in C or Fortran order ([`read_floats`]:
+//! the density and velocity volumes of a scene, `density = { type = "npy", … }`).
 
 /// The bytes of a `.npy` file holding `data` with the given `shape`.
 pub fn to_bytes(shape: &[usize], data: &[f64]) -> Vec<u8> {
@@ -42,6 +44,122 @@ pub fn from_bytes(bytes: &[u8]) -> Option<(Vec<usize>, Vec<f64>)> {
     Some((shape, body.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect()))
 }
 
+/// A `.npy` array of floats read whole: its shape and its values as `f32`, in C order (the last
+/// index fastest), whatever the file's order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloatArray {
+    pub shape: Vec<usize>,
+    pub values: Vec<f32>,
+}
+
+/// Read the bytes of a `.npy` file (format 1.0, 2.0 or 3.0) holding little-endian 32- or 64-bit
+/// floats (`<f4`, `<f8`) in C or Fortran order. An error says what the file holds instead, in
+/// words (a NumPy user reads `descr` `'<i8'` as "int64").
+pub fn read_floats(bytes: &[u8]) -> Result<FloatArray, String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("not a .npy file (no \\x93NUMPY magic)".into());
+    }
+    let (header, body) = match bytes[6] {
+        1 => {
+            let n = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+            (bytes.get(10..10 + n), bytes.get(10 + n..))
+        }
+        2 | 3 if bytes.len() >= 12 => {
+            let n = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize;
+            (bytes.get(12..12usize.saturating_add(n)), bytes.get(12usize.saturating_add(n)..))
+        }
+        v => return Err(format!(".npy format version {v}: expected 1, 2 or 3")),
+    };
+    let (Some(header), Some(body)) = (header, body) else { return Err("the .npy header is cut short".into()) };
+    let header = std::str::from_utf8(header).map_err(|_| "the .npy header is not text".to_string())?;
+    let field = |key: &str| -> Option<&str> {
+        let rest = header.split(&format!("'{key}':")).nth(1)?.trim_start();
+        Some(rest)
+    };
+    let descr = field("descr").and_then(|r| r.strip_prefix('\'')).and_then(|r| r.split('\'').next());
+    let size = match descr {
+        Some("<f4") => 4,
+        Some("<f8") => 8,
+        Some(other) => {
+            return Err(format!(
+                "dtype '{other}': expected little-endian float32 or float64 ('<f4' or '<f8'; convert with .astype(np.float32))"
+            ));
+        }
+        None => return Err("the .npy header has no 'descr'".into()),
+    };
+    let fortran = match field("fortran_order") {
+        Some(r) if r.starts_with("True") => true,
+        Some(r) if r.starts_with("False") => false,
+        _ => return Err("the .npy header has no 'fortran_order'".into()),
+    };
+    let dims = field("shape")
+        .and_then(|r| r.strip_prefix('('))
+        .and_then(|r| r.split(')').next())
+        .ok_or_else(|| "the .npy header has no 'shape'".to_string())?;
+    let shape: Vec<usize> = dims
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.trim_end_matches('L').parse::<usize>().map_err(|_| format!("shape entry {s:?} is not a size")))
+        .collect::<Result<_, _>>()?;
+    let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).ok_or("the shape's size overflows")?;
+    if body.len() != count.saturating_mul(size) {
+        return Err(format!(
+            "{} bytes of data for shape {shape:?} of {size}-byte floats: expected {}",
+            body.len(),
+            count.saturating_mul(size)
+        ));
+    }
+    let stored: Vec<f32> = if size == 4 {
+        body.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    } else {
+        body.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap_or([0; 8])) as f32).collect()
+    };
+    let values = if fortran && shape.len() > 1 { fortran_to_c(&shape, &stored) } else { stored };
+    Ok(FloatArray { shape, values })
+}
+
+/// [`read_floats`] of the file `path`, a regular file of at most `limit` bytes.
+pub fn read_floats_file(path: &std::path::Path, limit: u64) -> Result<FloatArray, String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{}: not a regular file: expected a .npy volume", path.display()));
+    }
+    if meta.len() > limit {
+        return Err(format!(
+            "{}: {} bytes, above the limit of {limit} bytes (what is left of run.memory_budget_gib)",
+            path.display(),
+            meta.len()
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    read_floats(&bytes).map_err(|m| format!("{}: {m}", path.display()))
+}
+
+/// Values stored in Fortran order (the first index fastest) rearranged into C order.
+fn fortran_to_c(shape: &[usize], stored: &[f32]) -> Vec<f32> {
+    let n = shape.len();
+    // Fortran strides: the first index fastest.
+    let mut strides = vec![1usize; n];
+    for a in 1..n {
+        strides[a] = strides[a - 1] * shape[a - 1];
+    }
+    let mut out = Vec::with_capacity(stored.len());
+    let mut index = vec![0usize; n];
+    for _ in 0..stored.len() {
+        out.push(stored[index.iter().zip(&strides).map(|(i, s)| i * s).sum::<usize>()]);
+        // The next C-order index: the last fastest.
+        for a in (0..n).rev() {
+            index[a] += 1;
+            if index[a] < shape[a] {
+                break;
+            }
+            index[a] = 0;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
@@ -53,5 +171,46 @@ mod tests {
             assert_eq!((10 + hlen) % 64, 0);
             assert_eq!(super::from_bytes(&b), Some((shape, data.to_vec())));
         }
+    }
+
+    /// `.npy` bytes of `values` (`<f4`) with `shape`, as NumPy writes them.
+    fn f4(shape: &str, fortran: bool, values: &[f32]) -> Vec<u8> {
+        let header = format!(
+            "{{'descr': '<f4', 'fortran_order': {}, 'shape': {shape}, }}\n",
+            if fortran { "True" } else { "False" }
+        );
+        let mut b = b"\x93NUMPY\x01\x00".to_vec();
+        b.extend((header.len() as u16).to_le_bytes());
+        b.extend(header.as_bytes());
+        b.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+        b
+    }
+
+    /// C and Fortran order give the same array; f8 reads as f32; a wrong dtype or size is an
+    /// error in words.
+    #[test]
+    fn floats_in_either_order() {
+        // a[i][j][k] = 100 i + 10 j + k, shape (2, 3, 2).
+        let c: Vec<f32> = (0..12).map(|n| (100 * (n / 6) + 10 * ((n / 2) % 3) + n % 2) as f32).collect();
+        let mut fo = vec![0.0; 12];
+        for i in 0..2 {
+            for j in 0..3 {
+                for k in 0..2 {
+                    fo[i + 2 * j + 6 * k] = (100 * i + 10 * j + k) as f32;
+                }
+            }
+        }
+        let a = super::read_floats(&f4("(2, 3, 2)", false, &c)).unwrap();
+        let b = super::read_floats(&f4("(2, 3, 2)", true, &fo)).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.shape, [2, 3, 2]);
+        assert_eq!(a.values[(3 + 2) * 2 + 1], 121.0);
+        let f8 = super::read_floats(&super::to_bytes(&[2, 2], &[1.5, -2.0, 3.0, 4.0])).unwrap();
+        assert_eq!(f8.values, [1.5, -2.0, 3.0, 4.0]);
+        let mut int = f4("(3,)", false, &[1.0, 2.0, 3.0]);
+        int[22] = b'i'; // '<f4' → '<i4'
+        assert!(super::read_floats(&int).unwrap_err().contains("expected little-endian float32"));
+        assert!(super::read_floats(&f4("(4,)", false, &[1.0, 2.0, 3.0])).unwrap_err().contains("expected 16"));
+        assert!(super::read_floats(b"not npy at all").is_err());
     }
 }

@@ -185,6 +185,29 @@ pub struct Channel<'a> {
     pub stderr: &'a [f64],
 }
 
+/// A channel's name as a figure shows it: the names of the outputs' channels
+/// (`single_doppler`, `order>=3`, `doppler_events=0`) in words (issue 37: legends showed code
+/// identifiers). Unknown names are shown as they are.
+pub fn channel_label(name: &str) -> String {
+    let plural = |n: &str, what: &str| if n == "1" { format!("{n} {what}") } else { format!("{n} {what}s") };
+    match name {
+        "static" => "static (no Doppler event)".into(),
+        "single_doppler" => "one Doppler event".into(),
+        "multiple_doppler" => "several Doppler events".into(),
+        _ => {
+            for (key, what) in [("order", "scattering event"), ("doppler_events", "Doppler event")] {
+                if let Some(n) = name.strip_prefix(key).and_then(|r| r.strip_prefix(">=")) {
+                    return format!("{} or more", plural(n, what));
+                }
+                if let Some(n) = name.strip_prefix(key).and_then(|r| r.strip_prefix('=')) {
+                    return plural(n, what);
+                }
+            }
+            name.replace('_', " ")
+        }
+    }
+}
+
 /// Spectra in dB with ±σ bands against frequency (`freq_hz`, bin centres): channels without any
 /// power are named in the note instead of drawn; the y range is [`DB_DEPTH`] below the peak.
 pub fn spectrum_plot(title: &str, freq_hz: &[f64], channels: &[Channel], y_label: &str) -> LinePlot {
@@ -195,13 +218,13 @@ pub fn spectrum_plot(title: &str, freq_hz: &[f64], channels: &[Channel], y_label
     for (i, c) in channels.iter().enumerate() {
         let finite = c.values.iter().filter(|v| **v > 0.0).count();
         if finite == 0 {
-            empty.push(c.name);
+            empty.push(channel_label(c.name));
             continue;
         }
         let y: Vec<f64> = c.values.iter().map(|&v| db(v)).collect();
         let lo: Vec<f64> = c.values.iter().zip(c.stderr).map(|(&v, &s)| db(v - s)).collect();
         let hi: Vec<f64> = c.values.iter().zip(c.stderr).map(|(&v, &s)| db(v + s)).collect();
-        let mut curve = Curve::line(c.name, x.clone(), y, PALETTE[i % PALETTE.len()]);
+        let mut curve = Curve::line(channel_label(c.name), x.clone(), y, PALETTE[i % PALETTE.len()]);
         curve.band = Some((lo, hi));
         // A channel in a few bins (the static light at 0 Hz) would be a dot: mark its points.
         if finite <= 3 {
@@ -211,6 +234,23 @@ pub fn spectrum_plot(title: &str, freq_hz: &[f64], channels: &[Channel], y_label
     }
     plot.y_range = db_range(plot.curves.iter().flat_map(|c| &c.y), DB_DEPTH);
     let mut notes = vec![format!("band: ±σ; y: {DB_DEPTH:.0} dB below the peak")];
+    // Lines narrower than a tenth of the axis (an FMCW target's beat lines: a bin or two each)
+    // are zoomed onto, with their surroundings (issue 37: two dots in an empty box).
+    if let Some((lo, _)) = plot.y_range {
+        let lit: Vec<f64> = plot
+            .curves
+            .iter()
+            .flat_map(|c| c.x.iter().zip(&c.y).filter(|(_, y)| y.is_finite() && **y >= lo).map(|(x, _)| *x))
+            .collect();
+        let (first, last) = lit.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        let (axis_lo, axis_hi) = (x.first().copied().unwrap_or(0.0), x.last().copied().unwrap_or(0.0));
+        let bin = if x.len() > 1 { (axis_hi - axis_lo) / (x.len() - 1) as f64 } else { 0.0 };
+        if first.is_finite() && bin > 0.0 && last - first < 0.1 * (axis_hi - axis_lo) {
+            let margin = (0.5 * (last - first)).max(8.0 * bin);
+            plot.x_range = Some(((first - margin).max(axis_lo), (last + margin).min(axis_hi)));
+            notes.push("x: zoomed onto the lines".into());
+        }
+    }
     if !empty.is_empty() {
         notes.push(format!("no power (not drawn): {}", empty.join(", ")));
     }
@@ -314,4 +354,28 @@ pub fn spectra_figures(
         w.figure(&stem(o), &spectrum_plot(&title, &freq, &channels, "power per bin (dB re emitted)"))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::channel_label;
+
+    /// Legends and titles name channels in words, never by their code identifiers.
+    #[test]
+    fn channels_are_named_in_words() {
+        for (name, label) in [
+            ("single_doppler", "one Doppler event"),
+            ("multiple_doppler", "several Doppler events"),
+            ("static", "static (no Doppler event)"),
+            ("order=1", "1 scattering event"),
+            ("order=2", "2 scattering events"),
+            ("order>=5", "5 scattering events or more"),
+            ("doppler_events=0", "0 Doppler events"),
+            ("doppler_events>=3", "3 Doppler events or more"),
+            ("total", "total"),
+        ] {
+            assert_eq!(channel_label(name), label);
+            assert!(!channel_label(name).contains(['_', '=']), "{name}");
+        }
+    }
 }

@@ -57,7 +57,7 @@ pub fn write_ldh(
         // `[class][M0+, M0−][pixel]`, as LdhSpec::declare lays them out.
         for (c, cname) in CLASS_NAMES.iter().enumerate() {
             for (k, (what, sign)) in [("m0_plus", "+"), ("m0_minus", "−")].into_iter().enumerate() {
-                let title = format!("M0{sign}, {} ({band})", cname.replace('_', " "));
+                let title = format!("M0{sign}, {} ({band})", super::figures::channel_label(cname));
                 image(w, classes + (2 * c + k) * lay.pixels, &format!("{what}_{cname}"), title, M0)?;
             }
         }
@@ -288,9 +288,35 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiS
     let window = Axis::linear("window", "", 0.0, 1.0, windows);
     let one = OutputEntry::made("periodogram", &[n], P, vec![f.clone()]);
     let draws = OutputEntry::made("speckle_windows", &[windows, n], P, vec![window, f]);
-    w.npy(file("periodogram"), &prep(&s.expected), one)?;
-    w.npy(file("speckle_algorithm1"), &prep(&s.algorithm1), draws.clone())?;
-    w.npy(file("speckle_algorithm2"), &prep(&s.algorithm2), draws)?;
+    let (expected, algorithm1, algorithm2) = (prep(&s.expected), prep(&s.algorithm1), prep(&s.algorithm2));
+    w.npy(file("periodogram"), &expected, one)?;
+    w.npy(file("speckle_algorithm1"), &algorithm1, draws.clone())?;
+    w.npy(file("speckle_algorithm2"), &algorithm2, draws)?;
+    // Their figures: the expected periodogram with one window of each algorithm over it, and
+    // every window of each algorithm as an image (issue 37: the speckle outputs had none).
+    // (Mirrored or not, row entry k is at the axis file's frequency ν_k.)
+    let f_axis = freqs;
+    let stem_of = |what: &str| file(what).trim_end_matches(".npy").to_string();
+    let title = format!("{name}, ROI {roi}: expected single-window periodogram");
+    let first = |rows: &[f64]| rows.get(..n).map(<[f64]>::to_vec).unwrap_or_default();
+    let (one1, one2) = (first(&algorithm1), first(&algorithm2));
+    let zero = vec![0.0; n];
+    let channels = [
+        Channel { name: "expected", values: &expected, stderr: &zero },
+        Channel { name: "one window, algorithm 1", values: &one1, stderr: &zero },
+        Channel { name: "one window, algorithm 2", values: &one2, stderr: &zero },
+    ];
+    let mut plot = spectrum_plot(&title, &f_axis, &channels, "power per STFT bin (dB re emitted)");
+    let (div, _) = frequency_unit(f_axis.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
+    mark_band(&mut plot, spec.band, div, "M0 band");
+    w.figure(&stem_of("periodogram"), &plot)?;
+    for (what, rows, how) in [
+        ("speckle_algorithm1", &algorithm1, "algorithm 1 (expected × Exp(1) per bin)"),
+        ("speckle_algorithm2", &algorithm2, "algorithm 2 (random phases per path)"),
+    ] {
+        let fig = speckle_windows_figure(&format!("{name}, ROI {roi}: {how}"), &f_axis, rows, windows);
+        w.figure(&stem_of(what), &fig)?;
+    }
     let sign = if spec.flip_sign { -1.0 } else { 1.0 };
     let summary = |rows: &[f64]| -> Value {
         let m0: Vec<(f64, f64)> = rows
@@ -331,6 +357,34 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiS
             "algorithm2": file("speckle_algorithm2"),
         },
     }))
+}
+
+/// The single windows of a speckle algorithm as an image: one row per window (the first at the
+/// top), frequency across, in dB re the largest bin, 40 dB deep (grey: no power).
+fn speckle_windows_figure(title: &str, freq_hz: &[f64], rows: &[f64], windows: usize) -> ImageFigure {
+    use crate::io::figures::image::Panel;
+    use crate::io::figures::scale::{Colormap, db};
+    let n = freq_hz.len().max(1);
+    let peak = rows.iter().fold(0.0_f64, |m, &v| m.max(v));
+    let values: Vec<f64> = rows.iter().map(|&v| if v > 0.0 && peak > 0.0 { db(v / peak) } else { f64::NAN }).collect();
+    let (div, unit) = frequency_unit(freq_hz.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
+    let half = if n > 1 { 0.5 * (freq_hz[n - 1] - freq_hz[0]) / (n - 1) as f64 } else { 0.5 };
+    let x = ((freq_hz[0] - half) / div, (freq_hz[n - 1] + half) / div);
+    let mut p = Panel::new(
+        title,
+        values,
+        (n, windows),
+        x,
+        (windows as f64, 0.0),
+        Colormap::Viridis,
+        (-40.0, 0.0),
+        "dB re the largest bin",
+    );
+    p.x_label = format!("frequency ({unit})");
+    p.y_label = "window".into();
+    p.equal = false;
+    p.caption = "each row one window's periodogram; grey: no power; 40 dB below the largest bin".into();
+    ImageFigure { panels: vec![p] }
 }
 
 /// The spectra of every pixel summed (the image's spectrum) and of its brightest pixel, in dB,

@@ -11,7 +11,7 @@ use crate::detect::lidar::LIDAR_CHANNELS;
 use crate::detect::{LidarLayout, LidarSpec};
 use crate::error::Result;
 use crate::io::figures::image::{ImageFigure, Panel};
-use crate::io::figures::lines::{Curve, LinePlot, PALETTE, db_range};
+use crate::io::figures::lines::{Curve, LinePlot, PALETTE, VLine, db_range};
 use crate::io::figures::scale::{Colormap, db};
 use crate::retrieval::{FIT_SELECTION_LEVEL, GateRetrieval, RetrievalError, radial_velocity};
 
@@ -55,7 +55,7 @@ pub fn write_lidar(
     let total = &mean[reg.at(lay.spectra).range()];
     let who = receiver_label(name, spec.axis);
     w.figure(&format!("{name}_range_doppler"), &range_doppler_figure(spec, &who, &range, total))?;
-    let plot = gate_spectra_plot(spec, &who, &range, &velocity, |c, g| spectrum(c, g).0);
+    let plot = gate_spectra_plot(spec, &who, &range, &velocity, retrievals, |c, g| spectrum(c, g).0);
     w.figure(&format!("{name}_gate_spectra"), &plot)?;
 
     // Per-gate energies (the lag sum D_0: pulse energy in the gate window, summed over paths),
@@ -291,6 +291,7 @@ fn gate_spectra_plot<'a>(
     who: &str,
     range: &[f64],
     velocity: &[f64],
+    retrievals: &[GateRetrieval],
     spectrum: impl Fn(usize, usize) -> &'a [f64],
 ) -> LinePlot {
     let gates = spec.gates;
@@ -317,6 +318,21 @@ fn gate_spectra_plot<'a>(
         // The same gate's multiply scattered light, in its lighter colour (said in the note; its
         // own legend entries made the legend cover the spectra).
         plot.curves.push(Curve::line("", velocity.to_vec(), to_db(spectrum(2, g)), tint(color)));
+    }
+    // The first plotted gate's fitted components (aerosol and rain: issue 37, the rain's
+    // component could not be seen), dashed at their mean radial velocities.
+    if let Some(Ok(choice)) = chosen.first().and_then(|&g| retrievals.get(g)).map(|r| &r.fit) {
+        let means: Vec<f64> =
+            choice.chosen().components.iter().map(|c| radial_velocity(c.mean_hz, spec.wavelength)).collect();
+        let listed: Vec<String> = means.iter().map(|v| format!("{v:+.2}")).collect();
+        for (i, &v) in means.iter().enumerate() {
+            let label = if i == 0 {
+                format!("fit, gate at {:.0} m: {} m/s", range[chosen[0]], listed.join(", "))
+            } else {
+                String::new()
+            };
+            plot.vlines.push(VLine { x: v, label, color: PALETTE[6] });
+        }
     }
     let floor_db = db(spec.noise_floor_per_bin());
     plot.y_range = db_range(plot.curves.iter().flat_map(|c| &c.y), MAP_RANGE_DB).map(|(lo, hi)| {

@@ -19,6 +19,7 @@ pub fn write_scan(
     pointings: &[Pointing],
     runs: &[String],
     gates: &[GateWind],
+    wind: Option<&crate::flow::WindProfile>,
     figures: bool,
     timings: &[Timing],
 ) -> Result<Value> {
@@ -77,7 +78,7 @@ pub fn write_scan(
     }
     out.put(VAD, csv.as_bytes())?;
     if figures {
-        out.figure(VAD_FIGURES[0], VAD_FIGURES[1], &wind_profile(gates))?;
+        out.figure(VAD_FIGURES[0], VAD_FIGURES[1], &wind_profile(gates, wind))?;
     }
     let scan = json!({
         "pointings": pointings.iter().zip(runs).enumerate().map(|(i, (p, r))| json!({
@@ -98,25 +99,44 @@ pub fn write_scan(
 }
 
 /// The VAD wind profile: east, north and vertical wind against height, each gate's value with
-/// its standard error as a horizontal error bar (gates without a fit left out).
-pub fn wind_profile(gates: &[GateWind]) -> LinePlot {
+/// its standard error as a horizontal error bar (gates without a fit left out), and dashed, the
+/// scene's `wind` at each gate's height. The vertical wind is drawn first, as markers, so that
+/// the north wind (also near 0 in a westerly) stays visible over it.
+pub fn wind_profile(gates: &[GateWind], wind: Option<&crate::flow::WindProfile>) -> LinePlot {
     let mut plot = LinePlot::new("VAD wind profile", "wind (m/s)", "height (m)");
     let names = ["u (east)", "v (north)", "w (up)"];
-    for (k, label) in names.iter().enumerate() {
+    let mut largest_sigma: f64 = 0.0;
+    for k in [2, 1, 0] {
         let (mut x, mut y, mut e) = (vec![], vec![], vec![]);
         for g in gates {
             if let Ok(f) = &g.fit {
                 x.push(f.wind[k]);
                 y.push(g.height_m);
-                e.push(f.wind_stderr().map_or(f64::NAN, |s| s[k]));
+                let s = f.wind_stderr().map_or(f64::NAN, |s| s[k]);
+                largest_sigma = largest_sigma.max(if s.is_finite() { s } else { 0.0 });
+                e.push(s);
             }
         }
-        let mut c = Curve::line(*label, x, y, PALETTE[k]);
+        let mut c = Curve::line(names[k], x, y, PALETTE[k]);
         c.x_err = Some(e);
-        c.mark = Mark::LineMarkers;
+        c.mark = if k == 2 { Mark::Markers } else { Mark::LineMarkers };
         plot.curves.push(c);
     }
+    if let Some(w) = wind {
+        for k in [2, 1, 0] {
+            let y: Vec<f64> = gates.iter().map(|g| g.height_m).collect();
+            let x = y.iter().map(|&h| w.at(h)[k]).collect();
+            let label = if k == 0 { "the scene's wind (dashed)" } else { "" };
+            let mut c = Curve::line(label, x, y, PALETTE[k]);
+            c.mark = Mark::Dashed;
+            plot.curves.push(c);
+        }
+    }
     let failed = gates.iter().filter(|g| g.fit.is_err()).count();
-    plot.note = format!("error bars: ±σ of the fit; {failed} of {} gates without a fit (not drawn)", gates.len());
+    plot.note = format!(
+        "error bars: ±σ of the fit (at most {} m/s); {failed} of {} gates without a fit (not drawn)",
+        crate::describe::num(largest_sigma),
+        gates.len()
+    );
     plot
 }

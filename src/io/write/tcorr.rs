@@ -53,8 +53,10 @@ pub fn write_time(
             plot.y_range = Some((peak * 1e-6, peak * 2.0));
         }
         plot.note = format!(
-            "band: ±σ; y: 6 decades below the peak; bin {:.3} {unit}; out of range: {below:.3e} before, {above:.3e} after",
-            spec.axis.bin_width() * scale
+            "band: ±σ; y: 6 decades below the peak; bin {} {unit}; power out of the axis: {} before, {} after",
+            crate::describe::num(spec.axis.bin_width() * scale),
+            crate::describe::num(below),
+            crate::describe::num(above)
         );
         w.figure(&stem(o), &plot)?;
     }
