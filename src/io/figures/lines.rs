@@ -18,6 +18,8 @@ pub enum Mark {
     Dashed,
     Markers,
     LineMarkers,
+    /// Markers on stems from the bottom of the plot: spectral lines a bin wide.
+    Stems,
 }
 
 /// One curve: `y` against `x` (the longer truncated to the shorter).
@@ -326,8 +328,13 @@ impl LinePlot {
                 continue;
             }
             let line = matches!(c.mark, Mark::Line | Mark::Dashed | Mark::LineMarkers);
-            let markers = matches!(c.mark, Mark::Markers | Mark::LineMarkers);
+            let markers = matches!(c.mark, Mark::Markers | Mark::LineMarkers | Mark::Stems);
             let style = color.stroke_width(2);
+            if c.mark == Mark::Stems {
+                for &(x, y) in &drawn {
+                    chart.draw_series(std::iter::once(PathElement::new(vec![(x, yr.0), (x, y)], style)))?;
+                }
+            }
             if line {
                 for run in runs(&pts, visible) {
                     // An isolated point has no segment: a small dot shows it.

@@ -226,9 +226,10 @@ pub fn spectrum_plot(title: &str, freq_hz: &[f64], channels: &[Channel], y_label
         let hi: Vec<f64> = c.values.iter().zip(c.stderr).map(|(&v, &s)| db(v + s)).collect();
         let mut curve = Curve::line(channel_label(c.name), x.clone(), y, PALETTE[i % PALETTE.len()]);
         curve.band = Some((lo, hi));
-        // A channel in a few bins (the static light at 0 Hz) would be a dot: mark its points.
+        // A channel in a few bins (the static light at 0 Hz, an FMCW target's beat lines) would
+        // be dots: drawn as lines on stems.
         if finite <= 3 {
-            curve.mark = Mark::LineMarkers;
+            curve.mark = Mark::Stems;
         }
         plot.curves.push(curve);
     }
@@ -245,7 +246,9 @@ pub fn spectrum_plot(title: &str, freq_hz: &[f64], channels: &[Channel], y_label
         let (first, last) = lit.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
         let (axis_lo, axis_hi) = (x.first().copied().unwrap_or(0.0), x.last().copied().unwrap_or(0.0));
         let bin = if x.len() > 1 { (axis_hi - axis_lo) / (x.len() - 1) as f64 } else { 0.0 };
-        if first.is_finite() && bin > 0.0 && last - first < 0.1 * (axis_hi - axis_lo) {
+        // Narrow: lit within a tenth of the axis, or in at most 2 % of its bins (a few lines).
+        let sparse = lit.len() * 50 <= x.len() * plot.curves.len().max(1);
+        if first.is_finite() && bin > 0.0 && (last - first < 0.1 * (axis_hi - axis_lo) || sparse) {
             let margin = (0.5 * (last - first)).max(8.0 * bin);
             plot.x_range = Some(((first - margin).max(axis_lo), (last + margin).min(axis_hi)));
             notes.push("x: zoomed onto the lines".into());

@@ -301,10 +301,11 @@ fn write_speckle(w: &mut Writer, spec: &LdhSpec, name: &str, roi: &str, s: &RoiS
     let first = |rows: &[f64]| rows.get(..n).map(<[f64]>::to_vec).unwrap_or_default();
     let (one1, one2) = (first(&algorithm1), first(&algorithm2));
     let zero = vec![0.0; n];
+    // The expected periodogram last, over the windows' speckle.
     let channels = [
-        Channel { name: "expected", values: &expected, stderr: &zero },
         Channel { name: "one window, algorithm 1", values: &one1, stderr: &zero },
         Channel { name: "one window, algorithm 2", values: &one2, stderr: &zero },
+        Channel { name: "expected", values: &expected, stderr: &zero },
     ];
     let mut plot = spectrum_plot(&title, &f_axis, &channels, "power per STFT bin (dB re emitted)");
     let (div, _) = frequency_unit(f_axis.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
