@@ -228,15 +228,7 @@ fn finish<DB: DrawingBackend>(
     let bx = w - BAR_W - PAD + 14;
     let (top, bottom) = (py.start - oy, py.end - oy);
     if zero {
-        area.draw(&Text::new(
-            ZERO_EVERYWHERE,
-            (bx + 9, (top + bottom) / 2),
-            (FAMILY, 15)
-                .into_font()
-                .transform(FontTransform::Rotate270)
-                .color(&BLACK)
-                .pos(Pos::new(HPos::Center, VPos::Center)),
-        ))?;
+        vertical(area, ZERO_EVERYWHERE.into(), (bx + 9, (top + bottom) / 2))?;
         caption(p, area)?;
         return Ok(Raster { x0: px.start, y0: py.start, x1: px.end, y1: py.end, nx, ny, rgb: cells });
     }
@@ -263,17 +255,15 @@ fn finish<DB: DrawingBackend>(
         ))?;
     }
     let unit = if suffix.is_empty() { p.unit.clone() } else { format!("{} ({suffix})", p.unit) };
-    area.draw(&Text::new(
-        fit(&unit, bottom - top + 40),
-        (bx + 92, (top + bottom) / 2),
-        (FAMILY, 15)
-            .into_font()
-            .transform(FontTransform::Rotate270)
-            .color(&BLACK)
-            .pos(Pos::new(HPos::Center, VPos::Center)),
-    ))?;
+    vertical(area, fit(&unit, bottom - top + 40), (bx + 92, (top + bottom) / 2))?;
     caption(p, area)?;
     Ok(Raster { x0: px.start, y0: py.start, x1: px.end, y1: py.end, nx, ny, rgb: cells })
+}
+
+/// `text` read bottom to top, centred on `at` (beside a colour bar).
+fn vertical<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: String, at: (i32, i32)) -> DrawResult<(), DB> {
+    let font = (FAMILY, 15).into_font().transform(FontTransform::Rotate270);
+    area.draw(&Text::new(text, at, font.color(&BLACK).pos(Pos::new(HPos::Center, VPos::Center))))
 }
 
 /// The panel's caption under it, if any.
