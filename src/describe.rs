@@ -854,7 +854,7 @@ impl Display for Experiment {
             writeln!(f, "  (none: only the scalar tallies)")?;
         }
         // The outputs as declared: what the run will write, its shape, axes and units.
-        let layout = self.tally_layout();
+        let layout = self.output_layout();
         let outputs: Vec<&crate::output::Output> =
             layout.registry.outputs.iter().filter(|o| o.kind != crate::output::Kind::Internal).collect();
         let scalars = outputs.iter().filter(|o| o.is_scalar()).count();

@@ -465,13 +465,13 @@ impl Experiment {
     /// scalar tallies, then per detector its power, its total spectrum (per chirp), image, LDH
     /// M0± images and lidar range–Doppler spectra.
     pub fn outputs(&self) -> Vec<Output> {
-        self.tally_layout().registry.named().cloned().collect()
+        self.output_layout().registry.named().cloned().collect()
     }
 
     /// The run's main output ([`crate::output::Registry::main`]), whose error `ohd run
     /// --target-error` controls and the progress bar shows.
     pub fn main_output(&self) -> Output {
-        self.tally_layout().registry.main().clone()
+        self.output_layout().registry.main().clone()
     }
 
     /// The same experiment with the beam (and the lidar receiver's axis) along `p`.
@@ -490,7 +490,25 @@ impl Experiment {
         BeatModel::new(self.source.wavelength, self.source.chirp.map(|c| c.slope()))
     }
 
+    /// The layout of the run's tallies and outputs, with the control variate's kernels and their
+    /// FFT plans and footprint transforms ([`crate::detect::twin`]) where it applies: what a run
+    /// needs.
     pub fn tally_layout(&self) -> TallyLayout {
+        let mut layout = self.output_layout();
+        // Outside the tally vector: the layout of the outputs is the same with or without it.
+        if self.control_variate()
+            && let Some(fp) = self.source.footprint()
+        {
+            layout.declare_twins(&self.detectors, fp);
+        }
+        layout
+    }
+
+    /// The layout of the tallies and outputs alone, without the control variate's kernels: what
+    /// counting, describing and reading the outputs need. (The kernels' FFT buffers are made with
+    /// them: a 2048² camera's took 207 MB to estimate its memory, and under `ulimit -v` aborted
+    /// the process before the budget was checked.)
+    pub fn output_layout(&self) -> TallyLayout {
         let mut layout = TallyLayout::new(&self.detectors, &self.beat_model());
         // After every detector's block: a volume tally moves no other output.
         if let Some(v) = &self.volume {
@@ -506,12 +524,6 @@ impl Experiment {
             let grid = self.importance_grid(d);
             layout.importance =
                 Some(crate::detect::importance::ImportanceLayout::declare(grid, d, &mut layout.registry));
-        }
-        // Outside the tally vector: the layout of the outputs is the same with or without it.
-        if self.control_variate()
-            && let Some(fp) = self.source.footprint()
-        {
-            layout.declare_twins(&self.detectors, fp);
         }
         layout
     }
@@ -697,7 +709,7 @@ impl Experiment {
     /// the batches in flight while running and the four vectors' worth writing makes (the
     /// standard errors, an output's values and errors, its file's bytes).
     pub fn memory_estimate(&self) -> u64 {
-        let len = self.tally_layout().tallies() as u64;
+        let len = self.output_layout().tallies() as u64;
         len.saturating_mul(8 * (2 + self.batches_in_flight().max(4)))
     }
 

@@ -286,7 +286,7 @@ fn simulate_part(part: &Part, opts: &RunOptions, keep: bool, obs: &dyn Observer)
     }
     // A scan resumes the pointings it has a checkpoint of and starts the others.
     let resume = if opts.resume && (!keep || path.exists()) {
-        let tallies = exp.tally_layout().tallies();
+        let tallies = exp.output_layout().tallies();
         let limit = crate::io::persist::checkpoint::max_bytes(tallies, exp.plan.memory_budget);
         let state = crate::io::persist::checkpoint::read(&path, part.fingerprint, tallies, limit)?;
         obs.event(Event::Resuming { state: &state, path: &path });

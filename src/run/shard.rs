@@ -50,7 +50,7 @@ pub fn run_shard(loaded: &Loaded, part: &Part, index: u64, count: u64, obs: &dyn
         last: range.end,
         batches: exp.plan.batches,
         paths_per_batch: exp.plan.paths_per_batch,
-        tallies: exp.tally_layout().tallies() as u64,
+        tallies: exp.output_layout().tallies() as u64,
         config_text: loaded.text.clone(),
         config_source: loaded.source_path.clone(),
         // Results do not depend on the thread count: the merged run does not record one shard's.
@@ -175,7 +175,7 @@ pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
 /// into the run's output, exactly as a single process folds them. The output's wall time is the
 /// shards' total and its thread count their largest.
 pub fn fold(exp: &Experiment, shards: Vec<ShardReader>) -> Result<RunOutput> {
-    let len = exp.tally_layout().tallies();
+    let len = exp.output_layout().tallies();
     let mut estimates = BatchAccumulator::new(len);
     let (mut stats, mut lines, mut seconds, mut threads) = (RunStats::default(), Vec::new(), 0.0, 0);
     let mut sums = vec![0.0; len];

@@ -316,7 +316,7 @@ pub const DEFAULT_MEMORY_BUDGET_GIB: f64 = 8.0;
 fn check_memory(exp: &Experiment, memory: &Memory) -> R<()> {
     let need = exp.memory_estimate();
     let Some(over) = memory.over(need) else { return Ok(()) };
-    let layout = exp.tally_layout();
+    let layout = exp.output_layout();
     let blocks = layout.registry.budget_blocks();
     let (key, value) = blocks
         .into_iter()
