@@ -9,7 +9,7 @@
 //! tracking). One thread, 100 000 paths per configuration, the faster of two runs; an empty grid
 //! gives the cost of the rest of the scene.
 //!
-//! `cargo bench --bench grid` (prints a table; not a criterion benchmark: one whole run per
+//! `cargo bench -p ohd-benches --bench grid` (prints a table; not a criterion benchmark: one whole run per
 //! configuration is what is compared).
 
 use std::time::Instant;

@@ -3,7 +3,7 @@
 //! alone, and the Marshall–Palmer rain ensemble at 1.55 µm (R = 5 mm/h, D = 0.05–6 mm, 1000 angles,
 //! default 256 sizes, rayon's global pool).
 //!
-//! `cargo bench --bench mie`
+//! `cargo bench -p ohd-benches --bench mie`
 
 use std::hint::black_box;
 

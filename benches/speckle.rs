@@ -4,7 +4,7 @@
 //! direct O(lines × N) sum (`direct`, up to 1e4 lines); and `BandKernel::eval` (M0+, M0−, M1 of one
 //! line, 6–18.3 kHz band) per line for N = 64 and 512.
 //!
-//! `cargo bench --bench speckle -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p ohd-benches --bench speckle -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 

@@ -2,7 +2,7 @@
 //! a homogeneous free flight, and whole runs of the van de Hulst slab and the default vessel
 //! scene on one thread. Throughput is reported per event or per photon.
 //!
-//! `cargo bench --bench transport`; the whole-process comparison with a numba Monte Carlo is
+//! `cargo bench -p ohd-benches --bench transport`; the whole-process comparison with a numba Monte Carlo is
 //! `python3 validation/bench_numba.py`.
 
 use std::hint::black_box;
