@@ -71,10 +71,10 @@
 //!
 //! | layer | modules | role |
 //! |---|---|---|
-//! | foundations | [`error`], [`numeric`], [`sys`], [`sampling`], [`stats`], [`spectrum`], [`phase`], [`mie`], [`output`], [`retrieval`] | errors; `ln Γ` and quadrature; the process's memory limits; random-number streams and warps; batch statistics; frequency axes, histograms, STFT and speckle synthesis; phase functions; Lorenz–Mie scattering and particle ensembles; the registry of a run's named outputs (kind, shape, units, tally slots, file, sign); estimators read off spectra (gate moments and fits, VAD wind, FMCW range and velocity) |
+//! | foundations | [`error`], [`numeric`], [`sys`], [`sampling`], [`stats`], [`spectrum`], [`phase`], [`surface`], [`mie`], [`output`], [`retrieval`] | errors; `ln Γ` and quadrature; the process's memory limits; random-number streams and warps; batch statistics; frequency axes, histograms, STFT and speckle synthesis; phase functions; surface BSDFs (Fresnel, GGX microfacets); Lorenz–Mie scattering and particle ensembles; the registry of a run's named outputs (kind, shape, units, tally slots, file, sign); estimators read off spectra (gate moments and fits, VAD wind, FMCW range and velocity) |
 //! | scene | [`medium`], [`flow`], [`source`], [`io::formats`] | media, density fields with their majorant grids, shapes and the layer stack; velocity fields; the laser; file formats read and written (`.npy`, EXR, PNG, phase tables, the OpenVDB reader) |
 //! | recording | [`detect`] | detectors ([`detect::DetectorKind`]) and the tally a finished path is recorded into; each detector declares its outputs in the registry as it lays out its tallies |
-//! | transport | [`transport`] | Fresnel interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk from the laser and from a camera's pixels |
+//! | transport | [`transport`] | interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk from the laser and from a camera's pixels |
 //! | runs | [`experiment`], [`pilot`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); the pilot that decides `estimator = "auto"`; the importance table's pilot (`Experiment::importance_table`); post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
 //! | configuration | [`config`], [`describe`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types; the resolved experiment printed in human units |
 //! | outputs | [`io`] ([`io::write`], [`io::persist`], [`io::figures`], [`io::outdir`]) | a finished run's files and manifest, read off the registry; shard and checkpoint files; figures; the output directory, held open and locked |
@@ -107,6 +107,7 @@ pub mod scan;
 pub mod source;
 pub mod spectrum;
 pub mod stats;
+pub mod surface;
 pub mod sys;
 pub mod transport;
 

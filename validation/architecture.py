@@ -31,7 +31,7 @@ SRC = Path(__file__).resolve().parent.parent / "src"
 
 # The layers of src/, lowest first (src/lib.rs, "Architecture"): (name, module prefixes).
 LAYERS = [
-    ("foundations", ["error", "numeric", "sys", "sampling", "stats", "spectrum", "phase", "mie", "output", "retrieval"]),
+    ("foundations", ["error", "numeric", "sys", "sampling", "stats", "spectrum", "phase", "surface", "mie", "output", "retrieval"]),
     ("scene", ["medium", "flow", "source", "io::formats"]),
     ("recording", ["detect"]),
     ("transport", ["transport"]),

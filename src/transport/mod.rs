@@ -2,7 +2,7 @@
 
 pub mod camera;
 pub mod features;
-pub mod fresnel;
+pub use crate::surface::fresnel;
 pub mod guide;
 pub mod nee;
 pub mod tracking;

@@ -1,5 +1,5 @@
-//! Fresnel reflection and refraction of unpolarised light at a planar interface whose normal is
-//! the z axis (every interface of the layer stack).
+//! Fresnel reflection and refraction of unpolarised light at a smooth planar interface whose
+//! normal is the z axis (every smooth interface of the layer stack; `transport::fresnel`).
 
 use glam::DVec3;
 
