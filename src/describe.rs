@@ -505,7 +505,11 @@ impl Display for Shape {
 /// varying coefficients as ranges), layers (sublayers summarised) and regions, one per line.
 impl Display for Scene {
     fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
-        write!(f, "ambient: n = {} above, {} below", num(self.n_above), num(self.n_below))?;
+        if self.bottom.is_some() {
+            write!(f, "ambient: n = {} above", num(self.n_above))?;
+        } else {
+            write!(f, "ambient: n = {} above, {} below", num(self.n_above), num(self.n_below))?;
+        }
         if let Some(b) = &self.lateral {
             write!(
                 f,
@@ -516,6 +520,26 @@ impl Display for Scene {
                 num(b.y.1 * 1e3),
                 num(b.n_outside)
             )?;
+        }
+        if let Some(b) = &self.bottom {
+            write!(f, "\nbottom: an opaque surface under the last layer: {}", b.bsdf)?;
+            if b.velocity != glam::DVec3::ZERO {
+                let v = b.velocity;
+                write!(f, "; moving at ({}, {}, {}) m/s", num(v.x), num(v.y), num(v.z))?;
+            }
+            if b.angular_velocity != glam::DVec3::ZERO {
+                let (w, c) = (b.angular_velocity, b.center);
+                write!(
+                    f,
+                    "; rotating at ({}, {}, {}) rad/s about ({}, {}, {}) m",
+                    num(w.x),
+                    num(w.y),
+                    num(w.z),
+                    num(c.x),
+                    num(c.y),
+                    num(c.z)
+                )?;
+            }
         }
         write!(f, "\nmedia:")?;
         let mut names: Vec<&str> = Vec::new();
@@ -970,6 +994,39 @@ impl Display for Experiment {
             self.plan.memory_budget as f64 / (1u64 << 30) as f64,
             self.plan.memory_limited_by.map_or(String::new(), |l| format!(", lowered by {l}"))
         )
+    }
+}
+
+/// A surface's BSDF in words: its model, roughness and index (with the reflectance at normal
+/// incidence a metal's index gives).
+impl Display for crate::surface::Bsdf {
+    fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
+        use crate::surface::Bsdf;
+        match self {
+            Bsdf::Lambertian { albedo } => write!(f, "Lambertian, albedo {}", num(*albedo)),
+            Bsdf::Conductor { alpha, eta } => {
+                let r = crate::surface::conductor_reflectance(*eta, 1.0);
+                if *alpha == 0.0 {
+                    write!(f, "a smooth mirror")?;
+                } else {
+                    write!(f, "a rough conductor (GGX α = {})", num(*alpha))?;
+                }
+                write!(
+                    f,
+                    ", index {} + {}i relative to the medium above (reflectance {} at normal incidence)",
+                    num(eta.re),
+                    num(eta.im),
+                    num(r)
+                )
+            }
+            Bsdf::Mixture(parts) => {
+                write!(f, "a mixture of")?;
+                for (i, (w, p)) in parts.iter().enumerate() {
+                    write!(f, "{} {} × ({p})", if i == 0 { "" } else { " +" }, num(*w))?;
+                }
+                Ok(())
+            }
+        }
     }
 }
 

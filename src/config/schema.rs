@@ -10,9 +10,9 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 
 use super::units::{
-    Aperture, CameraFrequency, ChirpBandwidth, ChirpDuration, Coefficient, Degrees, Delay, Diffusivity, FieldOfView,
-    Frequency, Length, Metres, MetresPerSecond, NumberDensity, PulseEnergy, PulseWidth, Quantity, RainRate, SampleRate,
-    SmallAngle, SmallRadius, Speed, Temperature, TimeOfFlight, Viscosity, Wavelength,
+    AngularSpeed, Aperture, CameraFrequency, ChirpBandwidth, ChirpDuration, Coefficient, Degrees, Delay, Diffusivity,
+    FieldOfView, Frequency, Length, Metres, MetresPerSecond, NumberDensity, PulseEnergy, PulseWidth, Quantity,
+    RainRate, SampleRate, SmallAngle, SmallRadius, Speed, Temperature, TimeOfFlight, Viscosity, Wavelength,
 };
 
 /// The schema version this build reads.
@@ -79,6 +79,44 @@ pub struct ExperimentFile {
     pub volume: Option<VolumeSection>,
     /// Lateral bounds: the stack cut to a box phantom.
     pub lateral: Option<LateralSection>,
+    /// An opaque surface closing the stack from below.
+    pub bottom: Option<BottomSection>,
+}
+
+/// `[bottom]`: an opaque surface under the last layer (which must be finite): a reflector with a
+/// BSDF, which may move (a belt: `velocity`; a wheel or disk: `angular_velocity` about `center`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BottomSection {
+    pub surface: Option<SurfaceSection>,
+    #[serde(rename = "velocity_mm_per_s", alias = "velocity_m_per_s")]
+    pub velocity: Option<Quantity<Speed, [f64; 3]>>,
+    #[serde(rename = "angular_velocity_rad_per_s", alias = "angular_velocity_rpm")]
+    pub angular_velocity: Option<Quantity<AngularSpeed, [f64; 3]>>,
+    /// A point on the rotation axis (default the origin).
+    #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+    pub center: Option<Quantity<Length, [f64; 3]>>,
+}
+
+/// A surface's BSDF.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SurfaceSection {
+    /// The ideal diffuse reflector.
+    Lambertian { albedo: Option<f64> },
+    /// A rough metal (GGX microfacets): a measured `material` ("copper", "gold", "aluminium") at
+    /// the source's wavelength, or its index `n` and extinction `k`.
+    Conductor { roughness: Option<f64>, material: Option<String>, n: Option<f64>, k: Option<f64> },
+    /// A weighted sum of surfaces (weights > 0, summing to 1).
+    Mixture { parts: Option<Vec<MixturePart>> },
+}
+
+/// One part of a `type = "mixture"` surface.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MixturePart {
+    pub weight: Option<f64>,
+    pub surface: Option<SurfaceSection>,
 }
 
 /// `[lateral]`: the layer stack cut to `x ∈ [x0, x1]`, `y ∈ [y0, y1]`, its side faces against

@@ -40,6 +40,7 @@ pub enum Family {
     /// Per length: attenuation coefficients.
     Attenuation,
     NumberDensity,
+    AngularSpeed,
 }
 
 /// One unit suffix: `value × factor` is the value in SI units.
@@ -59,7 +60,7 @@ const fn unit(suffix: &'static str, family: Family, factor: f64, printed: &'stat
 /// Every unit suffix a key may carry, by family. A key's suffix is the longest that matches, so
 /// that `_mm_per_s` is not read as `_s`. (Degrees convert to radians; keys that are used in degrees
 /// read the number as written.)
-pub const UNITS: [Unit; 31] = {
+pub const UNITS: [Unit; 33] = {
     use Family::*;
     [
         unit("_nm", Length, 1e-9, "nm"),
@@ -93,6 +94,8 @@ pub const UNITS: [Unit; 31] = {
         unit("_per_mm", Attenuation, 1000.0, "mm⁻¹"),
         unit("_per_m3", NumberDensity, 1.0, "m⁻³"),
         unit("_per_cm3", NumberDensity, 1e6, "cm⁻³"),
+        unit("_rad_per_s", AngularSpeed, 1.0, "rad/s"),
+        unit("_rpm", AngularSpeed, std::f64::consts::TAU / 60.0, "rpm"),
     ]
 };
 
@@ -193,6 +196,8 @@ unit_sets! {
     PulseEnergy: Energy = ["_uj", "_mj"];
     Coefficient: Attenuation = ["_per_m", "_per_cm", "_per_mm"];
     NumberDensity: NumberDensity = ["_per_m3", "_per_cm3"];
+    /// A surface's rotation.
+    AngularSpeed: AngularSpeed = ["_rad_per_s", "_rpm"];
 }
 
 /// A quantity as given: the number(s) as written under `key` (as written, e.g. `thickness_mm`),

@@ -89,8 +89,43 @@ impl Lateral {
     }
 }
 
+/// An opaque surface closing the stack from below (`[bottom]`, issue 38): the light reaching the
+/// bottom of the last layer is reflected back into it by the surface's BSDF or absorbed there.
+/// The surface may move: a translation and a rotation about `center`, whose Doppler term is
+/// `n v·(dir_in − dir_out)` per reflection, as a particle's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bottom {
+    pub bsdf: crate::surface::Bsdf,
+    /// Velocity of translation, m/s.
+    pub velocity: DVec3,
+    /// Angular velocity, rad/s, about the axis through `center`.
+    pub angular_velocity: DVec3,
+    pub center: DVec3,
+}
+
+impl Bottom {
+    /// The surface's velocity at `p`: `v + ω × (p − center)`.
+    #[inline]
+    pub fn velocity_at(&self, p: DVec3) -> DVec3 {
+        self.velocity + self.angular_velocity.cross(p - self.center)
+    }
+
+    /// Whether any point of it moves.
+    pub fn is_moving(&self) -> bool {
+        self.velocity != DVec3::ZERO || self.angular_velocity != DVec3::ZERO
+    }
+
+    /// The local frame at the surface: its normal points up (`−z`), into the stack.
+    #[inline]
+    pub fn frame() -> crate::surface::Frame {
+        crate::surface::Frame { n: DVec3::NEG_Z, t: DVec3::X, b: DVec3::NEG_Y }
+    }
+}
+
 /// Everything light travels through. Outside the stack are non-scattering half-spaces with
-/// indices `n_above` (z < 0) and `n_below`; with `lateral`, the stack is a box.
+/// indices `n_above` (z < 0) and `n_below`; with `lateral`, the stack is a box; with `bottom`, an
+/// opaque surface closes it from below (and `n_below` is the last layer's index: no interface
+/// there).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
     pub layers: Vec<Layer>,
@@ -101,6 +136,8 @@ pub struct Scene {
     /// The box's side faces (`None`: layers of infinite extent; the walk is compiled without
     /// them).
     pub lateral: Option<Lateral>,
+    /// The opaque surface under the last layer (which is then finite), if any.
+    pub bottom: Option<Bottom>,
 }
 
 impl Scene {
@@ -152,9 +189,10 @@ impl Scene {
         })
     }
 
-    /// Whether any particle in the scene moves (otherwise no Doppler term is computed at all).
+    /// Whether any particle or surface in the scene moves (otherwise no Doppler term is computed
+    /// at all).
     pub fn is_moving(&self) -> bool {
-        self.media.iter().any(|m| m.is_dynamic())
+        self.media.iter().any(|m| m.is_dynamic()) || self.bottom.as_ref().is_some_and(Bottom::is_moving)
     }
 
     /// Depth of the bottom of the stack (∞ if the last layer is semi-infinite).

@@ -28,7 +28,6 @@
 use glam::DVec3;
 
 use crate::medium::Scene;
-use crate::phase::PhaseFunction;
 use crate::sampling::PathRng;
 
 use super::tracking::ratio_transmittance;
@@ -130,20 +129,20 @@ impl ShadowHit {
 /// disk; the straight ray from the vertex `x` (every index must be 1: no refraction) arrives there
 /// travelling along `ω = (y − x)/R`, and is accepted if within the field of view of the pointing
 /// direction. Its weight factor is the density of scattering toward `y` per unit aperture area
-/// times the area, `p(dir_in·ω)·A·cos θ_r/R²·exp(−τ)`, with `cos θ_r = ω·(−pointing)` and `τ` the
+/// times the area, `f(ω)·A·cos θ_r/R²·exp(−τ)` (`f` the first of `density(ω)`, as for
+/// [`shadow_ray`]), with `cos θ_r = ω·(−pointing)` and `τ` the
 /// optical depth of the segment through the stack. Direct escapes never score a receiver (their
 /// chance of meeting a millimetre aperture within microradians is nil), so no weighting is needed.
 //
 // The allow is a measured exception (issue 19): see `walk::collide_nee`, the only caller of this
-// and of `shadow_ray` (a `ShadowOrigin { layer, pos, dir_in, phase }` for the first four
-// arguments cost +1.0 to +1.75 % of the instructions of the next-event scenes).
+// and of `shadow_ray` with `reflect_at_bottom` (a `ShadowOrigin { layer, pos, dir_in, phase }`
+// for the first four arguments cost +1.0 to +1.75 % of the instructions of the next-event scenes).
 #[allow(clippy::too_many_arguments)]
 pub fn receiver_ray(
     scene: &Scene,
     li: usize,
     pos: DVec3,
-    dir_in: DVec3,
-    phase: &PhaseFunction,
+    density: impl Fn(DVec3) -> (f64, f64),
     target: &NeeTarget,
     aperture: &Aperture,
     u1: f64,
@@ -165,7 +164,7 @@ pub fn receiver_ray(
     let Crossing { tau, transmit, excess, twin_transmit, .. } =
         trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
-    let factor = phase.eval(dir_in.dot(dir)) * area * cos_r / r2 * transmit * (-tau).exp();
+    let factor = density(dir).0 * area * cos_r / r2 * transmit * (-tau).exp();
     let unit = area * cos_r / r2 * transmit;
     let twin_unit = area * cos_r / r2 * twin_transmit;
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r, excess, unit, twin_unit, tau })
@@ -332,9 +331,11 @@ pub(super) fn reflections_below(
     }
 }
 
-/// The shadow ray from a scattering vertex at `pos` in layer `li`, whose scatterer has the phase
-/// function `phase`, reached along `dir_in`, for the exit direction drawn from the uniforms
-/// `(u1, u2)`. `None` when nothing can come out that way (the direction cannot exist in some
+/// The shadow ray from a scattering vertex at `pos` in layer `li` for the exit direction drawn
+/// from the uniforms `(u1, u2)`; `density(ω)` is the scatterer's `(f, q)` toward the direction `ω`
+/// at the vertex: the scattered share per steradian (`p` of a particle's phase function, `f|cos|`
+/// of a surface's BSDF) and the density the walk draws its own continuation from (`p` again; the
+/// BSDF's sampling density). `None` when nothing can come out that way (the direction cannot exist in some
 /// layer: total internal reflection).
 // The allow is a measured exception (issue 19): see `receiver_ray`.
 #[allow(clippy::too_many_arguments)]
@@ -342,8 +343,7 @@ pub fn shadow_ray(
     scene: &Scene,
     li: usize,
     pos: DVec3,
-    dir_in: DVec3,
-    phase: &PhaseFunction,
+    density: impl Fn(DVec3) -> (f64, f64),
     target: &NeeTarget,
     u1: f64,
     u2: f64,
@@ -374,12 +374,15 @@ pub fn shadow_ray(
     let cos0 = -dir.z;
     let cos_k = -dir_vertex.z;
     let etendue = (n0 * n0 * cos0) / (n_k * n_k * cos_k);
-    // Balance heuristic against the direct escapes of phase-sampled directions (in exit solid
-    // angle: pdf p·etendue for those, 1/Ω for the cone): f/pdf_cone · w = p·et·T·e^{−τ}/(p·et + 1/Ω),
-    // never above T·e^{−τ} ≤ 1, so a forward-peaked phase function cannot make a huge weight.
-    let pe = phase.eval(dir_in.dot(dir_vertex)) * etendue;
-    let factor = pe / (pe + 1.0 / target.solid_angle()) * transmit * (-tau).exp();
-    let unit = etendue / (pe + 1.0 / target.solid_angle()) * transmit;
-    let twin_unit = etendue / (pe + 1.0 / target.solid_angle()) * twin_transmit;
+    // Balance heuristic against the direct escapes of directions drawn by the scatterer (in exit
+    // solid angle: pdf q·etendue for those, 1/Ω for the cone): f/pdf_cone · w = f·et·T·e^{−τ}/(q·et
+    // + 1/Ω). For a phase function f = q = p, never above T·e^{−τ} ≤ 1, so a forward-peaked phase
+    // function cannot make a huge weight; for a surface f is its BSDF's value, q its sampling
+    // density.
+    let (f, q) = density(dir_vertex);
+    let qe = q * etendue;
+    let factor = f * etendue / (qe + 1.0 / target.solid_angle()) * transmit * (-tau).exp();
+    let unit = etendue / (qe + 1.0 / target.solid_angle()) * transmit;
+    let twin_unit = etendue / (qe + 1.0 / target.solid_angle()) * twin_transmit;
     Some(ShadowHit { pos: p, dir, dir_vertex, factor, length, excess, unit, twin_unit, tau })
 }

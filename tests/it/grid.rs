@@ -208,6 +208,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
         n_above: 1.0,
         n_below: 1.0,
         lateral: None,
+        bottom: None,
     };
     scene.update_layers();
     (scene, ramp)

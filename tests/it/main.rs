@@ -35,6 +35,7 @@ mod sampling;
 mod slab;
 mod speckle;
 mod stiff;
+mod surface;
 mod tcorr;
 mod time_gate;
 mod vdb;

@@ -100,6 +100,7 @@ fn piecewise_scene() -> Scene {
         n_above: 1.0,
         n_below: 1.0,
         lateral: None,
+        bottom: None,
     }
 }
 

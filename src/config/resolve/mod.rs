@@ -8,6 +8,7 @@
 //! LDH, lidar). This module holds the entry points, the cross-checks between parts (lidar, LDH
 //! and chirp; references; the memory budget) and the helpers they share.
 
+mod bottom;
 mod density;
 mod detectors;
 mod flow;
@@ -24,6 +25,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use self::bottom::resolve_bottom;
 pub use self::density::{grid_heterogeneity, resolve_majorant};
 pub use self::detectors::{
     LDH_DEFAULT_BAND_HZ, LDH_DEFAULT_FRAME_RATE_HZ, LDH_DEFAULT_SPECKLE_WINDOWS, LDH_DEFAULT_WINDOW_SAMPLES,
@@ -216,6 +218,12 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     }
     let mut scene = scene;
     scene.lateral = resolve_lateral(f.lateral.as_ref(), n_above, &source, &detectors)?;
+    scene.bottom = resolve_bottom(f.bottom.as_ref(), &scene, source.wavelength, &detectors)?;
+    if scene.bottom.is_some() {
+        // The surface lies on the last layer's bottom plane: no interface of index there (the
+        // walk meets the surface where it would refract out; reflections below see no step).
+        scene.n_below = scene.layers.last().map_or(scene.n_below, |l| l.n);
+    }
     let mut exp = Experiment {
         name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
         scene,

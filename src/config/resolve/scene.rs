@@ -325,7 +325,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
     for (name, ms) in f.media.iter().filter(|(name, _)| !used.contains(*name)) {
         check_unused(&mut optics, ctx, name, ms, &f.media)?;
     }
-    let mut scene = Scene { layers, regions, media, n_above, n_below, lateral: None };
+    let mut scene = Scene { layers, regions, media, n_above, n_below, lateral: None, bottom: None };
     scene.update_layers();
     Ok(scene)
 }

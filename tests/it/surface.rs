@@ -1,0 +1,174 @@
+//! Opaque surfaces under the stack (`[bottom]`, issue 38) against closed forms: a Lambertian floor
+//! under a clear dielectric layer, a smooth metal mirror, and the Doppler lines of a translating
+//! and of a rotating Lambertian plate.
+
+use ohd::detect::Scalar;
+use ohd::surface::fresnel;
+
+use crate::support::run::{Run, run};
+use crate::support::stats::assert_within_sigma;
+
+/// A clear layer (no scattering, no absorption) over an opaque floor, watched from the top through
+/// a 10° cone with shadow rays; a pencil beam at normal incidence. λ0 = 1 µm, so f = dl/dt · 10⁶
+/// Hz per m/s.
+const FLOOR: &str = r#"
+schema_version = 1
+[run]
+samples = 200000
+seed = 3
+batches = 16
+[source]
+wavelength_nm = 1000
+profile = "pencil"
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[[layers]]
+thickness_mm = 1
+n = 1.0
+medium = "clear"
+[bottom]
+surface = { type = "lambertian", albedo = 0.6 }
+[[detectors]]
+name = "top"
+acceptance_half_angle_deg = 10
+next_event = true
+[detectors.spectrum]
+f_min_hz = -4000
+f_max_hz = 4000
+bins = 800
+by_order = 2
+"#;
+
+/// The share of a Lambertian radiance inside a medium of index `n` that leaves through its plane
+/// surface into index 1: `∫ (1 − R(θ)) 2 cos θ sin θ dθ` up to the critical angle (midpoint rule).
+fn lambertian_escape(n: f64) -> f64 {
+    let steps = 200_000;
+    let mut sum = 0.0;
+    for i in 0..steps {
+        let c = (i as f64 + 0.5) / steps as f64; // cos θ, uniform: 2 cos θ sin θ dθ = d(cos² θ) = 2c dc
+        let (r, _) = fresnel::reflectance(n, 1.0, c);
+        sum += (1.0 - r) * 2.0 * c / steps as f64;
+    }
+    sum
+}
+
+#[test]
+fn lambertian_floor_under_a_clear_layer_has_its_closed_form() {
+    // Entering at normal incidence (specular R0), then the floor's albedo a, then either out
+    // (the escape share T of a Lambertian radiance) or back to the floor by internal
+    // reflection: Rd = (1 − R0) a T / (1 − a (1 − T)).
+    let (n, a) = (1.4f64, 0.6);
+    let r = run(FLOOR, &["layers.0.n=1.4", "detectors.0.next_event=false"]);
+    let r0 = ((n - 1.0) / (n + 1.0)).powi(2);
+    let t = lambertian_escape(n);
+    let want = (1.0 - r0) * a * t / (1.0 - a * (1.0 - t));
+    let (rd, se) = r.scalar(Scalar::ReflectanceDiffuse);
+    assert_within_sigma("Rd", rd, se, want, 4.0);
+    assert!((r.scalar(Scalar::ReflectanceSpecular).0 - r0).abs() < 1e-12);
+    // Nothing passes the floor; what does not come out is absorbed by it.
+    assert_eq!(r.scalar(Scalar::TransmittanceTotal).0, 0.0);
+    let (ab, se_ab) = r.scalar(Scalar::AbsorbedFraction);
+    assert_within_sigma("A", ab, se_ab, 1.0 - r0 - rd, 4.0);
+}
+
+#[test]
+fn a_smooth_metal_floor_returns_its_fresnel_reflectance() {
+    // A matched clear layer over a mirror of copper's index at 1 µm: every path comes back with
+    // weight R(0) = ((n − 1)² + k²)/((n + 1)² + k²), exactly.
+    let r = run(FLOOR, &["bottom.surface={ type = \"conductor\", n = 0.3, k = 6.4 }", "detectors.0.next_event=false"]);
+    let want = ((0.3f64 - 1.0).powi(2) + 6.4f64.powi(2)) / ((1.3f64).powi(2) + 6.4f64.powi(2));
+    let (rd, se) = r.scalar(Scalar::ReflectanceDiffuse);
+    assert!((rd - want).abs() < 1e-12 && se < 1e-12, "Rd = {rd} ± {se}, R(0) = {want}");
+}
+
+/// The power-weighted mean and RMS width of detector 0's order-1 spectrum (Hz), and its bins'
+/// total.
+fn moments(r: &Run) -> (f64, f64, f64, Vec<(f64, f64)>) {
+    let axis = r.exp.detectors[0].surface().unwrap().spectrum().unwrap().axis;
+    let ch = r.channel(0, 0, 2); // channel 1 + k is order k
+    let bins: Vec<(f64, f64)> = ch.values.iter().enumerate().map(|(k, &w)| (axis.center(k), w)).collect();
+    let total: f64 = bins.iter().map(|b| b.1).sum();
+    let mean = bins.iter().map(|(f, w)| f * w).sum::<f64>() / total;
+    let var = bins.iter().map(|(f, w)| (f - mean).powi(2) * w).sum::<f64>() / total;
+    (mean, var.sqrt(), total, bins)
+}
+
+#[test]
+fn a_translating_lambertian_plate_gives_the_closed_form_line() {
+    // v = (vx, 0, vz); light arrives along +z and leaves within θa of −z, at (θ, φ): f = [vz (1 +
+    // cos θ) − vx sin θ cos φ]/λ0. Over the cone's Lambertian radiance the mean is vz (1 + ⟨cos θ⟩)
+    // /λ0 with ⟨cos θ⟩ = (2/3)(1 − cos³θa)/(1 − cos²θa), and every frequency lies within
+    // [vz (1 + cos θa) − |vx| sin θa, 2 vz + |vx| sin θa]/λ0.
+    let (vx, vz, lambda) = (2e-3f64, 1e-3, 1e-6);
+    let r = run(FLOOR, &["bottom.velocity_m_per_s=[0.002, 0, 0.001]"]);
+    let ca = 10f64.to_radians().cos();
+    let sa = 10f64.to_radians().sin();
+    let mean_cos = 2.0 / 3.0 * (1.0 - ca.powi(3)) / (1.0 - ca * ca);
+    let want = vz * (1.0 + mean_cos) / lambda;
+    let (lo, hi) = ((vz * (1.0 + ca) - vx.abs() * sa) / lambda, (2.0 * vz + vx.abs() * sa) / lambda);
+    let (mean, rms, total, bins) = moments(&r);
+    assert!(total > 0.0);
+    for (f, w) in &bins {
+        if *w > 0.0 {
+            assert!(*f > lo - 5.0 && *f < hi + 5.0, "weight {w} at {f:.1} Hz outside [{lo:.1}, {hi:.1}]");
+        }
+    }
+    // The mean of N shadow rays drawn uniformly in the cone: σ ≈ rms/√N; the 10 Hz bins shift a
+    // mean by at most their half width, and average to well under.
+    let n = r.paths();
+    assert!((mean - want).abs() < 4.0 * rms / n.sqrt() + 1.0, "mean {mean:.2} Hz, closed form {want:.2} Hz");
+    // Only the floor scatters: nothing at order 2.
+    assert!(r.channel(0, 0, 3).values.iter().all(|&w| w == 0.0));
+}
+
+#[test]
+fn a_rotating_disk_broadens_the_line_symmetrically() {
+    // A disk spinning about the z axis at ω, lit at radius r0: its surface moves at ω r0 along y
+    // there, in its own plane, so f = −ω r0 sin θ sin φ/λ0: a line centred on 0 whose RMS width
+    // over the cone's Lambertian radiance is ω r0 sin θa/(2 λ0) (⟨sin²θ sin²φ⟩ = sin²θa/4).
+    let (omega, r0, lambda) = (10.0, 2e-3, 1e-6);
+    let r = run(
+        FLOOR,
+        &["bottom.angular_velocity_rad_per_s=[0, 0, 10]", "source.position_mm=[2, 0, -1]", "run.samples=400000"],
+    );
+    let want = omega * r0 * 10f64.to_radians().sin() / (2.0 * lambda);
+    let (mean, rms, _, bins) = moments(&r);
+    let bound = omega * r0 * 10f64.to_radians().sin() / lambda;
+    assert!(bins.iter().all(|(f, w)| *w == 0.0 || f.abs() < bound + 5.0), "a frequency beyond ±{bound:.1} Hz");
+    let n = r.paths();
+    assert!(mean.abs() < 4.0 * rms / n.sqrt() + 1.0, "mean {mean:.2} Hz");
+    // The bins (10 Hz) widen a width of σ by √(σ² + 10²/12): 0.6 % here.
+    let binned = (want * want + 100.0 / 12.0).sqrt();
+    assert!((rms / binned - 1.0).abs() < 0.02, "RMS {rms:.2} Hz, closed form {binned:.2} Hz");
+}
+
+#[test]
+fn bad_surfaces_are_refused_with_their_key() {
+    for (set, key, words) in [
+        ("bottom.surface={ type = \"lambertian\", albedo = 1.5 }", "bottom.surface.albedo", "0 … 1"),
+        ("bottom.surface={ type = \"conductor\", material = \"tin\" }", "bottom.surface.material", "copper"),
+        (
+            "bottom.surface={ type = \"conductor\", material = \"copper\", roughness = 2 }",
+            "bottom.surface.roughness",
+            "α",
+        ),
+        ("bottom.surface={ type = \"conductor\", material = \"gold\" }", "bottom.surface.material", "nm"),
+        (
+            "bottom.surface={ type = \"mixture\", parts = [{ weight = 0.5, surface = { type = \"lambertian\", albedo = 0.5 } }, { weight = 0.4, surface = { type = \"lambertian\", albedo = 0.2 } }] }",
+            "bottom.surface.parts",
+            "sum",
+        ),
+        ("layers.0.thickness_mm=inf", "layers[0].thickness_mm", "finite"),
+    ] {
+        let sets: Vec<&str> = if key == "bottom.surface.material" && words == "nm" {
+            vec![set, "source.wavelength_nm=3000"]
+        } else {
+            vec![set]
+        };
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let e = ohd::config::load(FLOOR, "test", &sets).map(|_| ()).expect_err(set);
+        let text = e.to_string();
+        assert!(text.contains(key) && text.contains(words), "{set}: {text}");
+    }
+}
