@@ -203,3 +203,22 @@ fn missing_estimates_are_warned_of() {
     assert!(estimates(&r).is_finite());
     assert!(!codes(&r).iter().any(|w| w.code == "fmcw_no_estimates"));
 }
+
+/// Issue 38: the hard target as an opaque surface (`[bottom]`: a Lambertian plate receding at
+/// 1 m/s under a 1 µm clear layer) instead of a dense scattering sheet gives the same peaks,
+/// range and velocity, each within half a bin; approaching, the mirrored peaks.
+#[test]
+fn a_moving_lambertian_plate_is_the_hard_target() {
+    for v in [1.0, -1.0] {
+        let velocity = format!("bottom.velocity_m_per_s=[0, 0, {v}]");
+        let sets = [
+            "run.samples=20000",
+            "media.target={ sigma_a_per_mm = 0, sigma_s_per_mm = 0 }",
+            "bottom.surface={ type = \"lambertian\", albedo = 0.5 }",
+            velocity.as_str(),
+        ];
+        let r = run(TARGET, &sets);
+        let e = check_hard_target(&r, v);
+        assert_eq!(e.f_up_hz > e.f_down_hz, v > 0.0);
+    }
+}
