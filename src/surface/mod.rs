@@ -228,38 +228,44 @@ impl RoughDielectric {
     /// for `wo.z > 0`, transmission into `n_t` for `wo.z < 0` (Walter et al. 2007, Eqs. 20–21,
     /// with the generalised half vector `h = −(n_i wi + n_t wo)` of a refraction).
     pub fn eval(&self, wi: DVec3, wo: DVec3, n_i: f64, n_t: f64) -> f64 {
-        if wi.z <= 0.0 || wo.z == 0.0 {
-            return 0.0;
-        }
         let g = Ggx { alpha: self.alpha };
-        if wo.z > 0.0 {
-            let m = (wi + wo).normalize();
-            let (r, _) = fresnel::reflectance(n_i, n_t, wi.dot(m));
-            return r * g.d(m) * g.g1(wi, m) * g.g1(wo, m) / (4.0 * wi.z);
+        match self.lobe(wi, wo, n_i, n_t) {
+            None => 0.0,
+            Some((m, r, None)) => r * g.d(m) * g.g1(wi, m) * g.g1(wo, m) / (4.0 * wi.z),
+            Some((m, r, Some(denom))) => {
+                let (ci, co) = (wi.dot(m), wo.dot(m));
+                (1.0 - r) * g.d(m) * g.g1(wi, m) * g.g1(wo, m) * ci * co.abs() * n_t * n_t / (wi.z * denom * denom)
+            }
         }
-        let Some(m) = refraction_half_vector(wi, wo, n_i, n_t) else { return 0.0 };
-        let (ci, co) = (wi.dot(m), wo.dot(m));
-        let (r, _) = fresnel::reflectance(n_i, n_t, ci);
-        let denom = n_i * ci + n_t * co;
-        (1.0 - r) * g.d(m) * g.g1(wi, m) * g.g1(wo, m) * ci * co.abs() * n_t * n_t / (wi.z * denom * denom)
     }
 
     /// The density of [`RoughDielectric::sample`]'s direction per steradian of `wo`.
     pub fn pdf(&self, wi: DVec3, wo: DVec3, n_i: f64, n_t: f64) -> f64 {
-        if wi.z <= 0.0 || wo.z == 0.0 {
-            return 0.0;
-        }
         let g = Ggx { alpha: self.alpha };
+        match self.lobe(wi, wo, n_i, n_t) {
+            None => 0.0,
+            // The reflection's Jacobian dω_m/dω_o = 1/(4 wo·m).
+            Some((m, r, None)) => r * g.pdf_visible(wi, m) / (4.0 * wo.dot(m)),
+            // The refraction's, n_t² |wo·m| / (n_i wi·m + n_t wo·m)².
+            Some((m, r, Some(denom))) => {
+                (1.0 - r) * g.pdf_visible(wi, m) * n_t * n_t * wo.dot(m).abs() / (denom * denom)
+            }
+        }
+    }
+
+    /// The microfacet normal that takes `wi` to `wo` and its Fresnel reflectance; for a refraction
+    /// also `n_i wi·m + n_t wo·m` (its Jacobian's denominator). `None` where no microfacet does.
+    fn lobe(&self, wi: DVec3, wo: DVec3, n_i: f64, n_t: f64) -> Option<(DVec3, f64, Option<f64>)> {
+        if wi.z <= 0.0 || wo.z == 0.0 {
+            return None;
+        }
         if wo.z > 0.0 {
             let m = (wi + wo).normalize();
-            let (r, _) = fresnel::reflectance(n_i, n_t, wi.dot(m));
-            return r * g.pdf_visible(wi, m) / (4.0 * wo.dot(m));
+            return Some((m, fresnel::reflectance(n_i, n_t, wi.dot(m)).0, None));
         }
-        let Some(m) = refraction_half_vector(wi, wo, n_i, n_t) else { return 0.0 };
-        let (ci, co) = (wi.dot(m), wo.dot(m));
-        let (r, _) = fresnel::reflectance(n_i, n_t, ci);
-        let denom = n_i * ci + n_t * co;
-        (1.0 - r) * g.pdf_visible(wi, m) * n_t * n_t * co.abs() / (denom * denom)
+        let m = refraction_half_vector(wi, wo, n_i, n_t)?;
+        let r = fresnel::reflectance(n_i, n_t, wi.dot(m)).0;
+        Some((m, r, Some(n_i * wi.dot(m) + n_t * wo.dot(m))))
     }
 }
 
