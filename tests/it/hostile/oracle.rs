@@ -152,6 +152,7 @@ pub const SECTIONS: &[&str] = &[
     "reference",
     "volume",
     "lateral",
+    "bottom",
 ];
 
 impl Names {
