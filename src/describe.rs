@@ -522,24 +522,7 @@ impl Display for Scene {
             )?;
         }
         if let Some(b) = &self.bottom {
-            write!(f, "\nbottom: an opaque surface under the last layer: {}", b.bsdf)?;
-            if b.velocity != glam::DVec3::ZERO {
-                let v = b.velocity;
-                write!(f, "; moving at ({}, {}, {}) m/s", num(v.x), num(v.y), num(v.z))?;
-            }
-            if b.angular_velocity != glam::DVec3::ZERO {
-                let (w, c) = (b.angular_velocity, b.center);
-                write!(
-                    f,
-                    "; rotating at ({}, {}, {}) rad/s about ({}, {}, {}) m",
-                    num(w.x),
-                    num(w.y),
-                    num(w.z),
-                    num(c.x),
-                    num(c.y),
-                    num(c.z)
-                )?;
-            }
+            write!(f, "\nbottom: an opaque surface under the last layer: {b}")?;
         }
         write!(f, "\nmedia:")?;
         let mut names: Vec<&str> = Vec::new();
@@ -610,6 +593,37 @@ impl Display for Scene {
                     r.name, self.layers[r.layer].name, self.media[r.medium].name, r.shape
                 )?;
             }
+        }
+        if !self.opaque.is_empty() {
+            write!(f, "\nopaque solids:")?;
+            for o in &self.opaque {
+                write!(f, "\n  {}: in {}, {}; {}", o.name, self.layers[o.layer].name, o.shape, o.surface)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A surface: its BSDF, then its motion if it moves.
+impl Display for crate::medium::Surface {
+    fn fmt(&self, f: &mut Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.bsdf)?;
+        if self.velocity != glam::DVec3::ZERO {
+            let v = self.velocity;
+            write!(f, "; moving at ({}, {}, {}) m/s", num(v.x), num(v.y), num(v.z))?;
+        }
+        if self.angular_velocity != glam::DVec3::ZERO {
+            let (w, c) = (self.angular_velocity, self.center);
+            write!(
+                f,
+                "; rotating at ({}, {}, {}) rad/s about ({}, {}, {}) m",
+                num(w.x),
+                num(w.y),
+                num(w.z),
+                num(c.x),
+                num(c.y),
+                num(c.z)
+            )?;
         }
         Ok(())
     }

@@ -81,6 +81,9 @@ pub struct ExperimentFile {
     pub lateral: Option<LateralSection>,
     /// An opaque surface closing the stack from below.
     pub bottom: Option<BottomSection>,
+    /// Opaque solids inside the layers: reflectors with a surface BSDF.
+    #[serde(default)]
+    pub opaque: Vec<OpaqueSection>,
 }
 
 /// `[bottom]`: an opaque surface under the last layer (which must be finite): a reflector with a
@@ -94,6 +97,24 @@ pub struct BottomSection {
     #[serde(rename = "angular_velocity_rad_per_s", alias = "angular_velocity_rpm")]
     pub angular_velocity: Option<Quantity<AngularSpeed, [f64; 3]>>,
     /// A point on the rotation axis (default the origin).
+    #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
+    pub center: Option<Quantity<Length, [f64; 3]>>,
+}
+
+/// `[[opaque]]`: an opaque solid inside a layer (a plate, a wall, a belt): its shape, its
+/// surface's BSDF and its motion (as `[bottom]`'s).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpaqueSection {
+    pub name: Option<String>,
+    pub layer: Option<String>,
+    pub shape: Option<ShapeSection>,
+    pub surface: Option<SurfaceSection>,
+    #[serde(rename = "velocity_mm_per_s", alias = "velocity_m_per_s")]
+    pub velocity: Option<Quantity<Speed, [f64; 3]>>,
+    #[serde(rename = "angular_velocity_rad_per_s", alias = "angular_velocity_rpm")]
+    pub angular_velocity: Option<Quantity<AngularSpeed, [f64; 3]>>,
+    /// A point on the rotation axis (default the shape's centre).
     #[serde(rename = "center_um", alias = "center_mm", alias = "center_m")]
     pub center: Option<Quantity<Length, [f64; 3]>>,
 }

@@ -10,7 +10,7 @@ mod shape;
 
 pub use density::{Density, Heterogeneity};
 pub use particles::{ComponentOptics, ParticleOptics, mixture_optics, relative_sphere};
-pub use scene::{Bottom, Lateral, Layer, MAX_REGIONS_PER_LAYER, Region, Scene};
+pub use scene::{Lateral, Layer, MAX_REGIONS_PER_LAYER, Opaque, Region, Scene, Surface};
 pub use shape::Shape;
 
 use glam::DVec3;

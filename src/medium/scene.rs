@@ -32,6 +32,8 @@ pub struct Layer {
     /// Smallest optical depth from the layer's top up to the surface (straight up through the
     /// minorants of the layers above): bounds what a shadow ray from the layer can carry.
     pub tau_above: f64,
+    /// Indices into [`Scene::opaque`] of the opaque solids inside the layer.
+    pub opaque: Vec<usize>,
 }
 
 impl Layer {
@@ -89,12 +91,12 @@ impl Lateral {
     }
 }
 
-/// An opaque surface closing the stack from below (`[bottom]`, issue 38): the light reaching the
-/// bottom of the last layer is reflected back into it by the surface's BSDF or absorbed there.
-/// The surface may move: a translation and a rotation about `center`, whose Doppler term is
-/// `n v·(dir_in − dir_out)` per reflection, as a particle's.
+/// An opaque reflecting surface (issue 38): its BSDF and its motion. It closes the stack from
+/// below (`[bottom]`) or bounds an opaque solid inside a layer ([`Opaque`]): the light reaching
+/// it is reflected by the BSDF or absorbed there. It may move: a translation and a rotation about
+/// `center`, whose Doppler term is `n v·(dir_in − dir_out)` per reflection, as a particle's.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Bottom {
+pub struct Surface {
     pub bsdf: crate::surface::Bsdf,
     /// Velocity of translation, m/s.
     pub velocity: DVec3,
@@ -103,7 +105,7 @@ pub struct Bottom {
     pub center: DVec3,
 }
 
-impl Bottom {
+impl Surface {
     /// The surface's velocity at `p`: `v + ω × (p − center)`.
     #[inline]
     pub fn velocity_at(&self, p: DVec3) -> DVec3 {
@@ -115,17 +117,43 @@ impl Bottom {
         self.velocity != DVec3::ZERO || self.angular_velocity != DVec3::ZERO
     }
 
-    /// The local frame at the surface: its normal points up (`−z`), into the stack.
+    /// The local frame of the surface under the stack: its normal points up (`−z`), into the
+    /// stack.
     #[inline]
-    pub fn frame() -> crate::surface::Frame {
+    pub fn bottom_frame() -> crate::surface::Frame {
         crate::surface::Frame { n: DVec3::NEG_Z, t: DVec3::X, b: DVec3::NEG_Y }
+    }
+}
+
+/// An opaque solid inside one layer (`[[opaque]]`): a plate, a wall, a belt, a wheel. Light
+/// meets its boundary and is reflected there by its [`Surface`]; nothing enters it, and it
+/// blocks shadow rays. It lies wholly inside its layer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Opaque {
+    pub name: String,
+    /// A convex shape: a ray leaving its boundary never meets it again.
+    pub shape: Shape,
+    pub surface: Surface,
+    /// Index of the layer that holds it.
+    pub layer: usize,
+    /// Distances along a ray shorter than this (m; 10⁻⁹ of the shape's size) are the boundary the
+    /// ray starts on: a path reflected there does not meet it again by rounding.
+    pub tolerance: f64,
+}
+
+impl Opaque {
+    /// The distance along `o + t·d` (unit `d`) to where the ray first meets the solid, if ahead.
+    #[inline]
+    pub fn hit(&self, o: DVec3, d: DVec3) -> Option<f64> {
+        let (a, b) = self.shape.intersect(o, d)?;
+        (b > self.tolerance).then_some(a.max(0.0))
     }
 }
 
 /// Everything light travels through. Outside the stack are non-scattering half-spaces with
 /// indices `n_above` (z < 0) and `n_below`; with `lateral`, the stack is a box; with `bottom`, an
 /// opaque surface closes it from below (and `n_below` is the last layer's index: no interface
-/// there).
+/// there); `opaque` solids sit inside layers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
     pub layers: Vec<Layer>,
@@ -137,7 +165,9 @@ pub struct Scene {
     /// them).
     pub lateral: Option<Lateral>,
     /// The opaque surface under the last layer (which is then finite), if any.
-    pub bottom: Option<Bottom>,
+    pub bottom: Option<Surface>,
+    /// Opaque solids inside the layers (each listed by its layer, [`Layer::opaque`]).
+    pub opaque: Vec<Opaque>,
 }
 
 impl Scene {
@@ -192,7 +222,30 @@ impl Scene {
     /// Whether any particle or surface in the scene moves (otherwise no Doppler term is computed
     /// at all).
     pub fn is_moving(&self) -> bool {
-        self.media.iter().any(|m| m.is_dynamic()) || self.bottom.as_ref().is_some_and(Bottom::is_moving)
+        self.media.iter().any(|m| m.is_dynamic())
+            || self.bottom.as_ref().is_some_and(Surface::is_moving)
+            || self.opaque.iter().any(|o| o.surface.is_moving())
+    }
+
+    /// The first opaque solid of `layer` that the ray `o + t·d` meets, and the distance to it
+    /// (`(∞, usize::MAX)`: none).
+    #[inline]
+    pub fn first_opaque(&self, layer: &Layer, o: DVec3, d: DVec3) -> (f64, usize) {
+        let mut best = (f64::INFINITY, usize::MAX);
+        for &k in &layer.opaque {
+            if let Some(t) = self.opaque[k].hit(o, d)
+                && t < best.0
+            {
+                best = (t, k);
+            }
+        }
+        best
+    }
+
+    /// Whether an opaque solid of `layer` lies across the segment `o + t·d`, `0 ≤ t ≤ len`.
+    #[inline]
+    pub fn blocked(&self, layer: &Layer, o: DVec3, d: DVec3, len: f64) -> bool {
+        layer.opaque.iter().any(|&k| self.opaque[k].hit(o, d).is_some_and(|t| t < len))
     }
 
     /// Depth of the bottom of the stack (∞ if the last layer is semi-infinite).

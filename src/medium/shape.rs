@@ -82,6 +82,45 @@ impl Shape {
         }
     }
 
+    /// The outward unit normal of the boundary at `p` (a point on it, up to rounding), seen from
+    /// the direction `toward` (a ray arriving along `−toward`): a box's face nearest `p` among
+    /// those facing `toward` (at an edge, the face the ray came through), a cylinder's side or
+    /// cap, whichever is nearer.
+    pub fn outward_normal(&self, p: DVec3, toward: DVec3) -> DVec3 {
+        match *self {
+            Shape::Sphere { center, .. } => (p - center).normalize(),
+            Shape::Cylinder { center, axis, radius, half_length } => {
+                let d = p - center;
+                let s = d.dot(axis);
+                let radial = d - s * axis;
+                let r = radial.length();
+                if (half_length - s.abs()) < (radius - r).abs() || r == 0.0 { axis * s.signum() } else { radial / r }
+            }
+            Shape::Box { min, max } => {
+                let mut best = (f64::INFINITY, DVec3::ZERO);
+                for i in 0..3 {
+                    let mut e = DVec3::ZERO;
+                    for (dist, sign) in [(p[i] - min[i], -1.0), (max[i] - p[i], 1.0)] {
+                        if dist.abs() < best.0 && sign * toward[i] >= 0.0 {
+                            e[i] = sign;
+                            best = (dist.abs(), e);
+                        }
+                    }
+                }
+                best.1
+            }
+        }
+    }
+
+    /// The length of the shape's longest extent (its bounding box's diagonal).
+    pub fn size(&self) -> f64 {
+        match *self {
+            Shape::Sphere { radius, .. } => 2.0 * radius,
+            Shape::Box { min, max } => (max - min).length(),
+            Shape::Cylinder { radius, half_length, .. } => (2.0 * radius).hypot(2.0 * half_length),
+        }
+    }
+
     /// Half-extent of the shape along `z` about its centre (for placing it in its layer).
     /// The shape grown by `d` on every side (a box's faces moved out, a sphere's or cylinder's
     /// radius and a cylinder's half-length lengthened): a neighbourhood that holds it.

@@ -13,7 +13,8 @@
 //! where `p` is the phase function (sr⁻¹), the ratio of cosines and indices is the change of solid
 //! angle across the interfaces (étendue `n² cos θ dΩ` is conserved), `Ω_cone = 2π(1 − cos α)` is
 //! the inverse density of `ω0`, `R_i` the Fresnel reflectances of the interfaces crossed and `τ`
-//! the optical depth of the straight segments through the layers and the regions they cross.
+//! the optical depth of the straight segments through the layers and the regions they cross (0
+//! where an opaque solid lies across them).
 //!
 //! The path's own escapes into the cone straight after a scattering event estimate the same
 //! thing by sampling the phase function, so the two are combined by the balance heuristic (Veach
@@ -135,7 +136,7 @@ impl ShadowHit {
 /// chance of meeting a millimetre aperture within microradians is nil), so no weighting is needed.
 //
 // The allow is a measured exception (issue 19): see `walk::collide_nee`, the only caller of this
-// and of `shadow_ray` with `reflect_at_bottom` (a `ShadowOrigin { layer, pos, dir_in, phase }`
+// and of `shadow_ray` with `reflect_at_surface` (a `ShadowOrigin { layer, pos, dir_in, phase }`
 // for the first four arguments cost +1.0 to +1.75 % of the instructions of the next-event scenes).
 #[allow(clippy::too_many_arguments)]
 pub fn receiver_ray(
@@ -163,6 +164,9 @@ pub fn receiver_ray(
     // then the (clear) ambient medium to the aperture.
     let Crossing { tau, transmit, excess, twin_transmit, .. } =
         trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
+    if transmit <= 0.0 {
+        return None;
+    }
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
     let factor = density(dir).0 * area * cos_r / r2 * transmit * (-tau).exp();
     let unit = area * cos_r / r2 * transmit;
@@ -239,6 +243,11 @@ impl Crossing {
     /// end.
     #[inline(always)]
     pub(super) fn segment(&mut self, scene: &Scene, layer: &crate::medium::Layer, d: DVec3, t: f64, rng: &mut PathRng) {
+        if !layer.opaque.is_empty() && scene.blocked(layer, self.pos, d, t) {
+            // An opaque solid lies across it: nothing comes through (the twin's way as well).
+            self.transmit = 0.0;
+            self.twin_transmit = 0.0;
+        }
         if layer.heterogeneous {
             let r = ratio_transmittance(scene, layer, self.pos, d, t, rng);
             self.transmit *= r;

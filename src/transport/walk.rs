@@ -120,6 +120,9 @@ pub fn control_variate_obstacle(
     if scene.bottom.is_some() {
         return Some("an opaque [bottom] surface: shadow rays from its reflections do not carry the twin yet".into());
     }
+    if let Some(o) = scene.opaque.first() {
+        return Some(format!("the opaque solid `{}`: the layered twin has no surfaces yet", o.name));
+    }
     if let Some(l) = scene.layers.iter().find(|l| scene.media[l.medium].density().is_some()) {
         return Some(format!("layer `{}`'s medium has a density field: its twin is not laterally invariant", l.name));
     }
@@ -238,7 +241,8 @@ impl WalkContext<'_> {
             .iter()
             .enumerate()
             .any(|(j, l)| l.z_bottom.is_finite() && l.n != scene.layers.get(j + 1).map_or(scene.n_below, |b| b.n));
-        let possible = seen && mismatched && scene.lateral.is_none();
+        // (Opaque solids would shade the reflections' straight ways down and up.)
+        let possible = seen && mismatched && scene.lateral.is_none() && scene.opaque.is_empty();
         match settings.reflections {
             Reflections::Sampled => false,
             Reflections::Deterministic => possible,
@@ -375,6 +379,9 @@ enum End {
     /// Reached the opaque surface under the last layer (`Scene::bottom`), where `s.pos` now is:
     /// [`walk_to_the_end`] reflects it there and walks on.
     AtBottom,
+    /// Reached the boundary of the opaque solid `Scene::opaque[k]`, where `s.pos` now is:
+    /// [`walk_to_the_end`] reflects it there and walks on.
+    AtOpaque(usize),
 }
 
 /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
@@ -509,7 +516,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
         End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         // (`walk_to_the_end` never ends at the surface.)
-        End::Truncated | End::AtBottom => rec.stats.truncated_paths += 1,
+        End::Truncated | End::AtBottom | End::AtOpaque(_) => rec.stats.truncated_paths += 1,
     }
     if NEE && let Some(split) = rec.split.take() {
         twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
@@ -705,7 +712,8 @@ fn walk<
         // keeps its inflated majorants) a constant density field, known to be constant at
         // resolve time, at rate `c·σt`. Through the majorant segments, even as one segment, a
         // constant ramp cost 2.2× the homogeneous slab (callgrind, `validation/features/`).
-        let uniform = if layer.regions.is_empty() { fill.uniform_density() } else { None };
+        // (An opaque solid in the layer ends flights at its boundary: the general flights.)
+        let uniform = if layer.regions.is_empty() && layer.opaque.is_empty() { fill.uniform_density() } else { None };
         let (homogeneous, fill_inv_sigma_t) = match uniform {
             Some(_) if !layer.heterogeneous => (true, fill.inv_sigma_t()),
             Some(c) if settings.tracking == Tracking::Analytic => (true, 1.0 / (c * fill.sigma_t())),
@@ -734,6 +742,12 @@ fn walk<
             } else {
                 // Distance along z to the boundary plane ahead (either one for a horizontal ray).
                 let dz = if s.dir.z >= 0.0 { z_bottom - s.pos.z } else { s.pos.z - z_top };
+                // The first opaque solid ahead, if any: the flight ends at it.
+                let (t_opaque, opaque) = if layer.opaque.is_empty() {
+                    (f64::INFINITY, usize::MAX)
+                } else {
+                    scene.first_opaque(layer, s.pos, s.dir)
+                };
                 let ray = LayerRay { scene, layer, pos: s.pos, dir: s.dir };
                 // A layer with density regions flies the path and its coupled layered twin
                 // together (`coupled_flight`), the others weight the twin by its flights'
@@ -742,10 +756,10 @@ fn walk<
                 let flight = if LATERAL {
                     // The nearer of the plane ahead and the side face ahead (`min` takes the face
                     // for a horizontal ray, whose distance to the plane is ∞ or NaN).
-                    let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs());
+                    let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs()).min(t_opaque);
                     free_flight_to(ray, t_end, settings.tracking, rng, null_collisions)
                 } else if coupled {
-                    let t_end = dz / s.dir.z.abs();
+                    let t_end = (dz / s.dir.z.abs()).min(t_opaque);
                     let (flight, parting) =
                         super::tracking::coupled_flight(&ray, t_end, fill.sigma_t(), rng, null_collisions);
                     match parting {
@@ -762,6 +776,8 @@ fn walk<
                         }
                     }
                     flight
+                } else if t_opaque < f64::INFINITY {
+                    free_flight_to(ray, (dz / s.dir.z.abs()).min(t_opaque), settings.tracking, rng, null_collisions)
                 } else {
                     free_flight(ray, dz, s.dir.z.abs(), settings.tracking, rng, null_collisions)
                 };
@@ -779,6 +795,24 @@ fn walk<
                     Flight::Collision { t, medium } => {
                         let m = &scene.media[medium];
                         (t, m, if albedo_grid { m.albedo_at(s.pos + t * s.dir) } else { m.albedo() })
+                    }
+                    // The flight ends at an opaque solid's boundary (before the plane and a side
+                    // face): there the surface reflects it, outside the walk.
+                    Flight::Boundary { t } if t_opaque <= t => {
+                        if VOLUME && let Some(v) = ctx.volume {
+                            v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+                        }
+                        if GATE
+                            && let Some((_, l1)) = settings.gate
+                            && s.l + n * t > l1
+                        {
+                            return End::Gated;
+                        }
+                        s.pos += t * s.dir;
+                        if LENGTH {
+                            s.l += n * t;
+                        }
+                        return End::AtOpaque(opaque);
                     }
                     Flight::Boundary { .. } => break,
                 }
@@ -952,9 +986,9 @@ fn walk<
     }
 }
 
-/// A forward path's walk from layer `start` to its end, with its reflections at an opaque
-/// surface under the stack in between ([`reflect_at_bottom`]: the walk stops there and starts
-/// again in the last layer).
+/// A forward path's walk from layer `start` to its end, with its reflections at opaque surfaces
+/// in between (under the stack, or an opaque solid's in a layer; [`reflect_at_surface`]: the walk
+/// stops there and starts again in the surface's layer).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn walk_to_the_end<
@@ -977,11 +1011,22 @@ fn walk_to_the_end<
     loop {
         let end =
             walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(ctx, li, s, rng, absorbed, null_collisions, rec);
-        let (End::AtBottom, Some(bottom)) = (end, &ctx.scene.bottom) else { return end };
-        li = ctx.scene.layers.len() - 1;
+        let scene = ctx.scene;
+        let (surface, frame) = match (end, &scene.bottom) {
+            (End::AtBottom, Some(bottom)) => {
+                li = scene.layers.len() - 1;
+                (bottom, crate::medium::Surface::bottom_frame())
+            }
+            (End::AtOpaque(k), _) => {
+                let o = &scene.opaque[k];
+                li = o.layer;
+                (&o.surface, crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir)))
+            }
+            _ => return end,
+        };
         // (The deposit comes back by value: `absorbed`'s address handed to a call kept it in
         // memory through every collision of the walk, +1 instruction each.)
-        let (deposit, ended) = reflect_at_bottom::<DOPPLER, LENGTH, NEE>(ctx, bottom, li, s, rng, rec);
+        let (deposit, ended) = reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, surface, &frame, li, s, rng, rec);
         *absorbed += deposit;
         if let Some(end) = ended {
             return end;
@@ -989,7 +1034,8 @@ fn walk_to_the_end<
     }
 }
 
-/// The path `s` in the last layer `li` reaches the opaque surface under it, at `s.pos`:
+/// The path `s` in layer `li` reaches an opaque surface of local frame `frame` (its normal
+/// pointing into the layer) at `s.pos`:
 /// shadow rays toward the next-event detectors (the BSDF's value toward each, balanced against
 /// its own density where a direct escape can also reach the detector), then a direction from the
 /// BSDF, whose weight multiplies the path's (the rest is absorbed by the surface: returned, to be
@@ -997,26 +1043,30 @@ fn walk_to_the_end<
 /// Doppler term. A reflection is a scattering event: one more order, the event cap and Russian
 /// roulette. `Some` end if the path ends here.
 #[inline(never)]
-fn reflect_at_bottom<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
+fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     ctx: &WalkContext,
-    bottom: &crate::medium::Bottom,
+    surface: &crate::medium::Surface,
+    frame: &crate::surface::Frame,
     li: usize,
     s: &mut PathState,
     rng: &mut PathRng,
     rec: &mut Recorder,
 ) -> (f64, Option<End>) {
     let n = ctx.scene.layers[li].n;
-    let frame = crate::medium::Bottom::frame();
     let wi = frame.to_local(-s.dir);
-    let moving = DOPPLER && bottom.is_moving();
-    let v = if moving { bottom.velocity_at(s.pos) } else { DVec3::ZERO };
-    if NEE && bottom.bsdf.has_continuous_part() {
+    if wi.z <= 0.0 {
+        // Arrived from behind its face (rounding at a solid's edge): nothing reflects it.
+        return (s.weight, Some(End::Absorbed));
+    }
+    let moving = DOPPLER && surface.is_moving();
+    let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
+    if NEE && surface.bsdf.has_continuous_part() {
         let boost = connection_roulette(ctx.scene, li, s, rng);
         let targets = if boost > 0.0 { ctx.nee } else { &[] };
         rec.stats.work.shadow_rays += targets.len() as u64;
         let density = |d: DVec3| {
             let wo = frame.to_local(d);
-            (bottom.bsdf.eval(wi, wo), bottom.bsdf.pdf(wi, wo))
+            (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
         };
         for target in targets {
             let (u1, u2) = (rng.uniform(), rng.uniform());
@@ -1042,7 +1092,7 @@ fn reflect_at_bottom<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         }
     }
     let u = [rng.uniform(), rng.uniform(), rng.uniform()];
-    let Some(smp) = bottom.bsdf.sample(wi, u) else {
+    let Some(smp) = surface.bsdf.sample(wi, u) else {
         return (s.weight, Some(End::Absorbed));
     };
     let out = frame.to_world(smp.wo);
@@ -1055,7 +1105,7 @@ fn reflect_at_bottom<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
         // The density of the direction drawn, in the layer's solid angle over `n²|cos|` (as a
         // collision's phase-function density): a direct escape weighs itself against the
         // shadow rays by it; a mirror's Dirac lobe is no shadow ray's (full weight).
-        s.mis = if smp.delta { -1.0 } else { bottom.bsdf.pdf(wi, smp.wo) / (n * n * out.z.abs()) };
+        s.mis = if smp.delta { -1.0 } else { surface.bsdf.pdf(wi, smp.wo) / (n * n * out.z.abs()) };
     }
     if moving {
         s.dldt += doppler_increment(n, v, s.dir - out);

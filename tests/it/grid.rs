@@ -202,6 +202,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
             minorant: 0.0,
             heterogeneous: false,
             tau_above: 0.0,
+            opaque: Vec::new(),
         }],
         regions: vec![],
         media: vec![m],
@@ -209,6 +210,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
         n_below: 1.0,
         lateral: None,
         bottom: None,
+        opaque: Vec::new(),
     };
     scene.update_layers();
     (scene, ramp)

@@ -94,6 +94,7 @@ fn piecewise_scene() -> Scene {
             minorant: 0.0,
             heterogeneous: false,
             tau_above: 0.0,
+            opaque: Vec::new(),
         }],
         regions,
         media: vec![medium("base", 1000.0), medium("dense", 4000.0), medium("void", 0.0)],
@@ -101,6 +102,7 @@ fn piecewise_scene() -> Scene {
         n_below: 1.0,
         lateral: None,
         bottom: None,
+        opaque: Vec::new(),
     }
 }
 

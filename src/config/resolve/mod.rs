@@ -8,7 +8,6 @@
 //! LDH, lidar). This module holds the entry points, the cross-checks between parts (lidar, LDH
 //! and chirp; references; the memory budget) and the helpers they share.
 
-mod bottom;
 mod density;
 mod detectors;
 mod flow;
@@ -17,6 +16,7 @@ mod media;
 mod run;
 mod scene;
 mod source;
+mod surfaces;
 mod volume;
 
 use std::collections::BTreeMap;
@@ -25,7 +25,6 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use self::bottom::resolve_bottom;
 pub use self::density::{grid_heterogeneity, resolve_majorant};
 pub use self::detectors::{
     LDH_DEFAULT_BAND_HZ, LDH_DEFAULT_FRAME_RATE_HZ, LDH_DEFAULT_SPECKLE_WINDOWS, LDH_DEFAULT_WINDOW_SAMPLES,
@@ -35,6 +34,7 @@ use self::lateral::resolve_lateral;
 use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
+use self::surfaces::{resolve_bottom, resolve_opaque};
 use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
@@ -219,6 +219,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     let mut scene = scene;
     scene.lateral = resolve_lateral(f.lateral.as_ref(), n_above, &source, &detectors)?;
     scene.bottom = resolve_bottom(f.bottom.as_ref(), &scene, source.wavelength, &detectors)?;
+    resolve_opaque(&f.opaque, &mut scene, source.wavelength, &detectors)?;
     if scene.bottom.is_some() {
         // The surface lies on the last layer's bottom plane: no interface of index there (the
         // walk meets the surface where it would refract out; reflections below see no step).

@@ -13,7 +13,7 @@ use crate::config::schema::*;
 use crate::error::ConfigError;
 use crate::medium::{Heterogeneity, Layer, MAX_REGIONS_PER_LAYER, Medium, MediumInfo, Region, Scene, Shape};
 
-fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
+pub(super) fn resolve_shape(path: &str, s: &ShapeSection) -> R<Shape> {
     let p = join(path, "shape");
     Ok(match s {
         ShapeSection::Sphere { center, radius } => {
@@ -262,6 +262,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 minorant: 0.0,
                 heterogeneous: false,
                 tau_above: 0.0,
+                opaque: Vec::new(),
             });
         }
     }
@@ -325,7 +326,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
     for (name, ms) in f.media.iter().filter(|(name, _)| !used.contains(*name)) {
         check_unused(&mut optics, ctx, name, ms, &f.media)?;
     }
-    let mut scene = Scene { layers, regions, media, n_above, n_below, lateral: None, bottom: None };
+    let mut scene = Scene { layers, regions, media, n_above, n_below, lateral: None, bottom: None, opaque: Vec::new() };
     scene.update_layers();
     Ok(scene)
 }

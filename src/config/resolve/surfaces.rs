@@ -1,13 +1,15 @@
-//! `[bottom]`: an opaque surface closing the stack from below ([`crate::medium::Bottom`]), and
-//! the surface BSDFs of the configuration ([`SurfaceSection`]).
+//! Opaque surfaces: `[bottom]`, closing the stack from below, and `[[opaque]]` solids inside the
+//! layers ([`crate::medium::Surface`], [`crate::medium::Opaque`]), with the surface BSDFs of the
+//! configuration ([`SurfaceSection`]).
 
 use glam::DVec3;
 use num_complex::Complex64;
 
 use super::{R, err, given_arr, join, shown};
-use crate::config::schema::{BottomSection, SurfaceSection};
+use crate::config::schema::{BottomSection, OpaqueSection, SurfaceSection};
+use crate::config::units::{AngularSpeed, Length, Quantity, Speed};
 use crate::detect::{Detector, EstimatorChoice};
-use crate::medium::{Bottom, Scene};
+use crate::medium::{Opaque, Scene, Surface};
 use crate::surface::Bsdf;
 use crate::surface::metals::Metal;
 
@@ -18,7 +20,7 @@ pub(super) fn resolve_bottom(
     scene: &Scene,
     wavelength: f64,
     detectors: &[Detector],
-) -> R<Option<Bottom>> {
+) -> R<Option<Surface>> {
     let Some(b) = b else { return Ok(None) };
     let Some(last) = scene.layers.last() else { return err("layers", "an opaque [bottom] needs a layer above it") };
     if !last.z_bottom.is_finite() {
@@ -27,31 +29,125 @@ pub(super) fn resolve_bottom(
             "is infinite: an opaque [bottom] closes a stack of finite layers (give the last layer a thickness)",
         );
     }
-    let Some(surface) = &b.surface else {
-        return err(
-            "bottom",
-            "missing surface: e.g. surface = { type = \"lambertian\", albedo = 0.5 } or { type = \"conductor\", material = \"copper\", roughness = 0.3 }",
-        );
-    };
-    let bsdf = resolve_surface("bottom.surface", surface, wavelength, last.n)?;
-    let vec = |v: Option<([f64; 3], String)>| v.map_or(DVec3::ZERO, |(v, _)| DVec3::from(v));
-    let bottom = Bottom {
-        bsdf,
-        velocity: vec(given_arr("bottom", &b.velocity)?),
-        angular_velocity: vec(given_arr("bottom", &b.angular_velocity)?),
-        center: vec(given_arr("bottom", &b.center)?),
-    };
+    let motion = Motion { velocity: &b.velocity, angular_velocity: &b.angular_velocity, center: &b.center };
+    let bottom = surface("bottom", b.surface.as_ref(), motion, DVec3::ZERO, wavelength, last.n)?;
     if let Some(i) = detectors.iter().position(|d| d.side() == crate::detect::Side::Bottom) {
         return err(format!("detectors[{i}].side"), "= \"bottom\": nothing leaves through an opaque [bottom] surface");
     }
-    // The camera-side walk (from a camera's pixels back to the laser) does not meet surfaces yet.
+    forward_only("an opaque [bottom] surface", detectors)?;
+    Ok(Some(bottom))
+}
+
+/// The `[[opaque]]` solids, placed in their layers of `scene` (each wholly inside one unsplit
+/// layer); only forward paths from the laser meet them.
+pub(super) fn resolve_opaque(
+    list: &[OpaqueSection],
+    scene: &mut Scene,
+    wavelength: f64,
+    detectors: &[Detector],
+) -> R<()> {
+    for (i, o) in list.iter().enumerate() {
+        let path = format!("opaque[{i}]");
+        let name = o.name.clone().unwrap_or_else(|| format!("opaque{i}"));
+        let Some(layer) = &o.layer else { return err(path, "missing layer: the name of the layer that holds it") };
+        let Some(li) = scene.layers.iter().position(|l| &l.name == layer) else {
+            let split = scene.layers.iter().any(|l| l.name.starts_with(&format!("{layer}[")));
+            let names: Vec<&str> = scene.layers.iter().map(|l| l.name.as_str()).collect();
+            let why = if split {
+                format!("= \"{layer}\" is split into sublayers: an opaque solid needs an unsplit layer")
+            } else {
+                format!("= \"{layer}\": unknown layer; layers are {}", crate::error::list(names))
+            };
+            return err(join(&path, "layer"), why);
+        };
+        let Some(shape) = &o.shape else {
+            return err(path, "missing shape: e.g. shape = { type = \"box\", center_m = […], size_m = […] }");
+        };
+        let shape = super::scene::resolve_shape(&path, shape)?;
+        if let crate::medium::Shape::Cylinder { half_length, .. } = shape
+            && !half_length.is_finite()
+        {
+            return err(join(&path, "shape"), "missing length: an opaque cylinder is a closed solid (a wheel, a drum)");
+        }
+        let l = &scene.layers[li];
+        let (zmin, zmax) = shape.z_range();
+        if zmin < l.z_top || zmax > l.z_bottom {
+            return err(
+                join(&path, "shape"),
+                format!(
+                    "spans z = {} … {} m, not inside its layer \"{}\" (z = {} … {} m): an opaque solid lies wholly inside one layer",
+                    shown(zmin),
+                    shown(zmax),
+                    l.name,
+                    shown(l.z_top),
+                    shown(l.z_bottom)
+                ),
+            );
+        }
+        let motion = Motion { velocity: &o.velocity, angular_velocity: &o.angular_velocity, center: &o.center };
+        let centre = shape_centre(&shape);
+        let surface = surface(&path, o.surface.as_ref(), motion, centre, wavelength, l.n)?;
+        forward_only("an [[opaque]] solid", detectors)?;
+        let tolerance = 1e-9 * shape.size();
+        scene.opaque.push(Opaque { name, shape, surface, layer: li, tolerance });
+        scene.layers[li].opaque.push(scene.opaque.len() - 1);
+    }
+    Ok(())
+}
+
+/// The keys of a surface's motion.
+struct Motion<'a> {
+    velocity: &'a Option<Quantity<Speed, [f64; 3]>>,
+    angular_velocity: &'a Option<Quantity<AngularSpeed, [f64; 3]>>,
+    center: &'a Option<Quantity<Length, [f64; 3]>>,
+}
+
+/// A surface at `path`: its BSDF (facing a medium of index `n_medium`) and its motion, rotating
+/// about `center` (default `centre`).
+fn surface(
+    path: &str,
+    s: Option<&SurfaceSection>,
+    m: Motion,
+    centre: DVec3,
+    wavelength: f64,
+    n_medium: f64,
+) -> R<Surface> {
+    let Some(s) = s else {
+        return err(
+            path,
+            "missing surface: e.g. surface = { type = \"lambertian\", albedo = 0.5 } or { type = \"conductor\", material = \"copper\", roughness = 0.3 }",
+        );
+    };
+    let bsdf = resolve_surface(&join(path, "surface"), s, wavelength, n_medium)?;
+    let vec = |v: Option<([f64; 3], String)>| v.map(|(v, _)| DVec3::from(v));
+    Ok(Surface {
+        bsdf,
+        velocity: vec(given_arr(path, m.velocity)?).unwrap_or(DVec3::ZERO),
+        angular_velocity: vec(given_arr(path, m.angular_velocity)?).unwrap_or(DVec3::ZERO),
+        center: vec(given_arr(path, m.center)?).unwrap_or(centre),
+    })
+}
+
+/// The centre of a shape (its bounding box's).
+fn shape_centre(s: &crate::medium::Shape) -> DVec3 {
+    match *s {
+        crate::medium::Shape::Sphere { center, .. } | crate::medium::Shape::Cylinder { center, .. } => center,
+        crate::medium::Shape::Box { min, max } => 0.5 * (min + max),
+    }
+}
+
+/// The camera-side walk (from a camera's pixels back to the laser) meets no surface yet: every
+/// detector estimated forward.
+fn forward_only(what: &str, detectors: &[Detector]) -> R<()> {
     if let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward)) {
         return err(
             format!("detectors[{i}].estimator"),
-            "paths traced from a camera's pixels do not meet an opaque [bottom] surface: use estimator = \"forward\" with this scene",
+            format!(
+                "paths traced from a camera's pixels do not meet {what}: use estimator = \"forward\" with this scene"
+            ),
         );
     }
-    Ok(Some(bottom))
+    Ok(())
 }
 
 /// A surface's BSDF, with the medium it faces of index `n_medium` (a conductor's Fresnel
