@@ -599,8 +599,8 @@ impl Observer for Terminal {
                 s.seconds,
                 s.path.display()
             ),
-            Event::VadWritten { path, timing } => {
-                out!("ohd: VAD wind per gate → {}", path.display());
+            Event::ScanWritten { what, path, timing } => {
+                out!("ohd: {what} → {}", path.display());
                 out!("ohd: the scan's time: transport {:.2} s{}", timing.transport_seconds, after_transport(timing));
             }
             Event::StudyingFirstPointing(p) => {

@@ -785,11 +785,12 @@ impl Display for Detector {
         let half_angle = d.cos_acceptance.clamp(-1.0, 1.0).acos().to_degrees();
         write!(
             f,
-            "{}: {side}, {}, acceptance {}° about {}, plane {}",
+            "{}: {side}, {}, acceptance {}° about {}{}, plane {}",
             self.name,
             d.area,
             num((half_angle * 1e4).round() / 1e4),
             direction(d.axis),
+            if d.monostatic { " (back along the beam)" } else { "" },
             if d.distance == 0.0 {
                 "at the surface".to_string()
             } else {

@@ -474,13 +474,16 @@ impl Experiment {
         self.output_layout().registry.main().clone()
     }
 
-    /// The same experiment with the beam (and the lidar receiver's axis) along `p`.
+    /// The same experiment with the beam (and the axes of the lidar receiver and of monostatic
+    /// detectors) along `p`.
     pub fn pointed(&self, p: &Pointing) -> Experiment {
         let mut e = self.clone();
         e.source = self.source.pointed(p.direction);
         for d in &mut e.detectors {
-            if let DetectorKind::Lidar(l) = &mut d.kind {
-                l.axis = e.source.direction;
+            match &mut d.kind {
+                DetectorKind::Lidar(l) => l.axis = e.source.direction,
+                DetectorKind::Surface(s) if s.monostatic => s.axis = -e.source.direction,
+                DetectorKind::Surface(_) => {}
             }
         }
         e

@@ -252,7 +252,7 @@ impl Experiment {
         Ok((manifest, files, stopped))
     }
 
-    /// Run it as `ohd run --out dir` does (a scan: every pointing and the VAD wind); returns
+    /// Run it as `ohd run --out dir` does (a scan: every pointing and the scan's own outputs); returns
     /// whether Ctrl-C was pressed (the run then ended early and wrote what it had, as the CLI's).
     #[pyo3(signature = (dir, figures, report=None))]
     fn run_to_dir(&self, py: Python<'_>, dir: PathBuf, figures: bool, report: Option<Py<PyAny>>) -> PyResult<bool> {

@@ -771,6 +771,9 @@ pub struct DetectorSection {
     #[serde(rename = "acceptance_half_angle_deg")]
     pub acceptance_half_angle: Option<Quantity<Degrees>>,
     pub axis: Option<[f64; 3]>,
+    /// A monostatic transceiver's receiver: it looks back along the beam (its axis the reverse of
+    /// the source's direction), turned with each pointing of a scan.
+    pub monostatic: Option<bool>,
     #[serde(rename = "distance_um", alias = "distance_mm", alias = "distance_m")]
     pub distance: Option<Quantity<Length>>,
     pub include_specular: Option<bool>,

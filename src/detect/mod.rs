@@ -141,6 +141,9 @@ pub struct Surface {
     pub area: Area,
     /// Unit vector: paths travelling within the acceptance cone about it are accepted.
     pub axis: DVec3,
+    /// The receiver of a monostatic transceiver: `axis` is the reverse of the source's
+    /// direction, and turns with it ([`crate::experiment::Experiment::pointed`]).
+    pub monostatic: bool,
     /// Cosine of the acceptance half-angle.
     pub cos_acceptance: f64,
     /// Whether the specular reflection of the laser at the top surface is recorded.

@@ -129,8 +129,9 @@ pub enum Event<'a> {
     Merged { exp: &'a Experiment, output: &'a RunOutput, dir: &'a Path, shards: usize, timing: &'a Timing },
     /// A shard file is written.
     ShardWritten(&'a ShardSummary),
-    /// The VAD wind of a scan is written (`vad.csv` at `path`, `scan.json` beside it).
-    VadWritten { path: &'a Path, timing: &'a Timing },
+    /// A scan's own outputs are written: `what` they hold (the VAD wind per gate, `vad.csv`, or
+    /// the FMCW range and velocity per pointing, `fmcw_scan.csv`) at `path`, `scan.json` beside it.
+    ScanWritten { what: &'a str, path: &'a Path, timing: &'a Timing },
     /// A convergence study of a scan studies its first pointing only.
     StudyingFirstPointing(&'a Pointing),
 }

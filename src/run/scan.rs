@@ -73,6 +73,8 @@ pub(super) struct Scan {
     runs: Vec<String>,
     velocities: Vec<Vec<Option<f64>>>,
     ranges: Vec<f64>,
+    /// Each pointing's FMCW read-offs, one per detector with a chirped spectrum.
+    fmcw: Vec<Vec<crate::io::write::scan::FmcwRow>>,
     /// Each pointing's timing, in the order written.
     timings: Vec<Timing>,
     /// The scan's directory, written from its first pointing's outputs on (marked incomplete
@@ -107,6 +109,15 @@ impl Scan {
         if let Some(l) = part.exp.detectors.iter().find_map(|d| d.lidar()) {
             self.ranges = (0..l.gates).map(|g| l.gate_range(g)).collect();
         }
+        let fmcw: Vec<_> = (part.exp.detectors.iter().enumerate())
+            .filter_map(|(d, det)| {
+                let e = part.exp.fmcw_estimates(output, d)?;
+                Some((det.name.clone(), e.map_err(|e| e.to_string())))
+            })
+            .collect();
+        if !fmcw.is_empty() {
+            self.fmcw.push(fmcw);
+        }
         self.runs.push(pointing_name(i));
     }
 
@@ -132,8 +143,23 @@ impl Scan {
                 figures,
                 &self.timings,
             )?;
-            obs.event(Event::VadWritten { path: &path, timing: &Timing::sum(&self.timings) });
+            obs.event(Event::ScanWritten {
+                what: "VAD wind per gate",
+                path: &path,
+                timing: &Timing::sum(&self.timings),
+            });
             return Ok(Some(gates));
+        }
+        if pointings.len() > 1 && self.fmcw.len() == pointings.len() {
+            let path = out.dir().join(crate::io::write::dir::FMCW_SCAN);
+            crate::io::write::scan::write_fmcw_scan(out, pointings, &self.runs, &self.fmcw, figures, &self.timings)?;
+            let timing = Timing::sum(&self.timings);
+            obs.event(Event::ScanWritten {
+                what: "FMCW range and velocity per pointing",
+                path: &path,
+                timing: &timing,
+            });
+            return Ok(None);
         }
         out.finish(None)?;
         Ok(None)

@@ -380,6 +380,52 @@ fn lidar_scan_and_fmcw_files() {
     assert_eq!(m["detectors"]["receiver"]["fmcw"]["file"], "receiver_fmcw_estimates.csv");
     let csv = std::fs::read_to_string(dir.join("receiver_fmcw_estimates.csv")).unwrap();
     assert!(csv.lines().nth(1).is_some_and(|l| l.starts_with("receiver,")), "{csv}");
+
+    // An FMCW scan: fmcw_scan.csv (a row per pointing and chirped detector), its two figures and
+    // scan.json beside the pointings' run directories; run again into the same directory with
+    // fewer pointings, the scan's own files are rewritten and the pointing no longer run removed.
+    let copper = repo().join("configs/fmcw_copper_treadmill.toml");
+    let dir = tmp.path().join("copper");
+    let scan_of = |elevations: &str| {
+        let set = format!("source.pointings_deg={elevations}");
+        ohd(
+            tmp.path(),
+            &[
+                "run",
+                copper.to_str().unwrap(),
+                "--samples",
+                "20000",
+                "--quiet",
+                "--out",
+                dir.to_str().unwrap(),
+                "--set",
+                &set,
+            ],
+        );
+    };
+    for (elevations, n) in [("[[270, 85.5], [270, 86.2], [270, 86.3]]", 3), ("[[270, 85.5], [270, 86.2]]", 2)] {
+        scan_of(elevations);
+        let mut top: BTreeSet<String> = [
+            "scan.json",
+            "fmcw_scan.csv",
+            "fmcw_scan_range.png",
+            "fmcw_scan_range.svg",
+            "fmcw_scan_velocity.png",
+            "fmcw_scan_velocity.svg",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        top.extend((0..n).map(|i| format!("pointing_{i:02}")));
+        assert_eq!(listing(&dir), top);
+        let csv = std::fs::read_to_string(dir.join("fmcw_scan.csv")).unwrap();
+        let rows: Vec<&str> = csv.lines().skip(1).collect();
+        assert_eq!(rows.len(), n, "{csv}");
+        assert!(rows[0].starts_with("0,270,85.5,receiver,"), "{csv}");
+        let scan_json = read_json(&dir.join("scan.json"));
+        assert_eq!(scan_json["fmcw"].as_array().unwrap().len(), n);
+        assert_eq!(scan_json["fmcw"][1]["detector"], "receiver");
+    }
 }
 
 /// What is read back as a reference — a run directory (`ohd converge --reference`) or values

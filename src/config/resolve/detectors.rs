@@ -400,7 +400,23 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             }
         };
         let outward = if side == Side::Top { DVec3::NEG_Z } else { DVec3::Z };
+        let monostatic = d.monostatic.unwrap_or(false);
         let axis = match d.axis {
+            None if monostatic => {
+                if side != Side::Top || source.direction.z <= 0.0 {
+                    return err(
+                        join(&path, "monostatic"),
+                        "= true: a monostatic receiver looks back along the beam from above the stack: a top detector",
+                    );
+                }
+                -source.direction
+            }
+            Some(_) if monostatic => {
+                return err(
+                    join(&path, "axis"),
+                    "is set with monostatic = true, whose axis is the beam's reverse: remove one of them",
+                );
+            }
             None => outward,
             Some(a) => {
                 let a = unit_vector(&join(&path, "axis"), a)?;
@@ -578,6 +594,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             distance,
             area,
             axis,
+            monostatic,
             cos_acceptance: if half >= 90.0 { 0.0 } else { half.to_radians().cos() },
             include_specular: d.include_specular.unwrap_or(true),
             next_event,

@@ -179,6 +179,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
                 ("area", d.area.is_some()),
                 ("acceptance_half_angle_deg", d.acceptance_half_angle.is_some()),
                 ("axis", d.axis.is_some()),
+                ("monostatic", d.monostatic.is_some()),
                 (distance.unwrap_or("distance"), distance.is_some()),
                 ("include_specular", d.include_specular.is_some()),
                 ("next_event", d.next_event.is_some()),

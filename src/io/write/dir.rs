@@ -44,6 +44,10 @@ pub const SCAN: &str = "scan.json";
 pub const VAD: &str = "vad.csv";
 /// The scan's figure (PNG and SVG).
 pub const VAD_FIGURES: [&str; 2] = ["vad_wind_profile.png", "vad_wind_profile.svg"];
+/// An FMCW scan's table of range and velocity per pointing, and its figures (PNG and SVG each).
+pub const FMCW_SCAN: &str = "fmcw_scan.csv";
+pub const FMCW_SCAN_FIGURES: [&str; 4] =
+    ["fmcw_scan_range.png", "fmcw_scan_range.svg", "fmcw_scan_velocity.png", "fmcw_scan_velocity.svg"];
 
 /// A convergence study's record, and the files written with it.
 pub const CONVERGE: &str = "converge.json";
@@ -116,10 +120,11 @@ impl Earlier {
             e.files.extend(listed(MANIFEST, &mut files.filter_map(Value::as_str))?);
             e.files.insert(MANIFEST.into());
         }
-        if let Some(s) = json(SCAN).filter(|s| run && s.get("gates").is_some()) {
+        if let Some(s) = json(SCAN).filter(|s| run && (s.get("gates").is_some() || s.get("fmcw").is_some())) {
             let pointings = s.get("pointings").and_then(Value::as_array).into_iter().flatten();
             e.dirs.extend(listed(SCAN, &mut pointings.filter_map(|p| p.get("run").and_then(Value::as_str)))?);
-            e.files.extend([SCAN, VAD].iter().chain(&VAD_FIGURES).map(|s| s.to_string()));
+            let own = [SCAN, VAD, FMCW_SCAN].into_iter().chain(VAD_FIGURES).chain(FMCW_SCAN_FIGURES);
+            e.files.extend(own.map(|s| s.to_string()));
         }
         if !run && json(CONVERGE).is_some_and(|c| c.get("ohd_version").is_some()) {
             e.files.extend(CONVERGE_FILES.iter().chain([&CONVERGE]).map(|s| s.to_string()));

@@ -1,10 +1,12 @@
 //! Outputs of a scan: `vad.csv` (the wind retrieved in every range gate, with the radial velocity
-//! each pointing measured) and `scan.json` (the pointings, the run directory of each, and the same
-//! table). Each pointing's own outputs are a complete run directory of their own.
+//! each pointing measured), or for a chirped source `fmcw_scan.csv` (each pointing's FMCW range
+//! and radial velocity per detector) with its figures; and `scan.json` (the pointings, the run
+//! directory of each, and the same table). Each pointing's own outputs are a complete run
+//! directory of their own.
 
 use serde_json::{Value, json};
 
-use super::dir::{DirWriter, SCAN, VAD, VAD_FIGURES};
+use super::dir::{DirWriter, FMCW_SCAN, FMCW_SCAN_FIGURES, SCAN, VAD, VAD_FIGURES};
 use super::manifest::Timing;
 use crate::error::Result;
 use crate::io::figures::lines::{Curve, LinePlot, Mark, PALETTE};
@@ -81,13 +83,7 @@ pub fn write_scan(
         out.figure(VAD_FIGURES[0], VAD_FIGURES[1], &wind_profile(gates, wind))?;
     }
     let scan = json!({
-        "pointings": pointings.iter().zip(runs).enumerate().map(|(i, (p, r))| json!({
-            "azimuth_deg": p.azimuth_deg,
-            "elevation_deg": p.elevation_deg,
-            "direction": p.direction.to_array(),
-            "run": r,
-            "timing": timings.get(i),
-        })).collect::<Vec<_>>(),
+        "pointings": pointing_records(pointings, runs, timings),
         "timing": Timing::sum(timings),
         "frame": "x = east, y = north, z = up; azimuth clockwise from north; wind direction is where it blows from",
         "radial_velocity": "peak of each gate's expected spectrum (all orders), λ0·f/2, positive receding",
@@ -96,6 +92,145 @@ pub fn write_scan(
     let text = serde_json::to_string_pretty(&scan).unwrap_or_default();
     out.finish(Some((SCAN, text.as_bytes())))?;
     Ok(scan)
+}
+
+/// One pointing's FMCW read-off of one detector (`Err`: why there is none, e.g. no signal).
+pub type FmcwRow = (String, std::result::Result<crate::retrieval::FmcwEstimate, String>);
+
+/// Write `fmcw_scan.csv`, its figures (range and radial velocity against the scan's position) and
+/// (last) `scan.json` into the scan's directory `out`: `rows[i]` are pointing `i`'s read-offs, one
+/// per detector with a chirped spectrum; `runs[i]` its directory. Returns the JSON as written.
+pub fn write_fmcw_scan(
+    mut out: DirWriter,
+    pointings: &[Pointing],
+    runs: &[String],
+    rows: &[Vec<FmcwRow>],
+    figures: bool,
+    timings: &[Timing],
+) -> Result<Value> {
+    let mut csv = String::from(
+        "pointing,azimuth_deg,elevation_deg,detector,range_m,radial_velocity_m_per_s,f_up_hz,f_down_hz,\
+         range_centroid_m,radial_velocity_centroid_m_per_s,range_bin_m,velocity_bin_m_per_s,error\n",
+    );
+    let mut table = Vec::new();
+    for (i, (p, row)) in pointings.iter().zip(rows).enumerate() {
+        for (name, r) in row {
+            csv.push_str(&format!("{i},{},{},{name},", p.azimuth_deg, p.elevation_deg));
+            match r {
+                Ok(e) => {
+                    csv.push_str(&format!(
+                        "{:.6},{:.6},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6},\n",
+                        e.range_m,
+                        e.radial_velocity_m_per_s,
+                        e.f_up_hz,
+                        e.f_down_hz,
+                        e.range_centroid_m,
+                        e.radial_velocity_centroid_m_per_s,
+                        e.range_bin_m,
+                        e.velocity_bin_m_per_s
+                    ));
+                    table.push(json!({
+                        "pointing": i,
+                        "detector": name,
+                        "range_m": e.range_m,
+                        "radial_velocity_m_per_s": e.radial_velocity_m_per_s,
+                        "f_up_hz": e.f_up_hz,
+                        "f_down_hz": e.f_down_hz,
+                        "range_centroid_m": e.range_centroid_m,
+                        "radial_velocity_centroid_m_per_s": e.radial_velocity_centroid_m_per_s,
+                        "range_bin_m": e.range_bin_m,
+                        "velocity_bin_m_per_s": e.velocity_bin_m_per_s,
+                    }));
+                }
+                Err(why) => {
+                    csv.push_str(&format!(",,,,,,,,\"{}\"\n", why.replace('"', "'")));
+                    table.push(json!({ "pointing": i, "detector": name, "error": why }));
+                }
+            }
+        }
+    }
+    out.put(FMCW_SCAN, csv.as_bytes())?;
+    if figures {
+        let [range, velocity] = fmcw_scan_plots(pointings, rows);
+        out.figure(FMCW_SCAN_FIGURES[0], FMCW_SCAN_FIGURES[1], &range)?;
+        out.figure(FMCW_SCAN_FIGURES[2], FMCW_SCAN_FIGURES[3], &velocity)?;
+    }
+    let scan = json!({
+        "pointings": pointing_records(pointings, runs, timings),
+        "timing": Timing::sum(timings),
+        "frame": "x = east, y = north, z = the stack's depth axis; azimuth clockwise from north, elevation toward +z",
+        "fmcw": table,
+        "method": "per pointing and detector, the peaks of its up- and down-chirp spectra: R = cT(f_up + f_down)/(4B), v = λ0(f_up − f_down)/4, positive receding",
+    });
+    let text = serde_json::to_string_pretty(&scan).unwrap_or_default();
+    out.finish(Some((SCAN, text.as_bytes())))?;
+    Ok(scan)
+}
+
+/// The pointings of a scan as `scan.json` lists them: direction, run directory, timing.
+fn pointing_records(pointings: &[Pointing], runs: &[String], timings: &[Timing]) -> Vec<Value> {
+    pointings
+        .iter()
+        .zip(runs)
+        .enumerate()
+        .map(|(i, (p, r))| {
+            json!({
+                "azimuth_deg": p.azimuth_deg,
+                "elevation_deg": p.elevation_deg,
+                "direction": p.direction.to_array(),
+                "run": r,
+                "timing": timings.get(i),
+            })
+        })
+        .collect()
+}
+
+/// The scan's position of each pointing, and its axis label: the elevation when only it varies,
+/// the azimuth when only it does, else the pointing's index.
+fn scan_position(pointings: &[Pointing]) -> (Vec<f64>, &'static str) {
+    let varies = |f: fn(&Pointing) -> f64| pointings.iter().any(|p| f(p) != f(&pointings[0]));
+    let (az, el) = (varies(|p| p.azimuth_deg), varies(|p| p.elevation_deg));
+    match (az, el) {
+        (false, true) => (pointings.iter().map(|p| p.elevation_deg).collect(), "pointing elevation (°)"),
+        (true, false) => (pointings.iter().map(|p| p.azimuth_deg).collect(), "pointing azimuth (°)"),
+        _ => ((0..pointings.len()).map(|i| i as f64).collect(), "pointing"),
+    }
+}
+
+/// Range and radial velocity against the scan's position, a curve per detector (pointings
+/// without a read-off left out, counted in the note).
+fn fmcw_scan_plots(pointings: &[Pointing], rows: &[Vec<FmcwRow>]) -> [LinePlot; 2] {
+    let (x, x_label) = scan_position(pointings);
+    let mut range = LinePlot::new("FMCW range along the scan", x_label, "range (m)");
+    let mut velocity =
+        LinePlot::new("FMCW radial velocity along the scan", x_label, "radial velocity (m/s, + receding)");
+    let names: Vec<&str> = rows.first().map(|r| r.iter().map(|(n, _)| n.as_str()).collect()).unwrap_or_default();
+    let mut missing = 0;
+    for (k, name) in names.iter().enumerate() {
+        let (mut xs, mut r, mut v) = (vec![], vec![], vec![]);
+        for (i, row) in rows.iter().enumerate() {
+            match row.get(k).map(|(_, e)| e) {
+                Some(Ok(e)) => {
+                    xs.push(x[i]);
+                    r.push(e.range_m);
+                    v.push(e.radial_velocity_m_per_s);
+                }
+                _ => missing += 1,
+            }
+        }
+        let colour = PALETTE[k % PALETTE.len()];
+        for (plot, y) in [(&mut range, r), (&mut velocity, v)] {
+            let mut c = Curve::line(*name, xs.clone(), y, colour);
+            c.mark = Mark::LineMarkers;
+            plot.curves.push(c);
+        }
+    }
+    let note = format!(
+        "peaks of the up- and down-chirp spectra per pointing; {missing} read-offs without a signal (not drawn)"
+    );
+    range.note = note.clone();
+    velocity.note = note;
+    [range, velocity]
 }
 
 /// The VAD wind profile: east, north and vertical wind against height, each gate's value with
