@@ -570,6 +570,9 @@ impl Display for Scene {
                     cu.range(alo, ahi)
                 )?;
             }
+            if first.roughness > 0.0 {
+                write!(f, ", a rough top face (GGX α = {})", num(first.roughness))?;
+            }
             let regions: usize = ls.iter().map(|l| l.regions.len()).sum();
             match regions {
                 0 => {}

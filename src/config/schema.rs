@@ -719,6 +719,9 @@ pub struct LayerSection {
     #[serde(rename = "thickness_um", alias = "thickness_mm", alias = "thickness_m")]
     pub thickness: Option<Quantity<Length>>,
     pub n: Option<f64>,
+    /// The GGX roughness α of the layer's top face (its interface with what lies above; default 0,
+    /// smooth).
+    pub roughness: Option<f64>,
     pub medium: String,
     /// Split the layer into this many equal layers (named `NAME[i]`), e.g. 100 layers of 10 m for
     /// an atmosphere with a wind or density profile.

@@ -887,12 +887,14 @@ impl Recorder<'_> {
             {
                 continue;
             }
-            if d.scored_by_next_event() && e.order > 0 {
+            if d.scored_by_next_event() {
                 // A direct escape into a next-event detector's cone: the balance heuristic
                 // against the shadow rays, which sample the same exit directions uniformly in
                 // the cone (pdfs in exit solid angle: the phase function's, p·n0² cos θ0 /
-                // (n_k² cos θ_k), and 1/Ω). Escapes after an interface reflection are not
-                // direct connections, which the shadow rays do not cover: full weight.
+                // (n_k² cos θ_k), and 1/Ω). Escapes after a smooth interface's reflection, and
+                // unscattered ones, are not direct connections, which the shadow rays do not
+                // cover: full weight (their `mis` is negative). A rough face's crossing is a
+                // vertex of shadow rays, scattered or not.
                 if e.mis >= 0.0 {
                     let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
                     let w = p / (p + 1.0 / d.solid_angle());

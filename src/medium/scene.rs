@@ -18,6 +18,9 @@ pub struct Layer {
     pub z_bottom: f64,
     /// Real refractive index.
     pub n: f64,
+    /// The GGX roughness α of the layer's top face (0: a smooth Fresnel interface). A rough face
+    /// between equal indices is no interface at all.
+    pub roughness: f64,
     /// Index into [`Scene::media`] of the medium filling the layer outside its regions.
     pub medium: usize,
     /// Indices into [`Scene::regions`], in priority order.

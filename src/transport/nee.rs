@@ -174,6 +174,47 @@ pub fn receiver_ray(
     Some(ShadowHit { pos: point, dir, dir_vertex: dir, factor, length: r, excess, unit, twin_unit, tau })
 }
 
+/// The shadow ray from a vertex on the stack's top surface at `pos` straight into the ambient
+/// medium (a rough surface's reflection or transmission), toward a cone detector (`aperture`
+/// `None`: an exit direction uniform in the cone, balanced against the direct escapes as in
+/// [`shadow_ray`], with no interface in between) or a receiving aperture (a point drawn on it, as
+/// in [`receiver_ray`], without optical depth).
+pub fn exit_ray(
+    pos: DVec3,
+    density: impl Fn(DVec3) -> (f64, f64),
+    target: &NeeTarget,
+    aperture: Option<&Aperture>,
+    u1: f64,
+    u2: f64,
+) -> Option<ShadowHit> {
+    let (dir, factor, unit, length, at) = match aperture {
+        None => {
+            let dir = cone_direction(target.axis, target.basis, target.cos_acceptance, u1, u2);
+            if dir.z >= 0.0 {
+                return None;
+            }
+            let (f, q) = density(dir);
+            let unit = 1.0 / (q + 1.0 / target.solid_angle());
+            (dir, f * unit, unit, 0.0, pos)
+        }
+        Some(a) => {
+            let (x, y) = crate::sampling::warp::uniform_disk(u1, u2);
+            let point = a.center + a.radius * (x * target.basis.0 + y * target.basis.1);
+            let to = point - pos;
+            let r2 = to.length_squared();
+            let r = r2.sqrt();
+            let dir = to / r;
+            let cos_r = dir.dot(target.axis);
+            if cos_r < target.cos_acceptance || dir.z >= 0.0 {
+                return None;
+            }
+            let unit = std::f64::consts::PI * a.radius * a.radius * cos_r / r2;
+            (dir, density(dir).0 * unit, unit, r, point)
+        }
+    };
+    Some(ShadowHit { pos: at, dir, dir_vertex: dir, factor, length, excess: 0.0, unit, twin_unit: unit, tau: 0.0 })
+}
+
 /// Optical depth of the segment `p + s·d`, `0 ≤ s ≤ t`, inside `layer`: its filling medium plus
 /// what its regions add over it (regions assumed not to overlap along the segment), and that
 /// excess alone.
@@ -289,6 +330,11 @@ pub(super) fn trace_up(
         c.segment(scene, layer, d, (c.pos.z - layer.z_top) / -d.z, rng);
         c.pos.z = layer.z_top;
         let n_next = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
+        if layer.roughness > 0.0 && n_next != layer.n {
+            // A rough face scatters: no straight way through it (the path's own crossing of it
+            // is a vertex of its own shadow rays).
+            return None;
+        }
         let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
         c.transmit *= 1.0 - r;
         c.twin_transmit *= 1.0 - r;

@@ -123,6 +123,9 @@ pub fn control_variate_obstacle(
     if let Some(o) = scene.opaque.first() {
         return Some(format!("the opaque solid `{}`: the layered twin has no surfaces yet", o.name));
     }
+    if let Some(l) = scene.layers.iter().find(|l| l.roughness > 0.0) {
+        return Some(format!("layer `{}`'s top face is rough: the twin's shadow rays cross smooth faces only", l.name));
+    }
     if let Some(l) = scene.layers.iter().find(|l| scene.media[l.medium].density().is_some()) {
         return Some(format!("layer `{}`'s medium has a density field: its twin is not laterally invariant", l.name));
     }
@@ -241,8 +244,10 @@ impl WalkContext<'_> {
             .iter()
             .enumerate()
             .any(|(j, l)| l.z_bottom.is_finite() && l.n != scene.layers.get(j + 1).map_or(scene.n_below, |b| b.n));
-        // (Opaque solids would shade the reflections' straight ways down and up.)
-        let possible = seen && mismatched && scene.lateral.is_none() && scene.opaque.is_empty();
+        // (Opaque solids would shade the reflections' straight ways down and up, and a rough face
+        // scatters them.)
+        let smooth = scene.layers.iter().all(|l| l.roughness == 0.0);
+        let possible = seen && mismatched && scene.lateral.is_none() && scene.opaque.is_empty() && smooth;
         match settings.reflections {
             Reflections::Sampled => false,
             Reflections::Deterministic => possible,
@@ -382,6 +387,9 @@ enum End {
     /// Reached the boundary of the opaque solid `Scene::opaque[k]`, where `s.pos` now is:
     /// [`walk_to_the_end`] reflects it there and walks on.
     AtOpaque(usize),
+    /// Reached the rough top face of layer `face` (where `s.pos` now is): [`walk_to_the_end`]
+    /// draws its reflection or refraction ([`cross_rough_face`]) and walks on.
+    AtRough(usize),
 }
 
 /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
@@ -416,10 +424,12 @@ pub fn trace_path<
     if NEE && ctx.twin {
         rec.twin = Some(TwinPath::new(pos.x, pos.y));
     }
-    // Specular reflection at entry, scored deterministically (as MCML).
+    // A rough top surface: the walk starts at its face, which reflects or refracts the beam.
     let n_top = scene.layers[0].n;
+    let rough_entry = scene.layers[0].roughness > 0.0 && n_top != scene.n_above;
+    // Specular reflection at entry, scored deterministically (as MCML).
     let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
-    if r_sp > 0.0 {
+    if r_sp > 0.0 && !rough_entry {
         let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: w0 * r_sp, ..s };
         if in_gate::<GATE>(ctx.settings, s.l) {
             rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above);
@@ -429,7 +439,9 @@ pub fn trace_path<
             return;
         }
     }
-    s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
+    if !rough_entry {
+        s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
+    }
     if ctx.reflections {
         // The path by value and the generator on a copy handed back, as the walk's: the address
         // of neither leaves this inlined function (else it lives in memory through the walk;
@@ -455,6 +467,7 @@ pub fn trace_path<
         &mut absorbed,
         &mut null_collisions,
         rec,
+        rough_entry,
     );
     *rng = local;
     finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, 0));
@@ -471,6 +484,7 @@ pub fn trace_path<
             &mut absorbed,
             &mut null_collisions,
             rec,
+            false,
         );
         finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, order));
     }
@@ -516,7 +530,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
         End::Absorbed | End::Gated => {}
         End::Roulette => rec.stats.roulette_terminations += 1,
         // (`walk_to_the_end` never ends at the surface.)
-        End::Truncated | End::AtBottom | End::AtOpaque(_) => rec.stats.truncated_paths += 1,
+        End::Truncated | End::AtBottom | End::AtOpaque(_) | End::AtRough(_) => rec.stats.truncated_paths += 1,
     }
     if NEE && let Some(split) = rec.split.take() {
         twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
@@ -943,6 +957,11 @@ fn walk<
             Some(l) => l.n,
             None => scene.ambient_n(down),
         };
+        // A rough face (the top of the layer below going down, this layer's going up; the stack's
+        // bottom face is smooth) between different indices is crossed outside the walk.
+        if n2 != n && (if down { beyond.map_or(0.0, |l| l.roughness) } else { layer.roughness }) > 0.0 {
+            return End::AtRough(if down { next } else { li });
+        }
         let (r, cos_t) = fresnel::reflectance(n, n2, s.dir.z.abs());
         if r > 0.0 && (r >= 1.0 || rng.uniform() < r) {
             // Reflections since the last real collision (counted here, so that a collision
@@ -1006,31 +1025,163 @@ fn walk_to_the_end<
     absorbed: &mut f64,
     null_collisions: &mut u64,
     rec: &mut Recorder,
+    entering: bool,
 ) -> End {
+    let scene = ctx.scene;
     let mut li = start;
+    // Rough faces met since the last scattering event (a path trapped between rough faces by
+    // total internal reflection ends as one between smooth faces does).
+    let (mut crossed_at, mut crossings) = (s.order, 0u32);
+    // Entering through a rough top surface: the walk starts at its face.
+    let mut end = if entering {
+        End::AtRough(0)
+    } else {
+        walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(ctx, li, s, rng, absorbed, null_collisions, rec)
+    };
     loop {
-        let end =
-            walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(ctx, li, s, rng, absorbed, null_collisions, rec);
-        let scene = ctx.scene;
-        let (surface, frame) = match (end, &scene.bottom) {
+        // (The deposits come back by value: `absorbed`'s address handed to a call kept it in
+        // memory through every collision of the walk, +1 instruction each.)
+        let (deposit, ended) = match (end, &scene.bottom) {
+            (End::AtRough(face), _) => {
+                if s.order != crossed_at {
+                    (crossed_at, crossings) = (s.order, 0);
+                }
+                crossings += 1;
+                if crossings > MAX_REFLECTIONS_WITHOUT_COLLISION {
+                    return End::Truncated;
+                }
+                let (deposit, next) = cross_rough_face::<LENGTH, NEE>(ctx, face, s, rng, rec);
+                match next {
+                    Ok(l) => {
+                        li = l;
+                        (deposit, None)
+                    }
+                    Err(end) => (deposit, Some(end)),
+                }
+            }
             (End::AtBottom, Some(bottom)) => {
                 li = scene.layers.len() - 1;
-                (bottom, crate::medium::Surface::bottom_frame())
+                let frame = crate::medium::Surface::bottom_frame();
+                reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, bottom, &frame, li, s, rng, rec)
             }
             (End::AtOpaque(k), _) => {
                 let o = &scene.opaque[k];
                 li = o.layer;
-                (&o.surface, crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir)))
+                let frame = crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir));
+                reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, &o.surface, &frame, li, s, rng, rec)
             }
             _ => return end,
         };
-        // (The deposit comes back by value: `absorbed`'s address handed to a call kept it in
-        // memory through every collision of the walk, +1 instruction each.)
-        let (deposit, ended) = reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, surface, &frame, li, s, rng, rec);
         *absorbed += deposit;
         if let Some(end) = ended {
             return end;
         }
+        end =
+            walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(ctx, li, s, rng, absorbed, null_collisions, rec);
+    }
+}
+
+/// The path `s` reaches the rough top face of layer `face` at `s.pos`: shadow rays from there
+/// toward the next-event detectors above (the interface's reflection toward them when it came
+/// down, its transmission when it came up; balanced against the direct escapes by the sampling
+/// density), then a reflection or refraction drawn from its microfacets
+/// ([`crate::surface::RoughDielectric`]: visible normals, each with its Fresnel reflectance),
+/// whose weight `G1` multiplies the path's (the masked rest is returned as absorbed). A face is
+/// no scattering event: the order stays. `Ok` the layer the path goes on in, else how it ended
+/// (through the stack's top surface: an escape).
+#[inline(never)]
+fn cross_rough_face<const LENGTH: bool, const NEE: bool>(
+    ctx: &WalkContext,
+    face: usize,
+    s: &mut PathState,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) -> (f64, Result<usize, End>) {
+    let scene = ctx.scene;
+    let down = s.dir.z > 0.0;
+    let (n_above, n_below) = (if face == 0 { scene.n_above } else { scene.layers[face - 1].n }, scene.layers[face].n);
+    let (n_i, n_t) = if down { (n_above, n_below) } else { (n_below, n_above) };
+    // The normal on the side the light comes from.
+    let frame = if down {
+        crate::medium::Surface::bottom_frame()
+    } else {
+        crate::surface::Frame { n: DVec3::Z, t: DVec3::X, b: DVec3::Y }
+    };
+    let interface = crate::surface::RoughDielectric { alpha: scene.layers[face].roughness };
+    let wi = frame.to_local(-s.dir);
+    if NEE {
+        // Up from the face: into the layer above, or out of the stack.
+        let density = |d: DVec3| {
+            let wo = frame.to_local(d);
+            (interface.eval(wi, wo, n_i, n_t), interface.pdf(wi, wo, n_i, n_t))
+        };
+        surface_shadow_rays::<LENGTH>(ctx, face.checked_sub(1), s, density, s.order, None, rng, rec);
+    }
+    let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+    let Some(c) = interface.sample(wi, n_i, n_t, u) else {
+        return (s.weight, Err(End::Absorbed));
+    };
+    let deposit = s.weight * (1.0 - c.weight);
+    s.weight *= c.weight;
+    if s.weight <= 0.0 {
+        return (deposit, Err(End::Absorbed));
+    }
+    s.dir = frame.to_world(c.wo);
+    if NEE {
+        // The density of the direction drawn over `n²|cos|` in the medium it goes on in.
+        let n = if c.transmitted { n_t } else { n_i };
+        s.mis = interface.pdf(wi, c.wo, n_i, n_t) / (n * n * c.wo.z.abs());
+    }
+    if s.dir.z > 0.0 {
+        (deposit, Ok(face))
+    } else if face > 0 {
+        (deposit, Ok(face - 1))
+    } else {
+        (deposit, Err(End::Escaped { side: Side::Top, n_ambient: scene.n_above, reflected_once: false }))
+    }
+}
+
+/// Shadow rays from a vertex on a surface at `s.pos` toward every next-event target, starting
+/// in layer `from` (`None`: on the stack's top surface, straight into the ambient medium);
+/// `density(ω)` is the surface's `(f, q)` toward `ω` there (see [`super::nee::shadow_ray`]).
+/// Each hit is recorded at scattering order `order`, with the Doppler term `n v·(dir_in − ω)` of
+/// a surface of index `n` moving at `v` (`doppler`).
+#[allow(clippy::too_many_arguments)]
+fn surface_shadow_rays<const LENGTH: bool>(
+    ctx: &WalkContext,
+    from: Option<usize>,
+    s: &PathState,
+    density: impl Fn(DVec3) -> (f64, f64),
+    order: u32,
+    doppler: Option<(f64, DVec3)>,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let boost = connection_roulette(ctx.scene, from.unwrap_or(0), s, rng);
+    let targets = if boost > 0.0 { ctx.nee } else { &[] };
+    rec.stats.work.shadow_rays += targets.len() as u64;
+    for target in targets {
+        let (u1, u2) = (rng.uniform(), rng.uniform());
+        let hit = match (from, &target.aperture) {
+            (Some(li), None) => super::nee::shadow_ray(ctx.scene, li, s.pos, &density, target, u1, u2, rng),
+            (Some(li), Some(a)) => super::nee::receiver_ray(ctx.scene, li, s.pos, &density, target, a, u1, u2, rng),
+            (None, aperture) => super::nee::exit_ray(s.pos, &density, target, aperture.as_ref(), u1, u2),
+        };
+        let Some(h) = hit else { continue };
+        let mut e = PathState {
+            pos: h.pos,
+            dir: h.dir,
+            weight: s.weight * h.factor * boost,
+            l: if LENGTH { s.l + h.length } else { 0.0 },
+            order,
+            mis: -1.0,
+            ..*s
+        };
+        if let Some((n, v)) = doppler {
+            e.dldt += doppler_increment(n, v, s.dir - h.dir_vertex);
+            e.doppler_events += 1;
+        }
+        rec.next_event(target.detector, &e, Twin::Off, ctx.scene.n_above);
     }
 }
 
@@ -1061,35 +1212,12 @@ fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     let moving = DOPPLER && surface.is_moving();
     let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
     if NEE && surface.bsdf.has_continuous_part() {
-        let boost = connection_roulette(ctx.scene, li, s, rng);
-        let targets = if boost > 0.0 { ctx.nee } else { &[] };
-        rec.stats.work.shadow_rays += targets.len() as u64;
         let density = |d: DVec3| {
             let wo = frame.to_local(d);
             (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
         };
-        for target in targets {
-            let (u1, u2) = (rng.uniform(), rng.uniform());
-            let hit = match &target.aperture {
-                None => super::nee::shadow_ray(ctx.scene, li, s.pos, density, target, u1, u2, rng),
-                Some(a) => super::nee::receiver_ray(ctx.scene, li, s.pos, density, target, a, u1, u2, rng),
-            };
-            let Some(h) = hit else { continue };
-            let mut e = PathState {
-                pos: h.pos,
-                dir: h.dir,
-                weight: s.weight * h.factor * boost,
-                l: if LENGTH { s.l + h.length } else { 0.0 },
-                order: s.order + 1,
-                mis: -1.0,
-                ..*s
-            };
-            if moving {
-                e.dldt += doppler_increment(n, v, s.dir - h.dir_vertex);
-                e.doppler_events += 1;
-            }
-            rec.next_event(target.detector, &e, Twin::Off, ctx.scene.n_above);
-        }
+        let doppler = moving.then_some((n, v));
+        surface_shadow_rays::<LENGTH>(ctx, Some(li), s, density, s.order + 1, doppler, rng, rec);
     }
     let u = [rng.uniform(), rng.uniform(), rng.uniform()];
     let Some(smp) = surface.bsdf.sample(wi, u) else {

@@ -203,6 +203,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
             heterogeneous: false,
             tau_above: 0.0,
             opaque: Vec::new(),
+            roughness: 0.0,
         }],
         regions: vec![],
         media: vec![m],

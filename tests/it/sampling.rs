@@ -95,6 +95,7 @@ fn piecewise_scene() -> Scene {
             heterogeneous: false,
             tau_above: 0.0,
             opaque: Vec::new(),
+            roughness: 0.0,
         }],
         regions,
         media: vec![medium("base", 1000.0), medium("dense", 4000.0), medium("void", 0.0)],

@@ -54,6 +54,7 @@ struct PlannedLayer<'a> {
     top: f64,
     thickness: f64,
     n: f64,
+    roughness: f64,
     ms: &'a MediumSection,
     medium: &'a str,
     parts: u64,
@@ -196,6 +197,13 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
             &join(&path, "n"),
             l.n.ok_or_else(|| ConfigError::new(join(&path, "n"), "missing: the refractive index of the layer"))?,
         )?;
+        let roughness = l.roughness.unwrap_or(0.0);
+        if !(0.0..=1.0).contains(&roughness) {
+            return err(
+                join(&path, "roughness"),
+                format!("= {}: expected GGX's α of the layer's top face, 0 (smooth) … 1", super::shown(roughness)),
+            );
+        }
         let ms = lookup(join(&path, "medium"), &l.medium)?;
         if parts > 1 && thickness == f64::INFINITY {
             return err(join(&path, "sublayers"), "a semi-infinite layer cannot be split");
@@ -205,7 +213,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         } else {
             layer_index.insert(name.clone(), (count - 1) as usize);
         }
-        planned.push(PlannedLayer { path, name, top: z, thickness, n, ms, medium: &l.medium, parts });
+        planned.push(PlannedLayer { path, name, top: z, thickness, n, roughness, ms, medium: &l.medium, parts });
         z += thickness;
     }
     // Then each layer's first medium, to count what all of its sublayers' media will take before
@@ -256,6 +264,8 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 z_top: top,
                 z_bottom: bottom,
                 n: p.n,
+                // The top face of the layer's first sublayer is the layer's.
+                roughness: if j == 0 { p.roughness } else { 0.0 },
                 medium: media.len() - 1,
                 regions: Vec::new(),
                 majorant: 0.0,

@@ -95,6 +95,15 @@ pub(super) fn resolve_opaque(
     Ok(())
 }
 
+/// Rough faces between layers (`layers[i].roughness`): only forward paths from the laser cross
+/// them.
+pub(super) fn check_rough_faces(scene: &Scene, detectors: &[Detector]) -> R<()> {
+    if scene.layers.iter().any(|l| l.roughness > 0.0) {
+        forward_only("a rough face between layers (layers[i].roughness)", detectors)?;
+    }
+    Ok(())
+}
+
 /// The keys of a surface's motion.
 struct Motion<'a> {
     velocity: &'a Option<Quantity<Speed, [f64; 3]>>,
