@@ -37,6 +37,14 @@ pub struct Layer {
     pub tau_above: f64,
     /// Indices into [`Scene::opaque`] of the opaque solids inside the layer.
     pub opaque: Vec<usize>,
+    /// Whether its top or bottom face is rough between different indices (derived): the walk
+    /// crosses such a face outside its loop.
+    pub rough_faces: bool,
+    /// Whether it holds neither regions nor opaque solids (derived): its filling medium alone.
+    pub plain: bool,
+    /// Whether a straight way up through it can be closed (derived): it holds opaque solids, or
+    /// its top face is rough between different indices.
+    pub obstructs_shadows: bool,
 }
 
 impl Layer {
@@ -186,8 +194,6 @@ impl Scene {
         layer.medium
     }
 
-    /// Derive what each layer caches of its media (the σt bounds, whether it is heterogeneous,
-    /// the optical depth above it); call after changing the media or regions.
     /// The layered twin of this scene: every region removed (its layer's filling medium in its
     /// place), the layers' majorants and optical depths recomputed ([`crate::detect::twin`]).
     pub fn layered_twin(&self) -> Scene {
@@ -200,9 +206,23 @@ impl Scene {
         twin
     }
 
+    /// Derive what each layer caches of its media and faces (the σt bounds, whether it is
+    /// heterogeneous, the optical depth above it, whether it is plain and its faces rough); call
+    /// after changing the media, regions, opaque solids or faces.
     pub fn update_layers(&mut self) {
         let mut tau_above = 0.0;
-        for layer in &mut self.layers {
+        let rough = |j: usize, n_above: f64| self.layers[j].roughness > 0.0 && self.layers[j].n != n_above;
+        let faces: Vec<(bool, bool)> = (0..self.layers.len())
+            .map(|j| {
+                let n_above = if j == 0 { self.n_above } else { self.layers[j - 1].n };
+                let top = rough(j, n_above);
+                (top, top || (j + 1 < self.layers.len() && rough(j + 1, self.layers[j].n)))
+            })
+            .collect();
+        for (layer, (rough_top, rough_faces)) in self.layers.iter_mut().zip(faces) {
+            layer.rough_faces = rough_faces;
+            layer.plain = layer.regions.is_empty() && layer.opaque.is_empty();
+            layer.obstructs_shadows = rough_top || !layer.opaque.is_empty();
             let media = || std::iter::once(layer.medium).chain(layer.regions.iter().map(|&r| self.regions[r].medium));
             layer.majorant = media().map(|m| self.media[m].sigma_t_range().1).fold(0.0, f64::max);
             layer.minorant = media().map(|m| self.media[m].sigma_t_range().0).fold(f64::INFINITY, f64::min);

@@ -24,6 +24,7 @@ mod lidar;
 mod mie;
 mod npy_volume;
 mod outputs;
+mod peers;
 mod phase_table;
 mod pixel_speckle;
 mod precision;

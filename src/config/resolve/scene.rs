@@ -272,6 +272,9 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 minorant: 0.0,
                 heterogeneous: false,
                 tau_above: 0.0,
+                rough_faces: false,
+                plain: true,
+                obstructs_shadows: false,
                 opaque: Vec::new(),
             });
         }

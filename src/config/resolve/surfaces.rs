@@ -92,6 +92,7 @@ pub(super) fn resolve_opaque(
         scene.opaque.push(Opaque { name, shape, surface, layer: li, tolerance });
         scene.layers[li].opaque.push(scene.opaque.len() - 1);
     }
+    scene.update_layers();
     Ok(())
 }
 

@@ -32,7 +32,8 @@ pub fn csv_file(name: &str) -> String {
     format!("{name}_fmcw_estimates.csv")
 }
 
-fn values(e: &FmcwEstimate) -> [f64; 10] {
+/// The estimates of `e` in the order of [`KEYS`].
+pub fn values(e: &FmcwEstimate) -> [f64; 10] {
     [
         e.range_m,
         e.radial_velocity_m_per_s,

@@ -108,45 +108,29 @@ pub fn write_fmcw_scan(
     figures: bool,
     timings: &[Timing],
 ) -> Result<Value> {
-    let mut csv = String::from(
-        "pointing,azimuth_deg,elevation_deg,detector,range_m,radial_velocity_m_per_s,f_up_hz,f_down_hz,\
-         range_centroid_m,radial_velocity_centroid_m_per_s,range_bin_m,velocity_bin_m_per_s,error\n",
-    );
+    // The estimates' columns are those of each pointing's `NAME_fmcw_estimates.csv`.
+    let keys = super::fmcw::KEYS;
+    let mut csv = format!("pointing,azimuth_deg,elevation_deg,detector,{},error\n", keys.join(","));
     let mut table = Vec::new();
     for (i, (p, row)) in pointings.iter().zip(rows).enumerate() {
         for (name, r) in row {
             csv.push_str(&format!("{i},{},{},{name},", p.azimuth_deg, p.elevation_deg));
+            let mut entry = json!({ "pointing": i, "detector": name });
             match r {
                 Ok(e) => {
-                    csv.push_str(&format!(
-                        "{:.6},{:.6},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6},\n",
-                        e.range_m,
-                        e.radial_velocity_m_per_s,
-                        e.f_up_hz,
-                        e.f_down_hz,
-                        e.range_centroid_m,
-                        e.radial_velocity_centroid_m_per_s,
-                        e.range_bin_m,
-                        e.velocity_bin_m_per_s
-                    ));
-                    table.push(json!({
-                        "pointing": i,
-                        "detector": name,
-                        "range_m": e.range_m,
-                        "radial_velocity_m_per_s": e.radial_velocity_m_per_s,
-                        "f_up_hz": e.f_up_hz,
-                        "f_down_hz": e.f_down_hz,
-                        "range_centroid_m": e.range_centroid_m,
-                        "radial_velocity_centroid_m_per_s": e.radial_velocity_centroid_m_per_s,
-                        "range_bin_m": e.range_bin_m,
-                        "velocity_bin_m_per_s": e.velocity_bin_m_per_s,
-                    }));
+                    let v = super::fmcw::values(e);
+                    for (k, x) in keys.iter().zip(v) {
+                        csv.push_str(&format!("{x},"));
+                        entry[*k] = json!(x);
+                    }
+                    csv.push('\n');
                 }
                 Err(why) => {
-                    csv.push_str(&format!(",,,,,,,,\"{}\"\n", why.replace('"', "'")));
-                    table.push(json!({ "pointing": i, "detector": name, "error": why }));
+                    csv.push_str(&format!("{}\"{}\"\n", ",".repeat(keys.len()), why.replace('"', "'")));
+                    entry["error"] = json!(why);
                 }
             }
+            table.push(entry);
         }
     }
     out.put(FMCW_SCAN, csv.as_bytes())?;

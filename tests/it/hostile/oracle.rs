@@ -153,6 +153,7 @@ pub const SECTIONS: &[&str] = &[
     "volume",
     "lateral",
     "bottom",
+    "opaque",
 ];
 
 impl Names {
