@@ -817,7 +817,8 @@ fn walk<
                     }
                     // The flight ends at an opaque solid's boundary (before the plane and a side
                     // face): there the surface reflects it, outside the walk.
-                    Flight::Boundary { t } if t_opaque <= t => {
+                    // (A flight to depth has t = ∞, and so has `t_opaque` without a solid ahead.)
+                    Flight::Boundary { t } if t_opaque <= t && opaque != usize::MAX => {
                         if VOLUME && let Some(v) = ctx.volume {
                             v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
                         }

@@ -442,3 +442,38 @@ fn a_rough_face_tends_to_the_smooth_one() {
         assert!(z.abs() < 4.0, "{what}: smooth {a:.6} ± {sa:.1e}, α = 1e-4 {b:.6} ± {sb:.1e}: {z:.1}σ apart");
     }
 }
+
+#[test]
+fn a_flight_to_depth_meets_no_solid() {
+    // A semi-infinite clear layer holding a scattering region: flights that miss the region go
+    // to depth (a boundary at t = ∞), where no opaque solid lies ahead either (t = ∞ too): they
+    // are transmitted, not taken for a solid's boundary (a regression: `numpy_phantom.py`).
+    let text = r#"
+schema_version = 1
+[run]
+samples = 20000
+[source]
+wavelength_nm = 1000
+profile = "disk"
+radius_mm = 0.5
+[media.clear]
+sigma_a_per_mm = 0
+sigma_s_per_mm = 0
+[media.haze]
+sigma_a_per_mm = 0.1
+sigma_s_per_mm = 5
+[[layers]]
+name = "deep"
+thickness_mm = inf
+n = 1.0
+medium = "clear"
+[[regions]]
+layer = "deep"
+medium = "haze"
+shape = { type = "sphere", center_mm = [0, 0, 1], radius_mm = 0.2 }
+"#;
+    let r = run(text, &[]);
+    let (t, _) = r.scalar(Scalar::TransmittanceTotal);
+    assert!(t > 0.5 && t < 1.0, "transmitted to depth {t}");
+    assert_eq!(r.out.stats.truncated_paths, 0);
+}
