@@ -13,8 +13,8 @@
 //! where `p` is the phase function (sr⁻¹), the ratio of cosines and indices is the change of solid
 //! angle across the interfaces (étendue `n² cos θ dΩ` is conserved), `Ω_cone = 2π(1 − cos α)` is
 //! the inverse density of `ω0`, `R_i` the Fresnel reflectances of the interfaces crossed and `τ`
-//! the optical depth of the straight segments through the layers and the regions they cross (0
-//! where an opaque solid lies across them).
+//! the optical depth of the straight segments through the layers and the regions they cross (no
+//! shadow ray where an opaque solid or a rough face closes the way, [`trace_up`]).
 //!
 //! The path's own escapes into the cone straight after a scattering event estimate the same
 //! thing by sampling the phase function, so the two are combined by the balance heuristic (Veach
@@ -155,9 +155,6 @@ pub fn receiver_ray(
     // then the (clear) ambient medium to the aperture.
     let Crossing { tau, transmit, excess, twin_transmit, .. } =
         trace_up(scene, li, pos, dir, |_| Some(dir), Crossing::START, rng)?;
-    if transmit <= 0.0 {
-        return None;
-    }
     let area = std::f64::consts::PI * aperture.radius * aperture.radius;
     let factor = density(dir).0 * area * cos_r / r2 * transmit * (-tau).exp();
     let unit = area * cos_r / r2 * transmit;
