@@ -45,6 +45,10 @@ pub struct Layer {
     /// Whether a straight way up through it can be closed (derived): it holds opaque solids, or
     /// its top face is rough between different indices.
     pub obstructs_shadows: bool,
+    /// Whether the laser's collimated beam reaches it only through a rough face (derived): it lies
+    /// at or below the stack's first rough face, where the beam's light is no longer a Dirac
+    /// direction (no camera path connects to it there but at that face).
+    pub beyond_rough_face: bool,
 }
 
 impl Layer {
@@ -211,15 +215,16 @@ impl Scene {
     /// after changing the media, regions, opaque solids or faces.
     pub fn update_layers(&mut self) {
         let mut tau_above = 0.0;
-        let rough = |j: usize, n_above: f64| self.layers[j].roughness > 0.0 && self.layers[j].n != n_above;
         let faces: Vec<(bool, bool)> = (0..self.layers.len())
             .map(|j| {
-                let n_above = if j == 0 { self.n_above } else { self.layers[j - 1].n };
-                let top = rough(j, n_above);
-                (top, top || (j + 1 < self.layers.len() && rough(j + 1, self.layers[j].n)))
+                let top = self.rough_top(j);
+                (top, top || (j + 1 < self.layers.len() && self.rough_top(j + 1)))
             })
             .collect();
+        let mut beyond_rough_face = false;
         for (layer, (rough_top, rough_faces)) in self.layers.iter_mut().zip(faces) {
+            beyond_rough_face |= rough_top;
+            layer.beyond_rough_face = beyond_rough_face;
             layer.rough_faces = rough_faces;
             layer.plain = layer.regions.is_empty() && layer.opaque.is_empty();
             layer.obstructs_shadows = rough_top || !layer.opaque.is_empty();
@@ -230,6 +235,19 @@ impl Scene {
             layer.tau_above = tau_above;
             tau_above += layer.minorant * (layer.z_bottom - layer.z_top);
         }
+    }
+
+    /// The refractive index above layer `j`'s top face: the layer above's, or the ambient medium's.
+    #[inline(always)]
+    pub fn n_above_layer(&self, j: usize) -> f64 {
+        if j == 0 { self.n_above } else { self.layers[j - 1].n }
+    }
+
+    /// Whether layer `j`'s top face is rough between different indices (a face of the same index
+    /// on both sides is no interface at all).
+    #[inline]
+    pub fn rough_top(&self, j: usize) -> bool {
+        self.layers[j].roughness > 0.0 && self.layers[j].n != self.n_above_layer(j)
     }
 
     /// The `[wind]` the scene's particles are carried by (the first population moved by it), for

@@ -172,6 +172,16 @@ impl Bsdf {
         }
     }
 
+    /// Whether it has a Dirac lobe (a smooth mirror, alone or in a mixture), which turns a
+    /// collimated beam into another one.
+    pub fn has_delta_part(&self) -> bool {
+        match self {
+            Bsdf::Lambertian { .. } => false,
+            Bsdf::Conductor { alpha, .. } => *alpha == 0.0,
+            Bsdf::Mixture(parts) => parts.iter().any(|(_, p)| p.has_delta_part()),
+        }
+    }
+
     /// Whether a shadow ray can reach any of its lobes (not a smooth mirror alone).
     pub fn has_continuous_part(&self) -> bool {
         match self {

@@ -134,8 +134,9 @@ impl CameraTarget {
 }
 
 /// The start of a camera path from the point `(x, y)` of pixel `pixel` of `cam` (of area `area`):
-/// a direction uniform in the acceptance cone, carried to the surface and refracted in. `None`
-/// if the direction cannot enter the stack. `batch_weight` is the tally weight of one of this
+/// a direction uniform in the acceptance cone, carried to the surface and refracted in (through
+/// a rough top face, left on the face with its direction above: the walk draws its crossing
+/// there, `transport::walk`'s `camera_rough_face`). `None` if the direction cannot enter the stack. `batch_weight` is the tally weight of one of this
 /// pixel's paths in its batch. Returns the shot and the walk's starting position, direction,
 /// weight and path length.
 #[allow(clippy::too_many_arguments)]
@@ -156,15 +157,19 @@ pub fn start(
     let d = -out;
     let t0 = cam.distance / d.z;
     let pos = DVec3::new(x + t0 * d.x, y + t0 * d.y, 0.0);
+    let solid_angle = crate::detect::cone_solid_angle(cam.cos_acceptance);
+    let scale = batch_weight * area * solid_angle * d.z;
+    let shot = Shot { detector: cam.detector, pixel, x, y, scale };
+    if scene.rough_top(0) {
+        // On the rough face, still travelling along `d`: the walk draws its crossing there.
+        return Some((shot, pos, d, 1.0, scene.n_above * t0));
+    }
     let (n0, n1) = (scene.n_above, scene.layers[0].n);
     let (r, cos_t) = fresnel::reflectance(n0, n1, d.z);
     if r >= 1.0 {
         return None;
     }
-    let solid_angle = crate::detect::cone_solid_angle(cam.cos_acceptance);
-    let scale = batch_weight * area * solid_angle * d.z;
     let weight = (1.0 - r) * (n0 / n1) * (n0 / n1);
-    let shot = Shot { detector: cam.detector, pixel, x, y, scale };
     Some((shot, pos, fresnel::refract(d, n0, n1, cos_t), weight, n0 * t0))
 }
 
@@ -179,7 +184,8 @@ pub fn start(
 ///
 /// Directions are deltas, which no camera path can meet by chance, so these are scored from the
 /// point alone. Light reflected more than once between interfaces (`R_i R_j ≲ 10⁻⁶` of this)
-/// is left out.
+/// is left out. A rough face reflects a lobe, not a beam: none from it or below it (the camera
+/// paths' connections at the face score its reflection).
 pub fn unscattered(
     cam: &CameraTarget,
     scene: &Scene,
@@ -190,7 +196,9 @@ pub fn unscattered(
 ) {
     let b = source.emit_direction(rng);
     let mirror = DVec3::new(b.x, b.y, -b.z);
-    if mirror.dot(cam.axis) < cam.cos_acceptance {
+    // A rough top face scatters the whole beam: its reflection is a lobe, which the camera paths
+    // meet at the face.
+    if mirror.dot(cam.axis) < cam.cos_acceptance || scene.rough_top(0) {
         return;
     }
     let n0 = scene.n_above;
@@ -259,7 +267,8 @@ pub struct LobeHit {
 
 /// The straight, refracted way from `pos` in layer `li` along `dir` to its first real collision
 /// (free flights as the walk's), crossing interfaces by transmission. `None` if it leaves the
-/// stack, meets total internal reflection, or runs parallel to the layers.
+/// stack, meets total internal reflection, an opaque solid or a rough face, or runs parallel to
+/// the layers.
 pub fn lobe_flight(
     scene: &Scene,
     mut li: usize,
@@ -275,7 +284,15 @@ pub fn lobe_flight(
         let dz = if down { layer.z_bottom - pos.z } else { pos.z - layer.z_top };
         let ray = super::LayerRay { scene, layer, pos, dir };
         let mut nulls = 0;
-        match super::free_flight(ray, dz, dir.z.abs(), tracking, rng, &mut nulls) {
+        // An opaque solid ahead ends the flight: the walk's path meets its surface there, which
+        // is a vertex of its own (no lobe path has it).
+        let t_opaque = if layer.opaque.is_empty() { f64::INFINITY } else { scene.first_opaque(layer, pos, dir).0 };
+        let flight = if t_opaque < f64::INFINITY {
+            super::tracking::free_flight_to(ray, (dz / dir.z.abs()).min(t_opaque), tracking, rng, &mut nulls)
+        } else {
+            super::free_flight(ray, dz, dir.z.abs(), tracking, rng, &mut nulls)
+        };
+        match flight {
             super::Flight::Collision { t, medium } => {
                 let pos = pos + t * dir;
                 return Some(LobeHit { pos, layer: li, medium, dir, transmit, radiance, length: length + layer.n * t });
@@ -283,7 +300,8 @@ pub fn lobe_flight(
             super::Flight::Boundary { t } => {
                 let next = if down { li + 1 } else { li.checked_sub(1)? };
                 let beyond = scene.layers.get(next)?;
-                if !t.is_finite() {
+                // (A rough face scatters: no straight way through it, as no solid's.)
+                if !t.is_finite() || t >= t_opaque || scene.rough_top(if down { next } else { li }) {
                     return None;
                 }
                 length += layer.n * t;
@@ -333,4 +351,156 @@ pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rn
     let back = (p - source.position).dot(source.direction) / beam.dot(source.direction);
     let irradiance = e0 * (beam.z / dir.z) * transmit * (-tau).exp();
     Some(BeamHit { dir, irradiance, length: length + n0 * back })
+}
+
+/// The unscattered laser light arriving at `pos` on the top face of layer `face` from above: the
+/// layer above's beam ([`beam_connection`]), or at the stack's top face the ambient's. `None`
+/// outside the footprint.
+pub fn beam_at_face(scene: &Scene, source: &Source, face: usize, pos: DVec3, rng: &mut PathRng) -> Option<BeamHit> {
+    if face > 0 {
+        return beam_connection(scene, source, face - 1, pos, rng);
+    }
+    let beam = source.emit_direction(rng);
+    let irradiance = source.irradiance_along(pos, beam);
+    let back = (pos - source.position).dot(source.direction) / beam.dot(source.direction);
+    (irradiance > 0.0).then_some(BeamHit { dir: beam, irradiance, length: scene.n_above * back })
+}
+
+/// A camera path's way from a vertex below the stack's first rough face up to that face, where the
+/// laser's beam is transmitted into a lobe ([`face_lobe`]): the direction at the vertex (up), the
+/// radiance arriving there along its reverse, the density of the direction at the vertex and
+/// the product of the smooth faces' transmittances on the way (for the balance heuristic against
+/// the walk's own way there), and the optical path length from the emission plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaceLink {
+    pub dir: DVec3,
+    pub radiance: f64,
+    pub density: f64,
+    pub transmit: f64,
+    pub length: f64,
+}
+
+/// What the face-lobe strategy knows of the stack's first rough face and the beam on it: its indices above and below, its microfacets, the frame with its normal up, and the
+/// beam's mean direction there (local to that frame, toward the light).
+struct FaceLobe {
+    n_above: f64,
+    n_below: f64,
+    interface: crate::surface::RoughDielectric,
+    up: crate::surface::Frame,
+    to_light: DVec3,
+}
+
+impl FaceLobe {
+    fn new(scene: &Scene, source: &Source, face: usize) -> Option<FaceLobe> {
+        let n_above = scene.n_above_layer(face);
+        let b = if face == 0 { source.direction } else { refracted_down(source.direction, scene.n_above, n_above)? };
+        let up = crate::medium::Surface::bottom_frame();
+        Some(FaceLobe {
+            n_above,
+            n_below: scene.layers[face].n,
+            interface: crate::surface::RoughDielectric { alpha: scene.layers[face].roughness },
+            up,
+            to_light: up.to_local(-b),
+        })
+    }
+
+    /// The density, per steradian at a vertex in a layer of index `n`, of the upward direction
+    /// `u` there, whose straight refracted way reaches the face along the transmitted direction
+    /// `t` (in the face's layer; `n sin θ` conserved): the face's density of `t` times the solid
+    /// angles' ratio `n²|cos θ|/(n_t²|cos θ_t|)`.
+    fn density(&self, u: DVec3, t: DVec3, n: f64) -> f64 {
+        let pdf = self.interface.pdf(self.to_light, self.up.to_local(t), self.n_above, self.n_below);
+        pdf * n * n * u.z.abs() / (self.n_below * self.n_below * t.z.abs())
+    }
+
+    /// The direction `u` (upward, in a layer of index `n`) continued to the face's layer: the
+    /// transmitted direction `t` it comes from (downward). `None` if it cannot exist there.
+    fn transmitted(&self, u: DVec3, n: f64) -> Option<DVec3> {
+        refracted_up(u, n, self.n_below).map(|d| -d)
+    }
+}
+
+/// The upward direction `u` (in a layer of index `n`) in a layer of index `m`: `n sin θ` and the
+/// azimuth conserved. `None` if it cannot exist there.
+fn refracted_up(u: DVec3, n: f64, m: f64) -> Option<DVec3> {
+    let t = DVec3::new(u.x, u.y, 0.0) * (n / m);
+    let sin2 = t.length_squared();
+    (sin2 < 1.0).then(|| DVec3::new(t.x, t.y, -(1.0 - sin2).sqrt()))
+}
+
+/// The first rough face's lobe for a camera path's vertex at `pos` in layer `li` (at or below the
+/// face): a direction the face's transmission of the beam's mean direction draws (a visible
+/// normal, from three uniforms `u`; nothing if it reflects), continued straight up through the
+/// smooth faces between (Fresnel transmittances, optical depth, no solid or other rough face
+/// across) to the face, and the radiance the beam sends back down that way:
+/// `E·cos θ_b·F(−b → t)/|cos θ_t|` at the face (`F` its power per steradian,
+/// [`crate::surface::RoughDielectric::eval`]), times `Π(1 − R_i)·e^{−τ}·(n/n_t)²` to the vertex.
+/// Below a rough face the beam's light is no Dirac direction: this is the next-event estimate
+/// toward the lit face, which the walk can also reach by drawing the direction from its vertex
+/// (`transport::walk`'s `camera_rough_face`, weighted by the balance heuristic with
+/// [`face_lobe_density`]).
+pub fn face_lobe(
+    scene: &Scene,
+    source: &Source,
+    li: usize,
+    pos: DVec3,
+    u: [f64; 3],
+    rng: &mut PathRng,
+) -> Option<FaceLink> {
+    let face = scene.layers.iter().position(|l| l.beyond_rough_face)?;
+    let lobe = FaceLobe::new(scene, source, face)?;
+    let c = lobe.interface.sample(lobe.to_light, lobe.n_above, lobe.n_below, u)?;
+    if !c.transmitted {
+        return None;
+    }
+    let t = lobe.up.to_world(c.wo);
+    let n = scene.layers[li].n;
+    let up_in = |m: f64| refracted_up(-t, lobe.n_below, m);
+    let dir = up_in(n)?;
+    let mut way = Crossing { pos, ..Crossing::START };
+    for j in (face..=li).rev() {
+        let layer = &scene.layers[j];
+        let d = if j == li { dir } else { up_in(layer.n)? };
+        let len = (way.pos.z - layer.z_top) / -d.z;
+        // (The face itself is the target: only solids close the way through its layer.)
+        if (j > face && scene.rough_top(j)) || (!layer.opaque.is_empty() && scene.blocked(layer, way.pos, d, len)) {
+            return None;
+        }
+        way.segment(scene, layer, d, len, rng);
+        way.pos.z = layer.z_top;
+        if j > face {
+            way.transmit *= 1.0 - fresnel::reflectance(layer.n, scene.layers[j - 1].n, -d.z).0;
+        }
+    }
+    if way.transmit <= 0.0 {
+        return None;
+    }
+    let b = beam_at_face(scene, source, face, way.pos, rng)?;
+    let to_light = lobe.up.to_local(-b.dir);
+    let at_face = lobe.up.to_local(t);
+    let f = lobe.interface.eval(to_light, at_face, lobe.n_above, lobe.n_below);
+    let radiance = b.irradiance * to_light.z * f / at_face.z.abs()
+        * way.transmit
+        * (-way.tau).exp()
+        * (n / lobe.n_below)
+        * (n / lobe.n_below);
+    Some(FaceLink {
+        dir,
+        radiance,
+        density: lobe.density(dir, t, n),
+        transmit: way.transmit,
+        length: way.length + b.length,
+    })
+}
+
+/// The density with which [`face_lobe`] draws the upward direction `u` at a vertex in layer `li`
+/// (0 where it cannot: a downward `u`, or one that cannot exist in a layer on the way).
+pub fn face_lobe_density(scene: &Scene, source: &Source, li: usize, u: DVec3) -> f64 {
+    let Some(face) = scene.layers.iter().position(|l| l.beyond_rough_face) else { return 0.0 };
+    let Some(lobe) = FaceLobe::new(scene, source, face) else { return 0.0 };
+    let n = scene.layers[li].n;
+    if u.z >= 0.0 || scene.layers[face..li].iter().any(|l| refracted_up(u, n, l.n).is_none()) {
+        return 0.0;
+    }
+    lobe.transmitted(u, n).map_or(0.0, |t| lobe.density(u, t, n))
 }

@@ -331,7 +331,7 @@ pub(super) fn trace_up(
         }
         c.segment(scene, layer, d, t, rng);
         c.pos.z = layer.z_top;
-        let n_next = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
+        let n_next = scene.n_above_layer(j);
         let (r, _) = fresnel::reflectance(layer.n, n_next, -d.z);
         c.transmit *= 1.0 - r;
         c.twin_transmit *= 1.0 - r;
@@ -346,9 +346,7 @@ pub(super) fn trace_up(
 #[cold]
 #[inline(never)]
 fn obstructed(scene: &Scene, j: usize, p: DVec3, d: DVec3, t: f64) -> bool {
-    let layer = &scene.layers[j];
-    let n_above = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
-    (layer.roughness > 0.0 && n_above != layer.n) || scene.blocked(layer, p, d, t)
+    scene.rough_top(j) || scene.blocked(&scene.layers[j], p, d, t)
 }
 
 /// A collimated beam's unscattered reflections at the interfaces below the surface: from
@@ -356,7 +354,8 @@ fn obstructed(scene: &Scene, j: usize, p: DVec3, d: DVec3, t: f64) -> bool {
 /// along `down(n)` in a layer of index `n` (with the Fresnel transmittance of each top face
 /// crossed, the surface's only if `surface`), the reflectance `R` of its bottom, and the way back
 /// up to the surface along `up(n)` ([`trace_up`]); `each` gets every reflection's [`Crossing`] at
-/// the surface. Stops where a direction cannot exist (total internal reflection). The forward
+/// the surface. Stops where a direction cannot exist (total internal reflection), at a rough face
+/// (whose reflection is a lobe, not a beam) and where an opaque solid closes the way. The forward
 /// paths' deterministic reflections and the camera-side estimator's (traced back from the
 /// camera) go this way.
 pub(super) fn reflections_below(
@@ -374,15 +373,26 @@ pub(super) fn reflections_below(
         if !layer.z_bottom.is_finite() {
             break;
         }
+        // A rough face scatters the beam: beyond it no reflection is a Dirac direction.
+        if scene.rough_top(j) {
+            return;
+        }
         let Some(d) = down(layer.n) else { return };
         if surface || j > 0 {
-            let n_above = if j == 0 { scene.n_above } else { scene.layers[j - 1].n };
+            let n_above = scene.n_above_layer(j);
             let t_top = 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
             way.transmit *= t_top;
             way.twin_transmit *= t_top;
         }
-        way.segment(scene, layer, d, (layer.z_bottom - way.pos.z) / d.z, rng);
+        let t = (layer.z_bottom - way.pos.z) / d.z;
+        if !layer.opaque.is_empty() && scene.blocked(layer, way.pos, d, t) {
+            return;
+        }
+        way.segment(scene, layer, d, t, rng);
         way.pos.z = layer.z_bottom;
+        if j + 1 < scene.layers.len() && scene.rough_top(j + 1) {
+            return;
+        }
         let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
         let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
         if r <= 0.0 || way.transmit <= 0.0 {

@@ -464,7 +464,7 @@ pub fn trace_path<
     // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
     // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
     let mut local = rng.clone();
-    let end = walk_to_the_end::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>(
+    let end = walk_to_the_end::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, false>(
         ctx,
         0,
         &mut s,
@@ -481,7 +481,7 @@ pub fn trace_path<
         rec.twin = c.twin;
         let (mut s, mut local, order) = (c.s, c.rng, c.s.order);
         let (mut absorbed, mut null_collisions) = (0.0, 0);
-        let end = walk_to_the_end::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>(
+        let end = walk_to_the_end::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, false>(
             ctx,
             c.li,
             &mut s,
@@ -658,7 +658,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     let mut s = PathState::new(pos, dir, weight, if LENGTH { l } else { 0.0 });
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end = walk::<DOPPLER, LENGTH, false, true, false, false, false>(
+    let end = walk_to_the_end::<DOPPLER, LENGTH, false, false, false, false, true>(
         &ctx,
         0,
         &mut s,
@@ -666,6 +666,7 @@ pub fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
         &mut absorbed,
         &mut null_collisions,
         rec,
+        ctx.scene.rough_top(0),
     );
     *rng = local;
     rec.stats.work.camera_events += u64::from(s.order) + u64::from(end == End::Absorbed) + null_collisions;
@@ -1026,6 +1027,7 @@ fn walk_to_the_end<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
+    const CAMERA: bool,
 >(
     ctx: &WalkContext,
     start: usize,
@@ -1046,7 +1048,11 @@ fn walk_to_the_end<
     // and an end that could also come from here was kept in memory and dispatched there, +12
     // instructions per path on the vdH slab.)
     if entering {
-        let (deposit, next) = cross_rough_face::<LENGTH, NEE>(ctx, 0, s, rng, rec);
+        let (deposit, next) = if CAMERA {
+            (0.0, camera_rough_face::<LENGTH>(ctx, 0, s, rng, rec))
+        } else {
+            cross_rough_face::<LENGTH, NEE>(ctx, 0, s, rng, rec)
+        };
         *absorbed += deposit;
         match next {
             Ok(l) => li = l,
@@ -1054,8 +1060,15 @@ fn walk_to_the_end<
         }
     }
     loop {
-        let end =
-            walk::<DOPPLER, LENGTH, NEE, false, VOLUME, GATE, LATERAL>(ctx, li, s, rng, absorbed, null_collisions, rec);
+        let end = walk::<DOPPLER, LENGTH, NEE, CAMERA, VOLUME, GATE, LATERAL>(
+            ctx,
+            li,
+            s,
+            rng,
+            absorbed,
+            null_collisions,
+            rec,
+        );
 
         // (The deposits come back by value: `absorbed`'s address handed to a call kept it in
         // memory through every collision of the walk, +1 instruction each.)
@@ -1068,7 +1081,11 @@ fn walk_to_the_end<
                 if crossings > MAX_REFLECTIONS_WITHOUT_COLLISION {
                     return End::Truncated;
                 }
-                let (deposit, next) = cross_rough_face::<LENGTH, NEE>(ctx, face, s, rng, rec);
+                let (deposit, next) = if CAMERA {
+                    (0.0, camera_rough_face::<LENGTH>(ctx, face, s, rng, rec))
+                } else {
+                    cross_rough_face::<LENGTH, NEE>(ctx, face, s, rng, rec)
+                };
                 match next {
                     Ok(l) => {
                         li = l;
@@ -1081,13 +1098,21 @@ fn walk_to_the_end<
                 let Some(bottom) = &scene.bottom else { return end };
                 li = scene.layers.len() - 1;
                 let frame = crate::medium::Surface::bottom_frame();
-                reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, bottom, &frame, li, s, rng, rec)
+                if CAMERA {
+                    (0.0, camera_reflect::<DOPPLER, LENGTH>(ctx, bottom, &frame, li, s, rng, rec))
+                } else {
+                    reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, bottom, &frame, li, s, rng, rec)
+                }
             }
             End::AtOpaque(k) => {
                 let o = &scene.opaque[k];
                 li = o.layer;
                 let frame = crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir));
-                reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, &o.surface, &frame, li, s, rng, rec)
+                if CAMERA {
+                    (0.0, camera_reflect::<DOPPLER, LENGTH>(ctx, &o.surface, &frame, li, s, rng, rec))
+                } else {
+                    reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, &o.surface, &frame, li, s, rng, rec)
+                }
             }
             _ => return end,
         };
@@ -1116,7 +1141,7 @@ fn cross_rough_face<const LENGTH: bool, const NEE: bool>(
 ) -> (f64, Result<usize, End>) {
     let scene = ctx.scene;
     let down = s.dir.z > 0.0;
-    let (n_above, n_below) = (if face == 0 { scene.n_above } else { scene.layers[face - 1].n }, scene.layers[face].n);
+    let (n_above, n_below) = (scene.n_above_layer(face), scene.layers[face].n);
     let (n_i, n_t) = if down { (n_above, n_below) } else { (n_below, n_above) };
     // The normal on the side the light comes from.
     let frame = if down {
@@ -1259,6 +1284,219 @@ fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     // The walk's next checkpoint is due at once (it renormalises and looks at the event cap).
     let mut checkpoint = s.order.min(ctx.settings.max_events);
     (deposit, turn(s, out, ctx.settings, rng, &mut checkpoint))
+}
+
+/// A camera path ([`super::camera`]) reaches the rough top face of layer `face` at `s.pos`. The
+/// stack's first rough face is where the laser's beam stops being a Dirac direction, so there
+/// the path connects to it: the beam of irradiance `E` arriving from above along `b` leaves the
+/// face toward the camera path with the radiance `E·cos θ_b·F(−b → −dir)/|cos θ_out|`, `F` the
+/// face's power per steradian ([`crate::surface::RoughDielectric::eval`]: its reflection when
+/// the path came down, its transmission when it came up). Coming down, no other way reaches that
+/// light (the beam-lobe connection crosses no rough face): full weight; coming up, the vertex
+/// before also connected through the face's lobe ([`face_connection`]), and the two are
+/// balanced by `s.mis` ([`face_mis`]). Then the
+/// crossing is drawn as a forward path's, carrying radiance: a refraction from `n_i` into `n_t`
+/// multiplies the weight by `(n_i/n_t)²` (`L/n²` is invariant, as across a smooth face). `Ok`
+/// the layer the path goes on in, else how it ended.
+#[inline(never)]
+fn camera_rough_face<const LENGTH: bool>(
+    ctx: &WalkContext,
+    face: usize,
+    s: &mut PathState,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) -> Result<usize, End> {
+    let scene = ctx.scene;
+    let down = s.dir.z > 0.0;
+    let (n_above, n_below) = (scene.n_above_layer(face), scene.layers[face].n);
+    let interface = crate::surface::RoughDielectric { alpha: scene.layers[face].roughness };
+    // The face's frame with its normal up, on the beam's side.
+    let up = crate::medium::Surface::bottom_frame();
+    if let Some(shot) = ctx.shot
+        && (face == 0 || !scene.layers[face - 1].beyond_rough_face)
+    {
+        let boost = connection_roulette(scene, face, s, rng);
+        rec.stats.work.camera_connections += 1;
+        if boost > 0.0
+            && let Some(b) = super::camera::beam_at_face(scene, ctx.source, face, s.pos, rng)
+        {
+            let (to_light, to_camera) = (up.to_local(-b.dir), up.to_local(-s.dir));
+            let f = interface.eval(to_light, to_camera, n_above, n_below);
+            if f > 0.0 {
+                let radiance = b.irradiance * to_light.z * f / to_camera.z.abs();
+                // From below, weighted against the face-lobe connection of the vertex before
+                // (`s.mis`, [`face_mis`]); from above no other way reaches it.
+                let w = if !down && s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
+                let e = PathState {
+                    dir: -s.dir,
+                    weight: s.weight * w * boost * radiance * shot.scale,
+                    l: if LENGTH { s.l + b.length } else { 0.0 },
+                    mis: -1.0,
+                    ..*s
+                };
+                rec.camera(&shot, &e);
+            }
+        }
+    }
+    // The crossing, drawn on the side the path comes from.
+    let (n_i, n_t) = if down { (n_above, n_below) } else { (n_below, n_above) };
+    let frame = if down { up } else { crate::surface::Frame { n: DVec3::Z, t: DVec3::X, b: DVec3::Y } };
+    let wi = frame.to_local(-s.dir);
+    let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+    let c = interface.sample(wi, n_i, n_t, u).ok_or(End::Absorbed)?;
+    s.weight *= if c.transmitted { c.weight * (n_i / n_t) * (n_i / n_t) } else { c.weight };
+    if s.weight <= 0.0 {
+        return Err(End::Absorbed);
+    }
+    s.dir = frame.to_world(c.wo);
+    // The next vertex is no beam-lobe connection's (none crosses a rough face): full weight.
+    s.mis = -1.0;
+    if s.dir.z > 0.0 {
+        Ok(face)
+    } else if face > 0 {
+        Ok(face - 1)
+    } else {
+        Err(End::Escaped { side: Side::Top, n_ambient: scene.n_above, reflected_once: false })
+    }
+}
+
+/// The face-lobe connection of a camera path's vertex at `s.pos` in layer `li`, at or below the
+/// stack's first rough face ([`super::camera::face_lobe`]): `density(u)` is the vertex's
+/// `(f, q)` toward the upward direction `u` (the phase function's value and density, or a
+/// surface's `f|cos|` and sampling density). Weighted by the balance heuristic against the walk's
+/// own way to the face (which [`face_mis`] prepares): `f·L/(q_lobe + q·ΠT)`. Scored at
+/// scattering order `order`; `mark` adds the vertex's Doppler term for light arriving along a
+/// direction.
+#[allow(clippy::too_many_arguments)]
+#[cold]
+#[inline(never)]
+fn face_connection<const LENGTH: bool>(
+    ctx: &WalkContext,
+    li: usize,
+    shot: &Shot,
+    s: &PathState,
+    density: impl Fn(DVec3) -> (f64, f64),
+    boost: f64,
+    mark: impl Fn(&mut PathState, DVec3),
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+    rec.stats.work.camera_connections += 1;
+    let Some(h) = super::camera::face_lobe(ctx.scene, ctx.source, li, s.pos, u, rng) else { return };
+    let (f, q) = density(h.dir);
+    if f <= 0.0 {
+        return;
+    }
+    let mut e = PathState {
+        dir: -s.dir,
+        weight: s.weight * boost * f * h.radiance / (h.density + q * h.transmit) * shot.scale,
+        l: if LENGTH { s.l + h.length } else { 0.0 },
+        order: s.order + 1,
+        mis: -1.0,
+        ..*s
+    };
+    mark(&mut e, -h.dir);
+    rec.camera(shot, &e);
+}
+
+/// A camera path's `mis` after a vertex in layer `li` (at or below the stack's first rough face)
+/// sent it along `out` with the density `q`: `q/q_lobe`, the ratio of its density to the
+/// face-lobe connection's ([`super::camera::face_lobe_density`]), which the crossings of smooth
+/// faces on the way multiply by their transmittances and the rough face's connection from below
+/// turns into its weight; −1 (full weight) where no face-lobe connection takes that way.
+#[cold]
+#[inline(never)]
+fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: f64) -> f64 {
+    let lobe = super::camera::face_lobe_density(ctx.scene, ctx.source, li, out);
+    if lobe > 0.0 { q / lobe } else { -1.0 }
+}
+
+/// A camera path ([`super::camera`]) in layer `li` reaches an opaque surface of local frame
+/// `frame` (its normal into the layer) at `s.pos`. Above the stack's first rough face the surface
+/// connects to the laser's beam as a collision does ([`super::camera::beam_connection`]): the
+/// radiance toward the camera path is `f·cos θ_b·E`, which the BSDF's value toward the beam
+/// gives (`eval`, reciprocal: `f(ω_cam, ω_b)·cos θ_b`), with the moving surface's Doppler term
+/// `n v·(b + dir)`; full weight, as no beam-lobe path ends on a surface. Below the first rough
+/// face it connects through that face's lobe instead ([`face_connection`]). Then a reflection is
+/// drawn as a forward path's ([`reflect_at_surface`]; a reflection carries radiance as it
+/// carries power). `Some` end if the path ends here.
+#[inline(never)]
+fn camera_reflect<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    surface: &crate::medium::Surface,
+    frame: &crate::surface::Frame,
+    li: usize,
+    s: &mut PathState,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) -> Option<End> {
+    let scene = ctx.scene;
+    let n = scene.layers[li].n;
+    let wi = frame.to_local(-s.dir);
+    if wi.z <= 0.0 {
+        return Some(End::Absorbed);
+    }
+    let moving = DOPPLER && surface.is_moving();
+    let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
+    let beyond = scene.layers[li].beyond_rough_face;
+    if beyond && let Some(shot) = ctx.shot {
+        let boost = connection_roulette(scene, li, s, rng);
+        if boost > 0.0 {
+            let density = |u: DVec3| {
+                let wo = frame.to_local(u);
+                (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
+            };
+            let dir_in = s.dir;
+            let mark = |e: &mut PathState, arrive: DVec3| {
+                if moving {
+                    e.dldt += doppler_increment(n, v, arrive + dir_in);
+                    e.doppler_events += 1;
+                }
+            };
+            face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
+        }
+    }
+    if let Some(shot) = ctx.shot
+        && !beyond
+    {
+        let boost = connection_roulette(scene, li, s, rng);
+        rec.stats.work.camera_connections += 1;
+        if boost > 0.0
+            && let Some(b) = super::camera::beam_connection(scene, ctx.source, li, s.pos, rng)
+        {
+            let f = surface.bsdf.eval(wi, frame.to_local(-b.dir));
+            if f > 0.0 {
+                let mut e = PathState {
+                    dir: -s.dir,
+                    weight: s.weight * boost * f * b.irradiance * shot.scale,
+                    l: if LENGTH { s.l + b.length } else { 0.0 },
+                    order: s.order + 1,
+                    mis: -1.0,
+                    ..*s
+                };
+                if moving {
+                    e.dldt += doppler_increment(n, v, b.dir + s.dir);
+                    e.doppler_events += 1;
+                }
+                rec.camera(&shot, &e);
+            }
+        }
+    }
+    let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+    let Some(smp) = surface.bsdf.sample(wi, u) else { return Some(End::Absorbed) };
+    let out = frame.to_world(smp.wo);
+    s.weight *= smp.weight;
+    if s.weight <= 0.0 {
+        return Some(End::Absorbed);
+    }
+    s.mis = if beyond && !smp.delta { face_mis(ctx, li, out, surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
+    if moving {
+        s.dldt += doppler_increment(n, v, s.dir - out);
+        s.doppler_events += 1;
+    }
+    let mut checkpoint = s.order.min(ctx.settings.max_events);
+    turn(s, out, ctx.settings, rng, &mut checkpoint)
 }
 
 /// The path `s` in a layer of index `n` reaches the side face `axis` (0: x, 1: y) of the box
@@ -1646,10 +1884,29 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
     // The beam reaches the vertex through at least the same optical depth as a shadow ray.
     let boost = connection_roulette(scene, li, s, rng);
-    // The guide lobe about the beam's reversed direction in this layer.
+    // The guide lobe about the beam's reversed direction in this layer; below the stack's first
+    // rough face the beam's light comes through that face's lobe instead.
     let guide = super::camera::guide();
-    let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
-    if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
+    let beyond = scene.layers[li].beyond_rough_face;
+    let up =
+        if beyond { None } else { super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b) };
+    if beyond
+        && boost > 0.0
+        && let Some(shot) = ctx.shot
+    {
+        let dir_in = s.dir;
+        let density = |u: DVec3| {
+            let p = pop.phase.eval(dir_in.dot(u));
+            (p, p)
+        };
+        let mark = |e: &mut PathState, arrive: DVec3| {
+            if dynamic {
+                doppler_event(e, pop, n, v, arrive + dir_in);
+            }
+        };
+        face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
+    }
+    if let (Some(shot), true, false) = (ctx.shot, boost > 0.0, beyond) {
         // This vertex as the walk's last: weighted against the lobe connection from the vertex
         // before, `s.mis` = (walk density · Fresnel transmittances)/(guide density) of the way
         // here (−1 when the lobe connection cannot make it).
@@ -1690,6 +1947,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     s.mis = match up {
         Some(up) => pop.phase.eval(d.cos) / guide.eval(up.dot(out)),
+        None if beyond => face_mis(ctx, li, out, pop.phase.eval(d.cos)),
         None => -1.0,
     };
     if dynamic {

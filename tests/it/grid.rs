@@ -205,6 +205,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
             rough_faces: false,
             plain: true,
             obstructs_shadows: false,
+            beyond_rough_face: false,
             opaque: Vec::new(),
             roughness: 0.0,
         }],

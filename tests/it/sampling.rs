@@ -97,6 +97,7 @@ fn piecewise_scene() -> Scene {
             rough_faces: false,
             plain: true,
             obstructs_shadows: false,
+            beyond_rough_face: false,
             opaque: Vec::new(),
             roughness: 0.0,
         }],

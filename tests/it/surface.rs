@@ -312,8 +312,21 @@ fn bad_opaque_solids_are_refused_with_their_key() {
         let text = e.to_string();
         assert!(text.contains(key) && text.contains(words), "{set}: {text}");
     }
-    let e = ohd::config::load(SHADED, "test", &["detectors.0.estimator=\"camera\"".to_string()]).expect_err("camera");
-    assert!(e.to_string().contains("detectors[0].estimator"), "{e}");
+    // Camera paths meet the solids (tests/it/camera.rs), but not a mirror in the beam: it would
+    // reflect a second beam, which no camera path connects to.
+    let camera = ["detectors.0.estimator=\"camera\"", "detectors.0.image={pixels=[4,4]}"];
+    let mirror = "opaque.0.surface={type=\"conductor\",material=\"gold\",roughness=0}";
+    assert!(ohd::config::load(SHADED, "test", &camera.map(String::from)).is_ok());
+    let sets = [camera[0], camera[1], mirror].map(String::from);
+    let e = ohd::config::load(SHADED, "test", &sets).expect_err("mirror");
+    assert!(
+        e.to_string().contains("detectors[0].estimator")
+            && e.to_string().contains("opaque[0].surface is a smooth mirror"),
+        "{e}"
+    );
+    // Under a rough face the beam reaches it scattered: allowed.
+    let sets = [camera[0], camera[1], mirror, "layers.0.roughness=0.2", "layers.0.n=1.33"].map(String::from);
+    assert!(ohd::config::load(SHADED, "test", &sets).is_ok());
 }
 
 // Rough faces between layers (`layers[i].roughness`).

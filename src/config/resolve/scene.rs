@@ -275,6 +275,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 rough_faces: false,
                 plain: true,
                 obstructs_shadows: false,
+                beyond_rough_face: false,
                 opaque: Vec::new(),
             });
         }

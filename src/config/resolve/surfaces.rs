@@ -14,7 +14,7 @@ use crate::surface::Bsdf;
 use crate::surface::metals::Metal;
 
 /// The surface under the last layer, checked against what the walks support: a finite last layer
-/// above it, and only forward paths from the laser (with or without shadow rays) meet it.
+/// above it, no detector below it, and no mirror in the beam for camera-side paths.
 pub(super) fn resolve_bottom(
     b: Option<&BottomSection>,
     scene: &Scene,
@@ -34,7 +34,7 @@ pub(super) fn resolve_bottom(
     if let Some(i) = detectors.iter().position(|d| d.side() == crate::detect::Side::Bottom) {
         return err(format!("detectors[{i}].side"), "= \"bottom\": nothing leaves through an opaque [bottom] surface");
     }
-    forward_only("an opaque [bottom] surface", detectors)?;
+    camera_meets(&bottom, "the [bottom] surface", scene, scene.layers.len() - 1, detectors)?;
     Ok(Some(bottom))
 }
 
@@ -87,21 +87,12 @@ pub(super) fn resolve_opaque(
         let motion = Motion { velocity: &o.velocity, angular_velocity: &o.angular_velocity, center: &o.center };
         let centre = shape_centre(&shape);
         let surface = surface(&path, o.surface.as_ref(), motion, centre, wavelength, l.n)?;
-        forward_only("an [[opaque]] solid", detectors)?;
+        camera_meets(&surface, &format!("opaque[{i}].surface"), scene, li, detectors)?;
         let tolerance = 1e-9 * shape.size();
         scene.opaque.push(Opaque { name, shape, surface, layer: li, tolerance });
         scene.layers[li].opaque.push(scene.opaque.len() - 1);
     }
     scene.update_layers();
-    Ok(())
-}
-
-/// Rough faces between layers (`layers[i].roughness`): only forward paths from the laser cross
-/// them.
-pub(super) fn check_rough_faces(scene: &Scene, detectors: &[Detector]) -> R<()> {
-    if scene.layers.iter().any(|l| l.roughness > 0.0) {
-        forward_only("a rough face between layers (layers[i].roughness)", detectors)?;
-    }
     Ok(())
 }
 
@@ -146,14 +137,19 @@ fn shape_centre(s: &crate::medium::Shape) -> DVec3 {
     }
 }
 
-/// The camera-side walk (from a camera's pixels back to the laser) meets no surface yet: every
-/// detector estimated forward.
-fn forward_only(what: &str, detectors: &[Detector]) -> R<()> {
-    if let Some(i) = detectors.iter().position(|d| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward)) {
+/// A surface in layer `li` that camera-side paths (from a camera's pixels back to the laser)
+/// meet: where the laser's beam reaches it straight (above every rough face), a smooth mirror
+/// would turn it into a second collimated beam, which no camera path's connection reaches.
+fn camera_meets(surface: &Surface, what: &str, scene: &Scene, li: usize, detectors: &[Detector]) -> R<()> {
+    if !surface.bsdf.has_delta_part() || (0..=li).any(|j| scene.rough_top(j)) {
+        return Ok(());
+    }
+    let camera = |d: &Detector| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward);
+    if let Some(i) = detectors.iter().position(camera) {
         return err(
             format!("detectors[{i}].estimator"),
             format!(
-                "paths traced from a camera's pixels do not meet {what}: use estimator = \"forward\" with this scene"
+                "{what} is a smooth mirror (a conductor of roughness 0) in the laser's beam: it reflects a second collimated beam, which paths traced from a camera's pixels never connect to; give it a roughness > 0, or use estimator = \"forward\""
             ),
         );
     }
