@@ -1,16 +1,19 @@
 //! The layered control variate of a forward-estimated camera (`run.control_variate`).
 //!
 //! A scene of infinite layers with regions in them (vessels, spheres) has a *layered twin*: the
-//! same stack with every region's medium replaced by its layer's filling medium. The twin's
+//! same stack with every region's medium replaced by its layer's filling medium (and without
+//! opaque solids; the planar surfaces, a bottom and rough faces, stay: the twin reflects and
+//! crosses there as its path does, and their shadow rays carry it). The twin's
 //! camera response is laterally invariant, so it is a kernel over the lateral offset between a
 //! path's entry point and where it meets the camera, convolved with the beam's footprint (CONV,
 //! Wang, Jacques & Zheng 1997). Every forward path carries, beside its own contributions `f`, its
 //! twin's `Λ·f_twin`, `Λ` being the likelihood ratio of the path under the twin (flights and
 //! perturbation Monte Carlo as Hayakawa et al. 2001: the flights' transmittance ratios, and for
 //! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
-//! `Λ` leaves a band and the twin parts from the path to walk on by itself,
-//! [`Split`]), and `f_twin` what the twin scores (its phase function and Doppler
-//! shift, shadow rays without the regions' optical depth; after parting, its own walk's).
+//! `Λ` leaves a band and the twin parts from the path to walk on by itself, [`Split`]; or where
+//! the path meets an opaque solid, which the twin flies on through), and `f_twin` what the twin
+//! scores (its phase function and Doppler shift, shadow rays without the regions' optical depth;
+//! after parting, its own walk's).
 //! Through a region of a density field (a ramp, a VDB grid) the twin is not weighted but
 //! delta-tracked with its path, one uniform deciding each tentative collision for both, and parts
 //! from it where they disagree (`transport::tracking::coupled_flight`). The

@@ -199,12 +199,15 @@ impl Scene {
     }
 
     /// The layered twin of this scene: every region removed (its layer's filling medium in its
-    /// place), the layers' majorants and optical depths recomputed ([`crate::detect::twin`]).
+    /// place) and every opaque solid, the layers' majorants and optical depths recomputed
+    /// ([`crate::detect::twin`]). The planar surfaces stay: the bottom and the rough faces.
     pub fn layered_twin(&self) -> Scene {
         let mut twin = self.clone();
         twin.regions.clear();
+        twin.opaque.clear();
         for l in &mut twin.layers {
             l.regions.clear();
+            l.opaque.clear();
         }
         twin.update_layers();
         twin

@@ -60,6 +60,22 @@
 //! A collimated beam is a delta in direction, so no walk can hit it by chance: the connections
 //! are the whole estimate. A pencil beam lights a line, which a connection reaches with
 //! probability zero: the camera estimator needs a disk or Gaussian footprint.
+//!
+//! Surfaces (issue 38). A camera path crosses a rough face between layers by drawing from its
+//! microfacets as a forward path does, with `(n_i/n_t)²` on a refraction (radiance), and reflects
+//! at opaque surfaces by their BSDFs (reciprocal: the same weights as for power). An opaque
+//! surface's vertex connects to the beam as a collision does, with the BSDF's `f·cos θ_b` for the
+//! phase function. The beam stays a Dirac direction only down to the stack's first rough face
+//! (`Layer::beyond_rough_face` below it): that face connects to it where the walk meets it,
+//! `E·cos θ_b·F(−b → −dir)/|cos θ_out|` (`F` the face's power per steradian: its reflection from
+//! above, its transmission from below), and every vertex below connects through the face's lobe
+//! ([`face_lobe`]): a transmitted direction drawn from the face's microfacets for the beam's
+//! direction, the straight way up to the face along it, and the radiance the face sends down
+//! there. The walk reaches the same face point by drawing the direction from its vertex, so the
+//! two are balanced as the beam-lobe connection is (`PathState::mis` carries the ratio of the
+//! walk's density, times the smooth faces' transmittances, to the lobe's, [`face_lobe_density`]).
+//! A smooth mirror in the beam above every rough face would reflect a second collimated beam,
+//! which no connection reaches: refused at resolve time.
 
 use glam::DVec3;
 

@@ -100,7 +100,8 @@ pub const MAX_TWIN_OFFSETS: usize = 1 << 24;
 /// can). It needs a camera to cover (a forward-estimated top detector whose image spans its
 /// rectangular area), a twin that is laterally invariant (infinite layers of homogeneous media:
 /// no box phantom, no density field filling a layer; regions may hold one, without an albedo
-/// grid), a beam whose entry points have its profile's density
+/// grid; a bottom surface that does not rotate; opaque solids, which the twin has not, part
+/// from it where the path meets them), a beam whose entry points have its profile's density
 /// (normal incidence, no divergence), and every path of the twin among the path's possible ones:
 /// a region's medium scatters wherever its layer's does.
 pub fn control_variate_obstacle(
@@ -117,14 +118,11 @@ pub fn control_variate_obstacle(
     if scene.lateral.is_some() {
         return Some("the layers end at the box's side faces ([lateral]): the twin is not laterally invariant".into());
     }
-    if scene.bottom.is_some() {
-        return Some("an opaque [bottom] surface: shadow rays from its reflections do not carry the twin yet".into());
-    }
-    if let Some(o) = scene.opaque.first() {
-        return Some(format!("the opaque solid `{}`: the layered twin has no surfaces yet", o.name));
-    }
-    if let Some(l) = scene.layers.iter().find(|l| l.roughness > 0.0) {
-        return Some(format!("layer `{}`'s top face is rough: the twin's shadow rays cross smooth faces only", l.name));
+    if scene.bottom.as_ref().is_some_and(|b| b.angular_velocity != DVec3::ZERO) {
+        return Some(
+            "the [bottom] surface rotates: its Doppler shift depends on where light meets it, so the twin is not laterally invariant"
+                .into(),
+        );
     }
     if let Some(l) = scene.layers.iter().find(|l| scene.media[l.medium].density().is_some()) {
         return Some(format!("layer `{}`'s medium has a density field: its twin is not laterally invariant", l.name));
@@ -833,6 +831,9 @@ fn walk<
                         if LENGTH {
                             s.l += n * t;
                         }
+                        if NEE && rec.twin.is_some() {
+                            part_at_solid(s, li, rng, rec);
+                        }
                         return End::AtOpaque(opaque);
                     }
                     Flight::Boundary { .. } => break,
@@ -1223,7 +1224,19 @@ fn surface_shadow_rays<const LENGTH: bool>(
             e.dldt += doppler_increment(n, v, s.dir - h.dir_vertex);
             e.doppler_events += 1;
         }
-        rec.next_event(target.detector, &e, Twin::Off, ctx.scene.n_above);
+        // The layered twin has the same planar surface (the bottom, a rough face): its shadow ray
+        // is the path's without the regions' excess optical depth, weighted by `Λ`.
+        let twin = match rec.twin {
+            None => Twin::Off,
+            Some(tw) if tw.only => Twin::Only,
+            Some(tw) if !tw.touched && h.twin_is_path() => Twin::Same,
+            Some(tw) => {
+                let mut t = tw.state(&e);
+                t.weight = s.weight * tw.lambda * boost * h.twin_factor(density(h.dir_vertex).0);
+                Twin::Other(t)
+            }
+        };
+        rec.next_event(target.detector, &e, twin, ctx.scene.n_above);
     }
 }
 
@@ -1796,6 +1809,19 @@ fn part_in_flight<const LENGTH: bool>(
         Some(Split { s: tw.state(&at), li, twin: TwinPath { touched: true, ..tw }, rng: p.rng, flying: !p.collides });
 }
 
+/// The path `s` in layer `li` has flown to an opaque solid's boundary, which its layered twin
+/// (without solids, `Scene::layered_twin`) does not have: the twin parts from it there and, once
+/// the path has ended, flies on from that point (the path's flight ran that far without a
+/// collision, and the rest of the twin's is a fresh exponential) on a copy of the generator
+/// ([`Split`]); the path goes on without a twin.
+#[cold]
+#[inline(never)]
+fn part_at_solid(s: &PathState, li: usize, rng: &PathRng, rec: &mut Recorder) {
+    let Some(tw) = rec.twin.take() else { return };
+    rec.split =
+        Some(Split { s: tw.state(s), li, twin: TwinPath { touched: true, ..tw }, rng: rng.clone(), flying: true });
+}
+
 /// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene
 /// (`ctx.twin_scene`: the regions removed): its collision there (or, parted in flight, its
 /// flight on from there), then its walk, every
@@ -1837,7 +1863,7 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
     };
     let end = match first {
         Some(end) => end,
-        None => walk::<DOPPLER, LENGTH, true, false, false, GATE, false>(
+        None => walk_to_the_end::<DOPPLER, LENGTH, true, false, GATE, false, false>(
             &ctx,
             li,
             &mut s,
@@ -1845,6 +1871,7 @@ fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
             &mut absorbed,
             &mut nulls,
             rec,
+            false,
         ),
     };
     if let End::Escaped { side, n_ambient, .. } = end
