@@ -45,10 +45,6 @@ pub struct Layer {
     /// Whether a straight way up through it can be closed (derived): it holds opaque solids, or
     /// its top face is rough between different indices.
     pub obstructs_shadows: bool,
-    /// Whether the laser's collimated beam reaches it only through a rough face (derived): it lies
-    /// at or below the stack's first rough face, where the beam's light is no longer a Dirac
-    /// direction (no camera path connects to it there but at that face).
-    pub beyond_rough_face: bool,
 }
 
 impl Layer {
@@ -183,6 +179,10 @@ pub struct Scene {
     pub bottom: Option<Surface>,
     /// Opaque solids inside the layers (each listed by its layer, [`Layer::opaque`]).
     pub opaque: Vec<Opaque>,
+    /// The first layer whose top face is rough (derived; the number of layers if none): the
+    /// laser's collimated beam is a Dirac direction only above it, in the layers before (no
+    /// camera path connects to it below but through that face).
+    pub first_rough_face: usize,
 }
 
 impl Scene {
@@ -224,10 +224,8 @@ impl Scene {
                 (top, top || (j + 1 < self.layers.len() && self.rough_top(j + 1)))
             })
             .collect();
-        let mut beyond_rough_face = false;
+        self.first_rough_face = faces.iter().position(|&(top, _)| top).unwrap_or(self.layers.len());
         for (layer, (rough_top, rough_faces)) in self.layers.iter_mut().zip(faces) {
-            beyond_rough_face |= rough_top;
-            layer.beyond_rough_face = beyond_rough_face;
             layer.rough_faces = rough_faces;
             layer.plain = layer.regions.is_empty() && layer.opaque.is_empty();
             layer.obstructs_shadows = rough_top || !layer.opaque.is_empty();

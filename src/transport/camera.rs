@@ -66,7 +66,7 @@
 //! at opaque surfaces by their BSDFs (reciprocal: the same weights as for power). An opaque
 //! surface's vertex connects to the beam as a collision does, with the BSDF's `f·cos θ_b` for the
 //! phase function. The beam stays a Dirac direction only down to the stack's first rough face
-//! (`Layer::beyond_rough_face` below it): that face connects to it where the walk meets it,
+//! (`Scene::first_rough_face`): that face connects to it where the walk meets it,
 //! `E·cos θ_b·F(−b → −dir)/|cos θ_out|` (`F` the face's power per steradian: its reflection from
 //! above, its transmission from below), and every vertex below connects through the face's lobe
 //! ([`face_lobe`]): a transmitted direction drawn from the face's microfacets for the beam's
@@ -300,14 +300,14 @@ pub fn lobe_flight(
         let dz = if down { layer.z_bottom - pos.z } else { pos.z - layer.z_top };
         let ray = super::LayerRay { scene, layer, pos, dir };
         let mut nulls = 0;
-        // An opaque solid ahead ends the flight: the walk's path meets its surface there, which
-        // is a vertex of its own (no lobe path has it).
-        let t_opaque = if layer.opaque.is_empty() { f64::INFINITY } else { scene.first_opaque(layer, pos, dir).0 };
-        let flight = if t_opaque < f64::INFINITY {
-            super::tracking::free_flight_to(ray, (dz / dir.z.abs()).min(t_opaque), tracking, rng, &mut nulls)
-        } else {
-            super::free_flight(ray, dz, dir.z.abs(), tracking, rng, &mut nulls)
-        };
+        let flight = super::free_flight(ray, dz, dir.z.abs(), tracking, rng, &mut nulls);
+        // An opaque solid before the flight's end ends it: the walk's path meets its surface there,
+        // a vertex of its own (no lobe path has it). (The flight's distance is drawn as the walk's,
+        // whose flight a solid cuts short: up to the solid the two have the same density.)
+        let (super::Flight::Collision { t, .. } | super::Flight::Boundary { t }) = flight;
+        if !layer.opaque.is_empty() && scene.blocked(layer, pos, dir, t) {
+            return None;
+        }
         match flight {
             super::Flight::Collision { t, medium } => {
                 let pos = pos + t * dir;
@@ -317,7 +317,7 @@ pub fn lobe_flight(
                 let next = if down { li + 1 } else { li.checked_sub(1)? };
                 let beyond = scene.layers.get(next)?;
                 // (A rough face scatters: no straight way through it, as no solid's.)
-                if !t.is_finite() || t >= t_opaque || scene.rough_top(if down { next } else { li }) {
+                if !t.is_finite() || (layer.rough_faces && scene.rough_top(if down { next } else { li })) {
                     return None;
                 }
                 length += layer.n * t;
@@ -463,7 +463,7 @@ pub fn face_lobe(
     u: [f64; 3],
     rng: &mut PathRng,
 ) -> Option<FaceLink> {
-    let face = scene.layers.iter().position(|l| l.beyond_rough_face)?;
+    let face = scene.first_rough_face;
     let lobe = FaceLobe::new(scene, source, face)?;
     let c = lobe.interface.sample(lobe.to_light, lobe.n_above, lobe.n_below, u)?;
     if !c.transmitted {
@@ -512,7 +512,7 @@ pub fn face_lobe(
 /// The density with which [`face_lobe`] draws the upward direction `u` at a vertex in layer `li`
 /// (0 where it cannot: a downward `u`, or one that cannot exist in a layer on the way).
 pub fn face_lobe_density(scene: &Scene, source: &Source, li: usize, u: DVec3) -> f64 {
-    let Some(face) = scene.layers.iter().position(|l| l.beyond_rough_face) else { return 0.0 };
+    let face = scene.first_rough_face;
     let Some(lobe) = FaceLobe::new(scene, source, face) else { return 0.0 };
     let n = scene.layers[li].n;
     if u.z >= 0.0 || scene.layers[face..li].iter().any(|l| refracted_up(u, n, l.n).is_none()) {

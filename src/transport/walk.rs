@@ -1326,7 +1326,7 @@ fn camera_rough_face<const LENGTH: bool>(
     // The face's frame with its normal up, on the beam's side.
     let up = crate::medium::Surface::bottom_frame();
     if let Some(shot) = ctx.shot
-        && (face == 0 || !scene.layers[face - 1].beyond_rough_face)
+        && face == scene.first_rough_face
     {
         let boost = connection_roulette(scene, face, s, rng);
         rec.stats.work.camera_connections += 1;
@@ -1414,15 +1414,17 @@ fn face_connection<const LENGTH: bool>(
 }
 
 /// A camera path's `mis` after a vertex in layer `li` (at or below the stack's first rough face)
-/// sent it along `out` with the density `q`: `q/q_lobe`, the ratio of its density to the
+/// sent it along `out` with the density `q(out)`: `q/q_lobe`, the ratio of its density to the
 /// face-lobe connection's ([`super::camera::face_lobe_density`]), which the crossings of smooth
 /// faces on the way multiply by their transmittances and the rough face's connection from below
-/// turns into its weight; −1 (full weight) where no face-lobe connection takes that way.
+/// turns into its weight; −1 (full weight) where no face-lobe connection takes that way. (The
+/// density is evaluated in here: a phase function's evaluation added to `collide_camera` made
+/// the compiler outline it from there, +1 % of the camera walk's instructions.)
 #[cold]
 #[inline(never)]
-fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: f64) -> f64 {
+fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: impl Fn(DVec3) -> f64) -> f64 {
     let lobe = super::camera::face_lobe_density(ctx.scene, ctx.source, li, out);
-    if lobe > 0.0 { q / lobe } else { -1.0 }
+    if lobe > 0.0 { q(out) / lobe } else { -1.0 }
 }
 
 /// A camera path ([`super::camera`]) in layer `li` reaches an opaque surface of local frame
@@ -1452,7 +1454,7 @@ fn camera_reflect<const DOPPLER: bool, const LENGTH: bool>(
     }
     let moving = DOPPLER && surface.is_moving();
     let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
-    let beyond = scene.layers[li].beyond_rough_face;
+    let beyond = li >= scene.first_rough_face;
     if beyond && let Some(shot) = ctx.shot {
         let boost = connection_roulette(scene, li, s, rng);
         if boost > 0.0 {
@@ -1503,7 +1505,7 @@ fn camera_reflect<const DOPPLER: bool, const LENGTH: bool>(
     if s.weight <= 0.0 {
         return Some(End::Absorbed);
     }
-    s.mis = if beyond && !smp.delta { face_mis(ctx, li, out, surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
+    s.mis = if beyond && !smp.delta { face_mis(ctx, li, out, |_| surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
     if moving {
         s.dldt += doppler_increment(n, v, s.dir - out);
         s.doppler_events += 1;
@@ -1906,34 +1908,18 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         return Some(End::Absorbed);
     }
     let scene = ctx.scene;
+    if li >= scene.first_rough_face {
+        return collide_camera_beyond::<DOPPLER, LENGTH>(ctx, li, s, m, n, rng, checkpoint, rec);
+    }
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
     let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
     // The beam reaches the vertex through at least the same optical depth as a shadow ray.
     let boost = connection_roulette(scene, li, s, rng);
-    // The guide lobe about the beam's reversed direction in this layer; below the stack's first
-    // rough face the beam's light comes through that face's lobe instead.
+    // The guide lobe about the beam's reversed direction in this layer.
     let guide = super::camera::guide();
-    let beyond = scene.layers[li].beyond_rough_face;
-    let up =
-        if beyond { None } else { super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b) };
-    if beyond
-        && boost > 0.0
-        && let Some(shot) = ctx.shot
-    {
-        let dir_in = s.dir;
-        let density = |u: DVec3| {
-            let p = pop.phase.eval(dir_in.dot(u));
-            (p, p)
-        };
-        let mark = |e: &mut PathState, arrive: DVec3| {
-            if dynamic {
-                doppler_event(e, pop, n, v, arrive + dir_in);
-            }
-        };
-        face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
-    }
-    if let (Some(shot), true, false) = (ctx.shot, boost > 0.0, beyond) {
+    let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
+    if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
         // This vertex as the walk's last: weighted against the lobe connection from the vertex
         // before, `s.mis` = (walk density · Fresnel transmittances)/(guide density) of the way
         // here (−1 when the lobe connection cannot make it).
@@ -1974,9 +1960,52 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     s.mis = match up {
         Some(up) => pop.phase.eval(d.cos) / guide.eval(up.dot(out)),
-        None if beyond => face_mis(ctx, li, out, pop.phase.eval(d.cos)),
         None => -1.0,
     };
+    if dynamic {
+        doppler_event(s, pop, n, v, delta);
+    }
+    turn(s, out, ctx.settings, rng, checkpoint)
+}
+
+/// [`collide_camera`] at or below the stack's first rough face, where the beam's light arrives
+/// through the face's lobe: the connection through it ([`face_connection`]), a new direction and
+/// its density against the lobe's ([`face_mis`]). (A function of its own: as branches in
+/// `collide_camera` they cost the camera walk 1.2 % of its instructions where no face is rough.)
+#[allow(clippy::too_many_arguments)]
+#[cold]
+#[inline(never)]
+fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    li: usize,
+    s: &mut PathState,
+    m: &Medium,
+    n: f64,
+    rng: &mut PathRng,
+    checkpoint: &mut u32,
+    rec: &mut Recorder,
+) -> Option<End> {
+    let (pop, dynamic) = m.pick_dynamic(rng);
+    let dynamic = DOPPLER && dynamic;
+    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    let boost = connection_roulette(ctx.scene, li, s, rng);
+    if boost > 0.0
+        && let Some(shot) = ctx.shot
+    {
+        let dir_in = s.dir;
+        let density = |u: DVec3| {
+            let p = pop.phase.eval(dir_in.dot(u));
+            (p, p)
+        };
+        let mark = |e: &mut PathState, arrive: DVec3| {
+            if dynamic {
+                doppler_event(e, pop, n, v, arrive + dir_in);
+            }
+        };
+        face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
+    }
+    let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
+    s.mis = face_mis(ctx, li, out, |_| pop.phase.eval(d.cos));
     if dynamic {
         doppler_event(s, pop, n, v, delta);
     }

@@ -205,7 +205,6 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
             rough_faces: false,
             plain: true,
             obstructs_shadows: false,
-            beyond_rough_face: false,
             opaque: Vec::new(),
             roughness: 0.0,
         }],
@@ -216,6 +215,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
         lateral: None,
         bottom: None,
         opaque: Vec::new(),
+        first_rough_face: 1,
     };
     scene.update_layers();
     (scene, ramp)

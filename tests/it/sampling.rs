@@ -97,7 +97,6 @@ fn piecewise_scene() -> Scene {
             rough_faces: false,
             plain: true,
             obstructs_shadows: false,
-            beyond_rough_face: false,
             opaque: Vec::new(),
             roughness: 0.0,
         }],
@@ -108,6 +107,7 @@ fn piecewise_scene() -> Scene {
         lateral: None,
         bottom: None,
         opaque: Vec::new(),
+        first_rough_face: 1,
     }
 }
 

@@ -275,7 +275,6 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 rough_faces: false,
                 plain: true,
                 obstructs_shadows: false,
-                beyond_rough_face: false,
                 opaque: Vec::new(),
             });
         }
@@ -340,7 +339,17 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
     for (name, ms) in f.media.iter().filter(|(name, _)| !used.contains(*name)) {
         check_unused(&mut optics, ctx, name, ms, &f.media)?;
     }
-    let mut scene = Scene { layers, regions, media, n_above, n_below, lateral: None, bottom: None, opaque: Vec::new() };
+    let mut scene = Scene {
+        layers,
+        regions,
+        media,
+        n_above,
+        n_below,
+        lateral: None,
+        bottom: None,
+        opaque: Vec::new(),
+        first_rough_face: 0,
+    };
     scene.update_layers();
     Ok(scene)
 }
