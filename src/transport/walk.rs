@@ -1099,21 +1099,13 @@ fn walk_to_the_end<
                 let Some(bottom) = &scene.bottom else { return end };
                 li = scene.layers.len() - 1;
                 let frame = crate::medium::Surface::bottom_frame();
-                if CAMERA {
-                    (0.0, camera_reflect::<DOPPLER, LENGTH>(ctx, bottom, &frame, li, s, rng, rec))
-                } else {
-                    reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, bottom, &frame, li, s, rng, rec)
-                }
+                reflect_at_surface::<DOPPLER, LENGTH, NEE, CAMERA>(ctx, bottom, &frame, li, s, rng, rec)
             }
             End::AtOpaque(k) => {
                 let o = &scene.opaque[k];
                 li = o.layer;
                 let frame = crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir));
-                if CAMERA {
-                    (0.0, camera_reflect::<DOPPLER, LENGTH>(ctx, &o.surface, &frame, li, s, rng, rec))
-                } else {
-                    reflect_at_surface::<DOPPLER, LENGTH, NEE>(ctx, &o.surface, &frame, li, s, rng, rec)
-                }
+                reflect_at_surface::<DOPPLER, LENGTH, NEE, CAMERA>(ctx, &o.surface, &frame, li, s, rng, rec)
             }
             _ => return end,
         };
@@ -1241,7 +1233,8 @@ fn surface_shadow_rays<const LENGTH: bool>(
 }
 
 /// The path `s` in layer `li` reaches an opaque surface of local frame `frame` (its normal
-/// pointing into the layer) at `s.pos`:
+/// pointing into the layer) at `s.pos` (a camera path: [`camera_surface_connection`] first, and
+/// the reflection carries radiance as it carries power, the BSDFs being reciprocal):
 /// shadow rays toward the next-event detectors (the BSDF's value toward each, balanced against
 /// its own density where a direct escape can also reach the detector), then a direction from the
 /// BSDF, whose weight multiplies the path's (the rest is absorbed by the surface: returned, to be
@@ -1249,7 +1242,7 @@ fn surface_shadow_rays<const LENGTH: bool>(
 /// Doppler term. A reflection is a scattering event: one more order, the event cap and Russian
 /// roulette. `Some` end if the path ends here.
 #[inline(never)]
-fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
+fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const CAMERA: bool>(
     ctx: &WalkContext,
     surface: &crate::medium::Surface,
     frame: &crate::surface::Frame,
@@ -1266,7 +1259,9 @@ fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     }
     let moving = DOPPLER && surface.is_moving();
     let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
-    if NEE && surface.bsdf.has_continuous_part() {
+    if CAMERA {
+        camera_surface_connection::<LENGTH>(ctx, surface, frame, wi, li, s, (moving, v), rng, rec);
+    } else if NEE && surface.bsdf.has_continuous_part() {
         let density = |d: DVec3| {
             let wo = frame.to_local(d);
             (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
@@ -1284,7 +1279,11 @@ fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool>(
     if s.weight <= 0.0 {
         return (deposit, Some(End::Absorbed));
     }
-    if NEE {
+    if CAMERA {
+        // Below the first rough face, against the face-lobe connection ([`face_mis`]).
+        let beyond = li >= ctx.scene.first_rough_face && !smp.delta;
+        s.mis = if beyond { face_mis(ctx, li, out, |_| surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
+    } else if NEE {
         // The density of the direction drawn, in the layer's solid angle over `n²|cos|` (as a
         // collision's phase-function density): a direct escape weighs itself against the
         // shadow rays by it; a mirror's Dirac lobe is no shadow ray's (full weight).
@@ -1427,91 +1426,66 @@ fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: impl Fn(DVec3) -> f64) 
     if lobe > 0.0 { q(out) / lobe } else { -1.0 }
 }
 
-/// A camera path ([`super::camera`]) in layer `li` reaches an opaque surface of local frame
-/// `frame` (its normal into the layer) at `s.pos`. Above the stack's first rough face the surface
-/// connects to the laser's beam as a collision does ([`super::camera::beam_connection`]): the
-/// radiance toward the camera path is `f·cos θ_b·E`, which the BSDF's value toward the beam
-/// gives (`eval`, reciprocal: `f(ω_cam, ω_b)·cos θ_b`), with the moving surface's Doppler term
-/// `n v·(b + dir)`; full weight, as no beam-lobe path ends on a surface. Below the first rough
-/// face it connects through that face's lobe instead ([`face_connection`]). Then a reflection is
-/// drawn as a forward path's ([`reflect_at_surface`]; a reflection carries radiance as it
-/// carries power). `Some` end if the path ends here.
+/// A camera path's ([`super::camera`]) connection to the laser from its reflection at an opaque
+/// surface (local frame `frame`, the path arriving from `wi`) in layer `li`, moving at `v` if
+/// `moving`. Above the stack's first rough face the surface connects to the beam as a collision
+/// does ([`super::camera::beam_connection`]): the radiance toward the camera path is
+/// `f·cos θ_b·E`, which the BSDF's value toward the beam gives (`eval`, reciprocal:
+/// `f(ω_cam, ω_b)·cos θ_b`), with the surface's Doppler term `n v·(b + dir)`; full weight, as no
+/// beam-lobe path ends on a surface. Below the first rough face it connects through that face's
+/// lobe instead ([`face_connection`]).
+#[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn camera_reflect<const DOPPLER: bool, const LENGTH: bool>(
+fn camera_surface_connection<const LENGTH: bool>(
     ctx: &WalkContext,
     surface: &crate::medium::Surface,
     frame: &crate::surface::Frame,
+    wi: DVec3,
     li: usize,
-    s: &mut PathState,
+    s: &PathState,
+    (moving, v): (bool, DVec3),
     rng: &mut PathRng,
     rec: &mut Recorder,
-) -> Option<End> {
+) {
     let scene = ctx.scene;
+    let Some(shot) = ctx.shot else { return };
     let n = scene.layers[li].n;
-    let wi = frame.to_local(-s.dir);
-    if wi.z <= 0.0 {
-        return Some(End::Absorbed);
-    }
-    let moving = DOPPLER && surface.is_moving();
-    let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
-    let beyond = li >= scene.first_rough_face;
-    if beyond && let Some(shot) = ctx.shot {
-        let boost = connection_roulette(scene, li, s, rng);
+    let boost = connection_roulette(scene, li, s, rng);
+    let dir_in = s.dir;
+    let mark = |e: &mut PathState, arrive: DVec3| {
+        if moving {
+            e.dldt += doppler_increment(n, v, arrive + dir_in);
+            e.doppler_events += 1;
+        }
+    };
+    if li >= scene.first_rough_face {
         if boost > 0.0 {
             let density = |u: DVec3| {
                 let wo = frame.to_local(u);
                 (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
             };
-            let dir_in = s.dir;
-            let mark = |e: &mut PathState, arrive: DVec3| {
-                if moving {
-                    e.dldt += doppler_increment(n, v, arrive + dir_in);
-                    e.doppler_events += 1;
-                }
-            };
             face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
         }
+        return;
     }
-    if let Some(shot) = ctx.shot
-        && !beyond
+    rec.stats.work.camera_connections += 1;
+    if boost > 0.0
+        && let Some(b) = super::camera::beam_connection(scene, ctx.source, li, s.pos, rng)
     {
-        let boost = connection_roulette(scene, li, s, rng);
-        rec.stats.work.camera_connections += 1;
-        if boost > 0.0
-            && let Some(b) = super::camera::beam_connection(scene, ctx.source, li, s.pos, rng)
-        {
-            let f = surface.bsdf.eval(wi, frame.to_local(-b.dir));
-            if f > 0.0 {
-                let mut e = PathState {
-                    dir: -s.dir,
-                    weight: s.weight * boost * f * b.irradiance * shot.scale,
-                    l: if LENGTH { s.l + b.length } else { 0.0 },
-                    order: s.order + 1,
-                    mis: -1.0,
-                    ..*s
-                };
-                if moving {
-                    e.dldt += doppler_increment(n, v, b.dir + s.dir);
-                    e.doppler_events += 1;
-                }
-                rec.camera(&shot, &e);
-            }
+        let f = surface.bsdf.eval(wi, frame.to_local(-b.dir));
+        if f > 0.0 {
+            let mut e = PathState {
+                dir: -s.dir,
+                weight: s.weight * boost * f * b.irradiance * shot.scale,
+                l: if LENGTH { s.l + b.length } else { 0.0 },
+                order: s.order + 1,
+                mis: -1.0,
+                ..*s
+            };
+            mark(&mut e, b.dir);
+            rec.camera(&shot, &e);
         }
     }
-    let u = [rng.uniform(), rng.uniform(), rng.uniform()];
-    let Some(smp) = surface.bsdf.sample(wi, u) else { return Some(End::Absorbed) };
-    let out = frame.to_world(smp.wo);
-    s.weight *= smp.weight;
-    if s.weight <= 0.0 {
-        return Some(End::Absorbed);
-    }
-    s.mis = if beyond && !smp.delta { face_mis(ctx, li, out, |_| surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
-    if moving {
-        s.dldt += doppler_increment(n, v, s.dir - out);
-        s.doppler_events += 1;
-    }
-    let mut checkpoint = s.order.min(ctx.settings.max_events);
-    turn(s, out, ctx.settings, rng, &mut checkpoint)
 }
 
 /// The path `s` in a layer of index `n` reaches the side face `axis` (0: x, 1: y) of the box
