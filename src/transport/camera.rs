@@ -152,7 +152,8 @@ impl CameraTarget {
 /// The start of a camera path from the point `(x, y)` of pixel `pixel` of `cam` (of area `area`):
 /// a direction uniform in the acceptance cone, carried to the surface and refracted in (through
 /// a rough top face, left on the face with its direction above: the walk draws its crossing
-/// there, `transport::walk`'s `camera_rough_face`). `None` if the direction cannot enter the stack. `batch_weight` is the tally weight of one of this
+/// there, `transport::walk`'s `camera_rough_face`). `None` if the direction cannot enter the
+/// stack. `batch_weight` is the tally weight of one of this
 /// pixel's paths in its batch. Returns the shot and the walk's starting position, direction,
 /// weight and path length.
 #[allow(clippy::too_many_arguments)]
@@ -385,8 +386,8 @@ pub fn beam_at_face(scene: &Scene, source: &Source, face: usize, pos: DVec3, rng
 /// A camera path's way from a vertex below the stack's first rough face up to that face, where the
 /// laser's beam is transmitted into a lobe ([`face_lobe`]): the direction at the vertex (up), the
 /// radiance arriving there along its reverse, the density of the direction at the vertex and
-/// the product of the smooth faces' transmittances on the way (for the balance heuristic against
-/// the walk's own way there), and the optical path length from the emission plane.
+/// the product of the smooth faces' Fresnel transmittances on the way (for the balance heuristic
+/// against the walk's own way there), and the optical path length from the emission plane.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FaceLink {
     pub dir: DVec3,
@@ -396,8 +397,9 @@ pub struct FaceLink {
     pub length: f64,
 }
 
-/// What the face-lobe strategy knows of the stack's first rough face and the beam on it: its indices above and below, its microfacets, the frame with its normal up, and the
-/// beam's mean direction there (local to that frame, toward the light).
+/// What the face-lobe strategy knows of the stack's first rough face and the beam on it: its
+/// indices above and below, its microfacets, the frame with its normal up, and the beam's mean
+/// direction there (local to that frame, toward the light).
 struct FaceLobe {
     n_above: f64,
     n_below: f64,
@@ -474,6 +476,9 @@ pub fn face_lobe(
     let up_in = |m: f64| refracted_up(-t, lobe.n_below, m);
     let dir = up_in(n)?;
     let mut way = Crossing { pos, ..Crossing::START };
+    // The smooth faces' Fresnel transmittances alone (`way.transmit` also holds ratio tracking's
+    // factors through density layers, which the walk's `mis` does not).
+    let mut fresnel = 1.0;
     for j in (face..=li).rev() {
         let layer = &scene.layers[j];
         let d = if j == li { dir } else { up_in(layer.n)? };
@@ -485,7 +490,9 @@ pub fn face_lobe(
         way.segment(scene, layer, d, len, rng);
         way.pos.z = layer.z_top;
         if j > face {
-            way.transmit *= 1.0 - fresnel::reflectance(layer.n, scene.layers[j - 1].n, -d.z).0;
+            let t = 1.0 - fresnel::reflectance(layer.n, scene.layers[j - 1].n, -d.z).0;
+            way.transmit *= t;
+            fresnel *= t;
         }
     }
     if way.transmit <= 0.0 {
@@ -500,13 +507,7 @@ pub fn face_lobe(
         * (-way.tau).exp()
         * (n / lobe.n_below)
         * (n / lobe.n_below);
-    Some(FaceLink {
-        dir,
-        radiance,
-        density: lobe.density(dir, t, n),
-        transmit: way.transmit,
-        length: way.length + b.length,
-    })
+    Some(FaceLink { dir, radiance, density: lobe.density(dir, t, n), transmit: fresnel, length: way.length + b.length })
 }
 
 /// The density with which [`face_lobe`] draws the upward direction `u` at a vertex in layer `li`
