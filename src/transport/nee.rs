@@ -374,7 +374,7 @@ pub(super) fn reflections_below(
             break;
         }
         // A rough face scatters the beam: beyond it no reflection is a Dirac direction.
-        if scene.rough_top(j) {
+        if j >= scene.first_rough_face {
             return;
         }
         let Some(d) = down(layer.n) else { return };
@@ -390,7 +390,8 @@ pub(super) fn reflections_below(
         }
         way.segment(scene, layer, d, t, rng);
         way.pos.z = layer.z_bottom;
-        if j + 1 < scene.layers.len() && scene.rough_top(j + 1) {
+        // (The stack's bottom face is smooth: `first_rough_face` is the number of layers without one.)
+        if j + 1 < scene.layers.len() && j + 1 == scene.first_rough_face {
             return;
         }
         let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);

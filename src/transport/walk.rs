@@ -1282,7 +1282,7 @@ fn reflect_at_surface<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, 
     if CAMERA {
         // Below the first rough face, against the face-lobe connection ([`face_mis`]).
         let beyond = li >= ctx.scene.first_rough_face && !smp.delta;
-        s.mis = if beyond { face_mis(ctx, li, out, |_| surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
+        s.mis = if beyond { face_mis(ctx, li, out, surface.bsdf.pdf(wi, smp.wo)) } else { -1.0 };
     } else if NEE {
         // The density of the direction drawn, in the layer's solid angle over `n²|cos|` (as a
         // collision's phase-function density): a direct escape weighs itself against the
@@ -1413,7 +1413,7 @@ fn face_connection<const LENGTH: bool>(
 }
 
 /// A camera path's `mis` after a vertex in layer `li` (at or below the stack's first rough face)
-/// sent it along `out` with the density `q(out)`: `q/q_lobe`, the ratio of its density to the
+/// sent it along `out` with the density `q`: `q/q_lobe`, the ratio of its density to the
 /// face-lobe connection's ([`super::camera::face_lobe_density`]), which the crossings of smooth
 /// faces on the way multiply by their transmittances and the rough face's connection from below
 /// turns into its weight; −1 (full weight) where no face-lobe connection takes that way. (The
@@ -1421,9 +1421,9 @@ fn face_connection<const LENGTH: bool>(
 /// the compiler outline it from there, +1 % of the camera walk's instructions.)
 #[cold]
 #[inline(never)]
-fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: impl Fn(DVec3) -> f64) -> f64 {
+fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: f64) -> f64 {
     let lobe = super::camera::face_lobe_density(ctx.scene, ctx.source, li, out);
-    if lobe > 0.0 { q(out) / lobe } else { -1.0 }
+    if lobe > 0.0 { q / lobe } else { -1.0 }
 }
 
 /// A camera path's ([`super::camera`]) connection to the laser from its reflection at an opaque
@@ -1979,7 +1979,7 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
         face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
-    s.mis = face_mis(ctx, li, out, |_| pop.phase.eval(d.cos));
+    s.mis = face_mis(ctx, li, out, pop.phase.eval(d.cos));
     if dynamic {
         doppler_event(s, pop, n, v, delta);
     }

@@ -141,7 +141,7 @@ fn shape_centre(s: &crate::medium::Shape) -> DVec3 {
 /// meet: where the laser's beam reaches it straight (above every rough face), a smooth mirror
 /// would turn it into a second collimated beam, which no camera path's connection reaches.
 fn camera_meets(surface: &Surface, what: &str, scene: &Scene, li: usize, detectors: &[Detector]) -> R<()> {
-    if !surface.bsdf.has_delta_part() || (0..=li).any(|j| scene.rough_top(j)) {
+    if !surface.bsdf.has_delta_part() || li >= scene.first_rough_face {
         return Ok(());
     }
     let camera = |d: &Detector| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward);
