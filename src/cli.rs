@@ -2,7 +2,7 @@
 //! physics here. It lives in the library so that the binary (`src/main.rs`) and the Python
 //! package's `ohd` console script (one build for both) run the same code ([`status_from`]).
 //! Exit status: 0 success, 2 bad input (configuration or unreadable file; nothing is written),
-//! 1 failure while running or writing, 130 a run stopped by Ctrl-C.
+//! 1 failure while running or writing, 130 a run stopped by Ctrl-C (143 by SIGTERM).
 
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -413,28 +413,38 @@ fn fail(e: &Error) -> u8 {
     say!("ohd: {e}");
     match e {
         _ if e.is_input_error() => 2,
-        // 128 + SIGINT, as a shell reports a command ended by Ctrl-C.
+        // 128 + the signal's number, as a shell reports a command ended by it.
+        Error::Interrupted { .. } | Error::Cancelled if TERMINATED.load(Ordering::SeqCst) => 143,
         Error::Interrupted { .. } | Error::Cancelled => 130,
         _ => 1,
     }
 }
 
-/// Set by the first Ctrl-C (SIGINT) of `ohd run`: the run ends at its next batch boundary and
-/// writes what it has ([`crate::experiment::Progress::stopping`]); the second ends the process at
-/// once (status 130).
+/// Set by the first Ctrl-C (SIGINT) or SIGTERM of `ohd run`: the run ends at its next batch
+/// boundary and writes what it has ([`crate::experiment::Progress::stopping`]); the second of
+/// either ends the process at once (status 130, or 143 for SIGTERM).
 static STOP: AtomicBool = AtomicBool::new(false);
 
-/// Whether the first Ctrl-C has been answered on stderr.
+/// Set by SIGTERM: the stop was asked by a batch system or `kill`, not by Ctrl-C (the exit status
+/// is then 143, and the message says which).
+static TERMINATED: AtomicBool = AtomicBool::new(false);
+
+/// Whether the first stop has been answered on stderr.
 static STOP_TOLD: AtomicBool = AtomicBool::new(false);
 
-/// Ctrl-C as `ohd run` takes it ([`STOP`]). The second one exits from the signal handler, before
-/// the first one's flag is set again (signal-hook runs a signal's actions in the order registered).
+/// Ctrl-C and SIGTERM as `ohd run` takes them ([`STOP`]): a batch system's SIGTERM before its
+/// SIGKILL is the common way a job ends, and keeps the work as Ctrl-C does. The second signal
+/// exits from the signal handler, before the first one's flag is set again (signal-hook runs a
+/// signal's actions in the order registered).
 fn keep_work_on_ctrl_c() {
-    use signal_hook::consts::SIGINT;
+    use signal_hook::consts::{SIGINT, SIGTERM};
     let registered = signal_hook::flag::register_conditional_shutdown(SIGINT, 130, &STOP)
-        .and_then(|_| signal_hook::flag::register(SIGINT, &STOP));
+        .and_then(|_| signal_hook::flag::register(SIGINT, &STOP))
+        .and_then(|_| signal_hook::flag::register_conditional_shutdown(SIGTERM, 143, &STOP))
+        .and_then(|_| signal_hook::flag::register(SIGTERM, &TERMINATED))
+        .and_then(|_| signal_hook::flag::register(SIGTERM, &STOP));
     if let Err(e) = registered {
-        say!("ohd: Ctrl-C will stop the run without keeping its work (the handler could not be set: {e})");
+        say!("ohd: Ctrl-C and SIGTERM will stop the run without keeping its work (the handler could not be set: {e})");
     }
 }
 
@@ -457,8 +467,9 @@ impl Progress for CtrlC<'_> {
     fn stopping(&self) -> bool {
         let stop = STOP.load(Ordering::SeqCst);
         if stop && !STOP_TOLD.swap(true, Ordering::SeqCst) {
+            let what = if TERMINATED.load(Ordering::SeqCst) { "SIGTERM" } else { "Ctrl-C" };
             say!(
-                "\nohd: Ctrl-C: finishing the batches in flight, then writing the result of the batches done and a checkpoint for --resume (Ctrl-C again stops at once, and nothing more is written)"
+                "\nohd: {what}: finishing the batches in flight, then writing the result of the batches done and a checkpoint for --resume ({what} again stops at once, and nothing more is written)"
             );
         }
         stop

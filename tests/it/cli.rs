@@ -577,9 +577,15 @@ fn resume_after_sigkill_equals_an_uninterrupted_run() {
     assert!(text(&o.stderr).contains("checkpoint.ohd"), "{}", describe(&o));
 }
 
-/// Start `ohd ARGS` in `cwd`, send it SIGINT `times` times (20 ms apart) as soon as `dir` exists
-/// (the handler is set by then), and return how it ended.
-fn interrupt_once_started(cwd: &Path, args: &[String], dir: &Path, times: usize) -> Output {
+/// Start `ohd ARGS` in `cwd`, send it `signal` `times` times (20 ms apart) as soon as `dir`
+/// exists (the handler is set by then), and return how it ended.
+fn interrupt_once_started(
+    cwd: &Path,
+    args: &[String],
+    dir: &Path,
+    signal: rustix::process::Signal,
+    times: usize,
+) -> Output {
     let child = Command::new(env!("CARGO_BIN_EXE_ohd"))
         .args(args)
         .current_dir(cwd)
@@ -592,19 +598,18 @@ fn interrupt_once_started(cwd: &Path, args: &[String], dir: &Path, times: usize)
         std::thread::sleep(std::time::Duration::from_millis(1));
     }
     for _ in 0..times {
-        rustix::process::kill_process(rustix::process::Pid::from_child(&child), rustix::process::Signal::INT)
-            .expect("SIGINT");
+        rustix::process::kill_process(rustix::process::Pid::from_child(&child), signal).expect("signal sent");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     child.wait_with_output().unwrap()
 }
 
-/// Ctrl-C keeps the work (issue 37): the first SIGINT lets the batches in flight finish, writes
-/// the result of the batches done (the manifest says how many of how many; exit 130) and a
-/// checkpoint, which `--resume` finishes into exactly the uninterrupted run. A second SIGINT
-/// stops at once and writes nothing.
-#[test]
-fn ctrl_c_writes_the_batches_done_and_resume_finishes_the_run() {
+/// Ctrl-C keeps the work (issue 37), and so does SIGTERM, a batch system's way of ending a job
+/// before its SIGKILL (issue 52: it killed the run and kept nothing): the first signal lets the
+/// batches in flight finish, writes the result of the batches done (the manifest says how many of
+/// how many; exit 128 + the signal's number) and a checkpoint, which `--resume` finishes into
+/// exactly the uninterrupted run. A second signal stops at once and writes nothing.
+fn a_stop_signal_writes_the_batches_done(signal: rustix::process::Signal, name: &str, status: i32) {
     let tmp = tempfile::tempdir().unwrap();
     let (whole, cut, stopped) = (tmp.path().join("whole"), tmp.path().join("cut"), tmp.path().join("stopped"));
     let args = |dir: &Path| -> Vec<String> {
@@ -614,10 +619,10 @@ fn ctrl_c_writes_the_batches_done_and_resume_finishes_the_run() {
             .chain([path_str(dir).to_string()])
             .collect()
     };
-    let o = interrupt_once_started(tmp.path(), &args(&cut), &cut, 1);
-    assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
+    let o = interrupt_once_started(tmp.path(), &args(&cut), &cut, signal, 1);
+    assert_eq!(o.status.code(), Some(status), "{}", describe(&o));
     let err = text(&o.stderr);
-    assert!(err.contains("Ctrl-C: finishing the batches in flight") && err.contains("--resume"), "{err}");
+    assert!(err.contains(&format!("{name}: finishing the batches in flight")) && err.contains("--resume"), "{err}");
     let m = read_manifest(&cut);
     let (done, planned) = (m["interrupted"]["batches"].as_u64().unwrap(), m["interrupted"]["planned_batches"].as_u64());
     assert!((1..64).contains(&done) && planned == Some(64), "{}", m["interrupted"]);
@@ -636,9 +641,19 @@ fn ctrl_c_writes_the_batches_done_and_resume_finishes_the_run() {
     assert!(assert_same_run(&whole, &cut) >= 6);
     assert!(read_manifest(&cut).get("interrupted").is_none() && !cut.join("checkpoint.ohd").exists());
 
-    let o = interrupt_once_started(tmp.path(), &args(&stopped), &stopped, 2);
-    assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
+    let o = interrupt_once_started(tmp.path(), &args(&stopped), &stopped, signal, 2);
+    assert_eq!(o.status.code(), Some(status), "{}", describe(&o));
     assert!(!stopped.join("manifest.json").exists() && !stopped.join("checkpoint.ohd").exists());
+}
+
+#[test]
+fn ctrl_c_writes_the_batches_done_and_resume_finishes_the_run() {
+    a_stop_signal_writes_the_batches_done(rustix::process::Signal::INT, "Ctrl-C", 130);
+}
+
+#[test]
+fn sigterm_writes_the_batches_done_and_resume_finishes_the_run() {
+    a_stop_signal_writes_the_batches_done(rustix::process::Signal::TERM, "SIGTERM", 143);
 }
 
 /// Every data file of run directory `a` (all but the manifest) is byte-identical in `b`, and the
@@ -841,7 +856,7 @@ fn scans_shard_merge_and_resume_like_a_single_scan() {
     // Ctrl-C: the pointing in progress is written with its batches done, the scan's directory
     // stays marked incomplete, and `--resume` finishes the scan to the same files.
     let cut = tmp.path().join("cut");
-    let o = interrupt_once_started(tmp.path(), &base(&cut, "200000"), &cut, 1);
+    let o = interrupt_once_started(tmp.path(), &base(&cut, "200000"), &cut, rustix::process::Signal::INT, 1);
     assert_eq!(o.status.code(), Some(130), "{}", describe(&o));
     assert!(cut.join("ohd_incomplete.txt").exists() && !cut.join("vad.csv").exists(), "{}", describe(&o));
     let mut a = base(&cut, "200000");
