@@ -12,6 +12,7 @@
 //! forged. `OHD_HOSTILE_SEED=N` draws another set. A failing case's inputs are kept under
 //! `target/tmp/hostile/` and its command is printed.
 
+mod issue52;
 mod mutate;
 mod oracle;
 mod safety;

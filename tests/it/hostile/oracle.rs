@@ -341,6 +341,9 @@ pub struct Case<'a> {
     pub listed_only: bool,
     /// The case's input files: removed if it passes, kept for the reproducer if it fails.
     pub inputs: Option<PathBuf>,
+    /// On exit 0, the run counted no non-finite detection (issue 52: surfaces at their extremes
+    /// dropped every detection of a run that then exited 0 with a warning).
+    pub finite_detections: bool,
 }
 
 impl<'a> Case<'a> {
@@ -361,6 +364,7 @@ impl<'a> Case<'a> {
             stdout_json: false,
             listed_only: false,
             inputs: None,
+            finite_detections: false,
         }
     }
 }
@@ -425,11 +429,15 @@ impl Tally {
                 if let Some(why) = &case.must_refuse {
                     fail("accepted, must be refused", why.clone(), self);
                 } else if problems.is_empty() {
-                    self.accepted += 1;
                     let n = case.out.as_deref().map_or(0, non_finite_detections);
-                    if n > 0 {
+                    if n > 0 && case.finite_detections {
+                        fail("exit 0 with dropped detections", format!("{n} non-finite detections"), self);
+                    } else if n > 0 {
+                        self.accepted += 1;
                         self.accepted_with_non_finite += 1;
                         self.notes.push(format!("[{}] {n} non-finite detections: {}", case.id, case.what));
+                    } else {
+                        self.accepted += 1;
                     }
                 } else {
                     fail("exit 0 with bad outputs", problems.join("; "), self);
