@@ -597,6 +597,17 @@ def test_load_refuses_a_directory_whose_writing_did_not_finish(small_run, tmp_pa
     m["interrupted"] = {"batches": 1, "planned_batches": 4}
     (d / "manifest.json").write_text(json.dumps(m))
     assert ohd.load(d).manifest["interrupted"]["batches"] == 1
+    # A scan stays marked when Ctrl-C stops it, its last pointing `interrupted`: it loads with
+    # the pointings written; marked with no pointing interrupted, it was killed.
+    scan = tmp_path / "scan"
+    scan.mkdir()
+    (scan / "ohd_incomplete.txt").write_text("# ohd (process 1) is writing into this directory\npointing_00/\n")
+    _copy(small_run, scan / "pointing_00")
+    with pytest.raises(OSError, match="did not finish"):
+        ohd.load(scan)
+    (scan / "pointing_00" / "manifest.json").write_text(json.dumps(m))
+    r = ohd.load(scan)
+    assert len(r.pointings) == 1 and r.pointings[0].manifest["interrupted"]["batches"] == 1 and r.files == {}
 
 
 def test_load_checks_the_manifest_against_the_files(small_run, tmp_path):
