@@ -15,14 +15,16 @@ CLI's run, from the same library: for the same configuration and seed its arrays
 """
 from __future__ import annotations
 
+import errno
 import io
 import json
 import os
+import stat
 import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -95,13 +97,25 @@ class Output:
         return f"<ohd.Output {self.name} {self.values.dtype}{list(self.values.shape)} axes({axes}) units={self.units!r}>"
 
 
-def _npy(data: bytes) -> np.ndarray:
-    """The array of a `.npy` file's bytes, viewing them (read-only, not copied)."""
+def _npy(data: bytes, name: str = ".npy file") -> np.ndarray:
+    """The array of a `.npy` file's bytes, viewing them (read-only, not copied); a ValueError
+    naming `name` unless the header is a plain array's whose data are exactly the bytes after it."""
     f = io.BytesIO(data)
-    version = np.lib.format.read_magic(f)
-    header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-    shape, fortran, dtype = header(f)
-    count = int(np.prod(shape, dtype=np.int64))
+    try:
+        version = np.lib.format.read_magic(f)
+        header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, fortran, dtype = header(f)
+    except (ValueError, EOFError, SyntaxError, TypeError) as e:
+        raise ValueError(f"{name}: not a .npy file ohd wrote: {e}") from None
+    if dtype.hasobject or dtype.itemsize == 0:
+        raise ValueError(f"{name}: dtype {dtype}: expected numbers")
+    count = 1
+    for d in shape:
+        count *= int(d)
+    if count * dtype.itemsize != len(data) - f.tell():
+        raise ValueError(
+            f"{name}: {len(data) - f.tell()} bytes of data where its header (shape {tuple(shape)}, {dtype}) declares {count * dtype.itemsize}"
+        )
     a = np.frombuffer(data, dtype=dtype, count=count, offset=f.tell())
     return a.reshape(shape, order="F" if fortran else "C")
 
@@ -112,6 +126,113 @@ def _estimates(tree: Any) -> Any:
             return Estimate(tree["value"], tree["stderr"])
         return {k: _estimates(v) for k, v in tree.items()}
     return tree
+
+
+# What `ohd.load` reads (issue 52, item 7): only the files a directory's record lists, each a
+# regular file of this directory (no link followed, nothing else opened), no larger than its
+# record allows, and only a directory whose writing finished.
+_MARKER = "ohd_incomplete.txt"  # src/io/write/dir.rs: a directory being written or whose writing stopped
+_RECORD_BYTES = 256 << 20  # the most a manifest.json or scan.json may hold (as the CLI reads them)
+_NPY_HEADER_BYTES = 1 << 16  # the most a .npy header may take
+_OTHER_BYTES = 256 << 20  # a figure, table or EXR beyond what the declared arrays allow
+_SCAN_FILES = (
+    "scan.json",
+    "vad.csv",
+    "vad_wind_profile.png",
+    "vad_wind_profile.svg",
+    "fmcw_scan.csv",
+    "fmcw_scan_range.png",
+    "fmcw_scan_range.svg",
+    "fmcw_scan_velocity.png",
+    "fmcw_scan_velocity.svg",
+)
+
+
+def _plain(name: Any) -> bool:
+    """A plain file name of the directory itself (no path, not hidden)."""
+    return isinstance(name, str) and name not in ("", ".", "..") and not name.startswith(".") and not any(c in name for c in "/\\\0")
+
+
+def _pointing(name: Any) -> bool:
+    return isinstance(name, str) and name.startswith("pointing_") and name[9:].isdigit() and name[9:].isascii()
+
+
+def _open_dir(name: str, where: Path, dir_fd: Optional[int] = None) -> int:
+    """A descriptor of the directory `name` (in `dir_fd`, then a real directory, not a link)."""
+    flags = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_CLOEXEC", 0)
+    if dir_fd is None:
+        return os.open(name, flags)
+    try:
+        return os.open(name, flags | os.O_NOFOLLOW, dir_fd=dir_fd)
+    except OSError as e:
+        if e.errno in (errno.ELOOP, errno.ENOTDIR):
+            raise OSError(f"{where / name}: not a directory (a symbolic link or a file): ohd.load reads a scan's own pointing directories only") from None
+        raise
+
+
+def _read_in(dir_fd: int, name: str, where: Path, limit: int) -> Optional[bytes]:
+    """The bytes of the regular file `name` of the directory `dir_fd` (`where`), at most `limit`
+    of them, or None if there is none; a link, a FIFO, a device or a larger file is refused
+    before anything is read."""
+    path = where / name
+    try:
+        st = os.stat(name, dir_fd=dir_fd, follow_symlinks=False)
+    except FileNotFoundError:
+        return None
+    if stat.S_ISLNK(st.st_mode):
+        raise OSError(f"{path}: a symbolic link: ohd.load reads only the run's own files, not what a link points to")
+    if not stat.S_ISREG(st.st_mode):
+        raise OSError(f"{path}: not a regular file: ohd.load reads only the run's own files")
+    if st.st_size > limit:
+        raise ValueError(f"{path}: {st.st_size} bytes, more than the {limit} its record allows: not the file the run wrote")
+    flags = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+    fd = os.open(name, flags, dir_fd=dir_fd)
+    with open(fd, "rb", buffering=0, closefd=True) as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # (replaced since it was looked at)
+            raise OSError(f"{path}: not a regular file: ohd.load reads only the run's own files")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = f.read(min(limit + 1 - size, 1 << 24))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    if size > limit:
+        raise ValueError(f"{path}: more than the {limit} bytes its record allows: not the file the run wrote")
+    return b"".join(chunks)
+
+
+def _record(dir_fd: int, name: str, where: Path) -> Optional[Dict[str, Any]]:
+    data = _read_in(dir_fd, name, where, _RECORD_BYTES)
+    if data is None:
+        return None
+    try:
+        record = json.loads(data)
+    except ValueError as e:
+        raise ValueError(f"{where / name}: not JSON ohd wrote: {e}") from None
+    if not isinstance(record, dict):
+        raise ValueError(f"{where / name}: expected a JSON object")
+    return record
+
+
+def _file_bounds(manifest: Dict[str, Any]) -> Tuple[Dict[str, int], int]:
+    """The most bytes each file of a run may hold, as its manifest's `outputs` table declares
+    them (an array's shape × 16 bytes and a header; its EXR the same), and the bound of any other
+    file (a figure, a table): a fixed 256 MiB beyond four times the largest array."""
+    bounds: Dict[str, int] = {}
+    table = manifest.get("outputs")
+    for file, e in (table.items() if isinstance(table, dict) else []):
+        shape = e.get("shape") if isinstance(e, dict) else None
+        if not isinstance(shape, list) or not all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in shape):
+            continue
+        n = 1
+        for d in shape:
+            n *= d
+        data = 16 * n + _NPY_HEADER_BYTES
+        for name in (file, e.get("stderr_file"), e.get("relative_error_file"), e.get("exr_file")):
+            if isinstance(name, str):
+                bounds[name] = max(bounds.get(name, 0), data)
+    return bounds, _OTHER_BYTES + 4 * max(bounds.values(), default=0)
 
 
 class Result:
@@ -141,31 +262,63 @@ class Result:
             self._outputs = self._read_outputs()
         return self._outputs
 
-    def _axis(self, a: Dict[str, Any]) -> np.ndarray:
-        """The coordinates of one axis of the manifest's `outputs` table."""
+    def _axis(self, a: Dict[str, Any], n: int, file: str) -> np.ndarray:
+        """The coordinates of one axis of the manifest's `outputs` table, of the `n` points the
+        data of `file` have along it (a count the manifest states otherwise is refused before
+        anything is made of it)."""
+
+        def count(c: Any, key: str) -> int:
+            if isinstance(c, bool) or not isinstance(c, int) or c != n:
+                raise ValueError(f"manifest.json: outputs.{file}: axis {a.get('name')!r}: {key}.count = {c!r}, where {file} has {n}")
+            return c
+
         if "bins" in a:
             b = a["bins"]
-            return b["start"] + (np.arange(b["count"]) + 0.5) * b["width"]
+            return b["start"] + (np.arange(count(b.get("count"), "bins")) + 0.5) * b["width"]
         if "linear" in a:
             lin = a["linear"]
-            return lin["first"] + lin["step"] * np.arange(lin["count"])
+            return lin["first"] + lin["step"] * np.arange(count(lin.get("count"), "linear"))
         if "file" in a:
-            return _npy(self.files[a["file"]])
-        return np.array(a.get("labels", []))
+            name = a["file"]
+            if name not in self.files:
+                raise ValueError(f"manifest.json: outputs.{file}: axis {a.get('name')!r}: {name!r} is not among the run's files")
+            values = _npy(self.files[name], name)
+            if values.ndim != 1 or len(values) != n:
+                raise ValueError(f"{name}: an axis of shape {values.shape}, where {file} has {n} points along it")
+            return values
+        labels = np.array(a.get("labels", []))
+        if labels.ndim != 1 or len(labels) != n:
+            raise ValueError(f"manifest.json: outputs.{file}: axis {a.get('name')!r}: {len(labels)} labels, where {file} has {n}")
+        return labels
 
     def _read_outputs(self) -> Dict[str, Output]:
         table = self.manifest.get("outputs")
         if table is None:
             return self._guess_outputs()
+        if not isinstance(table, dict):
+            raise ValueError("manifest.json: outputs: expected a table")
         out = {}
         for file, e in table.items():
             if not file.endswith(".npy") or e.get("kind") == "axis" or file not in self.files:
                 continue
+            values = _npy(self.files[file], file)
+            shape = e.get("shape")
+            if shape is not None and list(values.shape) != shape:
+                raise ValueError(f"manifest.json: outputs.{file}: shape {shape}, where the file holds {list(values.shape)}")
             err = e.get("stderr_file")
-            err = _npy(self.files[err]) if err in self.files else None
-            axes = {a["name"]: self._axis(a) for a in e.get("axes", [])}
+            if err in self.files:
+                err_name = err
+                err = _npy(self.files[err_name], err_name)
+                if err.shape != values.shape:
+                    raise ValueError(f"{err_name}: shape {list(err.shape)}, where {file} has {list(values.shape)}")
+            else:
+                err = None
+            axes_table = e.get("axes", [])
+            if len(axes_table) not in (0, values.ndim):
+                raise ValueError(f"manifest.json: outputs.{file}: {len(axes_table)} axes, where the file has {values.ndim} dimensions")
+            axes = {a["name"]: self._axis(a, values.shape[i], file) for i, a in enumerate(axes_table)}
             stem = file[: -len(".npy")]
-            out[stem] = Output(stem, _npy(self.files[file]), err, axes, e.get("units"), e.get("kind"))
+            out[stem] = Output(stem, values, err, axes, e.get("units"), e.get("kind"))
         return out
 
     def _guess_outputs(self) -> Dict[str, Output]:
@@ -183,6 +336,7 @@ class Result:
                 continue
             stem = name[: -len(".npy")]
             err = self.files.get(stem + "_stderr.npy")
+            values = _npy(data, name)
             axes: Dict[str, np.ndarray] = {}
             units = None
             for prefix, key, group in groups:
@@ -193,12 +347,14 @@ class Result:
                 units = group.get("units", units)
                 for k, v in group.items():
                     if k.endswith("_file") and v in self.files and str(v).endswith(".npy"):
-                        axes[v[len(prefix):-len(".npy")]] = _npy(self.files[v])
+                        axes[v[len(prefix):-len(".npy")]] = _npy(self.files[v], v)
                 if "x_range_m" in group and "pixels" in group:
                     (x0, x1), (y0, y1), (nx, ny) = group["x_range_m"], group["y_range_m"], group["pixels"]
+                    if values.shape[-2:] != (ny, nx):  # (made only as large as the data are)
+                        raise ValueError(f"manifest.json: pixels {[nx, ny]}, where {name} has shape {list(values.shape)}")
                     axes["x_m"] = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
                     axes["y_m"] = y1 - (np.arange(ny) + 0.5) * (y1 - y0) / ny  # rows: y descending
-            out[stem] = Output(stem, _npy(data), _npy(err) if err is not None else None, axes, units)
+            out[stem] = Output(stem, values, _npy(err, stem + "_stderr.npy") if err is not None else None, axes, units)
         return out
 
     def __getitem__(self, name: str) -> Output:
@@ -284,26 +440,91 @@ class Result:
 
     @classmethod
     def _from_dir(cls, dir: Path) -> "Result":
-        files = {}
+        """The run (or scan) written into `dir`, read as its record lists it (see `load`)."""
+        fd = _open_dir(os.fspath(dir), Path(dir))
+        try:
+            return cls._from_fd(fd, Path(dir))
+        finally:
+            os.close(fd)
+
+    @classmethod
+    def _from_fd(cls, fd: int, where: Path) -> "Result":
+        try:
+            os.stat(_MARKER, dir_fd=fd, follow_symlinks=False)
+            marked = True
+        except FileNotFoundError:
+            marked = False
+        manifest = None if marked else _record(fd, "manifest.json", where)
+        if manifest is not None:
+            names = manifest.get("files", [])
+            if not isinstance(names, list) or not all(_plain(n) for n in names):
+                bad = [n for n in names if not _plain(n)] if isinstance(names, list) else names
+                raise ValueError(f"{where / 'manifest.json'}: files: {bad!r}: expected plain file names of this directory")
+            bounds, other = _file_bounds(manifest)
+            files: Dict[str, bytes] = {}
+            for name in names:
+                data = _read_in(fd, name, where, bounds.get(name, other))
+                if data is not None:
+                    files[name] = data
+            # The manifest last, as written (read again: the bytes it has, not its parse).
+            files["manifest.json"] = _read_in(fd, "manifest.json", where, _RECORD_BYTES) or b""
+            return cls(files, [])
+        scan = None if marked else _record(fd, "scan.json", where)
+        if scan is not None:
+            runs = [p.get("run") if isinstance(p, dict) else p for p in (scan.get("pointings") or [])]
+        elif marked:
+            # A scan stopped by Ctrl-C stays marked until `--resume` finishes it; its marker lists
+            # the pointings written so far, the last one's manifest `interrupted`. Anything else
+            # marked was killed (or is being written): not a run to load.
+            text = _read_in(fd, _MARKER, where, _RECORD_BYTES) or b""
+            lines = [l for l in text.decode("utf-8", "replace").splitlines() if not l.startswith("#")]
+            runs = list(dict.fromkeys(l[:-1] for l in lines if l.endswith("/") and _pointing(l[:-1])))
+        else:
+            raise FileNotFoundError(f"{where}: no finished run here (no manifest.json)")
+        bad = [r for r in runs if not _pointing(r)]
+        if bad:
+            raise ValueError(f"{where / 'scan.json'}: pointings: {bad!r}: expected pointing directories of this directory")
         pointings = []
-        for p in sorted(dir.iterdir()):
-            if p.is_dir() and p.name.startswith("pointing_"):
-                pointings.append(cls._from_dir(p))
-            elif p.is_file() and not p.name.startswith("."):
-                files[p.name] = p.read_bytes()
-        if "manifest.json" in files:  # the manifest last, as written
-            files["manifest.json"] = files.pop("manifest.json")
+        for name in runs:
+            try:
+                sub = _open_dir(name, where, fd)
+            except FileNotFoundError:
+                if marked:
+                    continue
+                raise
+            try:
+                pointings.append(cls._from_fd(sub, where / name))
+            finally:
+                os.close(sub)
+        if marked and not any("interrupted" in p.manifest for p in pointings):
+            raise OSError(
+                f"{where}: the output written here did not finish ({_MARKER} marks it: its writing was killed, or is under way); run it again"
+            )
+        files = {}
+        if not marked:
+            for name in _SCAN_FILES:
+                data = _read_in(fd, name, where, _RECORD_BYTES if name.endswith(".json") else _OTHER_BYTES)
+                if data is not None:
+                    files[name] = data
         return cls(files, pointings)
 
 
 def load(dir: Union[str, "os.PathLike[str]"]) -> Result:
     """The `Result` of a run written into `dir` (by `ohd run --out dir`, `ohd merge` or
     `Result.save`): the same estimates, outputs, manifest and files that `ohd.run` returned for it.
-    A scan's directory gives its pointings in `.pointings`. Raises FileNotFoundError if `dir` holds
-    no finished run (no manifest.json)."""
+    A scan's directory gives its pointings in `.pointings`; a run or scan stopped by Ctrl-C loads
+    with what it kept (its manifest's `interrupted`).
+
+    Only what the run's record lists is read (manifest.json's `files`, scan.json's pointing
+    directories), each a regular file of the directory itself (not a link) no larger than the
+    manifest's shapes allow, and each array is checked against its manifest entry before any of
+    its axes is made. Raises FileNotFoundError if `dir` holds no run (no manifest.json), an
+    OSError if its writing did not finish (it is marked `ohd_incomplete.txt`: killed, or under
+    way) or it holds a link or a special file where the run's files are, and a ValueError if a
+    file does not match what its manifest says of it."""
     path = Path(dir)
-    if not (path / "manifest.json").is_file() and not (path / "pointing_00").is_dir():
-        raise FileNotFoundError(f"{os.fspath(dir)}: no finished run here (no manifest.json)")
+    if not path.is_dir():
+        raise FileNotFoundError(f"{os.fspath(dir)}: no finished run here (not a directory)")
     return Result._from_dir(path)
 
 
@@ -414,7 +635,11 @@ def run(
                say `{"type": "npy", "array": NAME, "voxel_size_um": …}`: `array[i, j, k]` is voxel
                (i, j, k) along x, y, z (a density of shape (nx, ny, nz); a velocity in m/s of
                shape (nx, ny, nz, 3)). They run as `.npy` files given by `file` would, the same
-               grids an OpenVDB file gives (configs/README.md, "NumPy volumes").
+               grids an OpenVDB file gives (configs/README.md, "NumPy volumes"). Each array is
+               checked before anything is written — a real dtype that converts to float32, that
+               shape, finite float32 values, within `run.memory_budget_gib` — else ConfigError
+               naming its `array` key; the temporary files they are handed over in are removed
+               before the run begins.
 
     Returns a `Result` (`estimates`, `outputs`/`result[name]`, `manifest`, `files`, `save()`).
     For the same configuration and seed the arrays are the bytes `ohd run --out` writes.
@@ -428,10 +653,14 @@ def run(
     if grids is not None:
         if not isinstance(config, Mapping):
             raise TypeError("run(…, grids=…): give the configuration as a dict whose volumes name the arrays")
+        sets = _sets(overrides, samples, seed, threads)
+        # The arrays are checked before anything is written, and the files are gone before the
+        # run begins: the resolved experiment holds its grids (a run stopped by Ctrl-C, or by an
+        # error while resolving, leaves nothing behind; only a SIGKILL during `check` could).
+        arrays = _checked_grids(config, grids, sets)
         with tempfile.TemporaryDirectory(prefix="ohd-grids-") as tmp:
-            config = _with_grid_files(config, grids, Path(tmp))
-            exp = check(config, overrides=_sets(overrides, samples, seed, threads))
-            return _run(exp, out, _reporter(progress), figures)
+            exp = check(_with_grid_files(config, arrays, Path(tmp)), overrides=sets)
+        return _run(exp, out, _reporter(progress), figures)
     if isinstance(config, Experiment):
         if overrides is not None or samples is not None or seed is not None or threads is not None:
             raise TypeError("run(Experiment, …): give overrides, samples, seed, threads to check() instead")
@@ -441,38 +670,135 @@ def run(
     return _run(exp, out, _reporter(progress), figures)
 
 
-def _with_grid_files(config: Mapping[str, Any], grids: Mapping[str, Any], tmp: Path) -> Dict[str, Any]:
-    """A copy of `config` whose `{"type": "npy", "array": NAME}` tables name `.npy` files in `tmp`
-    holding `grids[NAME]` (float32), each written once."""
-    written: Dict[str, str] = {}
-    used = set()
+def _budget(config: Mapping[str, Any], sets: List[str]) -> Tuple[int, str]:
+    """The memory budget, bytes, of `config` with the `--set` assignments `sets` (the last
+    assignment of run.memory_budget_gib, else the dict's, else the default; lowered under a
+    process limit as the library lowers it), and the key its messages name."""
+    gib: Any = None
+    run_table = config.get("run")
+    if isinstance(run_table, Mapping):
+        gib = run_table.get("memory_budget_gib")
+    for a in sets:
+        key, _, value = a.partition("=")
+        if key.strip() == "run.memory_budget_gib":
+            gib = value.strip()
+    try:
+        gib = float(gib) if gib is not None else None
+    except (TypeError, ValueError):
+        gib = None
+    if gib is not None and not (0 < gib <= 1e6):
+        gib = None  # refused by the library, naming the key, once the configuration is read
+    return _ohd.memory_budget(gib)
 
-    def walk(v: Any, key: str) -> Any:
+
+def _gib(n: int) -> str:
+    return f"{n / (1 << 30):.1f} GiB" if n >= 1 << 30 else f"{n / (1 << 20):.1f} MiB"
+
+
+def _grid_tables(config: Any, key: str = ""):
+    """(key, table) of every `{"type": "npy", "array": NAME}` table of a configuration dict."""
+    if isinstance(config, Mapping):
+        if config.get("type") == "npy" and "array" in config:
+            yield key, config
+        for k, v in config.items():
+            yield from _grid_tables(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(config, list):
+        for i, v in enumerate(config):
+            yield from _grid_tables(v, f"{key}.{i}")
+
+
+def _config_error(key: str, message: str) -> ConfigError:
+    err = ConfigError(f"config error: {key}: {message}")
+    err.key = key  # type: ignore[attr-defined]
+    return err
+
+
+def _checked_grids(config: Mapping[str, Any], grids: Mapping[str, Any], sets: List[str]) -> Dict[str, np.ndarray]:
+    """The arrays of `grids` that `config` names, each checked before anything is written or
+    copied (issue 52, item 3: a broadcast view of one float became a 32 GB file): a real dtype
+    (float32 or one that converts to it), the shape its table needs — (nx, ny, nz) for a density,
+    (nx, ny, nz, 3) for a velocity — and float32 values that are finite, all of them within the
+    memory budget. A ConfigError names the table's `array` key."""
+    budget, budget_key = _budget(config, sets)
+    arrays: Dict[str, np.ndarray] = {}
+    keys: Dict[str, str] = {}
+    total = 0
+    for key, table in _grid_tables(config):
+        name, akey = table["array"], f"{key}.array"
+        if not isinstance(name, str) or name not in grids:
+            given = ", ".join(map(str, grids)) or "none"
+            raise _config_error(akey, f"= {name!r}: no such array in grids (given: {given})")
+        velocity = key.rsplit(".", 1)[-1] == "velocity"
+        expected = "(nx, ny, nz, 3)" if velocity else "(nx, ny, nz)"
+        if name in keys:
+            if velocity != keys[name].endswith("velocity"):
+                raise _config_error(akey, f"= {name!r}: the array of {keys[name]} too, a {'density' if velocity else 'velocity'}")
+            continue
+        try:
+            a = np.asanyarray(grids[name])
+        except Exception as e:  # whatever the object's __array__ raises
+            raise _config_error(akey, f"= {name!r}: not an array: {e}") from None
+        if a.dtype.kind not in "biuf" or not np.can_cast(a.dtype, np.float32, casting="same_kind"):
+            raise _config_error(akey, f"= {name!r}: dtype {a.dtype}: expected real numbers (float32, or a dtype that converts to it)")
+        if a.ndim != (4 if velocity else 3) or (velocity and a.shape[3] != 3) or 0 in a.shape:
+            raise _config_error(akey, f"= {name!r}: an array of shape {a.shape}: expected {expected}, each size ≥ 1")
+        # As the library counts it: float32 voxels, a density twice while it is resolved.
+        voxels = a.size // (3 if velocity else 1)
+        nbytes = 4 * a.size * (1 if velocity else 2)
+        if total + nbytes > budget:
+            how = f"{voxels} voxels × {12 if velocity else 4} bytes{'' if velocity else ', 2 copies while resolving'}"
+            before = f"; with the {_gib(total)} of the arrays before it that is" if total else ""
+            raise _config_error(
+                akey,
+                f"= {name!r}: the array of shape {a.shape} would take {_gib(nbytes)} ({how}){before} above the memory budget of {budget / (1 << 30):.3g} GiB ({budget_key})",
+            )
+        total += nbytes
+        keys[name] = key
+        arrays[name] = a
+    for name, a in arrays.items():
+        # Finite as float32 (a float64 of 1e39 is not), a slab at a time: no copy of the whole.
+        for i in range(a.shape[0]):
+            with np.errstate(over="ignore"):
+                slab = np.asarray(a[i], dtype=np.float32)
+            if not np.isfinite(slab).all():
+                where = tuple(int(j) for j in np.argwhere(~np.isfinite(slab))[0])
+                raise _config_error(
+                    f"{keys[name]}.array",
+                    f"= {name!r}: element {(i, *where)} is {a[(i, *where)]!r}, not a finite float32: expected finite values",
+                )
+    unused = set(grids) - set(arrays)
+    if unused:
+        raise ValueError(f"grids: {', '.join(sorted(map(str, unused)))} not named by any `array` of the configuration")
+    return arrays
+
+
+def _with_grid_files(config: Mapping[str, Any], grids: Mapping[str, np.ndarray], tmp: Path) -> Dict[str, Any]:
+    """A copy of `config` whose `{"type": "npy", "array": NAME}` tables name `.npy` files in `tmp`
+    holding `grids[NAME]` (checked by `_checked_grids`) as float32, each written once, a slab at
+    a time (a broadcast view is never made whole)."""
+    written: Dict[str, str] = {}
+
+    def walk(v: Any) -> Any:
         if isinstance(v, Mapping):
-            out = {k: walk(x, f"{key}.{k}" if key else str(k)) for k, x in v.items()}
+            out = {k: walk(x) for k, x in v.items()}
             if out.get("type") == "npy" and "array" in out:
                 name = out.pop("array")
-                if name not in grids:
-                    given = ", ".join(map(str, grids)) or "none"
-                    err = ConfigError(f"config error: {key}.array: = {name!r}: no such array in grids (given: {given})")
-                    err.key = f"{key}.array"  # type: ignore[attr-defined]
-                    raise err
                 if name not in written:
+                    a = grids[name]
                     path = tmp / f"grid_{len(written)}.npy"
-                    np.save(path, np.asarray(grids[name], dtype=np.float32))
+                    with open(path, "wb") as f:
+                        header = {"descr": "<f4", "fortran_order": False, "shape": tuple(int(d) for d in a.shape)}
+                        np.lib.format.write_array_header_2_0(f, header)
+                        for i in range(a.shape[0]):
+                            f.write(np.ascontiguousarray(a[i], dtype="<f4").tobytes())
                     written[name] = str(path)
-                used.add(name)
                 out["file"] = written[name]
             return out
         if isinstance(v, list):
-            return [walk(x, f"{key}.{i}") for i, x in enumerate(v)]
+            return [walk(x) for x in v]
         return v
 
-    result = walk(config, "")
-    unused = set(grids) - used
-    if unused:
-        raise ValueError(f"grids: {', '.join(sorted(map(str, unused)))} not named by any `array` of the configuration")
-    return result
+    return walk(config)
 
 
 def _run(exp: Experiment, out, report, figures: bool) -> Result:

@@ -164,6 +164,29 @@ fn container_to_toml(v: &Bound<'_, PyAny>, key: &str, open: &mut Vec<usize>, is_
     to_toml_in(&v.call_method0("tolist")?, key, open)
 }
 
+/// The memory budget of a run whose `run.memory_budget_gib` is `gib` (None: its default), in
+/// bytes, lowered as the library lowers it under a process limit, and the key as its messages
+/// name it: for checking NumPy volumes before they are handed over.
+#[pyfunction]
+#[pyo3(signature = (gib=None))]
+fn memory_budget(gib: Option<f64>) -> PyResult<(u64, String)> {
+    guarded(|| {
+        let gib = gib.unwrap_or(ohd::config::resolve::DEFAULT_MEMORY_BUDGET_GIB);
+        let configured = (gib * (1u64 << 30) as f64) as u64;
+        Ok(match ohd::sys::memory_limit() {
+            Some(l) if l.available < configured => (
+                l.available,
+                format!(
+                    "run.memory_budget_gib, lowered to {:.0} % of what {} leaves this process",
+                    100.0 * ohd::sys::SHARE,
+                    l.source
+                ),
+            ),
+            _ => (configured, "run.memory_budget_gib".to_string()),
+        })
+    })
+}
+
 /// An override value `v` as the text after `KEY=` of `--set` (TOML).
 #[pyfunction]
 fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<String> {
@@ -580,6 +603,7 @@ fn _ohd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(check_writable, m)?)?;
     m.add_function(wrap_pyfunction!(toml_value, m)?)?;
+    m.add_function(wrap_pyfunction!(memory_budget, m)?)?;
     m.add_function(wrap_pyfunction!(mie_sphere, m)?)?;
     m.add_function(wrap_pyfunction!(relative_sphere, m)?)?;
     m.add_function(wrap_pyfunction!(converge, m)?)?;

@@ -111,3 +111,85 @@ fn a_npy_velocity_volume_moves_the_medium_as_its_field() {
     let e = Loaded::read(Some(&config), &[no_size]).unwrap_err().to_string();
     assert!(e.contains("voxel_size"), "{e}");
 }
+
+/// A `.npy` header for float32 data of shape `dims` (C order) and no data: the file is then
+/// made as long as the header declares with `set_len`, a sparse file that takes no disk.
+fn sparse_npy(path: &Path, dims: &[u64]) {
+    let shape = dims.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ");
+    let header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({shape}), }}\n");
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    b.extend((header.len() as u16).to_le_bytes());
+    b.extend(header.as_bytes());
+    let len = b.len() as u64 + 4 * dims.iter().product::<u64>();
+    std::fs::write(path, b).unwrap();
+    std::fs::File::options().write(true).open(path).unwrap().set_len(len).unwrap();
+}
+
+/// `ohd check` of moving_media.toml in `dir` with `prefix` run first by the shell (a limit) and
+/// `sets`: exit status and standard error.
+fn check_with(dir: &Path, prefix: &str, sets: &[&str]) -> (Option<i32>, String) {
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/configs/good/moving_media.toml"))
+            .unwrap();
+    std::fs::write(dir.join("moving_media.toml"), text).unwrap();
+    let mut args = vec!["check", "moving_media.toml"];
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    let o = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!("{prefix}\nexec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_ohd"))
+        .args(&args)
+        .current_dir(dir)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("sh starts");
+    (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+/// Issue 52, item 3: a volume above the memory budget is refused (exit status 2, naming the key,
+/// the volume's size and the budget) from its header alone, before anything is allocated. It
+/// was read whole and converted before it was counted — four times the budget — and under an
+/// address-space limit the allocation aborted (SIGABRT). The files are sparse: nothing here
+/// reads or allocates their gigabyte.
+#[test]
+fn a_npy_volume_above_the_memory_budget_is_refused_before_it_is_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    // 1 GiB of float32 under a 1 GB address space: the budget is lowered to 3/4 of what is left.
+    sparse_npy(&t.join("big.npy"), &[1024, 1024, 256]);
+    let density = "media.belt.density={ type = \"npy\", file = \"big.npy\", voxel_size_um = 10 }";
+    let (code, e) = check_with(t, "ulimit -v 1000000", &[density]);
+    assert_eq!(code, Some(2), "{e}");
+    assert!(e.contains("media.belt.density.file") && e.contains("big.npy"), "{e}");
+    assert!(e.contains("268435456 voxels") && e.contains("above the memory budget") && e.contains("ulimit -v"), "{e}");
+    // The budget the key states, the same way; the velocity as the density.
+    let (code, e) = check_with(t, ":", &[density, "run.memory_budget_gib=0.5"]);
+    assert_eq!(code, Some(2), "{e}");
+    assert!(
+        e.contains("media.belt.density.file")
+            && e.contains("above the memory budget of 0.5 GiB (run.memory_budget_gib)"),
+        "{e}"
+    );
+    sparse_npy(&t.join("flow.npy"), &[512, 512, 64, 3]);
+    let velocity = "media.belt.velocity={ type = \"npy\", file = \"flow.npy\", voxel_size_um = 10 }";
+    let (code, e) = check_with(t, ":", &[velocity, "run.memory_budget_gib=0.1"]);
+    assert_eq!(code, Some(2), "{e}");
+    assert!(e.contains("media.belt.velocity.file") && e.contains("16777216 voxels × 12 bytes"), "{e}");
+    assert!(e.contains("above the memory budget of 0.1 GiB (run.memory_budget_gib)"), "{e}");
+    // A header whose shape overflows, and one whose data the file does not hold.
+    let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (4294967296, 4294967296, 4294967296), }\n";
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    b.extend((header.len() as u16).to_le_bytes());
+    b.extend(header.as_bytes());
+    std::fs::write(t.join("huge.npy"), &b).unwrap();
+    let (code, e) =
+        check_with(t, ":", &["media.belt.density={ type = \"npy\", file = \"huge.npy\", voxel_size_um = 10 }"]);
+    assert_eq!(code, Some(2), "{e}");
+    assert!(e.contains("media.belt.density.file") && e.contains("overflows"), "{e}");
+    std::fs::File::options().write(true).open(t.join("big.npy")).unwrap().set_len(1 << 20).unwrap();
+    let (code, e) = check_with(t, ":", &[density]);
+    assert_eq!(code, Some(2), "{e}");
+    assert!(e.contains("media.belt.density.file") && e.contains("1048576 bytes, where its header"), "{e}");
+}

@@ -6,8 +6,10 @@ $OHD_BINARY (.ci/run passes the one `cargo test --profile ci` built), else a rel
 """
 import json
 import os
+import re
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -494,3 +496,189 @@ def test_numpy_volumes_run_as_npy_files(tmp_path):
         ohd.run(_phantom_config({**place, "array": "other"}), grids={"phantom": phantom}, progress=False)
     with pytest.raises(ValueError, match="not named"):
         ohd.run(_phantom_config({**place, "file": str(tmp_path / "phantom.npy")}), grids={"phantom": phantom}, progress=False)
+
+
+def _grids_config(density=None, velocity=None, budget_gib=None):
+    cfg = _phantom_config(density or {"type": "ramp", "axis": "z", "from_mm": 0, "to_mm": 1, "density_from": 1, "density_to": 1})
+    if velocity is not None:
+        cfg["media"]["slab"]["velocity"] = velocity
+    if budget_gib is not None:
+        cfg["run"]["memory_budget_gib"] = budget_gib
+    return cfg
+
+
+def test_numpy_volumes_are_checked_before_anything_is_written(tmp_path, monkeypatch):
+    """Issue 52, item 3: every array is checked — dtype, shape, finite float32 values, its size
+    against the memory budget — before anything is written, and refused naming its `array` key;
+    the temporary files are gone once the experiment is resolved, before the run. (They were
+    written first, whatever they held: a broadcast view of one float became a 32 GB file.)"""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    place = {"type": "npy", "array": "v", "voxel_size_um": 100}
+    writes = []
+    real_open = open
+
+    def spy(path, *a, **k):
+        if str(path).startswith(str(tmp)):
+            writes.append(str(path))
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr("builtins.open", spy)
+    monkeypatch.setattr(np, "save", lambda *a, **k: writes.append("np.save"))
+    # 128³ voxels, counted twice (8 bytes each) as the library counts a density: 16 MiB over 1 MiB.
+    view = np.broadcast_to(np.float32(1), (128, 128, 128))
+    with pytest.raises(ohd.ConfigError) as e:
+        ohd.run(_grids_config(place, budget_gib=1 / 1024), grids={"v": view}, progress=False)
+    assert e.value.key == "media.slab.density.array", e.value
+    assert "16.0 MiB" in str(e.value) and "above the memory budget of 0.000977 GiB (run.memory_budget_gib)" in str(e.value), e.value
+    # The budget from overrides, the same.
+    with pytest.raises(ohd.ConfigError, match="above the memory budget") as e:
+        ohd.run(_grids_config(place), grids={"v": view}, overrides={"run.memory_budget_gib": 1 / 1024}, progress=False)
+    assert e.value.key == "media.slab.density.array"
+    bad = np.ones((12, 10, 8))
+    bad[3, 4, 5] = np.nan
+    too_big = np.full((12, 10, 8), 1e39)  # finite as float64, inf as float32
+    for a, words in [
+        (bad, "element (3, 4, 5)"),
+        (too_big, "not a finite float32"),
+        (np.ones((12, 10, 8), dtype=complex), "dtype complex128"),
+        (np.full((12, 10, 8), "1"), "dtype <U1"),
+        (np.ones((12, 10)), "expected (nx, ny, nz)"),
+        (np.ones((12, 10, 0)), "each size ≥ 1"),
+    ]:
+        with pytest.raises(ohd.ConfigError, match=re.escape(words)) as e:
+            ohd.run(_grids_config(place), grids={"v": a}, progress=False)
+        assert e.value.key == "media.slab.density.array", e.value
+    flow = {"type": "npy", "array": "v", "voxel_size_um": 100}
+    with pytest.raises(ohd.ConfigError, match=re.escape("expected (nx, ny, nz, 3)")) as e:
+        ohd.run(_grids_config(velocity=flow), grids={"v": np.ones((4, 4, 4))}, progress=False)
+    assert e.value.key == "media.slab.velocity.array"
+    assert writes == [] and os.listdir(tmp) == []
+    # A volume that runs: its file is gone while the run goes on.
+    seen = []
+    r = ohd.run(
+        _grids_config({**place, "translate_mm": [-0.55, -0.45, 0.03]}),
+        grids={"v": np.broadcast_to(np.float32(0.5), (12, 10, 8))},
+        samples=2000,
+        progress=lambda done, total: seen.append(os.listdir(tmp)),
+        figures=False,
+    )
+    assert r.estimates and seen and all(s == [] for s in seen), seen
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """A small run of the default experiment written by ohd.run(out=…), to copy and tamper with."""
+    d = tmp_path_factory.mktemp("small") / "run"
+    ohd.run(samples=2000, seed=1, threads=1, progress=False, out=d)
+    return d
+
+
+def _copy(src, dst):
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_load_refuses_a_directory_whose_writing_did_not_finish(small_run, tmp_path):
+    """Issue 52, item 7: a directory marked incomplete (ohd_incomplete.txt: its writing was
+    killed) is not a finished run, whatever manifest it still holds; a run stopped by Ctrl-C is
+    (its manifest's `interrupted`, no marker)."""
+    d = _copy(small_run, tmp_path / "r")
+    assert ohd.load(d).estimates
+    (d / "ohd_incomplete.txt").write_text("# ohd (process 1) is writing into this directory\ncamera_image.npy\n")
+    with pytest.raises(OSError, match="did not finish") as e:
+        ohd.load(d)
+    assert str(d) in str(e.value)
+    (d / "ohd_incomplete.txt").unlink()
+    m = json.loads((d / "manifest.json").read_text())
+    m["interrupted"] = {"batches": 1, "planned_batches": 4}
+    (d / "manifest.json").write_text(json.dumps(m))
+    assert ohd.load(d).manifest["interrupted"]["batches"] == 1
+    # A scan stays marked when Ctrl-C stops it, its last pointing `interrupted`: it loads with
+    # the pointings written; marked with no pointing interrupted, it was killed.
+    scan = tmp_path / "scan"
+    scan.mkdir()
+    (scan / "ohd_incomplete.txt").write_text("# ohd (process 1) is writing into this directory\npointing_00/\n")
+    _copy(small_run, scan / "pointing_00")
+    with pytest.raises(OSError, match="did not finish"):
+        ohd.load(scan)
+    (scan / "pointing_00" / "manifest.json").write_text(json.dumps(m))
+    r = ohd.load(scan)
+    assert len(r.pointings) == 1 and r.pointings[0].manifest["interrupted"]["batches"] == 1 and r.files == {}
+
+
+def test_load_checks_the_manifest_against_the_files(small_run, tmp_path):
+    """Issue 52, item 7: the manifest's shapes and axis counts are checked against the arrays'
+    own headers before any axis is made (a one-line edit of a count made ohd.load allocate
+    7.45 GiB), and an array whose header does not match its bytes is refused, naming the file."""
+
+    def tampered(edit):
+        d = _copy(small_run, tmp_path / f"r{len(list(tmp_path.iterdir()))}")
+        m = json.loads((d / "manifest.json").read_text())
+        edit(m, d)
+        (d / "manifest.json").write_text(json.dumps(m))
+        return d
+
+    def count(m, d):
+        m["outputs"]["camera_image.npy"]["axes"][0]["bins"]["count"] = 1_000_000
+
+    def shape(m, d):
+        m["outputs"]["camera_image.npy"]["shape"] = [32, 33]
+
+    def header(m, d):
+        b = (d / "camera_image.npy").read_bytes()
+        (d / "camera_image.npy").write_bytes(b.replace(b"(32, 32)", b"(99999, 32)", 1))
+
+    for edit, words in [(count, "bins.count = 1000000"), (shape, "shape [32, 33]"), (header, "bytes of data where its header")]:
+        d = tampered(edit)
+        with pytest.raises(ValueError, match=re.escape(words)) as e:
+            ohd.load(d).outputs
+        assert "camera_image.npy" in str(e.value), e.value
+
+
+def test_load_reads_only_the_runs_own_files(small_run, tmp_path):
+    """Issue 52, item 7: ohd.load reads what the manifest lists and nothing else, each a regular
+    file of the directory itself within the size its manifest allows: a link (to a 40 GB file,
+    read whole before), a FIFO, an oversized file, a name with a path and a pointing directory
+    that is a link are refused naming them; a file the manifest does not list is not read."""
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    big = outside / "big.bin"
+    with open(big, "wb") as f:
+        f.truncate(40 << 30)  # sparse: no disk, and never read
+    d = _copy(small_run, tmp_path / "link")
+    (d / "camera_image.png").unlink()
+    (d / "camera_image.png").symlink_to(big)
+    with pytest.raises(OSError, match="symbolic link") as e:
+        ohd.load(d)
+    assert "camera_image.png" in str(e.value)
+    d = _copy(small_run, tmp_path / "big")
+    os.truncate(d / "camera_image.png", 40 << 30)
+    with pytest.raises(ValueError, match="more than the") as e:
+        ohd.load(d)
+    assert "camera_image.png" in str(e.value)
+    d = _copy(small_run, tmp_path / "fifo")
+    (d / "camera_image.svg").unlink()
+    os.mkfifo(d / "camera_image.svg")
+    with pytest.raises(OSError, match="not a regular file"):
+        ohd.load(d)
+    d = _copy(small_run, tmp_path / "path")
+    m = json.loads((d / "manifest.json").read_text())
+    m["files"].append("../outside/big.bin")
+    (d / "manifest.json").write_text(json.dumps(m))
+    with pytest.raises(ValueError, match="plain file names"):
+        ohd.load(d)
+    d = _copy(small_run, tmp_path / "extra")
+    (d / "notes.txt").write_text("mine")
+    assert "notes.txt" not in ohd.load(d).files
+    # A scan whose pointing directory is a link to a run elsewhere.
+    scan = tmp_path / "scan"
+    scan.mkdir()
+    (scan / "scan.json").write_text(json.dumps({"gates": [], "pointings": [{"run": "pointing_00"}]}))
+    (scan / "pointing_00").symlink_to(small_run)
+    with pytest.raises(OSError, match="not a directory") as e:
+        ohd.load(scan)
+    assert "pointing_00" in str(e.value)

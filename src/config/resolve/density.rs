@@ -178,7 +178,9 @@ fn resolve_density_field(path: &str, d: &DensitySection, sigma_t: f64, ctx: &Ctx
         DensitySection::Npy { file, voxel_size, translate, interpolation: i, majorant, majorant_cell_voxels } => {
             let transform = npy_transform(path, voxel_size, translate)?;
             let majorant = resolve_majorant(path, *majorant, *majorant_cell_voxels, sigma_t)?;
-            let grid = super::GridFiles::npy::<f32, 1>(path, (ctx.base, &ctx.memory), file, transform, 2, |v| v[0])?;
+            let grid = super::GridFiles::npy::<f32>(path, (ctx.base, &ctx.memory), file, transform, 2, |dims| {
+                majorant_bytes(majorant, dims)
+            })?;
             let mut h = grid_heterogeneity(path, grid, None, Placement::default(), interpolation(*i), majorant)?;
             h.info.kind = "npy".into();
             h.info.source = Some(file.clone());
@@ -246,6 +248,24 @@ pub fn resolve_majorant(
         }
     };
     Ok(MajorantSpec { kind, cell })
+}
+
+/// The majorant grid a density of `dims` voxels builds ([`GridDensity::new`]), for the memory
+/// count: 8 bytes per cell over the block padded by a voxel each side; an automatic cell size
+/// holds the finest grid twice and its coarser levels while it chooses, counted as three.
+/// `None` for a global majorant.
+pub(super) fn majorant_bytes(spec: MajorantSpec, dims: [usize; 3]) -> Option<(String, u64)> {
+    let (n, held) = match (spec.kind, spec.cell) {
+        (MajorantKind::Global, _) => return None,
+        (_, CellSize::Voxels(n)) => (n.max(1), 1),
+        (_, CellSize::Auto { .. }) => (crate::medium::density::DEFAULT_CELL_VOXELS, 3),
+    };
+    let cells = dims.iter().fold(1u64, |a, &d| a.saturating_mul((d.saturating_add(2).div_ceil(n)) as u64));
+    let copies = if held > 1 { format!(", {held} while the cell size is chosen") } else { String::new() };
+    Some((
+        format!("its majorant grid ({cells} cells of {n}³ voxels × 8 bytes{copies})"),
+        cells.saturating_mul(8 * held),
+    ))
 }
 
 /// The medium fields of a voxel-grid density: the hook the file loaders call (`path` is the key

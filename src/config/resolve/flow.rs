@@ -150,9 +150,7 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
         }
         VelocitySection::Npy { file, voxel_size, translate, interpolation: i } => {
             let transform = super::density::npy_transform(path, voxel_size, translate)?;
-            let g = super::GridFiles::npy::<[f32; 3], 3>(path, (fc.base, fc.memory), file, transform, 1, |v| {
-                [v[0], v[1], v[2]]
-            })?;
+            let g = super::GridFiles::npy::<[f32; 3]>(path, (fc.base, fc.memory), file, transform, 1, |_| None)?;
             grid_velocity(path, file, Arc::new(g), interpolation(*i), Placement::default())?
         }
         VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {

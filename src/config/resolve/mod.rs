@@ -476,6 +476,27 @@ impl Memory {
     }
 }
 
+/// A voxel of a `.npy` volume: `C` floats per voxel of the array.
+trait NpyVoxel: Copy + Default {
+    const C: usize;
+    /// Set component `c` (< `C`) to `v`.
+    fn set(&mut self, c: usize, v: f32);
+}
+
+impl NpyVoxel for f32 {
+    const C: usize = 1;
+    fn set(&mut self, _: usize, v: f32) {
+        *self = v;
+    }
+}
+
+impl NpyVoxel for [f32; 3] {
+    const C: usize = 3;
+    fn set(&mut self, c: usize, v: f32) {
+        self[c] = v;
+    }
+}
+
 /// The OpenVDB grids read so far, by file and grid name: a file is read once however many layers,
 /// sublayers and regions use its grids.
 #[derive(Default)]
@@ -488,59 +509,68 @@ struct GridFiles {
 type GridCache<T> = std::cell::RefCell<BTreeMap<(std::path::PathBuf, Option<String>), Arc<VoxelGrid<T>>>>;
 
 impl GridFiles {
-    /// The `.npy` volume `file` (relative to `base`) as a voxel grid of `C` components per voxel
-    /// (1: a density, a `(nx, ny, nz)` array; 3: a velocity, `(nx, ny, nz, 3)`), indexed
-    /// `array[i, j, k]` = voxel `(i, j, k)` along x, y, z, with voxel `(0, 0, 0)`'s centre at
-    /// `transform.translation` and 0 outside the array. Counted in `memory` `copies` times (as a
-    /// VDB grid, [`GridFiles::get`]); errors name `key`.
-    fn npy<T: Copy + Default, const C: usize>(
+    /// The `.npy` volume `file` (relative to `base`) as a voxel grid of [`NpyVoxel::C`]
+    /// components per voxel (1: a density, a `(nx, ny, nz)` array; 3: a velocity,
+    /// `(nx, ny, nz, 3)`), indexed `array[i, j, k]` = voxel `(i, j, k)` along x, y, z, with voxel
+    /// `(0, 0, 0)`'s centre at `transform.translation` and 0 outside the array. Errors name `key`.
+    ///
+    /// Only the header is read before the grid is counted in `memory` — `copies` times (as a VDB
+    /// grid, [`GridFiles::get`]), with what the caller builds from it (`derived`: what it is and
+    /// its bytes for the grid's dimensions, such as a majorant grid) — so a volume above the
+    /// budget is refused before anything is allocated (issue 52, item 3: one read whole, then
+    /// converted, took four times the budget and aborted). The data then stream into the grid.
+    fn npy<T: NpyVoxel>(
         key: &str,
         (base, memory): (&Path, &Memory),
         file: &str,
         transform: crate::medium::grid::IndexTransform,
         copies: u64,
-        voxel: impl Fn(&[f32]) -> T,
+        derived: impl Fn([usize; 3]) -> Option<(String, u64)>,
     ) -> R<VoxelGrid<T>> {
         let path = base.join(file);
         let key = join(key, "file");
-        // (A float64 file is twice the float32 grid it becomes, plus its header.)
-        let limit = memory.remaining().saturating_mul(2).saturating_add(4096);
-        let a = crate::io::formats::npy::read_floats_file(&path, limit).map_err(|m| ConfigError::new(&key, m))?;
-        let expected = if C == 1 { "(nx, ny, nz)" } else { "(nx, ny, nz, 3)" };
-        let shape_ok = a.shape.len() == if C == 1 { 3 } else { 4 } && (C == 1 || a.shape[3] == 3);
+        let volume = crate::io::formats::npy::open_volume(&path).map_err(|m| ConfigError::new(&key, m))?;
+        let shape = volume.header.shape.clone();
+        let expected = if T::C == 1 { "(nx, ny, nz)" } else { "(nx, ny, nz, 3)" };
+        let shape_ok = shape.len() == if T::C == 1 { 3 } else { 4 } && (T::C == 1 || shape[3] == 3);
         let dims = [
-            a.shape.first().copied().unwrap_or(0),
-            a.shape.get(1).copied().unwrap_or(0),
-            a.shape.get(2).copied().unwrap_or(0),
+            shape.first().copied().unwrap_or(0),
+            shape.get(1).copied().unwrap_or(0),
+            shape.get(2).copied().unwrap_or(0),
         ];
         if !shape_ok || dims.iter().any(|&d| d == 0 || d > i32::MAX as usize) {
             return err(
                 &key,
-                format!("{}: an array of shape {:?}: expected {expected}, each size ≥ 1", path.display(), a.shape),
+                format!("{}: an array of shape {shape:?}: expected {expected}, each size ≥ 1", path.display()),
             );
         }
+        // (The header's size was checked not to overflow: the voxels are at most that.)
+        let voxels = (volume.header.count / T::C) as u64;
+        let grid = voxels.saturating_mul(std::mem::size_of::<T>() as u64).saturating_mul(copies);
+        let (more, more_bytes) = match derived(dims) {
+            Some((what, bytes)) => (format!(", and {what}"), bytes),
+            None => (String::new(), 0),
+        };
         memory.charge(
             &key,
             &format!("= \"{file}\""),
             &format!("the volume {file}"),
             &format!(
-                "{} bytes per voxel{}",
+                "{voxels} voxels × {} bytes{}{more}",
                 std::mem::size_of::<T>(),
                 if copies > 1 { format!(", {copies} copies while resolving") } else { String::new() }
             ),
-            (a.values.len() / C * std::mem::size_of::<T>()) as u64 * copies,
+            grid.saturating_add(more_bytes),
         )?;
         let mut g = VoxelGrid::new([0, 0, 0], dims, T::default(), transform);
-        let [nx, ny, nz] = dims;
-        // C order `[i][j][k]` (k fastest) into the grid's x-fastest block.
-        for i in 0..nx {
-            for j in 0..ny {
-                for k in 0..nz {
-                    let at = ((i * ny + j) * nz + k) * C;
-                    g.data[(k * ny + j) * nx + i] = voxel(&a.values[at..at + C]);
-                }
-            }
-        }
+        let [nx, ny, _] = dims;
+        // Array index `[i][j][k]` (and the component last) into the grid's x-fastest block.
+        volume
+            .for_each(|ix, v| {
+                let at = (ix[2] * ny + ix[1]) * nx + ix[0];
+                g.data[at].set(if T::C == 1 { 0 } else { ix[3] }, v);
+            })
+            .map_err(|m| ConfigError::new(&key, m))?;
         Ok(g)
     }
 
