@@ -141,7 +141,7 @@ fn surface(
     let bsdf = resolve_surface(&join(path, "surface"), s, wavelength, n_medium)?;
     let (velocity, v_key) = vector(path, m.velocity)?;
     let (angular_velocity, w_key) = vector(path, m.angular_velocity)?;
-    let (center, _) = vector(path, m.center)?;
+    let (center, c_key) = vector(path, m.center)?;
     let centre = match extent {
         Extent::Solid { centre, .. } => centre,
         Extent::Plane { .. } => DVec3::ZERO,
@@ -156,9 +156,9 @@ fn surface(
     // that of the fastest point, `|v| + |ω| r` with `r` the farthest distance of the surface's
     // points from the rotation's centre (a bound on their distance from its axis).
     let c = super::flow::SPEED_LIMIT;
-    let v = surface.velocity.length();
+    let v = norm(surface.velocity);
     if let Some(key) = v_key
-        && !(v < c)
+        && (!v.is_finite() || v >= c)
     {
         return err(
             &key,
@@ -169,33 +169,41 @@ fn surface(
             ),
         );
     }
-    if let Some(key) = w_key {
-        let w = surface.angular_velocity.length();
-        let (r, where_) = match extent {
-            Extent::Solid { centre, radius } => {
-                ((centre - surface.center).length() + radius, "of the solid".to_string())
-            }
-            Extent::Plane { z } => (
-                (DVec3::new(0.0, 0.0, z) - surface.center).length() + BOTTOM_REACH,
-                format!("of the plane within {} m of the z axis", shown(BOTTOM_REACH)),
-            ),
-        };
-        let fastest = v + w * r;
-        if !(fastest < c) {
-            return err(
-                &key,
-                format!(
-                    "= {} {}: the surface's fastest point would move at |v| + |ω| r = {} m/s, r = {} m from the rotation's centre ({} m) to the farthest point {where_}; expected below the speed of light, c = {c} m/s (a physical bound)",
-                    written(m.angular_velocity),
-                    super::unit_of(&key),
-                    shown(fastest),
-                    shown(r),
-                    written_vec(surface.center),
-                ),
-            );
-        }
+    let Some(w_key) = w_key else { return Ok(surface) };
+    let w = norm(surface.angular_velocity);
+    let reach = |center: DVec3| match extent {
+        Extent::Solid { centre, radius } => norm(centre - center) + radius,
+        Extent::Plane { z } => norm(DVec3::new(0.0, 0.0, z) - center) + BOTTOM_REACH,
+    };
+    let (r, fastest) = (reach(surface.center), v + w * reach(surface.center));
+    if fastest.is_finite() && fastest < c {
+        return Ok(surface);
     }
-    Ok(surface)
+    let where_ = match extent {
+        Extent::Solid { .. } => "of the solid".to_string(),
+        Extent::Plane { .. } => format!("of the plane within {} m of the z axis", shown(BOTTOM_REACH)),
+    };
+    let why = format!(
+        "the surface's fastest point would move at |v| + |ω| r = {} m/s (|ω| = {} rad/s, r = {} m from the rotation's centre ({} m) to the farthest point {where_}); expected below the speed of light, c = {c} m/s (a physical bound)",
+        shown(fastest),
+        shown(w),
+        shown(r),
+        written_vec(surface.center),
+    );
+    // The centre is to blame where the surface's own centre would keep it below c.
+    if let Some(key) = c_key
+        && v + w * reach(centre) < c
+    {
+        let unit = super::unit_of(&key);
+        return err(&key, format!("= {} {unit}: {why}", written(m.center)));
+    }
+    err(&w_key, format!("= {} {}: {why}", written(m.angular_velocity), super::unit_of(&w_key)))
+}
+
+/// A vector's length, without overflow for components up to f64's largest.
+fn norm(v: DVec3) -> f64 {
+    let m = v.abs().max_element();
+    if m > 0.0 && m.is_finite() { m * (v / m).length() } else { m }
 }
 
 /// A wavelength (m) in nm as a message shows it: to 10⁻⁴ nm, without trailing zeros (413.29, not
