@@ -64,10 +64,32 @@ impl Metal {
         (t[0].0 * 1e-6, t[t.len() - 1].0 * 1e-6)
     }
 
-    /// `n + ik` at `wavelength` (m), if within the measured range.
-    pub fn index(self, wavelength: f64) -> Option<Complex64> {
-        let um = wavelength * 1e6;
+    /// The measured range of wavelengths in nm, as the table's end points read (`"413.3"`,
+    /// `"1937"`): the range [`Metal::index`] accepts, both ends included.
+    pub fn range_nm(self) -> (String, String) {
         let t = self.table();
+        // Four decimals of a nanometre hold every row exactly; the rest is the µm → nm rounding.
+        let nm = |um: f64| {
+            let s = format!("{:.4}", um * 1e3);
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
+        (nm(t[0].0), nm(t[t.len() - 1].0))
+    }
+
+    /// `n + ik` at `wavelength` (m), if within the measured range, its end points included.
+    pub fn index(self, wavelength: f64) -> Option<Complex64> {
+        let t = self.table();
+        let (first, last) = (t[0].0, t[t.len() - 1].0);
+        // An end point written in nm (413.3 nm, 4132.8 nm) reaches µm through two roundings (nm →
+        // m → µm) and may land an ulp outside: within 10⁻¹² of an end is that end.
+        let um = wavelength * 1e6;
+        let um = if (um - first).abs() <= 1e-12 * first {
+            first
+        } else if (um - last).abs() <= 1e-12 * last {
+            last
+        } else {
+            um
+        };
         let i = t.windows(2).position(|w| w[0].0 <= um && um <= w[1].0)?;
         let ((l0, n0, k0), (l1, n1, k1)) = (t[i], t[i + 1]);
         let f = (um - l0) / (l1 - l0);
@@ -157,6 +179,22 @@ const ALUMINIUM: [(f64, f64, f64); 30] = [
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The end points of each table are in its range, as written in nm (two roundings away from
+    /// the table's µm), and give their rows; a tenth of a nm outside is refused.
+    #[test]
+    fn tables_take_their_end_points_and_refuse_just_outside() {
+        for (m, lo_nm, hi_nm) in
+            [(Metal::Copper, 413.3, 1937.0), (Metal::Gold, 413.3, 1937.0), (Metal::Aluminium, 413.28, 4132.8)]
+        {
+            let t = m.table();
+            let (first, last) = (t[0], t[t.len() - 1]);
+            assert_eq!(m.index(lo_nm * 1e-9), Some(Complex64::new(first.1, first.2)), "{} at {lo_nm} nm", m.name());
+            assert_eq!(m.index(hi_nm * 1e-9), Some(Complex64::new(last.1, last.2)), "{} at {hi_nm} nm", m.name());
+            assert_eq!(m.index((lo_nm - 0.1) * 1e-9), None, "{} at {} nm", m.name(), lo_nm - 0.1);
+            assert_eq!(m.index((hi_nm + 0.1) * 1e-9), None, "{} at {} nm", m.name(), hi_nm + 0.1);
+        }
+    }
 
     #[test]
     fn tables_interpolate_and_refuse_outside_their_range() {

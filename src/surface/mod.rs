@@ -59,11 +59,16 @@ impl Frame {
 #[inline]
 pub fn conductor_reflectance(eta: Complex64, cos_i: f64) -> f64 {
     let cos_i = cos_i.clamp(0.0, 1.0);
+    if cos_i == 0.0 {
+        // Grazing incidence reflects everything (and `η = 1` would give 0/0 below).
+        return 1.0;
+    }
     let sin2 = 1.0 - cos_i * cos_i;
     let cos_t = (Complex64::new(1.0, 0.0) - sin2 / (eta * eta)).sqrt();
     let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (rs.norm_sqr() + rp.norm_sqr())
+    // (Where the reflection is total, |r|² may round an ulp above 1.)
+    (0.5 * (rs.norm_sqr() + rp.norm_sqr())).min(1.0)
 }
 
 /// What an opaque surface does to the light arriving at it: it reflects a share back (into the
@@ -179,6 +184,15 @@ impl Bsdf {
             Bsdf::Lambertian { .. } => false,
             Bsdf::Conductor { alpha, .. } => *alpha == 0.0,
             Bsdf::Mixture(parts) => parts.iter().any(|(_, p)| p.has_delta_part()),
+        }
+    }
+
+    /// The narrowest microfacet lobe (the smallest GGX α > 0 of its rough conductors), if any.
+    pub fn narrowest_lobe(&self) -> Option<f64> {
+        match self {
+            Bsdf::Lambertian { .. } => None,
+            Bsdf::Conductor { alpha, .. } => (*alpha > 0.0).then_some(*alpha),
+            Bsdf::Mixture(parts) => parts.iter().filter_map(|(_, p)| p.narrowest_lobe()).reduce(f64::min),
         }
     }
 

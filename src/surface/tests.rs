@@ -235,3 +235,46 @@ fn frames_are_orthonormal_and_invert() {
         assert!((f.to_local(n) - DVec3::Z).length() < 1e-14);
     }
 }
+
+/// The conductor's Fresnel reflectance over the whole accepted range of `n` and `k` (1e-3 … 1e4,
+/// 0 … 1e4, in media of index 1 … 10): finite, in [0, 1], and equal to the textbook's real form
+/// (Born & Wolf §14.2: `a²`, `b²` from `n² − k² − sin²θ` and `4n²k²`) to 10⁻⁹.
+#[test]
+fn conductor_fresnel_is_exact_over_the_accepted_indices() {
+    let reference = |n: f64, k: f64, c: f64| {
+        let s2 = 1.0 - c * c;
+        let d = n * n - k * k - s2;
+        let root = (d * d + 4.0 * n * n * k * k).sqrt();
+        // (root ± d)/2 without cancellation: their product is n²k².
+        let nk2 = n * n * k * k;
+        let (a2, b2) = if d >= 0.0 {
+            (0.5 * (root + d), 2.0 * nk2 / (root + d))
+        } else {
+            (2.0 * nk2 / (root - d), 0.5 * (root - d))
+        };
+        let a = a2.sqrt();
+        let rs = (a2 + b2 - 2.0 * a * c + c * c) / (a2 + b2 + 2.0 * a * c + c * c);
+        let st = s2 / c; // sin θ tan θ
+        let rp = rs * (a2 + b2 - 2.0 * a * st + st * st) / (a2 + b2 + 2.0 * a * st + st * st);
+        0.5 * (rs + rp)
+    };
+    for n in [1e-3, 0.05, 1.0, 30.0, 1e4] {
+        for k in [0.0, 1e-3, 1.0, 100.0, 1e4] {
+            for n_medium in [1.0, 1.33, 10.0] {
+                let eta = Complex64::new(n, k) / n_medium;
+                for c in [1.0, 0.9, 0.5, 0.1, 1e-3, 1e-8] {
+                    let r = conductor_reflectance(eta, c);
+                    let want = reference(eta.re, eta.im, c);
+                    assert!(
+                        r.is_finite() && (0.0..=1.0).contains(&r),
+                        "n = {n}, k = {k}, medium {n_medium}, cos {c}: R = {r}"
+                    );
+                    assert!(
+                        (r - want).abs() < 1e-9,
+                        "n = {n}, k = {k}, medium {n_medium}, cos {c}: R = {r}, textbook {want}"
+                    );
+                }
+            }
+        }
+    }
+}

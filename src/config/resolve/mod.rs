@@ -34,7 +34,7 @@ use self::lateral::resolve_lateral;
 use self::run::resolve_run;
 use self::scene::resolve_scene;
 use self::source::resolve_source;
-use self::surfaces::{resolve_bottom, resolve_opaque};
+use self::surfaces::{camera_lobes, resolve_bottom, resolve_opaque};
 use self::volume::resolve_volume;
 use super::schema::*;
 use super::units::{Quantity, UnitSet, unit_of};
@@ -221,6 +221,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
     scene.lateral = resolve_lateral(f.lateral.as_ref(), n_above, &source, &detectors)?;
     scene.bottom = resolve_bottom(f.bottom.as_ref(), &scene, source.wavelength, &detectors)?;
     resolve_opaque(&f.opaque, &mut scene, source.wavelength, &detectors)?;
+    camera_lobes(&scene, &detectors)?;
     if scene.bottom.is_some() {
         // The surface lies on the last layer's bottom plane: no interface of index there (the
         // walk meets the surface where it would refract out; reflections below see no step).

@@ -204,6 +204,8 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 format!("= {}: expected GGX's α of the layer's top face, 0 (smooth) … 1", super::shown(roughness)),
             );
         }
+        // A face smoother than the directions f64 resolves is the smooth one.
+        let roughness = if roughness < crate::surface::microfacet::ROUGHNESS_MIN { 0.0 } else { roughness };
         let ms = lookup(join(&path, "medium"), &l.medium)?;
         if parts > 1 && thickness == f64::INFINITY {
             return err(join(&path, "sublayers"), "a semi-infinite layer cannot be split");
