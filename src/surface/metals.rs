@@ -1,12 +1,12 @@
 //! Complex refractive indices `n + ik` of metals, for `surface = { type = "conductor", material =
 //! "copper" }`: measured tables, interpolated linearly in wavelength (as refractiveindex.info
-//! does), refused outside the measured range.
+//! does) over the measured range, its end points included, and refused outside it.
 //!
 //! - Copper and gold: P. B. Johnson and R. W. Christy, "Optical constants of the noble metals",
-//!   Phys. Rev. B 6, 4370–4379 (1972), room temperature, 0.4–1.94 µm of their table.
+//!   Phys. Rev. B 6, 4370–4379 (1972), room temperature, 0.4133–1.937 µm of their table.
 //! - Aluminium: A. D. Rakić, "Algorithm for the determination of intrinsic optical constants of
-//!   metal films: application to aluminum", Appl. Opt. 34, 4755–4767 (1995), 0.41–4.1 µm of the
-//!   table.
+//!   metal films: application to aluminum", Appl. Opt. 34, 4755–4767 (1995), 0.41328–4.1328 µm of
+//!   the table.
 //!
 //! (Values as tabulated by the refractiveindex.info database, CC0.) At 1550 nm: copper
 //! 0.716 + 10.66i, gold 0.524 + 10.74i, aluminium 1.578 + 15.66i.
