@@ -515,7 +515,9 @@ def test_scan_save_replaces_planted_links_and_never_follows_them(scan_result, tm
     canary.write_text("keep")
     d = tmp_path / "out"
     (d / "pointing_01").mkdir(parents=True)
-    for name in ["vad.csv", "scan.json", "pointing_01/manifest.json", "pointing_01/lidar_range_m.npy"]:
+    # At the outputs' names and at the temporary names a8c4817 wrote through (`.NAME.tmp`).
+    names = ["vad.csv", "scan.json", ".vad.csv.tmp", ".scan.json.tmp"]
+    for name in names + ["pointing_01/manifest.json", "pointing_01/lidar_range_m.npy"]:
         (d / name).symlink_to(canary)
     scan_result.save(d)
     assert canary.read_text() == "keep"
