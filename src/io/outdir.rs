@@ -622,10 +622,13 @@ impl Lock {
     }
 }
 
-/// A [`Lock::take`] failure to write the [`LOCK`] file of `path`, as a refusal of the directory.
+/// A [`Lock::take`] failure to write the [`LOCK`] file of the directory `path` (read-only, or a
+/// directory or a FIFO planted at the name), as a refusal naming the file.
 fn cannot_write(path: &Path, e: Error) -> Error {
     match e {
-        Error::Write { source, .. } => refused(path, format!("cannot write into it: {source}")),
+        Error::Write { source, .. } => {
+            refused(&path.join(LOCK), format!("cannot write ohd's lock file into the directory: {source}"))
+        }
         e => e,
     }
 }
@@ -769,6 +772,7 @@ mod tests {
     fn the_lock_outlives_its_file() {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("out");
+        std::fs::create_dir(&out).unwrap();
         let d = OutDir::create(&out).unwrap();
         assert_eq!(std::fs::read_to_string(out.join(LOCK)).unwrap(), format!("{}\n", std::process::id()));
         std::fs::remove_file(out.join(LOCK)).unwrap();
@@ -779,6 +783,11 @@ mod tests {
         drop(d);
         assert!(!out.join(LOCK).exists());
         drop(OutDir::create(&out).unwrap());
+        // What is not a regular file at the lock's name is not replaced: refused, naming it.
+        std::fs::create_dir(out.join(LOCK)).unwrap();
+        let e = OutDir::create(&out).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains(LOCK) && e.to_string().contains("a directory"), "{e}");
+        assert!(out.join(LOCK).is_dir());
     }
 
     /// Issue 52: an output directory locks each sub-directory it writes, so another writer into

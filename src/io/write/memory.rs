@@ -27,9 +27,12 @@ impl Sink for Memory {
     }
 }
 
+/// A file to save: its name and bytes.
+pub type Named = (String, Vec<u8>);
+
 /// Refuse, before anything is written, file names that are not ohd's to write into an output
 /// directory: not one plain name, hidden (ohd's temporary and lock files), or the marker.
-fn check_names(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
+fn check_names(dir: &Path, files: &[Named]) -> Result<()> {
     match files.iter().find(|(n, _)| !plain_name(n) || n.starts_with('.') || n == MARKER) {
         Some((name, _)) => Err(Error::Refused {
             path: dir.join(&*crate::error::shorten(name, crate::error::SHOWN_WORD)),
@@ -40,7 +43,7 @@ fn check_names(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
 }
 
 /// A run's files split into the others and the manifest (last), or why they are not a run's.
-fn run_files(files: &[(String, Vec<u8>)]) -> Result<(&[(String, Vec<u8>)], &[u8])> {
+fn run_files(files: &[Named]) -> Result<(&[Named], &[u8])> {
     let Some(((record, manifest), rest)) = files.split_last().map(|((n, b), r)| ((n.as_str(), b), r)) else {
         return Err(Error::Input("no files to save: a run's files end with its manifest.json".into()));
     };
@@ -51,7 +54,7 @@ fn run_files(files: &[(String, Vec<u8>)]) -> Result<(&[(String, Vec<u8>)], &[u8]
 }
 
 /// Write a run's files into `dir` (held, locked): the manifest last.
-fn write_run(dir: &OutDir, files: &[(String, Vec<u8>)]) -> Result<()> {
+fn write_run(dir: &OutDir, files: &[Named]) -> Result<()> {
     let (rest, manifest) = run_files(files)?;
     let mut w = DirWriter::begin(dir, Output::Run, &[])?;
     for (name, bytes) in rest {
@@ -62,7 +65,7 @@ fn write_run(dir: &OutDir, files: &[(String, Vec<u8>)]) -> Result<()> {
 
 /// Write a run's files (as [`super::manifest::write_run_memory`] returns them: the manifest
 /// last) into `dir`, replacing an earlier run there as `ohd run --out` does.
-pub fn save(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
+pub fn save(dir: &Path, files: &[Named]) -> Result<()> {
     check_names(dir, files)?;
     run_files(files)?;
     write_run(&OutDir::create(dir)?, files)
@@ -76,7 +79,7 @@ pub fn save(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
 /// pointing directory that is a link refused, the scan's directory marked incomplete before a
 /// pointing is written and its record written last; what an earlier output there left is
 /// replaced. Every name is checked before anything is written.
-pub fn save_scan(dir: &Path, files: &[(String, Vec<u8>)], pointings: &[Vec<(String, Vec<u8>)>]) -> Result<()> {
+pub fn save_scan(dir: &Path, files: &[Named], pointings: &[Vec<Named>]) -> Result<()> {
     if pointings.is_empty() {
         return Err(Error::Input("no pointings to save: a scan's pointings are runs of their own".into()));
     }
