@@ -369,17 +369,14 @@ class Result:
         return name in self.outputs
 
     def save(self, dir: Union[str, "os.PathLike[str]"]) -> None:
-        """Write the run's files into `dir` exactly as `ohd run --out dir` writes them (atomically,
-        the manifest last, replacing an earlier run there)."""
-        dir = Path(dir)
+        """Write the run's files into `dir` exactly as `ohd run --out dir` writes them, by the same
+        writer (atomically, the manifest last, replacing an earlier run there; a scan's pointings
+        into `pointing_NN/`, its `scan.json` last). Locked while it writes: OSError if another ohd
+        writes into `dir` or one of its pointing directories; a link at a pointing directory is
+        refused, a link at a file's name replaced, never followed."""
+        dir = os.fspath(dir)
         if self.pointings:
-            for i, p in enumerate(self.pointings):
-                p.save(dir / f"pointing_{i:02}")
-            dir.mkdir(parents=True, exist_ok=True)
-            for name, data in self.files.items():
-                tmp = dir / f".{name}.tmp"
-                tmp.write_bytes(data)
-                os.replace(tmp, dir / name)
+            _ohd.save_scan(dir, list(self.files.items()), [list(p.files.items()) for p in self.pointings])
             return
         _ohd.save(dir, list(self.files.items()))
 

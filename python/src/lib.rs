@@ -2,7 +2,7 @@
 //! the public API and its documentation). It is thin: configurations are loaded and runs made by
 //! the library exactly as the CLI does (`ohd::run`), a run's files are collected in memory by
 //! `ohd::io::write::manifest::write_run_memory` (the bytes `ohd run --out` writes) and written by
-//! `ohd::io::write::memory::save` (the CLI's atomic directory writer). No panic crosses into
+//! `ohd::io::write::memory::save` and `save_scan` (the CLI's atomic directory writer). No panic crosses into
 //! Python: every entry point catches unwinding and raises RuntimeError.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -496,6 +496,18 @@ fn save(py: Python<'_>, dir: PathBuf, files: Vec<(String, Vec<u8>)>) -> PyResult
     guarded(|| py.detach(|| ohd::io::write::memory::save(&dir, &files)).map_err(to_py))
 }
 
+/// Write a scan's own files (`scan.json` last) and each pointing's run (the manifest last) into
+/// `dir` and its `pointing_NN/` as `ohd run --out` writes a scan: the CLI's writer, locks and all.
+#[pyfunction]
+fn save_scan(
+    py: Python<'_>,
+    dir: PathBuf,
+    files: Vec<(String, Vec<u8>)>,
+    pointings: Vec<Vec<(String, Vec<u8>)>>,
+) -> PyResult<()> {
+    guarded(|| py.detach(|| ohd::io::write::memory::save_scan(&dir, &files, &pointings)).map_err(to_py))
+}
+
 /// Whether `dir` can take a run's outputs (checked before a run, as the CLI does).
 #[pyfunction]
 fn check_writable(dir: PathBuf) -> PyResult<()> {
@@ -601,6 +613,7 @@ fn _ohd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(load_many, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(save_scan, m)?)?;
     m.add_function(wrap_pyfunction!(check_writable, m)?)?;
     m.add_function(wrap_pyfunction!(toml_value, m)?)?;
     m.add_function(wrap_pyfunction!(memory_budget, m)?)?;

@@ -14,14 +14,21 @@
 //!   or a socket is refused, not replaced (for a lone file, `ohd mie --table`, a link to one too);
 //! - its sub-directories (a scan's `pointing_NN/`) are made by ohd and opened without following
 //!   a link: a link there is refused;
-//! - a command that writes holds a lock on the directory for its whole life ([`LOCK`], removed
-//!   when it ends); a second one is refused naming the holder's process.
+//! - a command that writes holds a lock on the directory for its whole life, and on each
+//!   sub-directory it writes (a scan's pointing directories): an exclusive `flock` on the
+//!   directory itself, held open, so that removing or replacing the file [`LOCK`] (which names
+//!   the holder's process, for the message) releases nothing (issue 52: deleting the lock file
+//!   mid-run let a second writer in; a run into `SCAN/pointing_00` went on beside the scan
+//!   writing `SCAN`). A second writer into a held directory is refused naming it and the
+//!   holder's process; so is a lone file written into it (`ohd mie --table`), and a lone file
+//!   is never written at the lock's name.
 
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{Read, Write};
 use std::os::fd::OwnedFd;
 use std::path::{Component, Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use rustix::fs::{AtFlags, CWD, FileType, Mode, OFlags};
 
@@ -74,14 +81,56 @@ fn random() -> u64 {
     h.finish()
 }
 
-/// The root of an [`OutDir`]: the directory held open, its lock if taken, and the directories
-/// made to reach it (dropped in this order: the lock is gone before they are removed).
+/// The root of an [`OutDir`]: the directory held open, its lock if taken, the sub-directories
+/// locked, and the directories made to reach it (released in this order: the sub-directories'
+/// locks and the root's are gone before the directories made are removed).
 #[derive(Debug)]
 struct Root {
     fd: OwnedFd,
     lock: Option<Lock>,
+    /// The sub-directories locked, by name, held as long as the root.
+    subs: Mutex<BTreeMap<String, SubLock>>,
     /// Held for its drop.
     _made: Made,
+}
+
+/// A locked sub-directory, and whether ohd made it (then removed again if it is left empty).
+#[derive(Debug)]
+struct SubLock {
+    lock: Lock,
+    made: bool,
+}
+
+impl Root {
+    fn new(fd: OwnedFd, lock: Option<Lock>, made: Made) -> Root {
+        Root { fd, lock, subs: Mutex::default(), _made: made }
+    }
+
+    /// Whether this root locks the sub-directories it writes (an output directory does; the
+    /// directory of a lone file has none).
+    fn locks_subs(&self) -> bool {
+        self.lock.as_ref().is_some_and(|l| l.named)
+    }
+
+    /// The open sub-directory `name`, if it is locked.
+    fn locked_sub(&self, name: &str) -> Option<std::io::Result<OwnedFd>> {
+        let subs = self.subs.lock().unwrap_or_else(PoisonError::into_inner);
+        subs.get(name).map(|s| s.lock.dir.try_clone())
+    }
+}
+
+impl Drop for Root {
+    fn drop(&mut self) {
+        let subs = std::mem::take(self.subs.get_mut().unwrap_or_else(PoisonError::into_inner));
+        for (name, sub) in subs {
+            drop(sub.lock);
+            if sub.made {
+                // Fails, and so keeps it, unless it is empty.
+                let _ = rustix::fs::unlinkat(&self.fd, name.as_str(), AtFlags::REMOVEDIR);
+            }
+        }
+        drop(self.lock.take());
+    }
 }
 
 /// The directories made to reach an output directory (each as its parent, open, and its name),
@@ -116,32 +165,35 @@ impl OutDir {
     /// is an input error naming the directory.
     pub fn create(path: &Path) -> Result<OutDir> {
         let (fd, made) = open_path(path, true)?;
-        let mut dir =
-            OutDir { root: Arc::new(Root { fd, lock: None, _made: made }), sub: None, path: path.to_path_buf() };
-        let lock = Lock::take(&dir)?;
+        let held = fd.try_clone().map_err(|e| refused(path, e.to_string()))?;
+        // (Refused, the directories made are removed again: `made` is dropped.)
+        let lock = Lock::take(held, path, true)?;
+        let dir = OutDir { root: Arc::new(Root::new(fd, lock, made)), sub: None, path: path.to_path_buf() };
         // Writable: a probe, created as every temporary is and removed.
         let probe = dir.temporary("ohd-probe").map_err(|e| match e {
             Error::Write { source, .. } => refused(path, format!("cannot write into it: {source}")),
             e => e,
         })?;
         drop(probe);
-        Arc::get_mut(&mut dir.root).expect("not shared yet").lock = Some(lock);
         Ok(dir)
     }
 
-    /// The existing directory `path`, unlocked: for writing one file into a directory that is not
-    /// an output directory (`ohd mie --table FILE`).
+    /// The existing directory `path`, for writing one file into a directory that is not an output
+    /// directory (`ohd mie --table FILE`): refused if another ohd holds it (issue 52: a lone file
+    /// was written into a directory being written), and locked shared while the value lives (lone
+    /// files may be written side by side; no [`LOCK`] file).
     pub fn existing(path: &Path) -> Result<OutDir> {
-        let (fd, _) = open_path(if path.as_os_str().is_empty() { Path::new(".") } else { path }, false)?;
-        Ok(OutDir {
-            root: Arc::new(Root { fd, lock: None, _made: Made::default() }),
-            sub: None,
-            path: path.to_path_buf(),
-        })
+        let shown = if path.as_os_str().is_empty() { Path::new(".") } else { path };
+        let (fd, _) = open_path(shown, false)?;
+        let held = fd.try_clone().map_err(|e| refused(shown, e.to_string()))?;
+        let lock = Lock::take(held, shown, false)?;
+        Ok(OutDir { root: Arc::new(Root::new(fd, lock, Made::default())), sub: None, path: path.to_path_buf() })
     }
 
-    /// The sub-directory `name` (one plain name) of this output directory, made at its first use.
-    /// A `name` that exists as anything but a directory (a link to one included) is refused now.
+    /// The sub-directory `name` (one plain name) of this output directory, made now if missing
+    /// and locked as long as the output directory is (issue 52: another ohd writing into it is
+    /// refused, and refuses another). A `name` that exists as anything but a directory (a link
+    /// to one included) is refused, and so is a sub-directory another ohd holds.
     pub fn sub(&self, name: &str) -> Result<OutDir> {
         let path = self.path.join(name);
         if self.sub.is_some() || !plain_name(name) {
@@ -149,14 +201,56 @@ impl OutDir {
         }
         let sub = OutDir { root: self.root.clone(), sub: Some(name.to_string()), path };
         match self.kind(name)? {
-            None | Some(FileType::Directory) => Ok(sub),
-            Some(t) => Err(refused(
-                &sub.path,
-                format!(
-                    "{} where ohd keeps a sub-directory of its own: ohd does not follow or replace it",
-                    kind_name(t)
-                ),
-            )),
+            None | Some(FileType::Directory) => {}
+            Some(t) => {
+                return Err(refused(
+                    &sub.path,
+                    format!(
+                        "{} where ohd keeps a sub-directory of its own: ohd does not follow or replace it",
+                        kind_name(t)
+                    ),
+                ));
+            }
+        }
+        if self.root.locks_subs() {
+            self.lock_sub(name, &sub.path)?;
+        }
+        Ok(sub)
+    }
+
+    /// Lock the sub-directory `name` (at `path`) of the root, made if missing, unless it is locked
+    /// already (by this root: a second lock of one process would conflict with its first).
+    fn lock_sub(&self, name: &str, path: &Path) -> Result<()> {
+        let mut subs = self.root.subs.lock().unwrap_or_else(PoisonError::into_inner);
+        if subs.contains_key(name) {
+            return Ok(());
+        }
+        let werr = |e| Error::Write { path: path.to_path_buf(), source: io(e) };
+        let made = match rustix::fs::mkdirat(&self.root.fd, name, Mode::from_raw_mode(0o777)) {
+            Ok(()) => true,
+            Err(rustix::io::Errno::EXIST) => false,
+            Err(e) => return Err(werr(e)),
+        };
+        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+        let taken = match rustix::fs::openat(&self.root.fd, name, flags, Mode::empty()) {
+            Ok(fd) => Lock::take(fd, path, true),
+            Err(rustix::io::Errno::LOOP | rustix::io::Errno::NOTDIR) => {
+                Err(refused(path, "not a directory (a symbolic link or a file): ohd does not follow or replace it"))
+            }
+            Err(e) => Err(werr(e)),
+        };
+        match taken {
+            Ok(Some(lock)) => {
+                subs.insert(name.to_string(), SubLock { lock, made });
+                Ok(())
+            }
+            Ok(None) => Ok(()),
+            Err(e) => {
+                if made {
+                    let _ = rustix::fs::unlinkat(&self.root.fd, name, AtFlags::REMOVEDIR);
+                }
+                Err(e)
+            }
         }
     }
 
@@ -170,6 +264,10 @@ impl OutDir {
     fn fd(&self) -> Result<OwnedFd> {
         let werr = |e: std::io::Error| Error::Write { path: self.path.clone(), source: e };
         let Some(name) = &self.sub else { return self.root.fd.try_clone().map_err(werr) };
+        // A locked sub-directory is the one locked (what is named there meanwhile is not).
+        if let Some(fd) = self.root.locked_sub(name) {
+            return fd.map_err(werr);
+        }
         match rustix::fs::mkdirat(&self.root.fd, name.as_str(), Mode::from_raw_mode(0o777)) {
             Ok(()) | Err(rustix::io::Errno::EXIST) => {}
             Err(e) => return Err(werr(io(e))),
@@ -204,37 +302,11 @@ impl OutDir {
         if !plain_name(name) {
             return Err(refused(&self.path.join(name), "not one plain name inside the output directory"));
         }
-        let problem = self.target_problem(&self.fd()?, name, false)?;
+        if name == LOCK {
+            return Err(refused(&self.path.join(name), LOCK_NAME));
+        }
+        let problem = target_problem(&self.path, &self.fd()?, name, false)?;
         problem.map_or(Ok(()), |why| Err(refused(&self.path.join(name), why)))
-    }
-
-    /// Why `name` may not be written (see [`OutDir::check_target`]), if it may not; with
-    /// `links_replaced`, a link is no problem whatever it points to (in an output directory the
-    /// names are ohd's: a link planted there is replaced, never followed).
-    fn target_problem(&self, fd: &OwnedFd, name: &str, links_replaced: bool) -> Result<Option<String>> {
-        let path = self.path.join(name);
-        let kind = match rustix::fs::statat(fd, name, AtFlags::SYMLINK_NOFOLLOW) {
-            Ok(st) => FileType::from_raw_mode(st.st_mode),
-            Err(rustix::io::Errno::NOENT) => return Ok(None),
-            Err(e) => return Err(Error::Write { path, source: io(e) }),
-        };
-        let target = match kind {
-            FileType::RegularFile => return Ok(None),
-            FileType::Symlink if links_replaced => return Ok(None),
-            FileType::Symlink => match rustix::fs::statat(fd, name, AtFlags::empty()) {
-                Ok(st) => FileType::from_raw_mode(st.st_mode),
-                // Dangling, or a loop: the link is replaced.
-                Err(_) => return Ok(None),
-            },
-            other => other,
-        };
-        Ok(match (kind, target) {
-            (_, FileType::RegularFile) => None,
-            (FileType::Symlink, t) => {
-                Some(format!("a symbolic link to {}: not a regular file, ohd does not replace it", kind_name(t)))
-            }
-            (t, _) => Some(format!("{}: not a regular file, ohd does not replace it", kind_name(t))),
-        })
     }
 
     /// A temporary file for `name` (one plain name), created exclusively under a random hidden
@@ -248,23 +320,10 @@ impl OutDir {
         if !plain_name(name) {
             return Err(refused(&path, "not one plain name inside the output directory"));
         }
-        let dir = self.fd()?;
-        if let Some(why) = self.target_problem(&dir, name, true)? {
-            return Err(Error::Write { path, source: std::io::Error::other(why) });
+        if name == LOCK {
+            return Err(refused(&path, LOCK_NAME));
         }
-        let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::EXCL | OFlags::NOFOLLOW | OFlags::CLOEXEC;
-        let mut last = rustix::io::Errno::EXIST;
-        for _ in 0..TEMPORARY_TRIES {
-            let tmp = format!(".{name}.tmp-{}-{:016x}", std::process::id(), random());
-            match rustix::fs::openat(&dir, tmp.as_str(), flags, Mode::from_raw_mode(0o666)) {
-                Ok(fd) => {
-                    return Ok(Temporary { file: File::from(fd), dir, tmp, name: name.to_string(), path, done: false });
-                }
-                Err(e @ rustix::io::Errno::EXIST) => last = e,
-                Err(e) => return Err(Error::Write { path, source: io(e) }),
-            }
-        }
-        Err(Error::Write { path, source: io(last) })
+        temporary_in(self.fd()?, &self.path, name)
     }
 
     /// Write `bytes` to `name` atomically: readers see the old file or the complete new one.
@@ -293,8 +352,11 @@ impl OutDir {
     }
 
     /// Remove this sub-directory if it is empty (what another program left there keeps it).
+    /// Its lock is released first (ohd writes there no more; its lock file would keep it).
     pub fn remove_if_empty(&self) {
         if let Some(name) = &self.sub {
+            let sub = self.root.subs.lock().unwrap_or_else(PoisonError::into_inner).remove(name);
+            drop(sub);
             let _ = rustix::fs::unlinkat(&self.root.fd, name.as_str(), AtFlags::REMOVEDIR);
         }
     }
@@ -323,6 +385,57 @@ impl OutDir {
         }
         Ok(names)
     }
+}
+
+/// Why `name` in the directory `fd` (at `dir`) may not be written (see
+/// [`OutDir::check_target`]), if it may not; with `links_replaced`, a link is no problem whatever
+/// it points to (in an output directory the names are ohd's: a link planted there is replaced,
+/// never followed).
+fn target_problem(dir: &Path, fd: &OwnedFd, name: &str, links_replaced: bool) -> Result<Option<String>> {
+    let path = dir.join(name);
+    let kind = match rustix::fs::statat(fd, name, AtFlags::SYMLINK_NOFOLLOW) {
+        Ok(st) => FileType::from_raw_mode(st.st_mode),
+        Err(rustix::io::Errno::NOENT) => return Ok(None),
+        Err(e) => return Err(Error::Write { path, source: io(e) }),
+    };
+    let target = match kind {
+        FileType::RegularFile => return Ok(None),
+        FileType::Symlink if links_replaced => return Ok(None),
+        FileType::Symlink => match rustix::fs::statat(fd, name, AtFlags::empty()) {
+            Ok(st) => FileType::from_raw_mode(st.st_mode),
+            // Dangling, or a loop: the link is replaced.
+            Err(_) => return Ok(None),
+        },
+        other => other,
+    };
+    Ok(match (kind, target) {
+        (_, FileType::RegularFile) => None,
+        (FileType::Symlink, t) => {
+            Some(format!("a symbolic link to {}: not a regular file, ohd does not replace it", kind_name(t)))
+        }
+        (t, _) => Some(format!("{}: not a regular file, ohd does not replace it", kind_name(t))),
+    })
+}
+
+/// A temporary file for `name` in the directory `dir` (at `dir_path`): see [`OutDir::temporary`].
+fn temporary_in(dir: OwnedFd, dir_path: &Path, name: &str) -> Result<Temporary> {
+    let path = dir_path.join(name);
+    if let Some(why) = target_problem(dir_path, &dir, name, true)? {
+        return Err(Error::Write { path, source: std::io::Error::other(why) });
+    }
+    let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::EXCL | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+    let mut last = rustix::io::Errno::EXIST;
+    for _ in 0..TEMPORARY_TRIES {
+        let tmp = format!(".{name}.tmp-{}-{:016x}", std::process::id(), random());
+        match rustix::fs::openat(&dir, tmp.as_str(), flags, Mode::from_raw_mode(0o666)) {
+            Ok(fd) => {
+                return Ok(Temporary { file: File::from(fd), dir, tmp, name: name.to_string(), path, done: false });
+            }
+            Err(e @ rustix::io::Errno::EXIST) => last = e,
+            Err(e) => return Err(Error::Write { path, source: io(e) }),
+        }
+    }
+    Err(Error::Write { path, source: io(last) })
 }
 
 /// Open the directory at `path` (through links: it is the user's path), component by component,
@@ -422,20 +535,52 @@ impl Drop for Temporary {
     }
 }
 
-/// The lock of an output directory: [`LOCK`] locked (`flock`, released by the kernel if the
-/// process dies) and holding this process's ID; removed (while still held) when dropped.
+/// Why a lone file is not written at the lock's name.
+const LOCK_NAME: &str = "the name of the file that names the process writing into an output directory: ohd writes it only for the directory it writes into";
+
+/// The lock of a directory: an exclusive `flock` on the directory itself (shared for a lone
+/// file's directory), held open (released by the kernel if the process dies; removing or
+/// replacing the [`LOCK`] file does not release it), and for an output directory the file
+/// [`LOCK`] naming this process, removed (while still held) when dropped. On a file system
+/// without locks on directories (NFS emulates `flock` by `fcntl`, which cannot lock a directory
+/// opened for reading), the [`LOCK`] file is locked instead, as before issue 52.
 #[derive(Debug)]
 struct Lock {
-    file: File,
     dir: OwnedFd,
+    /// The [`LOCK`] file, when it is what is locked.
+    file: Option<File>,
+    /// Whether the [`LOCK`] file names this process (removed when dropped).
+    named: bool,
 }
 
 impl Lock {
-    /// Lock `dir`, or refuse naming the process that holds it.
-    fn take(dir: &OutDir) -> Result<Lock> {
-        let path = dir.path.join(LOCK);
-        let werr = |e: std::io::Error| Error::Write { path: path.clone(), source: e };
-        let fd = dir.fd()?;
+    /// Lock the directory `dir` (at `path`, for messages) and, if `named`, write this process's ID
+    /// into its [`LOCK`]; or refuse naming the process that holds it. `None`: a lone file's
+    /// directory (not `named`) on a file system without locks on directories, left unlocked.
+    fn take(dir: OwnedFd, path: &Path, named: bool) -> Result<Option<Lock>> {
+        // (A lone file's directory is locked shared: lone files may be written side by side.)
+        use rustix::fs::FlockOperation::{NonBlockingLockExclusive, NonBlockingLockShared};
+        match rustix::fs::flock(&dir, if named { NonBlockingLockExclusive } else { NonBlockingLockShared }) {
+            Ok(()) => {}
+            Err(rustix::io::Errno::WOULDBLOCK) => return Err(in_use(path, &dir)),
+            Err(_) if named => return Lock::take_file(dir, path).map(Some),
+            Err(_) => return Ok(None),
+        }
+        let lock = Lock { dir, file: None, named };
+        if named {
+            // Written as every file is (a link planted at the name is replaced, not followed).
+            let held = lock.dir.try_clone().map_err(|e| refused(path, e.to_string()))?;
+            let mut t = temporary_in(held, path, LOCK).map_err(|e| cannot_write(path, e))?;
+            t.write(format!("{}\n", std::process::id()).as_bytes()).map_err(|e| cannot_write(path, e))?;
+            t.commit().map_err(|e| cannot_write(path, e))?;
+        }
+        Ok(Some(lock))
+    }
+
+    /// Lock the file [`LOCK`] of `dir` (at `path`), or refuse naming the process that holds it.
+    fn take_file(fd: OwnedFd, path: &Path) -> Result<Lock> {
+        let lock_path = path.join(LOCK);
+        let werr = |e: std::io::Error| Error::Write { path: lock_path.clone(), source: e };
         let flags = OFlags::RDWR | OFlags::CREATE | OFlags::NOFOLLOW | OFlags::NONBLOCK | OFlags::CLOEXEC;
         for _ in 0..TEMPORARY_TRIES {
             // What is planted at the lock's name — a link, a file with other names (a hard link
@@ -461,20 +606,7 @@ impl Lock {
             }
             match rustix::fs::flock(&file, rustix::fs::FlockOperation::NonBlockingLockExclusive) {
                 Ok(()) => {}
-                Err(rustix::io::Errno::WOULDBLOCK) => {
-                    let mut text = String::new();
-                    let _ = (&file).take(64).read_to_string(&mut text);
-                    let holder = match text.trim().parse::<u32>() {
-                        Ok(pid) => format!("another ohd (process {pid})"),
-                        Err(_) => "another ohd".to_string(),
-                    };
-                    return Err(refused(
-                        &dir.path,
-                        format!(
-                            "in use: {holder} is writing into this directory (lock {LOCK}); wait for it to end, or give another output directory"
-                        ),
-                    ));
-                }
+                Err(rustix::io::Errno::WOULDBLOCK) => return Err(in_use(path, &fd)),
                 Err(e) => return Err(werr(io(e))),
             }
             // The file locked must still be the one named: a holder that ended removed it while
@@ -483,19 +615,56 @@ impl Lock {
             if named.is_ok_and(|n| n.st_ino == st.st_ino && n.st_dev == st.st_dev) {
                 file.set_len(0).map_err(werr)?;
                 (&file).write_all(format!("{}\n", std::process::id()).as_bytes()).map_err(werr)?;
-                return Ok(Lock { file, dir: fd });
+                return Ok(Lock { dir: fd, file: Some(file), named: true });
             }
         }
-        Err(refused(&path, "replaced again and again while ohd took it: another program is interfering"))
+        Err(refused(&lock_path, "replaced again and again while ohd took it: another program is interfering"))
     }
+}
+
+/// A [`Lock::take`] failure to write the [`LOCK`] file of the directory `path` (read-only, or a
+/// directory or a FIFO planted at the name), as a refusal naming the file.
+fn cannot_write(path: &Path, e: Error) -> Error {
+    match e {
+        Error::Write { source, .. } => {
+            refused(&path.join(LOCK), format!("cannot write ohd's lock file into the directory: {source}"))
+        }
+        e => e,
+    }
+}
+
+/// The refusal of the directory `path` (open: `dir`) that another ohd holds, naming its process
+/// as its [`LOCK`] file does (a regular file, not followed if a link, read without blocking).
+fn in_use(path: &Path, dir: &OwnedFd) -> Error {
+    let flags = OFlags::RDONLY | OFlags::NOFOLLOW | OFlags::NONBLOCK | OFlags::CLOEXEC;
+    let pid = rustix::fs::openat(dir, LOCK, flags, Mode::empty()).ok().map(File::from).and_then(|f| {
+        let regular = f.metadata().is_ok_and(|m| m.is_file());
+        let mut text = String::new();
+        (regular && f.take(64).read_to_string(&mut text).is_ok()).then_some(())?;
+        text.trim().parse::<u32>().ok()
+    });
+    let holder = match pid {
+        Some(pid) => format!("another ohd (process {pid})"),
+        None => "another ohd".to_string(),
+    };
+    refused(
+        path,
+        format!(
+            "in use: {holder} is writing into this directory (lock {LOCK}); wait for it to end, or give another output directory"
+        ),
+    )
 }
 
 impl Drop for Lock {
     fn drop(&mut self) {
-        // Removed while still locked, then released: a process that opened it meanwhile finds
-        // it unnamed and takes the new one.
-        let _ = rustix::fs::unlinkat(&self.dir, LOCK, AtFlags::empty());
-        let _ = rustix::fs::flock(&self.file, rustix::fs::FlockOperation::Unlock);
+        // Removed while still locked, then released: the next holder writes its own.
+        if self.named {
+            let _ = rustix::fs::unlinkat(&self.dir, LOCK, AtFlags::empty());
+        }
+        if let Some(file) = &self.file {
+            let _ = rustix::fs::flock(file, rustix::fs::FlockOperation::Unlock);
+        }
+        let _ = rustix::fs::flock(&self.dir, rustix::fs::FlockOperation::Unlock);
     }
 }
 
@@ -595,5 +764,79 @@ mod tests {
             assert!(e.is_input_error() && e.to_string().to_lowercase().contains(why), "{p}: {e}");
         }
         assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+    }
+
+    /// Issue 52: the lock is the directory's own: removing or replacing its lock file releases
+    /// nothing (a8c4817 locked the file: a second writer took a new one).
+    #[test]
+    fn the_lock_outlives_its_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let d = OutDir::create(&out).unwrap();
+        assert_eq!(std::fs::read_to_string(out.join(LOCK)).unwrap(), format!("{}\n", std::process::id()));
+        std::fs::remove_file(out.join(LOCK)).unwrap();
+        let e = OutDir::create(&out).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains("in use"), "{e}");
+        std::fs::write(out.join(LOCK), "1\n").unwrap();
+        assert!(OutDir::create(&out).unwrap_err().is_input_error());
+        drop(d);
+        assert!(!out.join(LOCK).exists());
+        drop(OutDir::create(&out).unwrap());
+        // What is not a regular file at the lock's name is not replaced: refused, naming it.
+        std::fs::create_dir(out.join(LOCK)).unwrap();
+        let e = OutDir::create(&out).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains(LOCK) && e.to_string().contains("a directory"), "{e}");
+        assert!(out.join(LOCK).is_dir());
+    }
+
+    /// Issue 52: an output directory locks each sub-directory it writes, so another writer into
+    /// one is refused naming it and the holder, and the other way round; one root takes each
+    /// sub-directory once; one made and left empty is removed again.
+    #[test]
+    fn sub_directories_are_locked_both_ways() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        let inner = out.join("pointing_00");
+        let me = format!("process {}", std::process::id());
+        let d = OutDir::create(&out).unwrap();
+        let s = d.sub("pointing_00").unwrap();
+        assert!(d.sub("pointing_00").is_ok() && d.clone().sub("pointing_00").is_ok());
+        let e = OutDir::create(&inner).unwrap_err().to_string();
+        assert!(e.contains(inner.to_str().unwrap()) && e.contains(&me), "{e}");
+        s.write_atomic("a.csv", b"a").unwrap();
+        drop((d, s));
+        assert!(!inner.join(LOCK).exists() && inner.join("a.csv").exists());
+        let held = OutDir::create(&inner).unwrap();
+        let d = OutDir::create(&out).unwrap();
+        let e = d.sub("pointing_00").unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains(inner.to_str().unwrap()) && e.to_string().contains(&me));
+        drop((d, held));
+        let d = OutDir::create(&out).unwrap();
+        d.sub("pointing_01").unwrap();
+        drop(d);
+        assert!(!out.join("pointing_01").exists() && !out.join(LOCK).exists());
+    }
+
+    /// Issue 52: a lone file's directory is refused while another ohd writes into it, and the
+    /// lock's name is never a lone file's (a8c4817 replaced a held lock); lone files may be
+    /// written side by side.
+    #[test]
+    fn lone_files_keep_out_of_held_directories_and_the_lock() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let d = OutDir::create(&out).unwrap();
+        let e = OutDir::existing(&out).unwrap_err();
+        assert!(e.is_input_error() && e.to_string().contains("in use"), "{e}");
+        let free = OutDir::existing(tmp.path()).unwrap();
+        let beside = OutDir::existing(tmp.path()).unwrap();
+        assert!(free.check_target(LOCK).unwrap_err().is_input_error());
+        assert!(free.write_atomic(LOCK, b"1").unwrap_err().is_input_error());
+        free.check_target("table.txt").unwrap();
+        beside.write_atomic("table.txt", b"t").unwrap();
+        drop((d, free, beside));
+        assert!(!tmp.path().join(LOCK).exists());
+        OutDir::existing(&out).unwrap();
     }
 }

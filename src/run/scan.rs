@@ -48,22 +48,24 @@ pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
 
 /// The parts of a run of `exp` (configured as `table`) into `dir`: itself, or for a scan one per
 /// pointing into `dir/pointing_NN` (a pointing directory that exists as anything but a directory,
-/// a link included, is refused now, before any work); each with its `estimator = "auto"` decided
-/// by a pilot ([`crate::pilot`], deterministic: every shard and every resume decides the same).
+/// a link included, or that another ohd holds, is refused now, before any work; each is locked as
+/// long as `dir` is); each with its `estimator = "auto"` decided by a pilot ([`crate::pilot`],
+/// deterministic: every shard and every resume decides the same).
 pub fn parts(exp: &Experiment, table: &toml::Table, dir: &OutDir) -> Result<Vec<Part>> {
     let fp = config_fingerprint(table);
     if exp.source.pointings.len() <= 1 {
         return Ok(vec![Part { exp: crate::pilot::decide(exp), dir: dir.clone(), fingerprint: fp, pointing: None }]);
     }
-    let pointing = |(i, p): (usize, &crate::source::Pointing)| {
-        Ok(Part {
-            exp: crate::pilot::decide(&exp.pointed(p)),
-            dir: dir.sub(&pointing_name(i))?,
-            fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
-            pointing: Some(i),
-        })
+    // Every pointing directory, locked before any pilot runs (issue 52: a run into one of them
+    // while the scan wrote was not refused).
+    let dirs = (0..exp.source.pointings.len()).map(|i| dir.sub(&pointing_name(i))).collect::<Result<Vec<_>>>()?;
+    let pointing = |(i, (p, dir)): (usize, (&crate::source::Pointing, OutDir))| Part {
+        exp: crate::pilot::decide(&exp.pointed(p)),
+        dir,
+        fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
+        pointing: Some(i),
     };
-    exp.source.pointings.iter().enumerate().map(pointing).collect()
+    Ok(exp.source.pointings.iter().zip(dirs).enumerate().map(pointing).collect())
 }
 
 /// A scan's per-pointing results, gathered for the VAD wind per range gate, and its directory

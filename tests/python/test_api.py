@@ -24,15 +24,17 @@ CONFIGS = ROOT / "configs"
 
 
 @pytest.fixture(scope="module")
-def cli():
+def binary():
     if os.environ.get("OHD_BINARY"):
-        binary = os.environ["OHD_BINARY"]
-    else:
-        sys.path.insert(0, str(ROOT / "validation"))
-        import ohdpy
+        return os.environ["OHD_BINARY"]
+    sys.path.insert(0, str(ROOT / "validation"))
+    import ohdpy
 
-        binary = ohdpy.binary()
+    return ohdpy.binary()
 
+
+@pytest.fixture(scope="module")
+def cli(binary):
     def run(*args, check=True, binary=binary):
         p = subprocess.run([binary, *map(str, args)], capture_output=True, text=True)
         if check:
@@ -682,3 +684,74 @@ def test_load_reads_only_the_runs_own_files(small_run, tmp_path):
     with pytest.raises(OSError, match="not a directory") as e:
         ohd.load(scan)
     assert "pointing_00" in str(e.value)
+
+
+# Issue 52, finding 1: a scan's `Result.save` is the CLI's writer (a8c4817 wrote it by path in
+# Python: it followed planted links, wrote into and removed from a linked pointing directory, and
+# took no lock).
+@pytest.fixture(scope="module")
+def scan_result():
+    return ohd.run(CONFIGS / "wind_sunny.toml", samples=512, figures=False, progress=False)
+
+
+def snapshot(d):
+    return {p.relative_to(d): (p.is_symlink(), p.read_bytes() if p.is_file() else None) for p in d.rglob("*")}
+
+
+def test_scan_save_replaces_planted_links_and_never_follows_them(scan_result, tmp_path):
+    canary = tmp_path / "canary"
+    canary.write_text("keep")
+    d = tmp_path / "out"
+    (d / "pointing_01").mkdir(parents=True)
+    # At the outputs' names and at the temporary names a8c4817 wrote through (`.NAME.tmp`).
+    names = ["vad.csv", "scan.json", ".vad.csv.tmp", ".scan.json.tmp"]
+    for name in names + ["pointing_01/manifest.json", "pointing_01/lidar_range_m.npy"]:
+        (d / name).symlink_to(canary)
+    scan_result.save(d)
+    assert canary.read_text() == "keep"
+    for name in ["vad.csv", "scan.json"]:
+        assert not (d / name).is_symlink() and (d / name).read_bytes() == scan_result.files[name]
+    p = d / "pointing_01"
+    for name in ["manifest.json", "lidar_range_m.npy"]:
+        assert not (p / name).is_symlink() and (p / name).read_bytes() == scan_result.pointings[1].files[name]
+    assert not list(d.rglob(".ohd-lock")) and not list(d.rglob("ohd_incomplete.txt"))
+    assert ohd.load(d).pointings[1].files == scan_result.pointings[1].files
+
+
+def test_scan_save_refuses_a_pointing_directory_that_links_elsewhere(scan_result, tmp_path):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    # A manifest there lists a file of the user's: it must not be removed.
+    (elsewhere / "manifest.json").write_text('{"ohd_version": "0", "files": ["keep.npy"]}')
+    (elsewhere / "keep.npy").write_text("the user's")
+    before = snapshot(elsewhere)
+    d = tmp_path / "out"
+    d.mkdir()
+    (d / "pointing_00").symlink_to(elsewhere)
+    with pytest.raises(OSError) as e:
+        scan_result.save(d)
+    assert "pointing_00" in str(e.value)
+    assert snapshot(elsewhere) == before
+    assert [p.name for p in d.iterdir()] == ["pointing_00"]
+
+
+def test_a_save_into_a_directory_being_written_is_refused(binary, scan_result, tmp_path):
+    for held in ["out", "out/pointing_01"]:
+        d = tmp_path / held
+        writer = subprocess.Popen(
+            [binary, "run", "-q", "--threads", "1", "--samples", "100000000", "--out", d],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            t = time.time()
+            while not (d / ".ohd-lock").exists() and time.time() - t < 60:
+                time.sleep(0.005)
+            with pytest.raises(OSError) as e:
+                scan_result.save(tmp_path / "out")
+            assert "in use" in str(e.value) and str(d) in str(e.value) and f"process {writer.pid}" in str(e.value)
+        finally:
+            writer.kill()
+            writer.wait()
+        assert not (tmp_path / "out" / "scan.json").exists()
+        assert not (tmp_path / "out" / "pointing_00" / "manifest.json").exists()

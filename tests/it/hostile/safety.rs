@@ -212,6 +212,136 @@ fn one_command_at_a_time_per_directory() {
     assert!(canary.unchanged());
 }
 
+/// A command that runs until killed (far more paths than a test waits for), started in `cwd`.
+fn endless(cwd: &Path, args: &[&str]) -> std::process::Child {
+    Command::new(bin())
+        .args(args)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// Wait (at most `seconds`) until `path` exists; whether it does.
+fn wait_for(path: &Path, seconds: u64) -> bool {
+    let t = Instant::now();
+    while !path.exists() && t.elapsed() < Duration::from_secs(seconds) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    path.exists()
+}
+
+/// Issue 52, finding 2a: a scan holds the lock of each of its pointing directories, so a run into
+/// `SCAN/pointing_00` while the scan writes `SCAN` is refused (a8c4817: both ended in exit 0, and
+/// `scan.json` claimed a complete scan whose `pointing_00/` held the other experiment); and a scan
+/// into `SCAN` while a run writes `SCAN/pointing_00` is refused. Both exit 2 naming the pointing
+/// directory and the holder's process.
+#[test]
+fn a_scan_and_a_run_into_its_pointing_directory_exclude_each_other() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scan = tmp.path().join("scan");
+    let canary = Canary::beside(&scan);
+    let wind = config("wind_sunny.toml");
+    let long_scan = ["run", "-q", "--threads", "1", &wind, "--samples", "100000000", "--out", scan.to_str().unwrap()];
+    let mut first = endless(tmp.path(), &long_scan);
+    assert!(wait_for(&scan.join(".ohd-lock"), 60), "the scan did not start");
+    // (The pointing directories are locked right after the scan's own; a8c4817 never locked them.)
+    wait_for(&scan.join("pointing_00").join(".ohd-lock"), 10);
+    let inner = scan.join("pointing_00");
+    let nested = sh_ohd(tmp.path(), "", &strs(&small(&inner)));
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert_eq!(nested.status.code(), Some(2), "{}", describe(&nested));
+    let e = text(&nested.stderr);
+    assert!(e.contains(inner.to_str().unwrap()) && e.contains(&format!("process {}", first.id())), "{e}");
+    assert!(!inner.join("manifest.json").exists());
+
+    let scan = tmp.path().join("scan2");
+    let inner = scan.join("pointing_00");
+    let long_run = ["run", "-q", "--threads", "1", "--samples", "100000000", "--out", inner.to_str().unwrap()];
+    let mut first = endless(tmp.path(), &long_run);
+    assert!(wait_for(&inner.join(".ohd-lock"), 60), "the run did not start");
+    let outer = sh_ohd(tmp.path(), "", &["run", "-q", &wind, "--samples", "512", "--out", scan.to_str().unwrap()]);
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert_eq!(outer.status.code(), Some(2), "{}", describe(&outer));
+    let e = text(&outer.stderr);
+    assert!(e.contains(inner.to_str().unwrap()) && e.contains(&format!("process {}", first.id())), "{e}");
+    assert!(!scan.join("scan.json").exists() && !scan.join("pointing_01").exists());
+    assert!(canary.unchanged());
+}
+
+/// Issue 52, finding 2b: the lock is the directory's own (`flock` on the directory held open), so
+/// removing or replacing the `.ohd-lock` file mid-run releases nothing: a second run is still
+/// refused naming the directory (a8c4817: it took a new lock file, both ended in exit 0 and the
+/// first run's output was lost).
+#[test]
+fn a_removed_or_replaced_lock_file_still_locks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let canary = Canary::beside(&out);
+    let long_run = ["run", "-q", "--threads", "1", "--samples", "100000000", "--out", out.to_str().unwrap()];
+    let mut first = endless(tmp.path(), &long_run);
+    assert!(wait_for(&out.join(".ohd-lock"), 60), "the run did not start");
+    std::fs::remove_file(out.join(".ohd-lock")).unwrap();
+    let removed = sh_ohd(tmp.path(), "", &strs(&small(&out)));
+    std::fs::write(out.join(".ohd-lock"), "1\n").unwrap();
+    let replaced = sh_ohd(tmp.path(), "", &strs(&small(&out)));
+    first.kill().unwrap();
+    first.wait().unwrap();
+    for o in [removed, replaced] {
+        assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+        let e = text(&o.stderr);
+        assert!(e.contains(out.to_str().unwrap()) && e.contains("in use"), "{e}");
+    }
+    assert!(!out.join("manifest.json").exists());
+    assert!(canary.unchanged());
+}
+
+/// Issue 52, finding 2c: `ohd mie --table` (a lone file) never writes the lock's name, and never
+/// into a directory another ohd holds: exit 2 naming it (a8c4817 replaced the held lock, and wrote
+/// into the directory being written).
+#[test]
+fn a_lone_file_is_never_the_lock_nor_in_a_held_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let canary = Canary::beside(&out);
+    let mie = |table: &Path| {
+        sh_ohd(
+            tmp.path(),
+            "",
+            &["mie", "--m-real", "1.5", "--x", "1", "--angles", "32", "--table", table.to_str().unwrap()],
+        )
+    };
+    let long_run = ["run", "-q", "--threads", "1", "--samples", "100000000", "--out", out.to_str().unwrap()];
+    let mut first = endless(tmp.path(), &long_run);
+    assert!(wait_for(&out.join(".ohd-lock"), 60), "the run did not start");
+    let lock = std::fs::read_to_string(out.join(".ohd-lock")).unwrap();
+    let on_lock = mie(&out.join(".ohd-lock"));
+    let beside = mie(&out.join("table.txt"));
+    let lock_after = std::fs::read_to_string(out.join(".ohd-lock")).unwrap_or_default();
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert_eq!(lock_after, lock, "the lock was replaced");
+    for o in [on_lock, beside] {
+        assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+        let e = text(&o.stderr);
+        assert!(e.contains(out.to_str().unwrap()) && e.contains(&format!("process {}", first.id())), "{e}");
+    }
+    assert!(!out.join("table.txt").exists());
+    // With no holder, the lock's name is still not a lone file's; another name is.
+    let free = tmp.path().join("free");
+    std::fs::create_dir(&free).unwrap();
+    let o = mie(&free.join(".ohd-lock"));
+    assert_eq!(o.status.code(), Some(2), "{}", describe(&o));
+    assert!(text(&o.stderr).contains(free.join(".ohd-lock").to_str().unwrap()), "{}", describe(&o));
+    assert!(!free.join(".ohd-lock").exists());
+    assert!(mie(&free.join("table.txt")).status.success());
+    assert!(canary.unchanged());
+}
+
 /// Finding 5: an output directory that cannot be used — a dangling link, a loop of links, a name
 /// over the file-system's limit, a file where a directory must be — is refused before anything is
 /// traced (exit 2 naming it, although the run asked would take minutes), for `run`, `converge`
