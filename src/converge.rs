@@ -75,6 +75,26 @@ pub struct Reference {
 }
 
 impl Reference {
+    /// What makes this reference of `output` unusable, if anything: a value or standard error
+    /// that is not a finite number, or values or standard errors whose squares sum past the
+    /// largest `f64` (the study's norms `‖r‖`, `‖σ_r‖` would be infinite: magnitudes from about
+    /// 1.3·10¹⁵⁴ up). A run of ohd never writes one (issue 52: a tampered directory's NaN, ∞ or
+    /// 1e308 was taken, and its output skipped as "deterministic").
+    pub fn defect(&self, output: &NamedOutput) -> Option<String> {
+        for (what, v) in [("value", &self.values), ("standard error", &self.stderr)] {
+            if let Some((k, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                return Some(format!("{} holds the {what} {x} at index {k}", output.name));
+            }
+            if !norm(v.iter().copied()).is_finite() {
+                return Some(format!(
+                    "{}'s {what}s are too large: their squares sum past the largest number",
+                    output.name
+                ));
+            }
+        }
+        None
+    }
+
     /// The reference's own error in `output`'s metric: `σ_r` for a scalar, `‖σ_r‖/‖r‖` otherwise.
     pub fn error(&self, output: &NamedOutput) -> f64 {
         let s = norm(self.stderr.iter().copied());

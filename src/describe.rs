@@ -998,7 +998,7 @@ impl Display for Experiment {
                     f,
                     "importance table of {}: a pilot of {} paths through the layered stack, {}; {windows}",
                     self.detectors[d].name,
-                    crate::detect::importance::PILOT_PATHS,
+                    crate::detect::importance::pilot_paths(self.plan.samples()),
                     self.importance_grid(d).describe(&self.scene),
                 )?,
             }

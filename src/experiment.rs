@@ -576,9 +576,9 @@ impl Experiment {
 
     /// The importance table of the main output's detector ([`crate::detect::importance`]; `None`
     /// where [`importance_obstacle`](Self::importance_obstacle) finds one), from a pilot of
-    /// [`PILOT_PATHS`](crate::detect::importance::PILOT_PATHS) paths on its own streams.
+    /// [`pilot_paths`](crate::detect::importance::pilot_paths) paths on its own streams.
     pub fn importance_table(&self) -> Option<crate::detect::importance::ImportanceTable> {
-        use crate::detect::importance::{IMPORTANCE_SEED, ImportanceTable, PILOT_BATCHES, PILOT_PATHS};
+        use crate::detect::importance::{IMPORTANCE_SEED, ImportanceTable, PILOT_BATCHES, pilot_paths};
         if self.importance_obstacle().is_some() {
             return None;
         }
@@ -598,7 +598,7 @@ impl Experiment {
         pilot.references.clear();
         pilot.plan.seed = crate::sampling::rng::mix64(self.plan.seed ^ IMPORTANCE_SEED);
         pilot.plan.batches = PILOT_BATCHES;
-        pilot.plan.paths_per_batch = PILOT_PATHS / PILOT_BATCHES;
+        pilot.plan.paths_per_batch = pilot_paths(self.plan.samples()) / PILOT_BATCHES;
         pilot.plan.walk.control_variate = ControlVariate::Off;
         pilot.plan.walk.launches = None;
         pilot.plan.importance = Importance::Off;
@@ -636,6 +636,7 @@ impl Experiment {
             response: mean[out.layout.detectors[0].power],
             paths: paths as u64,
             seconds: start.elapsed().as_secs_f64(),
+            work: crate::pilot::forward_work(&out.stats),
         })
     }
 

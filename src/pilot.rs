@@ -55,6 +55,10 @@ pub const CONNECTION_STEPS: f64 = 3.0;
 /// it acts the candidates), in collision steps: measured on dcs_forearm, where the guide's
 /// consults added half the walk's time of the weight windows alone.
 pub const GUIDE_STEPS: f64 = 0.5;
+/// The three runs of the pilot of `run.importance = "auto"` trace at most `1/IMPORTANCE_PILOT_SHARE`
+/// of the run's paths together ([`importance_pilot`]): [`PILOT_MIN_PATHS`] per batch would make
+/// them 48,000 paths, more than a small run's (unchanged from 192,000 paths up).
+pub const IMPORTANCE_PILOT_SHARE: u64 = 4;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 const PILOT_SEED: u64 = 0x0050_494c_4f54;
 /// Mixed in besides for the pilot of `run.importance = "auto"`.
@@ -86,14 +90,22 @@ pub fn decide(exp: &Experiment) -> Experiment {
 /// The pilot of `run.importance = "auto"`: the run without the weight windows of `table`
 /// ([`crate::transport::windows`]), with them, and with them and guided directions
 /// ([`crate::transport::guide`]), on the same paths (`1/PILOT_SHARE` of the run's in
-/// [`PILOT_BATCHES`] batches, at least [`PILOT_MIN_PATHS`] per batch), and for each the squared
-/// relative error of the main output (`Σσ²/Σm²`, `m` the three pilots' mean: one reference for
-/// all) × its work in collision steps (the windows' copies and roulette in it, the guide's
-/// vertices). Like the
+/// [`PILOT_BATCHES`] batches, at least [`PILOT_MIN_PATHS`] per batch, and the three together at
+/// most [`IMPORTANCE_PILOT_SHARE`] of the run's), and for each the squared relative error of the
+/// main output (`Σσ²/Σm²`, `m` the three pilots' mean: one reference for all) × its work in
+/// collision steps (the windows' copies and roulette in it, the guide's vertices). Like the
 /// estimators' pilot: counted, not timed, so the choice is the same on any threads, shard or
 /// resume; the figures do not depend on the pilot's size (variance ∝ 1/paths, work ∝ paths).
+///
+/// The windows' and guided figures carry their table's work too ([`ImportanceTable::work`], its
+/// share at the pilot's size: `C·P/N` for a table of work `C`, a pilot of `P` paths and a run of
+/// `N`): over the run, error × work is `v·(w + C/N)` with the table, `v·w` without. The table is
+/// made before the choice, but the figures are also what a user reads to set the key for the
+/// next runs of the experiment: windows are chosen where they pay for their table.
 pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoWindows {
-    let ppb = (exp.plan.samples() / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS);
+    let samples = exp.plan.samples();
+    let most = (samples / IMPORTANCE_PILOT_SHARE / 3 / PILOT_BATCHES).max(1);
+    let ppb = (samples / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS).min(most);
     let variant = |importance: Importance| {
         let mut v = exp.clone();
         v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED ^ IMPORTANCE_PILOT_SEED);
@@ -109,8 +121,11 @@ pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoW
     let means = runs.each_ref().map(|o| o.estimates.mean());
     let m2: f64 = range.clone().map(|k| (means.iter().map(|m| m[k]).sum::<f64>() / 3.0).powi(2)).sum();
     let var = |o: &RunOutput| o.estimates.stderr()[range.clone()].iter().map(|s| s * s).sum::<f64>();
-    let figure = |o: &RunOutput| if m2 > 0.0 { var(o) / m2 * forward_work(&o.stats) } else { f64::INFINITY };
-    let [off, windows, guided] = runs.each_ref().map(figure);
+    let table_share = table.work * (ppb * PILOT_BATCHES) as f64 / samples.max(1) as f64;
+    let figure = |o: &RunOutput, table: f64| {
+        if m2 > 0.0 { var(o) / m2 * (forward_work(&o.stats) + table) } else { f64::INFINITY }
+    };
+    let [off, windows, guided] = [figure(&runs[0], 0.0), figure(&runs[1], table_share), figure(&runs[2], table_share)];
     AutoWindows { off, windows, guided }
 }
 
@@ -184,7 +199,7 @@ fn per_pixel(exp: &Experiment, i: usize, ppb: u64) -> u64 {
 }
 
 /// Work of the forward paths, in collision steps.
-fn forward_work(st: &RunStats) -> f64 {
+pub(crate) fn forward_work(st: &RunStats) -> f64 {
     (st.scattering_events + st.null_collisions) as f64
         + CONNECTION_STEPS * st.work.shadow_rays as f64
         + GUIDE_STEPS * st.work.guided as f64

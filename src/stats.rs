@@ -39,6 +39,11 @@ pub struct Work {
     /// Scattering vertices whose continuation the importance table guided
     /// ([`crate::transport::guide`]).
     pub guided: u64,
+    /// Steps of the ways down and up of forward paths' deterministic unscattered reflections
+    /// ([`crate::transport::walk`]'s `unscattered_reflections`): a layer crossed, or a run of
+    /// homogeneous layers crossed at once on a way up. Linear in the number of interfaces (`2N`
+    /// per path through `N` plain layers); not in the pilots' cost, which was measured without it.
+    pub reflection_steps: u64,
 }
 
 impl RunStats {
@@ -53,6 +58,7 @@ impl RunStats {
         self.work.shadow_rays += o.work.shadow_rays;
         self.work.camera_connections += o.work.camera_connections;
         self.work.guided += o.work.guided;
+        self.work.reflection_steps += o.work.reflection_steps;
     }
 }
 

@@ -19,8 +19,18 @@
 //! state's lateral distance to the detector's area too ([`LATERAL_BINS`], [`Lateral`]): there what a
 //! path brings depends as much on how far it has still to go sideways as on its depth.
 //!
-//! **Its cost** is part of the run's time (reported as `importance.seconds`): [`PILOT_PATHS`]
-//! paths, fewer than a hundredth of a shipped LDH run's.
+//! **Its cost** is part of the run's time (reported as `importance.seconds`): [`pilot_paths`], half
+//! the run's paths, at least [`PILOT_MIN_PATHS`] and at most [`PILOT_PATHS`] (fewer than a
+//! hundredth of a shipped LDH run's). A fixed 2·10⁵ paths cost more than the run itself where the
+//! run is small or its paths long (issue 52: 20,000 paths of an albedo-1 scene went past 300 s, the
+//! pilot ten times the run); half bounds the table's cost by about half the run's (a pilot path
+//! goes through the same stack as a run's, without the run's copies, twins or other detectors).
+//! Not less: every shipped config (4·10⁵ paths and more) keeps its pilot of 2·10⁵, and a smaller
+//! table steers worse (measured: a quarter of 3·10⁵ paths for the DCS fibre of the importance
+//! tests took the windows' power σ from below half the plain walk's to 0.71 of it, and a quarter
+//! of 4·10⁵ for the control variate's retina moved its ROI spectrum to p = 8·10⁻⁵ against the
+//! plain walk's). The table's work is counted in the choice of `run.importance = "auto"`
+//! ([`crate::pilot::importance_pilot`]).
 //!
 //! The pilot itself is [`crate::experiment::Experiment::importance_table`]; the weight windows it
 //! feeds are `transport::windows`.
@@ -44,12 +54,24 @@ pub const OPEN_DEPTH_TRANSPORT_LENGTHS: f64 = 20.0;
 /// Diffusion lengths `1/μ_eff` of a semi-infinite absorbing layer they span at most.
 pub const OPEN_DEPTH_DIFFUSION_LENGTHS: f64 = 10.0;
 
-/// Paths of the pilot.
+/// Most paths of the pilot: a run of at least `PILOT_SHARE · PILOT_PATHS` (4·10⁵) paths gets this
+/// many, as every run did before issue 52 ([`pilot_paths`]).
 pub const PILOT_PATHS: u64 = 200_000;
+/// The pilot traces `1/PILOT_SHARE` of the run's paths ([`pilot_paths`]).
+pub const PILOT_SHARE: u64 = 2;
+/// Fewest paths of the pilot (500 a batch): below, the table's bins would be mostly empty. A run
+/// of fewer than `PILOT_SHARE · PILOT_MIN_PATHS` (8,000) paths pays more than half for it.
+pub const PILOT_MIN_PATHS: u64 = 4_000;
 /// Its batches.
 pub const PILOT_BATCHES: u64 = 8;
 /// Mixed into the seed for the pilot's streams, which the run's never share.
 pub const IMPORTANCE_SEED: u64 = 0x494d_504f_5254;
+
+/// Paths of the importance pilot of a run of `samples` paths: `samples / PILOT_SHARE`, within
+/// [`PILOT_MIN_PATHS`] … [`PILOT_PATHS`], a whole number per batch ([`PILOT_BATCHES`]).
+pub fn pilot_paths(samples: u64) -> u64 {
+    (samples / PILOT_SHARE).clamp(PILOT_MIN_PATHS, PILOT_PATHS) / PILOT_BATCHES * PILOT_BATCHES
+}
 
 /// The importance table of one detector ([`crate::experiment::Experiment::importance_table`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -71,6 +93,9 @@ pub struct ImportanceTable {
     /// The pilot's paths and wall time (s).
     pub paths: u64,
     pub seconds: f64,
+    /// The pilot's work in collision steps (counted as the pilots count it, [`crate::pilot`]):
+    /// what `run.importance = "auto"` charges the windows for their table.
+    pub work: f64,
 }
 
 impl ImportanceTable {

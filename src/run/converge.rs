@@ -68,7 +68,21 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
         exp = exp.pointed(&p);
     }
     let refs = match &req.reference {
-        Some(dir) => crate::io::write::converge::read_reference(dir, &exp.outputs())?,
+        Some(dir) => {
+            let outputs = exp.outputs();
+            let refs = crate::io::write::converge::read_reference(dir, &outputs)?;
+            // Before any rung: a study against a NaN would measure nothing (issue 52).
+            for (o, r) in outputs.iter().zip(&refs) {
+                if let Some(why) = r.as_ref().and_then(|r| r.defect(o)) {
+                    return Err(Error::Input(format!(
+                        "--reference {}: {why}: expected a run directory of this experiment, its values and standard \
+                         errors finite numbers (magnitudes below about 1e154: their squares must sum to a finite number)",
+                        dir.display()
+                    )));
+                }
+            }
+            refs
+        }
         None => Vec::new(),
     };
     let opts = LadderOptions {

@@ -353,11 +353,23 @@ fn obstructed(scene: &Scene, j: usize, p: DVec3, d: DVec3, t: f64) -> bool {
 /// `start` at the surface (its sums so far), the straight way down through each finite layer
 /// along `down(n)` in a layer of index `n` (with the Fresnel transmittance of each top face
 /// crossed, the surface's only if `surface`), the reflectance `R` of its bottom, and the way back
-/// up to the surface along `up(n)` ([`trace_up`]); `each` gets every reflection's [`Crossing`] at
-/// the surface. Stops where a direction cannot exist (total internal reflection), at a rough face
-/// (whose reflection is a lobe, not a beam) and where an opaque solid closes the way. The forward
-/// paths' deterministic reflections and the camera-side estimator's (traced back from the
-/// camera) go this way.
+/// up to the surface along `up(n)`; `each` gets every reflection's [`Crossing`] at the surface.
+/// Stops where a direction cannot exist (total internal reflection), at a rough face (whose
+/// reflection is a lobe, not a beam) and where an opaque solid closes the way. The forward paths'
+/// deterministic reflections and the camera-side estimator's (traced back from the camera) go
+/// this way. Returns the steps taken ([`crate::stats::Work::reflection_steps`]).
+///
+/// The way up from interface `j` crosses every layer above it, so traced layer by layer (as
+/// [`trace_up`] does) the reflections of a stack of `N` interfaces cost `N²/2` crossings per path
+/// (issue 52: a run through 1,000 interfaces took 17–37 s, 0.1–0.25 s with sampled reflections). A layer of one homogeneous medium
+/// without regions or solids ([`UpRun`]) is crossed the same way wherever the way enters it: its
+/// optical depth, optical length, lateral shift and Fresnel transmittance depend on its thickness
+/// and the direction alone. The ways up keep those layers' crossings summed run by run as the way
+/// down meets them, and cross each run in one step; only the other layers (density media,
+/// regions: their crossing depends on where, and ratio tracking draws from `rng` in the same
+/// order as before) are crossed one by one. A stack of such layers costs `2N` steps per path. The
+/// sums are the same terms added in another order: the results differ from the layer-by-layer
+/// way in their last bits only.
 pub(super) fn reflections_below(
     scene: &Scene,
     start: Crossing,
@@ -366,8 +378,14 @@ pub(super) fn reflections_below(
     up: impl Fn(f64) -> Option<DVec3>,
     rng: &mut PathRng,
     mut each: impl FnMut(Crossing),
-) {
+) -> u64 {
     let mut way = start;
+    let mut steps = 0;
+    // The way up from the current interface, top down: the run of plain layers under the surface,
+    // then each other layer with the run of plain layers under it (no allocation while every
+    // layer is plain).
+    let mut top = UpRun::EMPTY;
+    let mut under: Vec<(usize, UpRun)> = Vec::new();
     for j in 0..scene.layers.len() {
         let layer = &scene.layers[j];
         if !layer.z_bottom.is_finite() {
@@ -375,9 +393,9 @@ pub(super) fn reflections_below(
         }
         // A rough face scatters the beam: beyond it no reflection is a Dirac direction.
         if j >= scene.first_rough_face {
-            return;
+            return steps;
         }
-        let Some(d) = down(layer.n) else { return };
+        let Some(d) = down(layer.n) else { return steps };
         if surface || j > 0 {
             let n_above = scene.n_above_layer(j);
             let t_top = 1.0 - fresnel::reflectance(layer.n, n_above, d.z).0;
@@ -386,23 +404,97 @@ pub(super) fn reflections_below(
         }
         let t = (layer.z_bottom - way.pos.z) / d.z;
         if !layer.opaque.is_empty() && scene.blocked(layer, way.pos, d, t) {
-            return;
+            return steps;
         }
         way.segment(scene, layer, d, t, rng);
         way.pos.z = layer.z_bottom;
+        steps += 1;
+        // Its way up, for this interface's reflection and every one below.
+        let Some(u) = up(layer.n) else { return steps };
+        if layer.plain && !layer.heterogeneous && !layer.obstructs_shadows {
+            under.last_mut().map_or(&mut top, |(_, run)| run).add(scene, j, u);
+        } else {
+            under.push((j, UpRun::EMPTY));
+        }
         // (The stack's bottom face is smooth: `first_rough_face` is the number of layers without one.)
         if j + 1 < scene.layers.len() && j + 1 == scene.first_rough_face {
-            return;
+            return steps;
         }
         let n_below = scene.layers.get(j + 1).map_or(scene.n_below, |l| l.n);
         let (r, _) = fresnel::reflectance(layer.n, n_below, d.z);
         if r <= 0.0 || way.transmit <= 0.0 {
             continue;
         }
-        let acc = Crossing { transmit: way.transmit * r, twin_transmit: way.twin_transmit * r, ..way };
-        let Some(first) = up(layer.n) else { return };
-        let Some(c) = trace_up(scene, j, way.pos, first, &up, acc, rng) else { return };
+        let mut c = Crossing { transmit: way.transmit * r, twin_transmit: way.twin_transmit * r, ..way };
+        for &(k, run) in under.iter().rev() {
+            if run.layers > 0 {
+                run.cross(&mut c);
+                steps += 1;
+            }
+            // As `trace_up` crosses a layer.
+            let layer = &scene.layers[k];
+            let Some(d) = up(layer.n) else { return steps };
+            let t = (c.pos.z - layer.z_top) / -d.z;
+            if layer.obstructs_shadows && obstructed(scene, k, c.pos, d, t) {
+                return steps;
+            }
+            c.segment(scene, layer, d, t, rng);
+            c.pos.z = layer.z_top;
+            let (r, _) = fresnel::reflectance(layer.n, scene.n_above_layer(k), -d.z);
+            c.transmit *= 1.0 - r;
+            c.twin_transmit *= 1.0 - r;
+            steps += 1;
+        }
+        if top.layers > 0 {
+            top.cross(&mut c);
+            steps += 1;
+        }
         each(c);
+    }
+    steps
+}
+
+/// The way up through consecutive layers each of one homogeneous medium without regions or
+/// solids, summed ([`reflections_below`]): their optical depth, optical length and lateral shift
+/// along the ways up, the product of their top faces' Fresnel transmittances, and the depth of
+/// the top face of the highest.
+#[derive(Debug, Clone, Copy)]
+struct UpRun {
+    layers: u32,
+    tau: f64,
+    length: f64,
+    shift: (f64, f64),
+    transmit: f64,
+    z_top: f64,
+}
+
+impl UpRun {
+    const EMPTY: UpRun = UpRun { layers: 0, tau: 0.0, length: 0.0, shift: (0.0, 0.0), transmit: 1.0, z_top: 0.0 };
+
+    /// Add layer `j`, the next below the run, crossed along `u` (upward).
+    fn add(&mut self, scene: &Scene, j: usize, u: DVec3) {
+        let layer = &scene.layers[j];
+        let t = (layer.z_bottom - layer.z_top) / -u.z;
+        if self.layers == 0 {
+            self.z_top = layer.z_top;
+        }
+        self.layers += 1;
+        self.tau += scene.media[layer.medium].sigma_t() * t;
+        self.length += layer.n * t;
+        self.shift.0 += t * u.x;
+        self.shift.1 += t * u.y;
+        self.transmit *= 1.0 - fresnel::reflectance(layer.n, scene.n_above_layer(j), -u.z).0;
+    }
+
+    /// Cross the run from its bottom face up through its top face.
+    fn cross(&self, c: &mut Crossing) {
+        c.tau += self.tau;
+        c.length += self.length;
+        c.pos.x += self.shift.0;
+        c.pos.y += self.shift.1;
+        c.pos.z = self.z_top;
+        c.transmit *= self.transmit;
+        c.twin_transmit *= self.transmit;
     }
 }
 

@@ -603,7 +603,7 @@ fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const GATE: bool
     let up = |n: f64| down(n).map(|d| DVec3::new(d.x, d.y, -d.z));
     // The surface's transmittance on the way in is in the path's weight.
     let start = Crossing { pos: s.pos, length: s.l, ..Crossing::START };
-    reflections_below(ctx.scene, start, false, down, up, rng, |c| {
+    let steps = reflections_below(ctx.scene, start, false, down, up, rng, |c| {
         let l = if LENGTH { c.length } else { 0.0 };
         let weight = s.weight * c.transmit * (-c.tau).exp();
         // The twin's way down and up meets no region: without their excess optical depth.
@@ -622,6 +622,7 @@ fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const GATE: bool
             rec.reflection(&e, twin, n0);
         }
     });
+    rec.stats.work.reflection_steps += steps;
 }
 
 /// Trace one camera path of pixel `pixel` of `cam` ([`super::camera`]), recording its

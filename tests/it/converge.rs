@@ -242,3 +242,45 @@ image = { pixels = [8, 8] }
     // Scalars are not images.
     assert!(s.outputs.iter().filter(|o| o.output.is_scalar()).all(|o| o.pixel_median.is_empty()));
 }
+
+/// Issue 52: `ohd converge --reference DIR` took a directory whose values were NaN, ∞ or 1e308 (a
+/// square past the largest number), ran its ladder, and skipped the output as "deterministic"
+/// (`σ_r/‖r‖` came out 0). Such a reference is refused before any rung: exit 2 naming
+/// `--reference` and the expected form, nothing studied.
+#[test]
+fn a_reference_of_nan_inf_or_1e308_is_refused() {
+    use crate::support::files::ohd;
+    let tmp = tempfile::tempdir().expect("a temporary directory");
+    let cfg = tmp.path().join("moving_slab.toml");
+    let text = VDH.split("[reference]").next().unwrap().to_string()
+        + "\n[media.slab.velocity]\ntype = \"uniform\"\nvelocity_mm_per_s = [0, 0, 1]\n\n[[detectors]]\nname = \"top\"\n\
+           [detectors.spectrum]\nf_min_khz = 1.55\nf_max_khz = 3.2\nbins = 40\n";
+    std::fs::write(&cfg, text).expect("the config is written");
+    let cfg = cfg.to_str().expect("UTF-8");
+    let good = tmp.path().join("run");
+    let o = ohd(tmp.path(), &["run", cfg, "--samples", "16000", "--quiet", "--out", good.to_str().expect("UTF-8")]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let spectrum = "top_spectrum.npy";
+    assert!(good.join(spectrum).exists() && good.join("top_spectrum_stderr.npy").exists(), "the run's files");
+    for (k, bad) in [f64::NAN, f64::INFINITY, 1e308].into_iter().enumerate() {
+        let dir = tmp.path().join(format!("tampered_{k}"));
+        std::fs::create_dir(&dir).expect("a directory");
+        for e in std::fs::read_dir(&good).expect("the run") {
+            let e = e.expect("an entry");
+            std::fs::copy(e.path(), dir.join(e.file_name())).expect("copied");
+        }
+        // The first value of the spectrum (after the .npy header, version 1: its length at 8).
+        let path = dir.join(spectrum);
+        let mut bytes = std::fs::read(&path).expect("the spectrum");
+        let start = 10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        bytes[start..start + 8].copy_from_slice(&bad.to_le_bytes());
+        std::fs::write(&path, bytes).expect("tampered");
+        let out = tmp.path().join(format!("study_{k}"));
+        let args = ["converge", cfg, "--reference", dir.to_str().expect("UTF-8"), "--samples", "16000", "--rungs", "2"];
+        let o = ohd(tmp.path(), &[&args[..], &["-q", "--out", out.to_str().expect("UTF-8")]].concat());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {err}");
+        assert!(err.contains("--reference") && err.contains("top.spectrum") && err.contains("finite"), "{bad}: {err}");
+        assert!(!out.join("converge.json").exists(), "{bad}: a study was written");
+    }
+}

@@ -244,6 +244,29 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
             format!("= \"layered\": the layered control variate does not apply here: {why}; use \"auto\" or \"off\""),
         );
     }
+    // As `"layered"` above: a table asked for by name where none can be made (no detector is the
+    // main output, or the one that is cannot be steered) would do nothing (issue 52, item 8);
+    // `"auto"` applies where it can, and `ohd check` says why not.
+    {
+        use crate::transport::windows::Importance;
+        let asked = match exp.plan.importance {
+            Importance::Table => Some("table"),
+            Importance::Windows => Some("windows"),
+            Importance::Guided => Some("guided"),
+            Importance::Off | Importance::Auto => None,
+        };
+        if let Some(asked) = asked
+            && let Some(why) = exp.importance_obstacle()
+        {
+            return err(
+                "run.importance",
+                format!(
+                    "= \"{asked}\": no importance table can be made here: {why} (the table is of the main output's \
+                     detector, a forward-estimated surface detector); use \"auto\" or \"off\""
+                ),
+            );
+        }
+    }
     check_speckle_memory(&exp, &ctx.memory)?;
     check_memory(&exp, &ctx.memory)?;
     exp.plan.memory = ctx.memory.blocks.take();
