@@ -636,7 +636,7 @@ impl Experiment {
             response: mean[out.layout.detectors[0].power],
             paths: paths as u64,
             seconds: start.elapsed().as_secs_f64(),
-            work: crate::pilot::forward_work(&out.stats),
+            work: out.stats.forward_work(),
         })
     }
 

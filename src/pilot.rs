@@ -19,7 +19,7 @@
 //!
 //! **Work, not time.** The choice must be the same on any number of threads, in every shard and
 //! on resuming, so it is made from counted steps ([`crate::stats::Work`]), never from a clock:
-//! real and null collisions of every path plus [`CONNECTION_STEPS`] per connection traced
+//! real and null collisions of every path plus [`crate::stats::CONNECTION_STEPS`] per connection traced
 //! (a shadow ray, a camera path's connection to the laser). The weight was measured on the
 //! shipped LDH scenes (validation/README.md, "Camera-side estimation"): time per step
 //! agrees within the stated spread across forward and camera runs.
@@ -38,7 +38,7 @@ use crate::detect::importance::ImportanceTable;
 use crate::detect::{AutoChoice, DetectorKind, EstimatorChoice};
 use crate::experiment::{Experiment, RunOutput, Silent};
 use crate::sampling::rng::mix64;
-use crate::stats::RunStats;
+
 use crate::transport::windows::{AutoWindows, Importance};
 
 /// The forward pilot traces `1/PILOT_SHARE` of the run's paths.
@@ -47,14 +47,6 @@ pub const PILOT_SHARE: u64 = 64;
 pub const PILOT_BATCHES: u64 = 8;
 /// Fewest paths per pilot batch.
 pub const PILOT_MIN_PATHS: u64 = 2_000;
-/// Work of one connection in collision steps. A connection crosses the layers above its vertex
-/// (Fresnel, phase function, optical depth of each) — measured on the shipped LDH scenes
-/// (validation/README.md).
-pub const CONNECTION_STEPS: f64 = 3.0;
-/// The cost of consulting the guide at a vertex ([`crate::transport::guide`]: its cell, and where
-/// it acts the candidates), in collision steps: measured on dcs_forearm, where the guide's
-/// consults added half the walk's time of the weight windows alone.
-pub const GUIDE_STEPS: f64 = 0.5;
 /// The three runs of the pilot of `run.importance = "auto"` trace at most `1/IMPORTANCE_PILOT_SHARE`
 /// of the run's paths together ([`importance_pilot`]): [`PILOT_MIN_PATHS`] per batch would make
 /// them 48,000 paths, more than a small run's (unchanged from 192,000 paths up).
@@ -123,7 +115,7 @@ pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoW
     let var = |o: &RunOutput| o.estimates.stderr()[range.clone()].iter().map(|s| s * s).sum::<f64>();
     let table_share = table.work * (ppb * PILOT_BATCHES) as f64 / samples.max(1) as f64;
     let figure = |o: &RunOutput, table: f64| {
-        if m2 > 0.0 { var(o) / m2 * (forward_work(&o.stats) + table) } else { f64::INFINITY }
+        if m2 > 0.0 { var(o) / m2 * (o.stats.forward_work() + table) } else { f64::INFINITY }
     };
     let [off, windows, guided] = [figure(&runs[0], 0.0), figure(&runs[1], table_share), figure(&runs[2], table_share)];
     AutoWindows { off, windows, guided }
@@ -157,9 +149,9 @@ pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
     // Work per path of each kind (forward paths of each pilot, camera paths), in steps.
     let forward_paths = (ppb * PILOT_BATCHES) as f64;
     let camera_paths = (camera_exp.camera_paths_per_batch() * PILOT_BATCHES) as f64;
-    let per_forward = forward_work(&forward.stats) / forward_paths;
-    let per_forward_beside = forward_work(&camera.stats) / forward_paths;
-    let per_camera = camera_work(&camera.stats) / camera_paths;
+    let per_forward = forward.stats.forward_work() / forward_paths;
+    let per_forward_beside = camera.stats.forward_work() / forward_paths;
+    let per_camera = camera.stats.camera_work() / camera_paths;
     let run_ppb = exp.plan.paths_per_batch;
     let figures = |i: usize| {
         let (vf, vc) = relative_variances(i, stride, &forward, &camera);
@@ -196,18 +188,6 @@ fn pixels_of(exp: &Experiment, i: usize) -> usize {
 /// [`crate::transport::CameraTarget::paths_per_pixel`]).
 fn per_pixel(exp: &Experiment, i: usize, ppb: u64) -> u64 {
     ppb.div_ceil(pixels_of(exp, i).max(1) as u64).max(1)
-}
-
-/// Work of the forward paths, in collision steps.
-pub(crate) fn forward_work(st: &RunStats) -> f64 {
-    (st.scattering_events + st.null_collisions) as f64
-        + CONNECTION_STEPS * st.work.shadow_rays as f64
-        + GUIDE_STEPS * st.work.guided as f64
-}
-
-/// Work of the camera paths, in collision steps.
-fn camera_work(st: &RunStats) -> f64 {
-    st.work.camera_events as f64 + CONNECTION_STEPS * st.work.camera_connections as f64
 }
 
 /// The squared relative errors `Σσ²/Σm²` of detector `i`'s main image (M0+ of an LDH camera,

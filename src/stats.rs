@@ -46,7 +46,28 @@ pub struct Work {
     pub reflection_steps: u64,
 }
 
+/// Work of one connection in collision steps (the pilots' measure of cost, [`crate::pilot`]). A
+/// connection crosses the layers above its vertex (Fresnel, phase function, optical depth of
+/// each) — measured on the shipped LDH scenes (validation/README.md).
+pub const CONNECTION_STEPS: f64 = 3.0;
+/// The cost of consulting the guide at a vertex ([`crate::transport::guide`]: its cell, and where
+/// it acts the candidates), in collision steps: measured on dcs_forearm, where the guide's
+/// consults added half the walk's time of the weight windows alone.
+pub const GUIDE_STEPS: f64 = 0.5;
+
 impl RunStats {
+    /// Work of the forward paths, in collision steps.
+    pub fn forward_work(&self) -> f64 {
+        (self.scattering_events + self.null_collisions) as f64
+            + CONNECTION_STEPS * self.work.shadow_rays as f64
+            + GUIDE_STEPS * self.work.guided as f64
+    }
+
+    /// Work of the camera paths, in collision steps.
+    pub fn camera_work(&self) -> f64 {
+        self.work.camera_events as f64 + CONNECTION_STEPS * self.work.camera_connections as f64
+    }
+
     pub fn merge(&mut self, o: &RunStats) {
         self.paths += o.paths;
         self.scattering_events += o.scattering_events;

@@ -36,10 +36,7 @@ impl Part {
 /// The name of a part's checkpoint file in its directory.
 pub const CHECKPOINT: &str = "checkpoint.ohd";
 
-/// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
-pub fn pointing_name(i: usize) -> String {
-    format!("pointing_{i:02}")
-}
+pub use crate::io::write::dir::pointing_name;
 
 /// The directory of pointing `i` of a scan, inside the scan's.
 pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {

@@ -33,6 +33,11 @@ use crate::error::{Error, Result};
 use crate::io::outdir::{LOCK, OutDir, plain_name};
 use crate::io::remove_stale_temporaries;
 
+/// The name of pointing `i`'s directory inside a scan's: `pointing_NN`.
+pub fn pointing_name(i: usize) -> String {
+    format!("pointing_{i:02}")
+}
+
 /// The marker of a directory being written, or whose writing was interrupted.
 pub const MARKER: &str = "ohd_incomplete.txt";
 

@@ -85,13 +85,13 @@ pub fn save_scan(dir: &Path, files: &[Named], pointings: &[Vec<Named>]) -> Resul
     }
     check_names(dir, files)?;
     for (i, p) in pointings.iter().enumerate() {
-        let sub = dir.join(crate::run::pointing_name(i));
+        let sub = dir.join(super::dir::pointing_name(i));
         check_names(&sub, p)?;
         run_files(p).map_err(|e| Error::Input(format!("{}: {e}", sub.display())))?;
     }
     let out = OutDir::create(dir)?;
     DirWriter::check(&out, Output::Run)?;
-    let names: Vec<String> = (0..pointings.len()).map(crate::run::pointing_name).collect();
+    let names: Vec<String> = (0..pointings.len()).map(super::dir::pointing_name).collect();
     let subs = names.iter().map(|n| out.sub(n)).collect::<Result<Vec<_>>>()?;
     let mut w = DirWriter::begin(&out, Output::Run, &names)?;
     for ((name, sub), files) in names.iter().zip(&subs).zip(pointings) {

@@ -1097,3 +1097,161 @@ fn overflowing_ranges_are_refused_or_run_finite() {
 fn deep_overflowing_ranges() {
     overflowing_ranges(false);
 }
+
+/// What a case of [`deep_nested_and_unlocked_outputs`] does to the holder's locks before the
+/// second command starts.
+#[derive(Debug, Clone, Copy)]
+enum Tamper {
+    Nothing,
+    /// `.ohd-lock` of the directory removed.
+    RemoveLock,
+    /// `.ohd-lock` of the pointing directory removed.
+    RemovePointingLock,
+    /// `.ohd-lock` replaced by a regular file naming another process.
+    ReplaceLock,
+    /// `.ohd-lock` replaced by a link to the canary.
+    LinkLock,
+}
+
+/// A snapshot without the locks' own entries.
+fn but_locks(s: &std::collections::BTreeMap<PathBuf, (u64, u64)>) -> Vec<(PathBuf, (u64, u64))> {
+    s.iter().filter(|(p, _)| !p.ends_with(".ohd-lock")).map(|(p, v)| (p.clone(), *v)).collect()
+}
+
+/// Nested and unlocked outputs (issue 52, finding 2): while a scan writes `SCAN` (a long one, held
+/// until the second command has ended), each lock tampered with as [`Tamper`] says, a second
+/// command aims at `SCAN` or inside it — a run into `SCAN` and into each `pointing_NN`, a study
+/// and a merge into a pointing, `ohd mie --table` onto the locks and into a pointing — and the
+/// other way round, a scan into `X` while a run writes `X/pointing_0K`. The second must be refused
+/// (exit 2, "in use"), having written nothing into the holder's directories; the canary beside
+/// and a directory elsewhere stay as they were.
+#[test]
+#[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
+fn deep_nested_and_unlocked_outputs() {
+    let (tmp, shards) = with_shards();
+    let cmds = commands(&shards);
+    let find = |w: &str| cmds.iter().find(|c| c.0 == w).unwrap().1.clone();
+    let wind = config("wind_sunny.toml");
+    let endless_scan = |out: &Path| {
+        ["run", "-q", "--threads", "1", wind.as_str(), "--samples", "100000000", "--out", out.to_str().unwrap()]
+            .iter()
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+    };
+    let mie = |table: &str| -> Vec<String> {
+        ["mie", "--m-real", "1.5", "--x", "1", "--angles", "32", "--table", table]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    };
+    // (what, the second command with OUT for its target, the target relative to SCAN)
+    let mut seconds: Vec<(String, Vec<String>, String)> = vec![("run".into(), find("run"), String::new())];
+    for p in 0..4 {
+        seconds.push((format!("run into pointing_0{p}"), find("run"), format!("pointing_0{p}")));
+    }
+    seconds.push(("converge into pointing_00".into(), find("converge"), "pointing_00".into()));
+    seconds.push(("merge into pointing_01".into(), find("merge"), "pointing_01".into()));
+    seconds.push(("mie --table onto the lock".into(), mie("OUT"), ".ohd-lock".into()));
+    seconds.push(("mie --table onto pointing_02's lock".into(), mie("OUT"), "pointing_02/.ohd-lock".into()));
+    seconds.push(("mie --table into pointing_03".into(), mie("OUT"), "pointing_03/table.txt".into()));
+    let tampers =
+        [Tamper::Nothing, Tamper::RemoveLock, Tamper::RemovePointingLock, Tamper::ReplaceLock, Tamper::LinkLock];
+    let tamper = |dir: &Path, inner: &Path, t: Tamper, canary: &Path| match t {
+        Tamper::Nothing => {}
+        Tamper::RemoveLock => drop(std::fs::remove_file(dir.join(".ohd-lock"))),
+        Tamper::RemovePointingLock => drop(std::fs::remove_file(inner.join(".ohd-lock"))),
+        Tamper::ReplaceLock => {
+            let _ = std::fs::remove_file(dir.join(".ohd-lock"));
+            std::fs::write(dir.join(".ohd-lock"), "1\n").unwrap();
+        }
+        Tamper::LinkLock => {
+            let _ = std::fs::remove_file(dir.join(".ohd-lock"));
+            std::os::unix::fs::symlink(canary, dir.join(".ohd-lock")).unwrap();
+        }
+    };
+    let mut sweep = Sweep::default();
+    let mut k = 0;
+    for (what, args, target) in &seconds {
+        for &t in &tampers {
+            k += 1;
+            let root = tmp.path().join(format!("case{k}"));
+            let scan = root.join("scan");
+            let around = Around::new(&root, &scan);
+            let mut first = endless(tmp.path(), &strs(&endless_scan(&scan)));
+            let started = wait_for(&scan.join("pointing_03").join(".ohd-lock"), 60);
+            let inner =
+                scan.join(target.split('/').next().filter(|p| p.starts_with("pointing_")).unwrap_or("pointing_00"));
+            tamper(&scan, &inner, t, around.canary.path());
+            let before = super::oracle::snapshot(&scan);
+            let aim = if target.is_empty() { scan.clone() } else { scan.join(target) };
+            let o = sh_ohd(tmp.path(), "", &strs(&with_out(args, &aim)));
+            let after = super::oracle::snapshot(&scan);
+            first.kill().unwrap();
+            first.wait().unwrap();
+            let mut problems = Vec::new();
+            if !started {
+                problems.push("the scan did not start within 60 s".into());
+            }
+            let e = text(&o.stderr);
+            if o.status.code() == Some(2) && !(e.contains("in use") || e.contains(".ohd-lock")) {
+                problems.push("refused, but not for the lock".into());
+            }
+            // Only the locks' own names may have changed (a link planted there is replaced).
+            if but_locks(&before) != but_locks(&after) {
+                problems.push("wrote into the scan's directories".into());
+            }
+            if !around.canary.unchanged() {
+                problems.push("the canary changed".into());
+            }
+            if super::oracle::snapshot(&around.elsewhere) != around.before {
+                problems.push("a directory elsewhere changed".into());
+            }
+            sweep.judge(&format!("scan holds SCAN, {t:?}, then {what}"), &o, &[2], problems);
+            let _ = std::fs::remove_dir_all(&root);
+        }
+    }
+    // The other way round: a run holds X/pointing_0K, then a scan into X.
+    for p in 0..4 {
+        for t in [Tamper::Nothing, Tamper::RemovePointingLock, Tamper::LinkLock] {
+            k += 1;
+            let root = tmp.path().join(format!("case{k}"));
+            let scan = root.join("x");
+            let inner = scan.join(format!("pointing_0{p}"));
+            let around = Around::new(&root, &scan);
+            let long_run = ["run", "-q", "--threads", "1", "--samples", "100000000", "--out", inner.to_str().unwrap()];
+            let mut first = endless(tmp.path(), &long_run);
+            let started = wait_for(&inner.join(".ohd-lock"), 60);
+            // The run's lock is its directory's: tamper with it there.
+            tamper(
+                &inner,
+                &inner,
+                if matches!(t, Tamper::RemovePointingLock) { Tamper::RemoveLock } else { t },
+                around.canary.path(),
+            );
+            let before = super::oracle::snapshot(&inner);
+            let o = sh_ohd(tmp.path(), "", &strs(&with_out(&find("scan"), &scan)));
+            let after = super::oracle::snapshot(&inner);
+            first.kill().unwrap();
+            first.wait().unwrap();
+            let mut problems = Vec::new();
+            if !started {
+                problems.push("the run did not start within 60 s".into());
+            }
+            if o.status.code() == Some(2) && !text(&o.stderr).contains("in use") {
+                problems.push("refused, but not for the lock".into());
+            }
+            if but_locks(&before) != but_locks(&after) {
+                problems.push("wrote into the run's directory".into());
+            }
+            if scan.join("scan.json").exists() {
+                problems.push("scan.json written".into());
+            }
+            if !around.canary.unchanged() {
+                problems.push("the canary changed".into());
+            }
+            sweep.judge(&format!("a run holds pointing_0{p}, {t:?}, then a scan"), &o, &[2], problems);
+            let _ = std::fs::remove_dir_all(&root);
+        }
+    }
+    sweep.finish("nested and unlocked outputs");
+}
