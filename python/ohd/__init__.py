@@ -299,6 +299,8 @@ class Result:
             raise ValueError("manifest.json: outputs: expected a table")
         out = {}
         for file, e in table.items():
+            if not isinstance(e, dict):
+                raise ValueError(f"manifest.json: outputs.{file}: expected a table")
             if not file.endswith(".npy") or e.get("kind") == "axis" or file not in self.files:
                 continue
             values = _npy(self.files[file], file)
@@ -314,6 +316,8 @@ class Result:
             else:
                 err = None
             axes_table = e.get("axes", [])
+            if not isinstance(axes_table, list) or not all(isinstance(a, dict) and "name" in a for a in axes_table):
+                raise ValueError(f"manifest.json: outputs.{file}: axes: expected a list of tables with a name")
             if len(axes_table) not in (0, values.ndim):
                 raise ValueError(f"manifest.json: outputs.{file}: {len(axes_table)} axes, where the file has {values.ndim} dimensions")
             axes = {a["name"]: self._axis(a, values.shape[i], file) for i, a in enumerate(axes_table)}
@@ -475,7 +479,9 @@ class Result:
             # marked was killed (or is being written): not a run to load.
             text = _read_in(fd, _MARKER, where, _RECORD_BYTES) or b""
             lines = [l for l in text.decode("utf-8", "replace").splitlines() if not l.startswith("#")]
-            runs = list(dict.fromkeys(l[:-1] for l in lines if l.endswith("/") and _pointing(l[:-1])))
+            # (The marker also lists an earlier output's pointing directories, first: in the
+            # pointings' order, and those without a run of their own are passed over below.)
+            runs = sorted({l[:-1] for l in lines if l.endswith("/") and _pointing(l[:-1])}, key=lambda n: int(n[9:]))
         else:
             raise FileNotFoundError(f"{where}: no finished run here (no manifest.json)")
         bad = [r for r in runs if not _pointing(r)]
@@ -491,6 +497,9 @@ class Result:
                 raise
             try:
                 pointings.append(cls._from_fd(sub, where / name))
+            except FileNotFoundError:
+                if not marked:
+                    raise
             finally:
                 os.close(sub)
         if marked and not any("interrupted" in p.manifest for p in pointings):

@@ -171,19 +171,9 @@ fn container_to_toml(v: &Bound<'_, PyAny>, key: &str, open: &mut Vec<usize>, is_
 #[pyo3(signature = (gib=None))]
 fn memory_budget(gib: Option<f64>) -> PyResult<(u64, String)> {
     guarded(|| {
-        let gib = gib.unwrap_or(ohd::config::resolve::DEFAULT_MEMORY_BUDGET_GIB);
-        let configured = (gib * (1u64 << 30) as f64) as u64;
-        Ok(match ohd::sys::memory_limit() {
-            Some(l) if l.available < configured => (
-                l.available,
-                format!(
-                    "run.memory_budget_gib, lowered to {:.0} % of what {} leaves this process",
-                    100.0 * ohd::sys::SHARE,
-                    l.source
-                ),
-            ),
-            _ => (configured, "run.memory_budget_gib".to_string()),
-        })
+        use ohd::config::resolve::{DEFAULT_MEMORY_BUDGET_GIB, budget_key, lowered_budget};
+        let (bytes, limited_by) = lowered_budget(gib.unwrap_or(DEFAULT_MEMORY_BUDGET_GIB));
+        Ok((bytes, budget_key(limited_by)))
     })
 }
 

@@ -55,7 +55,14 @@ pub fn parts(exp: &Experiment, table: &toml::Table, dir: &OutDir) -> Result<Vec<
     }
     // Every pointing directory, locked before any pilot runs (issue 52: a run into one of them
     // while the scan wrote was not refused).
-    let dirs = (0..exp.source.pointings.len()).map(|i| dir.sub(&pointing_name(i))).collect::<Result<Vec<_>>>()?;
+    // What an earlier output in each records is checked now too, before anything is written.
+    let dirs = (0..exp.source.pointings.len())
+        .map(|i| {
+            let sub = dir.sub(&pointing_name(i))?;
+            DirWriter::check(&sub, Output::Run)?;
+            Ok(sub)
+        })
+        .collect::<Result<Vec<_>>>()?;
     let pointing = |(i, (p, dir)): (usize, (&crate::source::Pointing, OutDir))| Part {
         exp: crate::pilot::decide(&exp.pointed(p)),
         dir,

@@ -58,12 +58,6 @@ impl Metal {
         }
     }
 
-    /// The measured range of wavelengths, m.
-    pub fn range(self) -> (f64, f64) {
-        let t = self.table();
-        (t[0].0 * 1e-6, t[t.len() - 1].0 * 1e-6)
-    }
-
     /// The measured range of wavelengths in nm, as the table's end points read (`"413.3"`,
     /// `"1937"`): the range [`Metal::index`] accepts, both ends included.
     pub fn range_nm(self) -> (String, String) {

@@ -382,10 +382,9 @@ pub(super) fn reflections_below(
     let mut way = start;
     let mut steps = 0;
     // The way up from the current interface, top down: the run of plain layers under the surface,
-    // then each other layer with the run of plain layers under it (no allocation while every
-    // layer is plain).
+    // then each other layer with the run of plain layers under it ([`Under`]).
     let mut top = UpRun::EMPTY;
-    let mut under: Vec<(usize, UpRun)> = Vec::new();
+    let mut under = Under::default();
     for j in 0..scene.layers.len() {
         let layer = &scene.layers[j];
         if !layer.z_bottom.is_finite() {
@@ -412,7 +411,7 @@ pub(super) fn reflections_below(
         // Its way up, for this interface's reflection and every one below.
         let Some(u) = up(layer.n) else { return steps };
         if layer.plain && !layer.heterogeneous && !layer.obstructs_shadows {
-            under.last_mut().map_or(&mut top, |(_, run)| run).add(scene, j, u);
+            under.last_run().unwrap_or(&mut top).add(scene, j, u);
         } else {
             under.push((j, UpRun::EMPTY));
         }
@@ -426,7 +425,7 @@ pub(super) fn reflections_below(
             continue;
         }
         let mut c = Crossing { transmit: way.transmit * r, twin_transmit: way.twin_transmit * r, ..way };
-        for &(k, run) in under.iter().rev() {
+        for &(k, run) in under.rev() {
             if run.layers > 0 {
                 run.cross(&mut c);
                 steps += 1;
@@ -452,6 +451,48 @@ pub(super) fn reflections_below(
         each(c);
     }
     steps
+}
+
+/// The layers the ways up of [`reflections_below`] cross one by one (density media, regions,
+/// solids), top down, each with the run of plain layers under it: the first [`Under::INLINE`]
+/// held in place, more on the heap — no allocation per path in a scene of up to that many such
+/// layers (every shipped one has at most two).
+struct Under {
+    inline: [(usize, UpRun); Under::INLINE],
+    len: usize,
+    spill: Vec<(usize, UpRun)>,
+}
+
+impl Default for Under {
+    fn default() -> Self {
+        Under { inline: [(0, UpRun::EMPTY); Under::INLINE], len: 0, spill: Vec::new() }
+    }
+}
+
+impl Under {
+    const INLINE: usize = 8;
+
+    fn push(&mut self, e: (usize, UpRun)) {
+        match self.inline.get_mut(self.len) {
+            Some(slot) => *slot = e,
+            None => self.spill.push(e),
+        }
+        self.len += 1;
+    }
+
+    /// The run under the lowest layer held, if any.
+    fn last_run(&mut self) -> Option<&mut UpRun> {
+        match self.len {
+            0 => None,
+            n if n <= Self::INLINE => Some(&mut self.inline[n - 1].1),
+            _ => self.spill.last_mut().map(|e| &mut e.1),
+        }
+    }
+
+    /// Bottom up.
+    fn rev(&self) -> impl Iterator<Item = &(usize, UpRun)> {
+        self.spill.iter().rev().chain(self.inline[..self.len.min(Self::INLINE)].iter().rev())
+    }
 }
 
 /// The way up through consecutive layers each of one homogeneous medium without regions or

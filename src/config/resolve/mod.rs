@@ -32,6 +32,7 @@ pub use self::detectors::{
 use self::detectors::{resolve_detectors, resolve_lidar};
 use self::lateral::resolve_lateral;
 use self::run::resolve_run;
+pub use self::run::{budget_key, lowered_budget};
 use self::scene::resolve_scene;
 use self::source::resolve_source;
 use self::surfaces::{camera_lobes, resolve_bottom, resolve_opaque};
@@ -472,13 +473,7 @@ impl Memory {
         let digits = if gib >= 0.095 { 1 } else { (2 - gib.log10().floor() as i32).max(1) as usize };
         let gib = format!("{gib:.digits$}");
         let gib = if digits > 1 { gib.trim_end_matches('0').to_string() } else { gib };
-        let key = match self.limited_by {
-            Some(limit) => format!(
-                "run.memory_budget_gib, lowered to {:.0} % of what {limit} leaves this process",
-                100.0 * crate::sys::SHARE
-            ),
-            None => "run.memory_budget_gib".into(),
-        };
+        let key = run::budget_key(self.limited_by);
         Some(format!("{counted} above the memory budget of {gib} GiB ({key})"))
     }
 
@@ -486,9 +481,17 @@ impl Memory {
     /// (written `value`), or refuse it above the budget with a message naming the key, what needs
     /// the memory (`how`: how it is counted) and the budget.
     fn charge(&self, key: &str, value: &str, what: &str, how: &str, bytes: u64) -> R<()> {
-        if let Some(over) = self.over(bytes) {
+        self.charge_ahead(key, value, what, how, bytes, 0)
+    }
+
+    /// [`Memory::charge`] `bytes`, refusing them already if with `ahead` — bytes that follow from
+    /// them and are charged once made (a `.npy` density's majorant grid) — they would be above the
+    /// budget: nothing is read that would then be refused, and nothing is counted twice.
+    fn charge_ahead(&self, key: &str, value: &str, what: &str, how: &str, bytes: u64, ahead: u64) -> R<()> {
+        let all = bytes.saturating_add(ahead);
+        if let Some(over) = self.over(all) {
             let value = if value.is_empty() { String::new() } else { format!("{value}: ") };
-            return err(key, format!("{value}{what} would take {} ({how}){over}", bytes_shown(bytes)));
+            return err(key, format!("{value}{what} would take {} ({how}){over}", bytes_shown(all)));
         }
         let mut blocks = self.blocks.borrow_mut();
         match blocks.last_mut() {
@@ -575,7 +578,8 @@ impl GridFiles {
             Some((what, bytes)) => (format!(", and {what}"), bytes),
             None => (String::new(), 0),
         };
-        memory.charge(
+        // The derived bytes (a density's majorant grid) are charged once made (`density::attach_density`).
+        memory.charge_ahead(
             &key,
             &format!("= \"{file}\""),
             &format!("the volume {file}"),
@@ -584,7 +588,8 @@ impl GridFiles {
                 std::mem::size_of::<T>(),
                 if copies > 1 { format!(", {copies} copies while resolving") } else { String::new() }
             ),
-            grid.saturating_add(more_bytes),
+            grid,
+            more_bytes,
         )?;
         let mut g = VoxelGrid::new([0, 0, 0], dims, T::default(), transform);
         let [nx, ny, _] = dims;

@@ -50,14 +50,7 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
     if !(budget.is_finite() && budget > 0.0 && budget <= 1e6) {
         return err("run.memory_budget_gib", format!("= {budget}: expected a budget in (0, 10^6] GiB"));
     }
-    // Never more than the process may still take (a default of 8 GiB under `ulimit -v 2G` let an
-    // image be allocated until the allocator aborted): a tighter limit lowers the budget, and the
-    // memory check names it.
-    let configured = (budget * (1u64 << 30) as f64) as u64;
-    let (memory_budget, memory_limited_by) = match crate::sys::memory_limit() {
-        Some(l) if l.available < configured => (l.available, Some(l.source)),
-        _ => (configured, None),
-    };
+    let (memory_budget, memory_limited_by) = lowered_budget(budget);
     let gate = match &r.time_gate {
         None => None,
         Some(q) => {
@@ -163,4 +156,26 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
         importance_table: None,
         importance_trace: None,
     })
+}
+
+/// The memory budget of `gib` GiB in bytes, never more than the process may still take (a
+/// default of 8 GiB under `ulimit -v 2G` let an image be allocated until the allocator aborted):
+/// a tighter limit lowers it, and is returned for the memory check to name.
+pub fn lowered_budget(gib: f64) -> (u64, Option<&'static str>) {
+    let configured = (gib * (1u64 << 30) as f64) as u64;
+    match crate::sys::memory_limit() {
+        Some(l) if l.available < configured => (l.available, Some(l.source)),
+        _ => (configured, None),
+    }
+}
+
+/// The key a memory refusal names: `run.memory_budget_gib`, and the limit that lowered it.
+pub fn budget_key(limited_by: Option<&str>) -> String {
+    match limited_by {
+        Some(limit) => format!(
+            "run.memory_budget_gib, lowered to {:.0} % of what {limit} leaves this process",
+            100.0 * crate::sys::SHARE
+        ),
+        None => "run.memory_budget_gib".into(),
+    }
 }

@@ -285,11 +285,8 @@ mod tests {
         b
     }
 
-    /// C and Fortran order give the same array; f8 reads as f32; a wrong dtype or size is an
-    /// error in words.
-    #[test]
-    fn floats_in_either_order() {
-        // a[i][j][k] = 100 i + 10 j + k, shape (2, 3, 2).
+    /// a[i][j][k] = 100 i + 10 j + k of shape (2, 3, 2), in C and in Fortran order.
+    fn both_orders() -> (Vec<f32>, Vec<f32>) {
         let c: Vec<f32> = (0..12).map(|n| (100 * (n / 6) + 10 * ((n / 2) % 3) + n % 2) as f32).collect();
         let mut fo = vec![0.0; 12];
         for i in 0..2 {
@@ -299,6 +296,14 @@ mod tests {
                 }
             }
         }
+        (c, fo)
+    }
+
+    /// C and Fortran order give the same array; f8 reads as f32; a wrong dtype or size is an
+    /// error in words.
+    #[test]
+    fn floats_in_either_order() {
+        let (c, fo) = both_orders();
         let a = super::read_floats(&f4("(2, 3, 2)", false, &c)).unwrap();
         let b = super::read_floats(&f4("(2, 3, 2)", true, &fo)).unwrap();
         assert_eq!(a, b);
@@ -317,15 +322,7 @@ mod tests {
     /// its length must be what the header declares.
     #[test]
     fn volumes_stream_by_index() {
-        let c: Vec<f32> = (0..12).map(|n| (100 * (n / 6) + 10 * ((n / 2) % 3) + n % 2) as f32).collect();
-        let mut fo = vec![0.0; 12];
-        for i in 0..2 {
-            for j in 0..3 {
-                for k in 0..2 {
-                    fo[i + 2 * j + 6 * k] = (100 * i + 10 * j + k) as f32;
-                }
-            }
-        }
+        let (c, fo) = both_orders();
         let tmp = tempfile::tempdir().unwrap();
         for (name, fortran, values) in [("c.npy", false, &c), ("f.npy", true, &fo)] {
             let path = tmp.path().join(name);

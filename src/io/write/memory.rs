@@ -92,7 +92,12 @@ pub fn save_scan(dir: &Path, files: &[Named], pointings: &[Vec<Named>]) -> Resul
     let out = OutDir::create(dir)?;
     DirWriter::check(&out, Output::Run)?;
     let names: Vec<String> = (0..pointings.len()).map(super::dir::pointing_name).collect();
-    let subs = names.iter().map(|n| out.sub(n)).collect::<Result<Vec<_>>>()?;
+    // Each pointing directory locked, and what an earlier output there records checked, before
+    // anything is written.
+    let subs = names
+        .iter()
+        .map(|n| out.sub(n).and_then(|sub| DirWriter::check(&sub, Output::Run).map(|()| sub)))
+        .collect::<Result<Vec<_>>>()?;
     let mut w = DirWriter::begin(&out, Output::Run, &names)?;
     for ((name, sub), files) in names.iter().zip(&subs).zip(pointings) {
         w.subdir(name)?;
@@ -102,7 +107,12 @@ pub fn save_scan(dir: &Path, files: &[Named], pointings: &[Vec<Named>]) -> Resul
     for (name, bytes) in files.iter().filter(|(n, _)| n != SCAN) {
         w.put(name, bytes)?;
     }
-    w.finish(record.map(|(n, b)| (n.as_str(), b.as_slice())))
+    match record {
+        Some((name, bytes)) => w.finish(Some((name.as_str(), bytes.as_slice()))),
+        // A scan stopped before its end (Ctrl-C) has no record: its directory stays marked
+        // incomplete, as the CLI leaves it, for `--resume`.
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]

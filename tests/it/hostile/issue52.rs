@@ -377,6 +377,13 @@ fn costly_options(depth: Depth) {
     std::fs::create_dir(&cwd).unwrap();
     let out = scratch.path().join("out");
     let mut tally = Tally::default();
+    let judge = |tally: &mut Tally, id: String, what: String, args: Vec<String>, file: &str| {
+        let mut case = Case::new(id, what, args, &cwd, RUN_LIMIT, Names::config(None, &[file]));
+        case.out = Some(out.clone());
+        case.watched.push(out.clone());
+        tally.run(case);
+        let _ = std::fs::remove_dir_all(&out);
+    };
     let (counts, modes): (&[usize], &[&str]) = match depth {
         Depth::Quick => (&[3000], &["auto"]),
         Depth::Deep => (&[10, 100, 1000, 3000], &["auto", "deterministic", "sampled"]),
@@ -385,18 +392,13 @@ fn costly_options(depth: Depth) {
         for mode in modes {
             let config = kept.join(format!("interfaces_{n}_{mode}.toml"));
             std::fs::write(&config, interfaces_experiment(n, mode)).unwrap();
-            let mut case = Case::new(
+            judge(
+                &mut tally,
                 format!("{category} {n} interfaces, reflections {mode}"),
                 format!("{n} clear layers of alternating index, run.reflections = \"{mode}\""),
                 sized_run(&config, &out, "2000", &[]),
-                &cwd,
-                RUN_LIMIT,
-                Names::config(None, &["interfaces"]),
+                "interfaces",
             );
-            case.out = Some(out.clone());
-            case.watched.push(out.clone());
-            tally.run(case);
-            let _ = std::fs::remove_dir_all(&out);
         }
     }
     // The importance pilot on a scene of albedo 1 (every path lives long), at a run's size.
@@ -409,18 +411,13 @@ fn costly_options(depth: Depth) {
     for n in samples {
         for opt in options {
             let args = sized_run(&albedo1, &out, n, &[format!("run.importance=\"{opt}\"")]);
-            let mut case = Case::new(
+            judge(
+                &mut tally,
                 format!("{category} importance {opt} at {n} paths"),
                 format!("a thick slab of albedo 1, run.importance = \"{opt}\", {n} paths"),
                 args,
-                &cwd,
-                RUN_LIMIT,
-                Names::config(None, &["albedo1_thick.toml"]),
+                "albedo1_thick.toml",
             );
-            case.out = Some(out.clone());
-            case.watched.push(out.clone());
-            tally.run(case);
-            let _ = std::fs::remove_dir_all(&out);
         }
     }
     tally.finish(&category);

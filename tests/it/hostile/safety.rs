@@ -829,7 +829,8 @@ fn deep_concurrent_commands() {
 
 /// Each command into a small tmpfs (16 KiB to 4 MiB) mounted in the test's directory, where the
 /// test may mount one (as root), else skipped with a message: exit 0, or 1 naming the full device's
-/// error; no temporary file left; a failed run's directory marked incomplete or holding no record.
+/// error (2 if found before any work: nothing written); no temporary file left; a failed run's
+/// directory marked incomplete or holding no record.
 #[test]
 #[ignore = "deep sweep, minutes: cargo test --profile ci hostile:: -- --ignored"]
 fn deep_full_disk() {
@@ -861,7 +862,17 @@ fn deep_full_disk() {
                     problems.push("a failed write left a record without the marker".into());
                 }
             }
-            sweep.judge(&format!("{what} into a {size} tmpfs"), &o, &[0, 1], problems);
+            // Found before any work (a scan's pointing directories and their locks are made
+            // first): refused as an unusable output directory, nothing written.
+            if o.status.code() == Some(2) {
+                if !text(&o.stderr).contains("No space left") {
+                    problems.push("exit 2 without the device's error".into());
+                }
+                if out.join(record).exists() || out.join("ohd_incomplete.txt").exists() {
+                    problems.push("refused after writing".into());
+                }
+            }
+            sweep.judge(&format!("{what} into a {size} tmpfs"), &o, &[0, 1, 2], problems);
             let _ = std::fs::remove_dir_all(&out);
         }
         let umount = Command::new("umount").arg(&mnt).status().unwrap();
