@@ -633,7 +633,8 @@ def run(
     samples, seed, threads
                as `--samples`, `--seed`, `--threads` (the same as overrides of run.samples, …).
     overrides  {"key.path": value} or ["key.path=value", …], as `--set` (applied in order).
-    out        also write the outputs into this directory (as `ohd run --out`).
+    out        also write the outputs into this directory, as `ohd run --out` does (refused
+               before any work if it cannot be used; locked while the run goes on).
     progress   True: a progress line on a terminal or in Jupyter; False: none; or a callable
                `progress(done_paths, total_paths)` called about every 50 ms.
     figures    write the PNG/SVG figures (as the CLI; False as `--no-figures`).
@@ -653,7 +654,8 @@ def run(
     Raises ConfigError (a ValueError) on an invalid configuration, an OSError on a file that
     cannot be read or written. Ctrl-C ends the run at its next batch boundary and raises
     KeyboardInterrupt with the result of the batches done as `.result` (its manifest's
-    `interrupted` gives the batches done and planned; with `out`, that result is written there);
+    `interrupted` gives the batches done and planned; with `out`, that result is written there,
+    with a checkpoint that `ohd run --resume` finishes);
     a second Ctrl-C stops at once, with nothing kept.
     """
     if grids is not None:
@@ -809,19 +811,17 @@ def _with_grid_files(config: Mapping[str, Any], grids: Mapping[str, np.ndarray],
 
 def _run(exp: Experiment, out, report, figures: bool) -> Result:
     if out is not None:
-        _ohd.check_writable(os.fspath(out))
+        # The CLI's run into `out` (issue 52: one writer for both): the directory refused before
+        # any work if it cannot be used, locked for the whole run, and after Ctrl-C the batches
+        # done written with a checkpoint for `ohd run --resume`; the result is what it wrote.
+        stopped = exp.run_to_dir(os.fspath(out), figures, report)
+        return _stopped(Result._from_dir(Path(out)), stopped)
     if exp.pointings > 1:
-        if out is not None:
-            stopped = exp.run_to_dir(os.fspath(out), figures, report)
-            return _stopped(Result._from_dir(Path(out)), stopped)
         with tempfile.TemporaryDirectory(prefix="ohd-scan-") as tmp:
             stopped = exp.run_to_dir(tmp, figures, report)
             return _stopped(Result._from_dir(Path(tmp)), stopped)
     _, files, stopped = exp.run(figures, report)
-    result = Result(dict(files))
-    if out is not None:
-        result.save(out)
-    return _stopped(result, stopped)
+    return _stopped(Result(dict(files)), stopped)
 
 
 def _stopped(result: Result, stopped: bool) -> Result:

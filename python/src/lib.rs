@@ -498,12 +498,6 @@ fn save_scan(
     guarded(|| py.detach(|| ohd::io::write::memory::save_scan(&dir, &files, &pointings)).map_err(to_py))
 }
 
-/// Whether `dir` can take a run's outputs (checked before a run, as the CLI does).
-#[pyfunction]
-fn check_writable(dir: PathBuf) -> PyResult<()> {
-    guarded(|| ohd::run::check_writable(&dir).map_err(to_py))
-}
-
 /// Mie efficiencies of one sphere, as `ohd mie` (with `angles`: its phase function, per sr, at
 /// the angles in radians).
 #[pyfunction]
@@ -604,7 +598,6 @@ fn _ohd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_many, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_scan, m)?)?;
-    m.add_function(wrap_pyfunction!(check_writable, m)?)?;
     m.add_function(wrap_pyfunction!(toml_value, m)?)?;
     m.add_function(wrap_pyfunction!(memory_budget, m)?)?;
     m.add_function(wrap_pyfunction!(mie_sphere, m)?)?;

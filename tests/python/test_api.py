@@ -328,6 +328,8 @@ def test_ctrl_c_keeps_the_batches_done(tmp_path):
     assert rd > 0 and 0 < rd_err < 0.02 * rd, (rd, rd_err)
     written = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert written["interrupted"] == cut
+    # As the CLI's: a checkpoint that `ohd run --resume` finishes.
+    assert (tmp_path / "out" / "checkpoint.ohd").is_file()
 
 
 def test_progress_callback_sees_the_run():
@@ -755,3 +757,21 @@ def test_a_save_into_a_directory_being_written_is_refused(binary, scan_result, t
             writer.wait()
         assert not (tmp_path / "out" / "scan.json").exists()
         assert not (tmp_path / "out" / "pointing_00" / "manifest.json").exists()
+
+
+def test_run_into_out_holds_the_directory_while_it_runs(cli, tmp_path):
+    """Issue 52: `ohd.run(out=…)` is the CLI's run into the directory, locked for the whole run
+    (it ran in memory, then saved: another writer could take the directory meanwhile)."""
+    script = "import ohd; ohd.run(samples=10**9, progress=False, figures=False, out='out')"
+    p = subprocess.Popen([sys.executable, "-c", script], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        t = time.monotonic()
+        while not (tmp_path / "out" / ".ohd-lock").exists() and time.monotonic() - t < 60:
+            time.sleep(0.01)
+        other = cli("run", "--samples", 1000, "--out", tmp_path / "out", "-q", check=False)
+    finally:
+        p.kill()
+        p.wait()
+    assert other.returncode == 2, other.stderr
+    assert "in use" in other.stderr and f"process {p.pid}" in other.stderr, other.stderr
+    assert not (tmp_path / "out" / "manifest.json").exists()
