@@ -200,14 +200,6 @@ impl RunOptions {
     }
 }
 
-/// Whether outputs can be written into `dir`, found before any path is traced (issues 21 and 33:
-/// an unwritable `--out` was found after the whole simulation): the directory is created if
-/// missing, opened, locked and probed ([`OutDir::create`]), then released. An error is an input
-/// error naming `dir`.
-pub fn check_writable(dir: &Path) -> Result<()> {
-    OutDir::create(dir).map(drop)
-}
-
 /// Run `loaded` as `req` asks: one run, or every pointing of a scan and then its VAD wind, or
 /// one shard of each. Outputs are written into `req.dir`.
 pub fn run(loaded: &Loaded, req: &RunRequest, obs: &dyn Observer) -> Result<Finished> {

@@ -163,11 +163,13 @@ pub struct Volume {
 pub fn open_volume(path: &std::path::Path) -> Result<Volume, String> {
     use std::io::Read;
     let shown = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    // Looked at before it is opened: opening a FIFO would wait for a writer.
-    if !std::fs::metadata(path).map_err(|e| shown(&e))?.is_file() {
-        return Err(format!("{}: not a regular file: expected a .npy volume", path.display()));
-    }
-    let file = std::fs::File::open(path).map_err(|e| shown(&e))?;
+    // Opened without waiting (a FIFO would wait for a writer), then judged by what was opened
+    // (no window for a FIFO to be put in its place between a look and the opening).
+    let file = {
+        use std::os::unix::fs::OpenOptionsExt;
+        let nonblock = rustix::fs::OFlags::NONBLOCK.bits() as i32;
+        std::fs::OpenOptions::new().read(true).custom_flags(nonblock).open(path).map_err(|e| shown(&e))?
+    };
     let meta = file.metadata().map_err(|e| shown(&e))?;
     if !meta.is_file() {
         return Err(format!("{}: not a regular file: expected a .npy volume", path.display()));
