@@ -38,7 +38,6 @@ use crate::detect::importance::ImportanceTable;
 use crate::detect::{AutoChoice, DetectorKind, EstimatorChoice};
 use crate::experiment::{Experiment, RunOutput, Silent};
 use crate::sampling::rng::mix64;
-
 use crate::transport::windows::{AutoWindows, Importance};
 
 /// The forward pilot traces `1/PILOT_SHARE` of the run's paths.

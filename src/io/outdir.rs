@@ -225,21 +225,8 @@ impl OutDir {
         if subs.contains_key(name) {
             return Ok(());
         }
-        let werr = |e| Error::Write { path: path.to_path_buf(), source: io(e) };
-        let made = match rustix::fs::mkdirat(&self.root.fd, name, Mode::from_raw_mode(0o777)) {
-            Ok(()) => true,
-            Err(rustix::io::Errno::EXIST) => false,
-            Err(e) => return Err(werr(e)),
-        };
-        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
-        let taken = match rustix::fs::openat(&self.root.fd, name, flags, Mode::empty()) {
-            Ok(fd) => Lock::take(fd, path, true),
-            Err(rustix::io::Errno::LOOP | rustix::io::Errno::NOTDIR) => {
-                Err(refused(path, "not a directory (a symbolic link or a file): ohd does not follow or replace it"))
-            }
-            Err(e) => Err(werr(e)),
-        };
-        match taken {
+        let (fd, made) = open_sub(&self.root.fd, name, path)?;
+        match Lock::take(fd, path, true) {
             Ok(Some(lock)) => {
                 subs.insert(name.to_string(), SubLock { lock, made });
                 Ok(())
@@ -268,17 +255,7 @@ impl OutDir {
         if let Some(fd) = self.root.locked_sub(name) {
             return fd.map_err(werr);
         }
-        match rustix::fs::mkdirat(&self.root.fd, name.as_str(), Mode::from_raw_mode(0o777)) {
-            Ok(()) | Err(rustix::io::Errno::EXIST) => {}
-            Err(e) => return Err(werr(io(e))),
-        }
-        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
-        rustix::fs::openat(&self.root.fd, name.as_str(), flags, Mode::empty()).map_err(|e| match e {
-            rustix::io::Errno::LOOP | rustix::io::Errno::NOTDIR => {
-                refused(&self.path, "not a directory (a symbolic link or a file): ohd does not follow or replace it")
-            }
-            e => werr(io(e)),
-        })
+        open_sub(&self.root.fd, name, &self.path).map(|(fd, _)| fd)
     }
 
     /// The type of the entry `name` (not following a link), `None` if there is none.
@@ -436,6 +413,33 @@ fn temporary_in(dir: OwnedFd, dir_path: &Path, name: &str) -> Result<Temporary> 
         }
     }
     Err(Error::Write { path, source: io(last) })
+}
+
+/// The sub-directory `name` (at `path`) of the directory `root`, made if missing and opened
+/// without following a link (a link or a file there is refused); and whether it was made now.
+fn open_sub(root: &OwnedFd, name: &str, path: &Path) -> Result<(OwnedFd, bool)> {
+    let werr = |e| Error::Write { path: path.to_path_buf(), source: io(e) };
+    let made = match rustix::fs::mkdirat(root, name, Mode::from_raw_mode(0o777)) {
+        Ok(()) => true,
+        Err(rustix::io::Errno::EXIST) => false,
+        Err(e) => return Err(werr(e)),
+    };
+    let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+    let fd = rustix::fs::openat(root, name, flags, Mode::empty()).map_err(|e| match e {
+        rustix::io::Errno::LOOP | rustix::io::Errno::NOTDIR => {
+            refused(path, "not a directory (a symbolic link or a file): ohd does not follow or replace it")
+        }
+        e => werr(e),
+    });
+    match fd {
+        Ok(fd) => Ok((fd, made)),
+        Err(e) => {
+            if made {
+                let _ = rustix::fs::unlinkat(root, name, AtFlags::REMOVEDIR);
+            }
+            Err(e)
+        }
+    }
 }
 
 /// Open the directory at `path` (through links: it is the user's path), component by component,

@@ -21,6 +21,14 @@ pub enum Metal {
     Aluminium,
 }
 
+/// A wavelength (m) in nm as a message shows it: to 10⁻⁴ nm, without trailing zeros (413.3, not
+/// 413.29999999999995). Four decimals of a nanometre hold every table row exactly; the rest is
+/// the µm → nm rounding.
+pub fn nm_shown(wavelength: f64) -> String {
+    let s = format!("{:.4}", wavelength * 1e9);
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 impl Metal {
     /// The names a configuration may use.
     pub const NAMES: [(&'static str, Metal); 4] = [
@@ -62,12 +70,7 @@ impl Metal {
     /// `"1937"`): the range [`Metal::index`] accepts, both ends included.
     pub fn range_nm(self) -> (String, String) {
         let t = self.table();
-        // Four decimals of a nanometre hold every row exactly; the rest is the µm → nm rounding.
-        let nm = |um: f64| {
-            let s = format!("{:.4}", um * 1e3);
-            s.trim_end_matches('0').trim_end_matches('.').to_string()
-        };
-        (nm(t[0].0), nm(t[t.len() - 1].0))
+        (nm_shown(t[0].0 * 1e-6), nm_shown(t[t.len() - 1].0 * 1e-6))
     }
 
     /// `n + ik` at `wavelength` (m), if within the measured range, its end points included.

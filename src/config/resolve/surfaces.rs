@@ -206,13 +206,6 @@ fn norm(v: DVec3) -> f64 {
     if m > 0.0 && m.is_finite() { m * (v / m).length() } else { m }
 }
 
-/// A wavelength (m) in nm as a message shows it: to 10⁻⁴ nm, without trailing zeros (413.29, not
-/// 413.28999999999996).
-fn nm(wavelength: f64) -> String {
-    let s = format!("{:.4}", wavelength * 1e9);
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
 /// A vector key's SI value and key path, if given (finite).
 fn vector<S>(path: &str, q: &Option<Quantity<S, [f64; 3]>>) -> R<(Option<DVec3>, Option<String>)> {
     Ok(match given_arr(path, q)? {
@@ -346,7 +339,7 @@ pub(super) fn resolve_surface(path: &str, s: &SurfaceSection, wavelength: f64, n
                             format!(
                                 "= {m:?}: its measured index ({}) covers {a} … {b} nm (both included), not the source's {} nm: give n and k",
                                 metal.reference(),
-                                nm(wavelength)
+                                crate::surface::metals::nm_shown(wavelength)
                             ),
                         );
                     };
