@@ -12,7 +12,7 @@ use glam::DVec3;
 use ohd::experiment::Silent;
 use ohd::phase::{HenyeyGreenstein, PhaseFunction};
 use ohd::sampling::{PathRng, Purpose, warp};
-use ohd::transport::walk::{doppler_increment, scatter_direction};
+use ohd::transport::event::{doppler_increment, scatter_direction};
 
 /// One real scattering event as the walk does it: deflection, azimuth, rotation, Doppler term.
 fn scatter_event(

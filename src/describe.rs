@@ -26,7 +26,6 @@ use crate::phase::PhaseFunction;
 use crate::source::{Chirp, Pointing, Profile, Source};
 use crate::spectrum::FrequencyAxis;
 use crate::transport::Tracking;
-use crate::transport::WalkContext;
 use crate::transport::windows::Importance;
 
 /// A unit: its symbol and its size in SI.
@@ -570,8 +569,8 @@ impl Display for Scene {
                     cu.range(alo, ahi)
                 )?;
             }
-            if first.roughness > 0.0 {
-                write!(f, ", a rough top face (GGX α = {})", num(first.roughness))?;
+            if first.face.is_rough() {
+                write!(f, ", a rough top face (GGX α = {})", num(first.face.roughness()))?;
             }
             let regions: usize = ls.iter().map(|l| l.regions.len()).sum();
             match regions {
@@ -915,15 +914,19 @@ impl Display for Experiment {
         )?;
         let mib = |b: u64| b as f64 / (1 << 20) as f64;
         // The interfaces' unscattered reflections: how the detectors get them (`run.reflections`).
-        let deterministic =
-            WalkContext::deterministic_reflections(&self.scene, &self.source, &self.plan.walk, &self.detectors);
-        let moment = crate::transport::walk::reflection_second_moment(&self.scene, &self.source);
+        let deterministic = crate::transport::policy::deterministic_reflections(
+            &self.scene,
+            &self.source,
+            &self.plan.walk,
+            &self.detectors,
+        );
+        let moment = crate::transport::policy::reflection_second_moment(&self.scene, &self.source);
         writeln!(
             f,
             "unscattered reflections below the surface: {} (second moment per path along the beam {}, auto threshold {})",
             if deterministic { "deterministic" } else { "sampled by the walk" },
             num(moment),
-            num(crate::transport::walk::AUTO_REFLECTIONS)
+            num(crate::transport::policy::AUTO_REFLECTIONS)
         )?;
         // Where the forward paths start (`run.launches`).
         match self.plan.walk.launches {

@@ -921,7 +921,7 @@ impl Experiment {
             nee: &nee,
             shot: None,
             volume,
-            reflections: WalkContext::deterministic_reflections(
+            reflections: crate::transport::policy::deterministic_reflections(
                 &self.scene,
                 &self.source,
                 &self.plan.walk,

@@ -90,11 +90,13 @@ impl TwinPath {
             self.lambda *= excess.exp();
             self.touched = true;
         }
+        debug_assert!(self.lambda >= 0.0 && !self.lambda.is_nan(), "the twin's Λ = {} after a flight", self.lambda);
     }
 
     /// The twin of the path's state `e` (its weight times `Λ`, its Doppler state).
     #[inline]
     pub fn state(&self, e: &PathState) -> PathState {
+        debug_assert!(self.lambda >= 0.0 && !self.lambda.is_nan(), "the twin's Λ = {}", self.lambda);
         PathState {
             weight: e.weight * self.lambda,
             dldt: e.dldt + self.dldt,

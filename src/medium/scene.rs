@@ -18,9 +18,9 @@ pub struct Layer {
     pub z_bottom: f64,
     /// Real refractive index.
     pub n: f64,
-    /// The GGX roughness α of the layer's top face (0: a smooth Fresnel interface). A rough face
-    /// between equal indices is no interface at all.
-    pub roughness: f64,
+    /// The layer's top face: smooth (Fresnel's) or a rough surface model. A rough face between
+    /// equal indices is no interface at all.
+    pub face: crate::surface::Interface,
     /// Index into [`Scene::media`] of the medium filling the layer outside its regions.
     pub medium: usize,
     /// Indices into [`Scene::regions`], in priority order.
@@ -248,7 +248,7 @@ impl Scene {
     /// on both sides is no interface at all).
     #[inline]
     pub fn rough_top(&self, j: usize) -> bool {
-        self.layers[j].roughness > 0.0 && self.layers[j].n != self.n_above_layer(j)
+        self.layers[j].face.is_rough() && self.layers[j].n != self.n_above_layer(j)
     }
 
     /// The `[wind]` the scene's particles are carried by (the first population moved by it), for

@@ -102,6 +102,29 @@ impl Bsdf {
     /// drawn direction is below the surface (a rough surface's masked share: the energy its
     /// single-scattering model loses).
     pub fn sample(&self, wi: DVec3, u: [f64; 3]) -> Option<Sampled> {
+        let s = self.draw(wi, u);
+        debug_assert!(
+            s.is_none_or(|s| s.weight >= 0.0
+                && s.weight <= self.albedo_bound()
+                && (s.wo.length_squared() - 1.0).abs() < 1e-9),
+            "a BSDF's draw {s:?} from {wi} outside its bound {} or not unit",
+            self.albedo_bound()
+        );
+        s
+    }
+
+    /// The largest share of the power a reflection can carry on: a Lambertian's albedo, a
+    /// conductor's 1 (Fresnel times masking), a mixture's largest part's.
+    pub fn albedo_bound(&self) -> f64 {
+        match self {
+            Bsdf::Lambertian { albedo } => *albedo,
+            Bsdf::Conductor { .. } => 1.0,
+            Bsdf::Mixture(parts) => parts.iter().map(|(_, p)| p.albedo_bound()).fold(0.0, f64::max),
+        }
+    }
+
+    /// [`Bsdf::sample`] without its checks.
+    fn draw(&self, wi: DVec3, u: [f64; 3]) -> Option<Sampled> {
         match self {
             Bsdf::Lambertian { albedo } => {
                 let wo = cosine_hemisphere(u[0], u[1]);
@@ -211,6 +234,61 @@ impl Bsdf {
 pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
     let (x, y) = warp::uniform_disk(u1, u2);
     DVec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
+}
+
+/// The top face of a layer, between its medium and the one above: how light crosses it. A smooth
+/// face is Fresnel's, which the walk takes inline; a rough one is a surface model the walk draws
+/// its crossing from. A new model is a variant here.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Interface {
+    #[default]
+    Smooth,
+    Rough(RoughDielectric),
+}
+
+impl Interface {
+    /// The face of GGX roughness `alpha` (0: smooth).
+    pub fn with_roughness(alpha: f64) -> Self {
+        if alpha > 0.0 { Interface::Rough(RoughDielectric { alpha }) } else { Interface::Smooth }
+    }
+
+    /// Its GGX roughness α (0 for a smooth face).
+    pub fn roughness(&self) -> f64 {
+        match self {
+            Interface::Smooth => 0.0,
+            Interface::Rough(r) => r.alpha,
+        }
+    }
+
+    /// Whether it scatters (is not Fresnel's smooth face).
+    pub fn is_rough(&self) -> bool {
+        matches!(self, Interface::Rough(_))
+    }
+
+    /// [`RoughDielectric::sample`] of a rough face; a smooth face draws nothing here (the walk
+    /// crosses it).
+    pub fn sample(&self, wi: DVec3, n_i: f64, n_t: f64, u: [f64; 3]) -> Option<Crossed> {
+        match self {
+            Interface::Smooth => None,
+            Interface::Rough(r) => r.sample(wi, n_i, n_t, u),
+        }
+    }
+
+    /// [`RoughDielectric::eval`] (0 for a smooth face, whose lobes are Dirac's).
+    pub fn eval(&self, wi: DVec3, wo: DVec3, n_i: f64, n_t: f64) -> f64 {
+        match self {
+            Interface::Smooth => 0.0,
+            Interface::Rough(r) => r.eval(wi, wo, n_i, n_t),
+        }
+    }
+
+    /// [`RoughDielectric::pdf`] (0 for a smooth face).
+    pub fn pdf(&self, wi: DVec3, wo: DVec3, n_i: f64, n_t: f64) -> f64 {
+        match self {
+            Interface::Smooth => 0.0,
+            Interface::Rough(r) => r.pdf(wi, wo, n_i, n_t),
+        }
+    }
 }
 
 /// A rough interface between two dielectrics (GGX normals of roughness `alpha > 0`; Walter et

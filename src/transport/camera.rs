@@ -403,7 +403,7 @@ pub struct FaceLink {
 struct FaceLobe {
     n_above: f64,
     n_below: f64,
-    interface: crate::surface::RoughDielectric,
+    interface: crate::surface::Interface,
     up: crate::surface::Frame,
     to_light: DVec3,
 }
@@ -416,7 +416,7 @@ impl FaceLobe {
         Some(FaceLobe {
             n_above,
             n_below: scene.layers[face].n,
-            interface: crate::surface::RoughDielectric { alpha: scene.layers[face].roughness },
+            interface: scene.layers[face].face,
             up,
             to_light: up.to_local(-b),
         })

@@ -1,12 +1,15 @@
 //! What a scene's walk is compiled for: the features it uses, read once per batch and mapped to
 //! the random walk monomorphised for them (as pbrt-v4's integrator owns its options).
 //!
-//! The walk ([`super::walk`]) is generic over seven features: the Doppler term (`DOPPLER`),
-//! the optical path length (`LENGTH`), next-event estimation (`NEE`), the volume tally
-//! (`VOLUME`), the time gate (`GATE`), the side faces of a box phantom (`LATERAL`); a camera
-//! path is a walk of its own (`CAMERA`). [`Features::forward_paths`] and
-//! [`Features::camera_paths`] are the only places that turn a run's flags into these type
-//! parameters (48 forward walks and 4 camera walks are compiled).
+//! The walk ([`super::walk`]) is generic over its estimator, a type whose consts say what the
+//! path tracks: the forward estimator ([`super::forward::Forward`]) over six features, the Doppler
+//! term (`DOPPLER`), the optical path length (`LENGTH`), next-event estimation and the layered twin
+//! (`NEE`), the volume tally (`VOLUME`), the time gate (`GATE`, only with `LENGTH`), the side faces
+//! of a box phantom (`LATERAL`, never with `NEE`); camera paths ([`super::adjoint::Adjoint`]) over
+//! the first two. [`Features::forward_paths`] and [`Features::camera_paths`] are the only places
+//! that turn a run's flags into these types: 36 forward walks, 4 camera walks and 6 walks of a
+//! parted twin are compiled (issue 53: 48 forward walks, each inlined twice, before; a gate without
+//! the length was compiled though never run).
 //!
 //! Measured (issue 34, `validation/README.md`): the Doppler term, the volume tally and the time
 //! gate read at run time instead (6 forward walks, 2 camera walks) cost +12.7 % instructions on
@@ -16,8 +19,10 @@
 use crate::detect::Recorder;
 use crate::sampling::StreamKey;
 
+use super::adjoint::trace_camera_path;
 use super::camera::CameraTarget;
-use super::walk::{WalkContext, trace_camera_path, trace_path};
+use super::forward::trace_path;
+use super::walk::WalkContext;
 
 /// Paths between two calls of the batch loop's `tick` ([`Features::forward_paths`]): progress
 /// reports and checks for cancellation.
@@ -73,11 +78,15 @@ impl Features {
         mut tick: impl FnMut() -> bool,
     ) -> bool {
         let t = &mut tick;
-        match (self.doppler, self.length) {
-            (false, false) => self.forward::<false, false>(ctx, rec, key, paths, t),
-            (true, false) => self.forward::<true, false>(ctx, rec, key, paths, t),
-            (false, true) => self.forward::<false, true>(ctx, rec, key, paths, t),
-            (true, true) => self.forward::<true, true>(ctx, rec, key, paths, t),
+        // A time gate comes only with the optical path length (`Features::new`): no walk is
+        // compiled for a gate without it.
+        match (self.doppler, self.length, self.gate) {
+            (false, false, _) => self.forward::<false, false, false>(ctx, rec, key, paths, t),
+            (true, false, _) => self.forward::<true, false, false>(ctx, rec, key, paths, t),
+            (false, true, false) => self.forward::<false, true, false>(ctx, rec, key, paths, t),
+            (true, true, false) => self.forward::<true, true, false>(ctx, rec, key, paths, t),
+            (false, true, true) => self.forward::<false, true, true>(ctx, rec, key, paths, t),
+            (true, true, true) => self.forward::<true, true, true>(ctx, rec, key, paths, t),
         }
     }
 
@@ -107,7 +116,7 @@ impl Features {
     /// remaining features, so that a walk without them runs the loop it ran before there were
     /// any.
     #[inline(always)]
-    fn forward<const DOPPLER: bool, const LENGTH: bool>(
+    fn forward<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
         self,
         ctx: &WalkContext,
         rec: &mut Recorder,
@@ -116,25 +125,13 @@ impl Features {
         tick: &mut impl FnMut() -> bool,
     ) -> bool {
         if self.lateral {
-            return lateral_paths::<DOPPLER, LENGTH>(ctx, rec, key, paths, tick);
+            return lateral_paths::<DOPPLER, LENGTH, GATE>(ctx, rec, key, paths, tick);
         }
-        match (self.nee, self.volume, self.gate) {
-            (false, false, false) => {
-                paths_loop::<DOPPLER, LENGTH, false, false, false, false>(ctx, rec, key, paths, tick)
-            }
-            (false, true, false) => {
-                paths_loop::<DOPPLER, LENGTH, false, true, false, false>(ctx, rec, key, paths, tick)
-            }
-            (false, false, true) => {
-                paths_loop::<DOPPLER, LENGTH, false, false, true, false>(ctx, rec, key, paths, tick)
-            }
-            (false, true, true) => paths_loop::<DOPPLER, LENGTH, false, true, true, false>(ctx, rec, key, paths, tick),
-            (true, false, false) => {
-                paths_loop::<DOPPLER, LENGTH, true, false, false, false>(ctx, rec, key, paths, tick)
-            }
-            (true, true, false) => paths_loop::<DOPPLER, LENGTH, true, true, false, false>(ctx, rec, key, paths, tick),
-            (true, false, true) => paths_loop::<DOPPLER, LENGTH, true, false, true, false>(ctx, rec, key, paths, tick),
-            (true, true, true) => paths_loop::<DOPPLER, LENGTH, true, true, true, false>(ctx, rec, key, paths, tick),
+        match (self.nee, self.volume) {
+            (false, false) => paths_loop::<DOPPLER, LENGTH, false, false, GATE, false>(ctx, rec, key, paths, tick),
+            (false, true) => paths_loop::<DOPPLER, LENGTH, false, true, GATE, false>(ctx, rec, key, paths, tick),
+            (true, false) => paths_loop::<DOPPLER, LENGTH, true, false, GATE, false>(ctx, rec, key, paths, tick),
+            (true, true) => paths_loop::<DOPPLER, LENGTH, true, true, GATE, false>(ctx, rec, key, paths, tick),
         }
     }
 }
@@ -143,20 +140,17 @@ impl Features {
 /// Outlined: inlined beside the walks without it, its walks changed the register allocation of
 /// theirs (measured: +0.23 % instructions on the vdH slab without `[lateral]`).
 #[inline(never)]
-fn lateral_paths<const DOPPLER: bool, const LENGTH: bool>(
+fn lateral_paths<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     key: &StreamKey,
     paths: u64,
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
-    let volume = ctx.volume.is_some();
-    let gate = LENGTH && ctx.settings.gate.is_some();
-    match (volume, gate) {
-        (false, false) => paths_loop::<DOPPLER, LENGTH, false, false, false, true>(ctx, rec, key, paths, tick),
-        (true, false) => paths_loop::<DOPPLER, LENGTH, false, true, false, true>(ctx, rec, key, paths, tick),
-        (false, true) => paths_loop::<DOPPLER, LENGTH, false, false, true, true>(ctx, rec, key, paths, tick),
-        (true, true) => paths_loop::<DOPPLER, LENGTH, false, true, true, true>(ctx, rec, key, paths, tick),
+    if ctx.volume.is_some() {
+        paths_loop::<DOPPLER, LENGTH, false, true, GATE, true>(ctx, rec, key, paths, tick)
+    } else {
+        paths_loop::<DOPPLER, LENGTH, false, false, GATE, true>(ctx, rec, key, paths, tick)
     }
 }
 

@@ -152,7 +152,13 @@ pub fn resample(
         }
         u -= wj;
     }
-    (candidates[k], total / CANDIDATES as f64 / w[k])
+    let factor = total / CANDIDATES as f64 / w[k];
+    // Every candidate's value is at least `FLOOR·mean`, and their mean is `(1 + FLOOR)·mean`.
+    debug_assert!(
+        factor > 0.0 && factor <= (1.0 + FLOOR) / FLOOR * (1.0 + 1e-12),
+        "the guide's factor {factor} outside (0, (1 + FLOOR)/FLOOR]"
+    );
+    (candidates[k], factor)
 }
 
 /// The relative variance of the importance `values` (one cell's, per band) over the
@@ -275,7 +281,7 @@ mod tests {
             let draw = |rng: &mut PathRng| {
                 let d = phase.sample(rng.uniform());
                 let (c, s) = crate::sampling::warp::azimuth_i32(|| rng.pair_i32());
-                let (out, delta) = super::super::walk::scatter_direction(dir, d, c, s);
+                let (out, delta) = crate::transport::event::scatter_direction(dir, d, c, s);
                 (d.cos, out, delta)
             };
             // Sums of f, f² plain; of factor·f, its square, the factor, its square, guided.

@@ -594,3 +594,21 @@ pub fn shadow_ray(
     let twin_unit = etendue / (qe + 1.0 / target.solid_angle()) * twin_transmit;
     Some(ShadowHit { pos: p, dir, dir_vertex, factor, length, excess, unit, twin_unit, tau })
 }
+
+/// The roulette of a vertex's connections (shadow rays to a detector, or a camera path's to the
+/// laser): none carries more than `weight·exp(−τ_min)`, `τ_min` being the optical depth straight
+/// up through the least dense media. Below `SHADOW_ROULETTE_WEIGHT` they are traced with
+/// probability `bound/threshold`; returns the factor they are weighted by (its inverse, or 1;
+/// 0: not traced), which keeps them unbiased. Deep vertices (under a pigmented layer) then cost a
+/// free flight and a phase sample, not a connection through every layer above.
+#[inline(always)]
+pub(super) fn connection_roulette(scene: &Scene, li: usize, s: &crate::detect::PathState, rng: &mut PathRng) -> f64 {
+    let q = s.weight * (-scene.layers[li].min_optical_depth_up(s.pos.z)).exp() / super::nee::SHADOW_ROULETTE_WEIGHT;
+    if q >= 1.0 {
+        1.0
+    } else if rng.uniform() < q {
+        1.0 / q
+    } else {
+        0.0
+    }
+}

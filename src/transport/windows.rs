@@ -128,11 +128,16 @@ impl Windows {
     pub fn check(&self, li: usize, s: &PathState) -> Action {
         let c = self.center[self.grid.bin(li, s.pos, s.dir.z)];
         let half = WIDTH.sqrt();
+        debug_assert!(c >= 0.0 && c.is_finite(), "a window's centre {c}");
         if c <= 0.0 || s.weight <= 0.0 {
             Action::Keep
         } else if s.weight > c * half {
-            Action::Split(((s.weight / c).round() as u32).clamp(2, MAX_SPLIT))
+            let n = ((s.weight / c).round() as u32).clamp(2, MAX_SPLIT);
+            // The copies weigh at least the window's bottom (above its top only past MAX_SPLIT).
+            debug_assert!(s.weight / f64::from(n) >= c / half, "a split below the window: {} / {n}", s.weight);
+            Action::Split(n)
         } else if s.weight < c / half {
+            debug_assert!(s.weight / c < 1.0, "a roulette's survival {} ≥ 1", s.weight / c);
             Action::Roulette { p: s.weight / c, w: c }
         } else {
             Action::Keep

@@ -5,7 +5,7 @@ use crate::support::run::run;
 use crate::support::scenes::tube_scene;
 use crate::support::stats::chi_square;
 
-use ohd::transport::walk::doppler_increment;
+use ohd::transport::event::doppler_increment;
 
 /// A slab of isotropic scatterers, index-matched to its surroundings, watched from the top.
 /// λ0 = 1 µm, so f = dl/dt · 1e6 Hz per m/s.

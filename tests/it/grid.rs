@@ -206,7 +206,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
             plain: true,
             obstructs_shadows: false,
             opaque: Vec::new(),
-            roughness: 0.0,
+            face: ohd::surface::Interface::Smooth,
         }],
         regions: vec![],
         media: vec![m],

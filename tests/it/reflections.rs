@@ -1,4 +1,4 @@
-//! Deterministic unscattered reflections (`run.reflections`, `transport::walk`'s
+//! Deterministic unscattered reflections (`run.reflections`, `transport::forward`'s
 //! `unscattered_reflections`): the laser's reflections at the interfaces below the surface are
 //! scored into the forward detectors from each path, and the walk's own unscattered
 //! once-reflected escapes are left out of them. The detectors' expectations are unchanged (the
@@ -7,8 +7,7 @@
 
 use ohd::detect::Scalar;
 
-use ohd::transport::WalkContext;
-use ohd::transport::walk::reflection_second_moment;
+use ohd::transport::policy::reflection_second_moment;
 
 use crate::support::run::{Run, experiment, run};
 use crate::support::scenes;
@@ -88,7 +87,7 @@ fn a_clear_stack_reflects_the_closed_form() {
     assert!((m - moment).abs() < 1e-12 * moment, "second moment {m:e}, closed form {moment:e}");
     let auto = |sigma_s: f64| {
         let e = experiment(&stack(sigma_s, 1000, "auto"), &[]);
-        WalkContext::deterministic_reflections(&e.scene, &e.source, &e.plan.walk, &e.detectors)
+        ohd::transport::policy::deterministic_reflections(&e.scene, &e.source, &e.plan.walk, &e.detectors)
     };
     assert!(auto(0.0) && !auto(15.0), "auto: clear {}, scattering {}", auto(0.0), auto(15.0));
 }

@@ -98,7 +98,7 @@ fn piecewise_scene() -> Scene {
             plain: true,
             obstructs_shadows: false,
             opaque: Vec::new(),
-            roughness: 0.0,
+            face: ohd::surface::Interface::Smooth,
         }],
         regions,
         media: vec![medium("base", 1000.0), medium("dense", 4000.0), medium("void", 0.0)],

@@ -511,7 +511,7 @@ fn faces_smoother_than_the_minimum_are_the_smooth_faces() {
                 ),
             ],
         );
-        assert_eq!(e.scene.layers[0].roughness, 0.0, "α = {a}");
+        assert_eq!(e.scene.layers[0].face.roughness(), 0.0, "α = {a}");
         let Some(ohd::surface::Bsdf::Mixture(parts)) = e.scene.bottom.as_ref().map(|b| &b.bsdf) else {
             panic!("mixture")
         };
@@ -537,7 +537,7 @@ fn the_smoothest_rough_face_agrees_with_the_smooth_one() {
     let smooth = run(ROUGH_SLAB, &["layers.0.roughness=0", "layers.1.roughness=0"]);
     for a in ["1e-8", "1e-5"] {
         let rough = run(ROUGH_SLAB, &[&format!("layers.0.roughness={a}"), &format!("layers.1.roughness={a}")]);
-        assert_eq!(rough.exp.scene.layers[0].roughness, a.parse::<f64>().unwrap());
+        assert_eq!(rough.exp.scene.layers[0].face.roughness(), a.parse::<f64>().unwrap());
         assert_eq!(rough.out.stats.non_finite, 0, "α = {a}");
         let total_r = |r: &Run| {
             let ((s, ss), (d, sd)) = (r.scalar(Scalar::ReflectanceSpecular), r.scalar(Scalar::ReflectanceDiffuse));

@@ -267,7 +267,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
                 z_bottom: bottom,
                 n: p.n,
                 // The top face of the layer's first sublayer is the layer's.
-                roughness: if j == 0 { p.roughness } else { 0.0 },
+                face: crate::surface::Interface::with_roughness(if j == 0 { p.roughness } else { 0.0 }),
                 medium: media.len() - 1,
                 regions: Vec::new(),
                 majorant: 0.0,

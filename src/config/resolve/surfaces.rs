@@ -246,7 +246,7 @@ pub(super) const CAMERA_ROUGHNESS_MIN: f64 = 0.01;
 pub(super) fn camera_lobes(scene: &Scene, detectors: &[Detector]) -> R<()> {
     let Some(face) = scene.layers.get(scene.first_rough_face) else { return Ok(()) };
     let camera = |d: &Detector| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward);
-    if face.roughness >= CAMERA_ROUGHNESS_MIN {
+    if face.face.roughness() >= CAMERA_ROUGHNESS_MIN {
         return Ok(());
     }
     if let Some(i) = detectors.iter().position(camera) {
@@ -255,7 +255,7 @@ pub(super) fn camera_lobes(scene: &Scene, detectors: &[Detector]) -> R<()> {
             format!(
                 "the top face of layer \"{}\" (roughness = {}) is the first rough face in the laser's beam, with a lobe narrower than paths traced from a camera's pixels find (α < {CAMERA_ROUGHNESS_MIN}: their estimate comes out low with a small error bar); give it a roughness ≥ {CAMERA_ROUGHNESS_MIN} (or 0, the smooth face), or use estimator = \"forward\"",
                 face.name,
-                shown(face.roughness)
+                shown(face.face.roughness())
             ),
         );
     }

@@ -1,0 +1,603 @@
+//! The forward estimator: packets from the laser, scored where they leave the stack (its escapes
+//! into the detectors' cones and areas), by next-event estimation (shadow rays from every real
+//! collision, rough face and opaque surface toward the cone detectors and lidar receivers,
+//! [`super::nee`], balanced against the escapes), and by the deterministic unscattered
+//! reflections at the interfaces below the surface; with `VOLUME` its track lengths and
+//! collisions score the volume tally. It carries the layered twin of the control variate
+//! ([`super::twin`]) where the run has one, and the weight windows and guide steer it
+//! ([`super::steering`]).
+
+use glam::DVec3;
+
+use crate::detect::twin::{Split, TwinPath};
+use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
+use crate::medium::{Medium, Scene};
+use crate::sampling::PathRng;
+
+use super::event::{deflect, doppler_event, doppler_increment, particle_velocity};
+use super::fresnel;
+use super::nee::{Crossing, NeeTarget, reflections_below};
+use super::policy::WalkSettings;
+use super::twin::TWIN_BAND;
+use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, turn, walk_to_the_end};
+use super::windows::Windows;
+
+/// The forward estimator, compiled per kind of scene: `DOPPLER = false` drops every velocity
+/// lookup (nothing moves), `LENGTH = false` the optical-path-length bookkeeping (no chirp, no
+/// gates), `NEE = false` the shadow rays and the layered twin (no next-event detector, no control
+/// variate), `VOLUME = false` the volume tally's hooks (no `[volume]`), `GATE = false` the time
+/// gate's checks (no `run.time_gate_ns`; a gated walk also tracks the length), `LATERAL = false`
+/// the side faces of a box phantom (no `[lateral]`: the layers are infinite slabs).
+pub(super) struct Forward<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+    const LATERAL: bool,
+>;
+
+impl<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+    const LATERAL: bool,
+> Estimator for Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
+{
+    const DOPPLER: bool = DOPPLER;
+    const LENGTH: bool = LENGTH;
+    const GATE: bool = GATE;
+    const LATERAL: bool = LATERAL;
+    const VOLUME: bool = VOLUME;
+    const TWIN: bool = NEE;
+    const MIS: bool = NEE;
+
+    /// Absorption weighting, then (with `NEE`) the shadow rays ([`collide_nee`]) or the plain
+    /// continuation ([`collide`]), the importance pilot's record of the state, and the weight
+    /// window ([`super::steering::window`]).
+    #[inline(always)]
+    fn collide(
+        ctx: &WalkContext,
+        s: &mut PathState,
+        t: f64,
+        v: Vertex,
+        rng: &mut PathRng,
+        absorbed: &mut f64,
+        checkpoint: &mut u32,
+        rec: &mut Recorder,
+    ) -> Option<End> {
+        let li = v.li;
+        if NEE {
+            super::walk::advance::<Self>(s, t, v.n);
+            if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
+                ctx.scene,
+                ctx.nee,
+                ctx.windows,
+                li,
+                s,
+                v.medium,
+                v.albedo,
+                v.n,
+                ctx.settings,
+                rng,
+                absorbed,
+                checkpoint,
+                rec,
+            ) {
+                return Some(end);
+            }
+        } else if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, v, ctx, rng, absorbed, checkpoint) {
+            return Some(end);
+        }
+        rec.scattered(li, s);
+        super::steering::window(ctx, rec, s, li, rng)
+    }
+
+    #[inline(always)]
+    fn track(ctx: &WalkContext, rec: &mut Recorder, s: &PathState, t: f64, n: f64) {
+        if VOLUME && let Some(v) = ctx.volume {
+            v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+        }
+    }
+
+    /// Shadow rays from the face toward the next-event detectors above (the interface's
+    /// reflection toward them when the path came down, its transmission when it came up;
+    /// balanced against the direct escapes by the sampling density).
+    #[inline(always)]
+    fn at_rough_face(
+        ctx: &WalkContext,
+        face: usize,
+        s: &PathState,
+        at: &RoughFace,
+        rng: &mut PathRng,
+        rec: &mut Recorder,
+    ) {
+        if NEE {
+            // Up from the face: into the layer above, or out of the stack.
+            let density = |d: DVec3| {
+                let wo = at.frame.to_local(d);
+                (at.interface.eval(at.wi, wo, at.n_i, at.n_t), at.interface.pdf(at.wi, wo, at.n_i, at.n_t))
+            };
+            surface_shadow_rays::<LENGTH>(ctx, face.checked_sub(1), s, density, s.order, None, rng, rec);
+        }
+    }
+
+    /// The density of the direction drawn over `n²|cos|` in the medium it goes on in.
+    #[inline(always)]
+    fn crossed(s: &mut PathState, at: &RoughFace, c: &crate::surface::Crossed) {
+        if NEE {
+            let n = if c.transmitted { at.n_t } else { at.n_i };
+            s.mis = at.interface.pdf(at.wi, c.wo, at.n_i, at.n_t) / (n * n * c.wo.z.abs());
+        }
+    }
+
+    /// Shadow rays toward the next-event detectors (the BSDF's value toward each, balanced
+    /// against its own density where a direct escape can also reach the detector), with the
+    /// surface's Doppler term.
+    #[inline(always)]
+    fn at_surface(ctx: &WalkContext, hit: &SurfaceHit, s: &PathState, rng: &mut PathRng, rec: &mut Recorder) {
+        let SurfaceHit { surface, frame, wi, li, moving, v } = *hit;
+        if NEE && surface.bsdf.has_continuous_part() {
+            let n = ctx.scene.layers[li].n;
+            let density = |d: DVec3| {
+                let wo = frame.to_local(d);
+                (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
+            };
+            let doppler = moving.then_some((n, v));
+            surface_shadow_rays::<LENGTH>(ctx, Some(li), s, density, s.order + 1, doppler, rng, rec);
+        }
+    }
+
+    /// The density of the direction drawn, in the layer's solid angle over `n²|cos|` (as a
+    /// collision's phase-function density): a direct escape weighs itself against the shadow
+    /// rays by it; a mirror's Dirac lobe is no shadow ray's (full weight).
+    #[inline(always)]
+    fn reflected(ctx: &WalkContext, hit: &SurfaceHit, s: &mut PathState, smp: &crate::surface::Sampled, out: DVec3) {
+        if NEE {
+            let n = ctx.scene.layers[hit.li].n;
+            s.mis = if smp.delta { -1.0 } else { hit.surface.bsdf.pdf(hit.wi, smp.wo) / (n * n * out.z.abs()) };
+        }
+    }
+}
+
+/// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
+///
+/// The walk itself (`walk`) does not touch the recorder: it accumulates the absorbed weight in
+/// a local and reports how it ended, and the path is recorded once here. Keeping the tally
+/// vector and counters out of the event loop frees registers there and removes a bounds-checked
+/// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
+///
+/// Inlined into the batch's loop over paths: left to itself, the compiler stopped inlining it once
+/// the surfaces' calls were added, and the vdH slab took 7.7 % more instructions (its generator
+/// and path state passed through memory).
+#[inline(always)]
+pub(super) fn trace_path<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+    const LATERAL: bool,
+>(
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    rng: &mut PathRng,
+) {
+    let WalkContext { scene, source, .. } = *ctx;
+    rec.stats.paths += 1;
+    let (start, w0) = match ctx.launches {
+        None => (source.emit(rng), 1.0),
+        Some(l) => l.emit(source, rng),
+    };
+    let dir = source.emit_direction(rng);
+    // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
+    let t0 = (0.0 - start.z) / dir.z;
+    let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
+    let mut s = PathState::new(pos, dir, w0, if LENGTH { scene.n_above * t0 } else { 0.0 });
+    if NEE && ctx.twin {
+        rec.twin = Some(TwinPath::new(pos.x, pos.y));
+    }
+    // A rough top surface: the walk starts at its face, which reflects or refracts the beam.
+    let n_top = scene.layers[0].n;
+    let rough_entry = scene.layers[0].face.is_rough() && n_top != scene.n_above;
+    // Specular reflection at entry, scored deterministically (as MCML).
+    let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
+    if r_sp > 0.0 && !rough_entry {
+        let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: w0 * r_sp, ..s };
+        if in_gate::<GATE>(ctx.settings, s.l) {
+            rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above);
+        }
+        s.weight = w0 * (1.0 - r_sp);
+        if s.weight <= 0.0 {
+            return;
+        }
+    }
+    if !rough_entry {
+        s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
+    }
+    if ctx.reflections {
+        // The path by value and the generator on a copy handed back, as the walk's: the address
+        // of neither leaves this inlined function (else it lives in memory through the walk;
+        // `&s` measured +54 instructions per path on the vdH slab, where this never runs).
+        let mut local = rng.clone();
+        unscattered_reflections::<NEE, LENGTH, GATE>(ctx, s, dir, &mut local, rec);
+        *rng = local;
+    }
+
+    // The walk draws from a copy local to this path, handed back at the end (a clone repeats its
+    // original's numbers: the stream is unchanged). With `rng` itself (a local of the batch
+    // loop, into which this function is inlined twice: with and without next-event targets)
+    // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
+    // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
+    let mut local = rng.clone();
+    // The path's walk, then those of the copies its weight windows split off, each walked on from
+    // where it was made (layer, scattering order, own stream and twin). One call of the walk:
+    // it is inlined, and a second call site for the copies doubled the code compiled per walk.
+    let (mut li, mut entering, mut order) = (0, rough_entry, 0);
+    loop {
+        let (mut absorbed, mut null_collisions) = (0.0, 0);
+        let end = walk_to_the_end::<Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>>(
+            ctx,
+            li,
+            &mut s,
+            &mut local,
+            &mut absorbed,
+            &mut null_collisions,
+            rec,
+            entering,
+        );
+        finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, order));
+        let Some(c) = rec.copies.pop() else { break };
+        rec.twin = c.twin;
+        (s, local, li, entering, order) = (c.s, c.rng, c.li, false, c.s.order);
+    }
+    *rng = local;
+}
+
+/// Record how the walk of `s` ended (`end`), with its absorbed weight, its null collisions and
+/// the scattering order it started its walk with (0 for a path from the source, a copy's order
+/// at its split), and walk the layered twin that parted from it.
+#[inline(always)]
+fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    s: &PathState,
+    end: End,
+    (absorbed, null_collisions, order): (f64, u64, u32),
+) {
+    let s = *s;
+    rec.stats.null_collisions += null_collisions;
+    // Every real collision increments `order`, except one that leaves no weight to go on with.
+    rec.stats.scattering_events += u64::from(s.order - order) + u64::from(end == End::Absorbed);
+    rec.add(Scalar::AbsorbedFraction, absorbed);
+    match end {
+        End::Escaped { side, n_ambient, reflected_once } => {
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                // With deterministic reflections their detectors' share is scored already.
+                let exit = if reflected_once && ctx.reflections { Exit::ScalarsOnly } else { Exit::Walked };
+                rec.escape(side, s, exit, n_ambient);
+            }
+        }
+        End::Lateral => {
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                rec.lateral(s.weight);
+            }
+        }
+        // Depth is reached at t = ∞: beyond any gate.
+        End::ToDepth if GATE => {}
+        End::ToDepth => {
+            rec.add(Scalar::TransmittanceTotal, s.weight);
+            if s.order == 0 {
+                rec.add(Scalar::TransmittanceUnscattered, s.weight);
+            }
+        }
+        End::Absorbed | End::Gated => {}
+        End::Roulette => rec.stats.roulette_terminations += 1,
+        // (`walk_to_the_end` never ends at the surface.)
+        End::Truncated | End::AtBottom | End::AtOpaque(_) | End::AtRough(_) => rec.stats.truncated_paths += 1,
+    }
+    if NEE && let Some(split) = rec.split.take() {
+        super::twin::twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
+    }
+}
+
+/// The unscattered reflections of the forward path `s` (just refracted into the first layer
+/// along the ambient direction `b`, not yet scattered), scored into the detectors
+/// ([`Recorder::reflection`]): for the bottom `j` of every finite layer, the beam's straight way
+/// down to it, its reflection `R_j` and the way back up through the surface, leaving along the
+/// mirror image `(b_x, b_y, −b_z)` with the weight `w·Π(1 − R_i)·R_j·exp(−τ)` (Fresnel
+/// transmittances of the interfaces crossed, the optical depth of both ways: analytic segments,
+/// ratio tracking in density layers), as the camera-side estimator scores them
+/// ([`super::camera::unscattered`]). This is the expectation, given the launch, of what the walk's
+/// escapes without scattering and with one reflection bring the detectors, which are then left
+/// out of them ([`Exit::ScalarsOnly`]); light reflected more than once stays in the walk. A
+/// delta-like beam that the walk meets by a rare Fresnel draw (`R ≈ 10⁻³` between tissue layers)
+/// becomes a sure, small contribution per path.
+#[cold]
+#[inline(never)]
+pub(super) fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    s: PathState,
+    b: DVec3,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let n0 = ctx.scene.n_above;
+    let down = |n: f64| super::camera::refracted_down(b, n0, n);
+    let up = |n: f64| down(n).map(|d| DVec3::new(d.x, d.y, -d.z));
+    // The surface's transmittance on the way in is in the path's weight.
+    let start = Crossing { pos: s.pos, length: s.l, ..Crossing::START };
+    let steps = reflections_below(ctx.scene, start, false, down, up, rng, |c| {
+        let l = if LENGTH { c.length } else { 0.0 };
+        let weight = s.weight * c.transmit * (-c.tau).exp();
+        // The twin's way down and up meets no region: without their excess optical depth.
+        let twin = match rec.twin {
+            Some(_) if NEE && (c.excess != 0.0 || c.twin_transmit != c.transmit) => Twin::Other(PathState::new(
+                c.pos,
+                DVec3::new(b.x, b.y, -b.z),
+                s.weight * c.twin_transmit * (c.excess - c.tau).exp(),
+                l,
+            )),
+            Some(_) if NEE => Twin::Same,
+            _ => Twin::Off,
+        };
+        if (weight > 0.0 || twin != Twin::Off) && in_gate::<GATE>(ctx.settings, l) {
+            let e = PathState::new(c.pos, DVec3::new(b.x, b.y, -b.z), weight, l);
+            rec.reflection(&e, twin, n0);
+        }
+    });
+    rec.stats.work.reflection_steps += steps;
+}
+
+/// Shadow rays from a vertex on a surface at `s.pos` toward every next-event target, starting
+/// in layer `from` (`None`: on the stack's top surface, straight into the ambient medium);
+/// `density(ω)` is the surface's `(f, q)` toward `ω` there (see [`super::nee::shadow_ray`]).
+/// Each hit is recorded at scattering order `order`, with the Doppler term `n v·(dir_in − ω)` of
+/// a surface of index `n` moving at `v` (`doppler`).
+#[allow(clippy::too_many_arguments)]
+fn surface_shadow_rays<const LENGTH: bool>(
+    ctx: &WalkContext,
+    from: Option<usize>,
+    s: &PathState,
+    density: impl Fn(DVec3) -> (f64, f64),
+    order: u32,
+    doppler: Option<(f64, DVec3)>,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let boost = super::nee::connection_roulette(ctx.scene, from.unwrap_or(0), s, rng);
+    let targets = if boost > 0.0 { ctx.nee } else { &[] };
+    rec.stats.work.shadow_rays += targets.len() as u64;
+    for target in targets {
+        let (u1, u2) = (rng.uniform(), rng.uniform());
+        let hit = match (from, &target.aperture) {
+            (Some(li), None) => super::nee::shadow_ray(ctx.scene, li, s.pos, &density, target, u1, u2, rng),
+            (Some(li), Some(a)) => super::nee::receiver_ray(ctx.scene, li, s.pos, &density, target, a, u1, u2, rng),
+            (None, aperture) => super::nee::exit_ray(s.pos, &density, target, aperture.as_ref(), u1, u2),
+        };
+        let Some(h) = hit else { continue };
+        let mut e = PathState {
+            pos: h.pos,
+            dir: h.dir,
+            weight: s.weight * h.factor * boost,
+            l: if LENGTH { s.l + h.length } else { 0.0 },
+            order,
+            mis: -1.0,
+            ..*s
+        };
+        if let Some((n, v)) = doppler {
+            e.dldt += doppler_increment(n, v, s.dir - h.dir_vertex);
+            e.doppler_events += 1;
+        }
+        // The layered twin has the same planar surface (the bottom, a rough face): its shadow ray
+        // is the path's without the regions' excess optical depth, weighted by `Λ`.
+        let twin = match rec.twin {
+            None => Twin::Off,
+            Some(tw) if tw.only => Twin::Only,
+            Some(tw) if !tw.touched && h.twin_is_path() => Twin::Same,
+            Some(tw) => {
+                let mut t = tw.state(&e);
+                t.weight = s.weight * tw.lambda * boost * h.twin_factor(density(h.dir_vertex).0);
+                Twin::Other(t)
+            }
+        };
+        rec.next_event(target.detector, &e, twin, ctx.scene.n_above);
+    }
+}
+
+/// A real collision `v` of `s` at distance `t` in layer `li`: absorption weighting, a new
+/// direction (guided where the weight windows have a guide), the Doppler term, the event cap and
+/// Russian roulette. `Some` if the path ends here.
+#[inline(always)]
+fn collide<const DOPPLER: bool, const LENGTH: bool>(
+    s: &mut PathState,
+    t: f64,
+    v: Vertex,
+    ctx: &WalkContext,
+    rng: &mut PathRng,
+    absorbed: &mut f64,
+    checkpoint: &mut u32,
+) -> Option<End> {
+    let Vertex { medium: m, albedo, n, li } = v;
+    s.pos += t * s.dir;
+    if LENGTH {
+        s.l += n * t;
+    }
+    if absorb(s, albedo, absorbed) {
+        return Some(End::Absorbed);
+    }
+    let (pop, dynamic) = m.pick_dynamic(rng);
+    let (out, delta) = match ctx.windows {
+        Some(w) if w.guide.is_some() => {
+            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
+            let (_, out, delta) = super::steering::continue_guided(s, &pop.phase, cell, rng);
+            (out, delta)
+        }
+        _ => {
+            let (_, out, delta) = deflect(s.dir, &pop.phase, rng);
+            (out, delta)
+        }
+    };
+    if DOPPLER && dynamic {
+        let v = particle_velocity(pop, s.pos, rng);
+        doppler_event(s, pop, n, v, delta);
+    }
+    turn(s, out, ctx.settings, rng, checkpoint)
+}
+
+/// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
+/// every next-event detector (see [`super::nee`]) is scored with the velocity the vertex's
+/// particle has; then the path scatters on as usual. `s.pos` is already at the vertex.
+//
+// The allow is the measured exception of issue 19: taking `(ctx: &WalkContext, s, v: Vertex,
+// rng, absorbed, checkpoint, rec)` instead (with the shadow rays taking their vertex as one
+// `ShadowOrigin` struct, `nee::shadow_ray`/`receiver_ray`) cost, in callgrind instructions of
+// `run_batch`, vessels_ldh 337.15M → 343.04M (+1.75 %), retina_ldh 446.17M → 453.31M (+1.60 %),
+// fmcw_target 587.64M → 593.53M (+1.00 %): this function alone 33.9M → 38.6M on vessels_ldh
+// (it is outlined, so the grouped arguments go through memory).
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
+    scene: &Scene,
+    nee: &[NeeTarget],
+    windows: Option<&Windows>,
+    li: usize,
+    s: &mut PathState,
+    m: &Medium,
+    albedo: f64,
+    n: f64,
+    settings: &WalkSettings,
+    rng: &mut PathRng,
+    absorbed: &mut f64,
+    checkpoint: &mut u32,
+    rec: &mut Recorder,
+) -> Option<End> {
+    // The layered twin collides in the layer's filling medium where the path collides in a region.
+    // While `Λ` stays within [1/TWIN_BAND, TWIN_BAND] it shares the path's collision (below);
+    // beyond, it parts from the path here and walks on by itself ([`Split`], traced after the
+    // path) from the path's state arriving here, weighted by `Λ` and the collision densities'
+    // ratio `σt,fill / σt,medium`; the path goes on without a twin.
+    let fill = &scene.media[scene.layers[li].medium];
+    let in_region = rec.twin.is_some_and(|t| !t.only) && !std::ptr::eq(m, fill);
+    if in_region
+        && let Some(tw) = rec.twin
+        && !(1.0 / TWIN_BAND..=TWIN_BAND).contains(&tw.lambda)
+    {
+        let weight = s.weight * fill.sigma_t() / m.sigma_t();
+        rec.split =
+            Some(Split { s: tw.state(&PathState { weight, ..*s }), li, twin: tw, rng: rng.clone(), flying: false });
+        rec.twin = None;
+    }
+    if absorb(s, albedo, absorbed) {
+        return Some(End::Absorbed);
+    }
+    // One population serves the shadow rays and the continuation (so that the balance heuristic
+    // of `shadow_ray` weighs against the density the continuation is drawn from).
+    let (pop, dynamic) = m.pick_dynamic(rng);
+    let dynamic = DOPPLER && dynamic;
+    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    // The coupled twin's particles here (drawn by the fill's shares, on its own: no ratio), their
+    // velocity, and its collision and weight after it over the path's: `σt,fill·a_fill / (σt·a)
+    // = σs,fill/σs` (the flight's share is in from the flight). Not over the population's σs:
+    // the path's draw of its particles is no part of the twin's density (measured: a vessel of
+    // two populations, 14 and 6 /mm, gave an image 19 % low, χ² 57 over 16 pixels).
+    let coupled = (in_region && rec.twin.is_some()).then(|| {
+        let (tpop, tdyn) = fill.pick_dynamic(rng);
+        let tdyn = DOPPLER && tdyn;
+        (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
+    });
+    if let (Some(tw), true) = (rec.twin.as_mut(), coupled.is_some()) {
+        tw.lambda *= fill.sigma_s() / m.sigma_s();
+        tw.touched = true;
+    }
+    // (Without next-event targets this walk runs for the layered twin alone: no roulette draw, no
+    // shadow ray, no density for the escapes' weights against them.)
+    let boost = if nee.is_empty() { 0.0 } else { super::nee::connection_roulette(scene, li, s, rng) };
+    let targets = if boost > 0.0 { nee } else { &[] };
+    rec.stats.work.shadow_rays += targets.len() as u64;
+    // The particle scatters toward `d` with the phase function's density, which is also the
+    // density its continuation is drawn from.
+    let phase_density = |d: DVec3| {
+        let p = pop.phase.eval(s.dir.dot(d));
+        (p, p)
+    };
+    for target in targets {
+        let (u1, u2) = (rng.uniform(), rng.uniform());
+        let hit = match &target.aperture {
+            None => super::nee::shadow_ray(scene, li, s.pos, phase_density, target, u1, u2, rng),
+            Some(a) => super::nee::receiver_ray(scene, li, s.pos, phase_density, target, a, u1, u2, rng),
+        };
+        let Some(h) = hit else { continue };
+        let mut e = PathState {
+            pos: h.pos,
+            dir: h.dir,
+            weight: s.weight * h.factor * boost,
+            l: if LENGTH { s.l + h.length } else { 0.0 },
+            order: s.order + 1,
+            mis: -1.0,
+            ..*s
+        };
+        let in_out = s.dir - h.dir_vertex;
+        // The twin's shadow ray: its phase function (its own particles' where it shares a
+        // collision in a region), without the regions' excess optical depth, its Doppler state.
+        let twin = match rec.twin {
+            None => Twin::Off,
+            Some(tw) if tw.only => Twin::Only,
+            Some(tw) if !tw.touched && coupled.is_none() && h.twin_is_path() => Twin::Same,
+            Some(tw) => {
+                let mut t = tw.state(&e);
+                let p = coupled.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
+                t.weight = s.weight * tw.lambda * boost * h.twin_factor(p.eval(s.dir.dot(h.dir_vertex)));
+                match coupled {
+                    Some((tpop, true, tv)) => doppler_event(&mut t, tpop, n, tv, in_out),
+                    Some(_) => {}
+                    None if dynamic => doppler_event(&mut t, pop, n, v, in_out),
+                    None => {}
+                }
+                Twin::Other(t)
+            }
+        };
+        if dynamic {
+            doppler_event(&mut e, pop, n, v, in_out);
+        }
+        rec.next_event(target.detector, &e, twin, scene.n_above);
+    }
+    // The continuation: guided where the weight windows have a guide that acts here, but not at
+    // a collision the twin shares in a region (its likelihood ratio takes the phase function's own
+    // draw).
+    let (cos, out, delta) = match windows {
+        Some(w) if w.guide.is_some() && coupled.is_none() => {
+            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
+            super::steering::continue_guided(s, &pop.phase, cell, rng)
+        }
+        _ => {
+            let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
+            (d.cos, out, delta)
+        }
+    };
+    if !nee.is_empty() {
+        s.mis = pop.phase.eval(cos) / (n * n * out.z.abs());
+    }
+    if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), coupled) {
+        // The coupled twin's density of the direction drawn over the path's, and its Doppler
+        // event instead of the path's.
+        tw.lambda *= tpop.phase.eval(cos) / pop.phase.eval(cos);
+        let mut shift = PathState::new(s.pos, s.dir, 0.0, 0.0);
+        if tdyn {
+            doppler_event(&mut shift, tpop, n, tv, delta);
+        }
+        let mut own = PathState::new(s.pos, s.dir, 0.0, 0.0);
+        if dynamic {
+            doppler_event(&mut own, pop, n, v, delta);
+        }
+        tw.dldt += shift.dldt - own.dldt;
+        tw.brownian += shift.brownian - own.brownian;
+        tw.doppler_events += i64::from(shift.doppler_events) - i64::from(own.doppler_events);
+    }
+    if dynamic {
+        doppler_event(s, pop, n, v, delta);
+    }
+    turn(s, out, settings, rng, checkpoint)
+}

@@ -1,0 +1,79 @@
+//! Steering of forward paths: the weight windows of `run.importance = "windows"`
+//! ([`super::windows`]: split a path whose weight is above its window, play roulette below) and the
+//! guide ([`super::guide`]: a continuation resampled from several phase-function draws on the
+//! importance table's values). Called at the end of a forward path's collision.
+
+use glam::DVec3;
+
+use crate::detect::{PathState, Pending, Recorder};
+use crate::sampling::PathRng;
+
+use super::event::deflect;
+use super::walk::{End, WalkContext};
+use super::windows::{Action, MAX_PENDING};
+
+/// The weight window of `s` after a scattering event in layer `li` (`run.importance =
+/// "windows"`, [`super::windows`]): split it, play roulette (`Some`: it has ended) or keep it.
+#[inline]
+pub(super) fn window(
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    s: &mut PathState,
+    li: usize,
+    rng: &mut PathRng,
+) -> Option<End> {
+    let w = ctx.windows?;
+    if w.guide.is_some() {
+        rec.stats.work.guided += 1;
+    }
+    match w.check(li, s) {
+        Action::Keep => {}
+        Action::Split(n) => split(rec, s, li, n, rng.split_key()),
+        Action::Roulette { p, w } => {
+            if rng.uniform() >= p {
+                return Some(End::Roulette);
+            }
+            s.weight = w;
+        }
+    }
+    None
+}
+
+/// Split `s` (in layer `li`) into `n` paths of equal weight ([`super::windows`]): `s` goes on
+/// with its share, `n − 1` copies wait in `rec` to walk on after it, copy `k` on the stream
+/// `PathRng::copy(key, k)`, each with the path's layered twin as it is now. No split once
+/// [`MAX_PENDING`] copies wait.
+#[cold]
+#[inline(never)]
+fn split(rec: &mut Recorder, s: &mut PathState, li: usize, n: u32, key: u64) {
+    if rec.copies.len() + n as usize > MAX_PENDING {
+        return;
+    }
+    s.weight /= f64::from(n);
+    for k in 1..n {
+        rec.copies.push(Pending { s: *s, li, rng: PathRng::copy(key, u64::from(k)), twin: rec.twin });
+    }
+}
+
+/// The continuation of `s` from a scatterer of phase function `phase` where the guide acts with
+/// the table's values `cell` ([`super::guide`]): one of several directions drawn from the phase
+/// function, resampled on their importance, and the weight times the resampling's factor; the
+/// phase function's draw alone (weight unchanged) where it does not (`cell` `None`). Returns
+/// `(cos θ, out, dir − out)` of the deflection.
+#[inline(never)]
+pub(super) fn continue_guided(
+    s: &mut PathState,
+    phase: &crate::phase::PhaseFunction,
+    cell: Option<&[f64]>,
+    rng: &mut PathRng,
+) -> (f64, DVec3, DVec3) {
+    let dir = s.dir;
+    let draw = |rng: &mut PathRng| {
+        let (d, out, delta) = deflect(dir, phase, rng);
+        (d.cos, out, delta)
+    };
+    let Some(cell) = cell else { return draw(rng) };
+    let (chosen, factor) = super::guide::resample(cell, rng, draw);
+    s.weight *= factor;
+    chosen
+}
