@@ -56,7 +56,8 @@ pub fn chi2_sf(stat: f64, dof: usize) -> f64 {
 }
 
 /// Pearson chi-square of observed counts against expected probabilities (bins with an expected
-/// count below 5 are merged into their neighbour). Returns (statistic, dof, p-value).
+/// count below 5 are merged into their neighbour). Returns (statistic, dof, p-value); panics when
+/// the bins merge into one (0 degrees of freedom: nothing was tested).
 pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) {
     assert_eq!(observed.len(), probabilities.len());
     let n: f64 = observed.iter().sum();
@@ -81,7 +82,8 @@ pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) 
         }
     }
     let stat: f64 = merged.iter().map(|&(o, e)| (o - e) * (o - e) / e).sum();
-    let dof = merged.len().saturating_sub(1).max(1);
+    let dof = merged.len().saturating_sub(1);
+    assert!(dof > 0, "χ² over 0 degrees of freedom: {} bins merged into {}", observed.len(), merged.len());
     (stat, dof, chi2_sf(stat, dof))
 }
 
@@ -196,7 +198,7 @@ fn harness_self_check() {
 
 /// Chi-square of binned estimates against expected values, using their standard errors; a bin
 /// with a zero standard error must be within 1e-3 of the total of its expected value. Returns
-/// (chi², dof, p).
+/// (chi², dof, p); panics when no bin has an error (0 degrees of freedom).
 pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) -> (f64, usize, f64) {
     let mut stat = 0.0;
     let mut dof = 0;
@@ -210,19 +212,36 @@ pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) ->
             assert!((v - e).abs() <= 1e-3 * scale, "bin with zero error: {v} vs {e}");
         }
     }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
+    assert!(dof > 0, "χ² over 0 degrees of freedom: no bin of {} has an error", values.len());
+    (stat, dof, chi2_sf(stat, dof))
 }
 
-/// χ² of the differences of two estimates over their combined standard errors (slots where
-/// neither has an error are skipped): (χ², dof, p).
+/// χ² of the differences of two estimates over their combined standard errors: (χ², dof, p).
+/// A slot where neither has an error is no degree of freedom; there the two must be equal to
+/// rounding (10⁻⁹ of the larger), else it panics naming the slot. A comparison with no degree of
+/// freedom at all (every slot without an error: nothing was compared) panics too: it is a failed
+/// test, not a pass with p = 1.
 pub fn chi2_difference(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize, f64) {
+    assert!(
+        a.0.len() == b.0.len() && a.1.len() == a.0.len() && b.1.len() == b.0.len(),
+        "χ² of differences: {} and {} slots",
+        a.0.len(),
+        b.0.len()
+    );
     let (mut stat, mut dof) = (0.0, 0);
     for i in 0..a.0.len() {
         let var = a.1[i].powi(2) + b.1[i].powi(2);
         if var > 0.0 {
             stat += (a.0[i] - b.0[i]).powi(2) / var;
             dof += 1;
+        } else {
+            let (x, y) = (a.0[i], b.0[i]);
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
+                "χ² of differences: slot {i} has no error on either side but {x:e} against {y:e}"
+            );
         }
     }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
+    assert!(dof > 0, "χ² of differences over 0 degrees of freedom: no slot of {} has an error", a.0.len());
+    (stat, dof, chi2_sf(stat, dof))
 }
