@@ -6,6 +6,7 @@
 mod support;
 
 mod atmosphere;
+mod bsdf_chi2;
 mod camera;
 mod cli;
 mod config_fixtures;

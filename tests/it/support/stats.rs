@@ -87,6 +87,41 @@ pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) 
     (stat, dof, chi2_sf(stat, dof))
 }
 
+/// Pearson chi-square of observed counts against expected counts over the same cells, pooled as
+/// pbrt-v4's and Mitsuba's χ² tests pool them: the cells expected below 5 become one, which joins
+/// the smallest other cell if it is still below 5. A draw in a cell expected empty gives χ² = ∞
+/// (p = 0). Returns (statistic, dof, p-value); panics below 1 degree of freedom (nothing tested).
+pub fn chi_square_counts(observed: &[f64], expected: &[f64]) -> (f64, usize, f64) {
+    assert_eq!(observed.len(), expected.len());
+    let mut cells: Vec<(f64, f64)> = Vec::new();
+    let (mut o_pool, mut e_pool) = (0.0, 0.0);
+    for (&o, &e) in observed.iter().zip(expected) {
+        if e < 5.0 {
+            o_pool += o;
+            e_pool += e;
+        } else {
+            cells.push((o, e));
+        }
+    }
+    if o_pool > 0.0 || e_pool > 0.0 {
+        let smallest = (0..cells.len()).min_by(|&a, &b| cells[a].1.total_cmp(&cells[b].1));
+        match smallest {
+            Some(k) if e_pool < 5.0 => {
+                cells[k].0 += o_pool;
+                cells[k].1 += e_pool;
+            }
+            _ => cells.push((o_pool, e_pool)),
+        }
+    }
+    let dof = cells.len().saturating_sub(1);
+    assert!(dof > 0, "χ² over 0 degrees of freedom: {} cells pooled into {}", observed.len(), cells.len());
+    if cells.iter().any(|&(o, e)| e <= 0.0 && o > 0.0) {
+        return (f64::INFINITY, dof, 0.0);
+    }
+    let stat: f64 = cells.iter().filter(|c| c.1 > 0.0).map(|&(o, e)| (o - e) * (o - e) / e).sum();
+    (stat, dof, chi2_sf(stat, dof))
+}
+
 /// Kolmogorov–Smirnov: largest CDF distance of `samples` against `cdf`, and its p-value from the
 /// asymptotic Kolmogorov distribution (with Stephens' small-sample correction).
 pub fn ks_test(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> (f64, f64) {
