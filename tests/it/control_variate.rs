@@ -90,8 +90,8 @@ fn assert_rois_agree(a: &Run, b: &Run) {
     }
 }
 
-/// The first ROI's spectrum channel `channel` of two runs agree by χ²: the static light (channel
-/// 1) is at 0 Hz, one bin (its χ² is the z² of the ROI's static power); the total and the
+/// The first ROI's spectrum channel `channel` of two runs agree by χ²: the static light, channel
+/// 1, is at 0 Hz, one bin (its χ² is the z² of the ROI's static power); the total and the
 /// Doppler-shifted light fill 30 bins or more.
 fn assert_roi_channel_agrees(a: &Run, b: &Run, channel: usize) {
     let (x, y) = (roi_channel(a, 0, 0, channel), roi_channel(b, 0, 0, channel));

@@ -14,6 +14,7 @@ mod control_variate;
 mod converge;
 mod determinism;
 mod doppler;
+mod estimators;
 mod figures;
 mod fmcw;
 mod grid;
