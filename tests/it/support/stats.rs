@@ -93,6 +93,7 @@ pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) 
 /// (p = 0). Returns (statistic, dof, p-value); panics below 1 degree of freedom (nothing tested).
 pub fn chi_square_counts(observed: &[f64], expected: &[f64]) -> (f64, usize, f64) {
     assert_eq!(observed.len(), expected.len());
+    let impossible = observed.iter().zip(expected).any(|(&o, &e)| e <= 0.0 && o > 0.0);
     let mut cells: Vec<(f64, f64)> = Vec::new();
     let (mut o_pool, mut e_pool) = (0.0, 0.0);
     for (&o, &e) in observed.iter().zip(expected) {
@@ -115,7 +116,7 @@ pub fn chi_square_counts(observed: &[f64], expected: &[f64]) -> (f64, usize, f64
     }
     let dof = cells.len().saturating_sub(1);
     assert!(dof > 0, "χ² over 0 degrees of freedom: {} cells pooled into {}", observed.len(), cells.len());
-    if cells.iter().any(|&(o, e)| e <= 0.0 && o > 0.0) {
+    if impossible {
         return (f64::INFINITY, dof, 0.0);
     }
     let stat: f64 = cells.iter().filter(|c| c.1 > 0.0).map(|&(o, e)| (o - e) * (o - e) / e).sum();
@@ -229,6 +230,29 @@ fn harness_self_check() {
     assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
     // Contrast of an exact two-point sample {1, 3}: μ = 2, σ = 1.
     assert!((contrast(&[1.0, 3.0, 1.0, 3.0]).0 - 0.5).abs() < 1e-15);
+}
+
+/// A comparison with nothing to compare fails, and so does a slot without an error that differs.
+#[test]
+#[should_panic(expected = "0 degrees of freedom")]
+fn a_difference_over_no_degree_of_freedom_fails() {
+    chi2_difference((&[1.0, 2.0], &[0.0, 0.0]), (&[1.0, 2.0], &[0.0, 0.0]));
+}
+
+#[test]
+#[should_panic(expected = "no error on either side")]
+fn a_slot_without_errors_must_be_equal() {
+    chi2_difference((&[1.0, 2.0], &[0.0, 0.1]), (&[1.5, 2.0], &[0.0, 0.1]));
+}
+
+/// Cells expected below 5 are pooled, the pool joins the smallest cell while below 5, and a draw
+/// where none is expected fails.
+#[test]
+fn counts_pool_their_small_cells() {
+    let (stat, dof, p) = chi_square_counts(&[10.0, 0.0, 0.0, 90.0], &[10.0, 1.0, 1.0, 88.0]);
+    assert_eq!(dof, 1);
+    assert!((stat - (4.0 / 12.0 + 4.0 / 88.0)).abs() < 1e-12 && p > 0.5);
+    assert_eq!(chi_square_counts(&[10.0, 1.0, 89.0], &[10.0, 0.0, 90.0]).2, 0.0);
 }
 
 /// Chi-square of binned estimates against expected values, using their standard errors; a bin
