@@ -78,6 +78,7 @@ fn agree(sets: &[&str]) {
     for name in ["camera.image", "camera.m0_plus", "camera.m0_minus", "camera.spectrum"] {
         let (a, b) = (output(&fwd, name), output(&cam, name));
         let (stat, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
+        eprintln!("{name}: χ² = {stat:.1} over {dof} (p = {p:.2e})");
         assert!(dof >= 20, "{name}: only {dof} slots with an error");
         assert!(p > 1e-4, "{name}: χ² = {stat:.1} over {dof} slots (p = {p:.2e})");
         // Not vacuous: each estimate is resolved well beyond its error overall.
@@ -86,17 +87,23 @@ fn agree(sets: &[&str]) {
     }
     let (pf, pc) = (fwd.power(0), cam.power(0));
     let z = (pf.0 - pc.0) / (pf.1.hypot(pc.1));
+    eprintln!("detected power: forward {pf:?}, camera {pc:?}, z = {z:.2}");
     assert!(z.abs() < 4.0, "detected power: forward {pf:?}, camera {pc:?}, z = {z:.2}");
     let ((fp, fm), (cp, cm)) = (roi_m0(&fwd, 0, 0), roi_m0(&cam, 0, 0));
     for (what, f, c) in [("ROI M0+", fp, cp), ("ROI M0−", fm, cm)] {
         let z = (f.0 - c.0) / f.1.hypot(c.1);
+        eprintln!("{what}: forward {f:?}, camera {c:?}, z = {z:.2}");
         assert!(z.abs() < 4.0, "{what}: forward {f:?}, camera {c:?}, z = {z:.2}");
         assert!(c.0.abs() > 10.0 * c.1, "{what}: camera {c:?} not resolved");
     }
+    // The static light (channel 1) is at 0 Hz, one bin: its χ² is the z² of the ROI's static
+    // power. The total and the Doppler-shifted light fill 30 bins or more.
     for channel in 0..4 {
         let (a, b) = (roi_channel(&fwd, 0, 0, channel), roi_channel(&cam, 0, 0, channel));
         let (stat, dof, p) = chi2_difference((&a.values, &a.stderr), (&b.values, &b.stderr));
-        assert!(p > 1e-4, "ROI spectrum channel {channel}: χ² = {stat:.1} over {dof} bins (p = {p:.2e})");
+        eprintln!("ROI spectrum channel {channel}: χ² = {stat:.1} over {dof} (p = {p:.2e})");
+        let enough = if channel == 1 { dof == 1 } else { dof >= 20 };
+        assert!(enough && p > 1e-4, "ROI spectrum channel {channel}: χ² = {stat:.1} over {dof} bins (p = {p:.2e})");
     }
 }
 
@@ -124,13 +131,33 @@ fn camera_paths_connect_to_the_beam_at_the_first_rough_face() {
 
 /// A density field below a rough top face (the lower slab's scatterers ramp from 0.5 to 1.5 of
 /// their density with depth): the camera paths' flights and the face-lobe connection's way up
-/// cross it as the forward paths' do. At 10⁶ paths the forward spectrum's tail bins fell short
-/// of their errors (χ² 69.6 over 27, p = 1.3·10⁻⁵: forward low in the bins beyond ±15 kHz, where
-/// it is a rare event); at 4·10⁶ (another seed, by hand) p = 0.041, every map within p > 0.02.
+/// cross it as the forward paths' do.
+///
+/// The path count is set by the test's power, from the relative standard errors of a pilot of
+/// 2·10⁵ paths on another seed (1005; its σ only): detected power 0.97 % forward and 0.44 %
+/// camera, ROI M0+ 7.4 % and 4.6 %, so at `N` paths the difference's σ is `1.07 %·√(2·10⁵/N)`
+/// of the power and `8.8 %·√(2·10⁵/N)` of M0+. At 1.6·10⁶ paths (0.38 % and 3.1 %) a
+/// difference of 2 % in the detected power, or 16 % in the ROI's M0+, fails the 4σ bound with
+/// probability 0.9 (`(4 + 1.28)σ`); the count and the seed (53) were fixed before the run, which
+/// was run once. (At 10⁶ paths, seed 5, the forward spectrum's tail bins fell short of their
+/// errors, χ² 69.6 over 27, p = 1.3·10⁻⁵; the count was then raised to 4·10⁶.)
+///
+/// It fails (issue 53): power z −0.60, ROI M0± z 0.76 and 0.63, the maps p ≥ 0.025, but the ROI's
+/// total spectrum χ² 117.5 over 42 (p = 4.6·10⁻⁹), its one-Doppler channel 65.9 over 27 and its
+/// multiple-Doppler one 106.8 over 42 — the forward estimate's Doppler tail: at +12.2 kHz
+/// 2.8·10⁻⁷ ± 0.9·10⁻⁷ forward against 3.30·10⁻⁶ ± 0.45·10⁻⁶ camera (z −6.5). On other seeds at
+/// 1.6·10⁶ paths the forward's tail bins scatter by far more than their batch errors (+14.6 kHz:
+/// 1.45·10⁻⁶ ± 53 %, 1.2·10⁻⁷ ± 38 %, 1.13·10⁻⁶ ± 57 %, 5.1·10⁻⁷ ± 42 % on seeds 55–58; camera
+/// 7.6·10⁻⁷ and 8.2·10⁻⁷), while their sum over 9.8–14.6 kHz agrees with the camera's (forward
+/// 5.40, 5.20, 4.77, 5.21·10⁻⁵ ± 0.46; camera 5.39, 5.78·10⁻⁵ ± 0.22), and at 6.4·10⁶ paths
+/// (seed 54) the total spectrum gives χ² 46.5 over 47: few forward paths carry those bins, so
+/// their batch errors are not Gaussian errors at this count — no sign of a bias of either
+/// estimator, but a bin-by-bin χ² of the forward's tail that a higher count only hides.
 #[test]
 fn camera_paths_connect_through_a_rough_face_over_a_density_layer() {
     agree(&[
-        "run.samples=4000000",
+        "run.samples=1600000",
+        "run.seed=53",
         "layers.0.roughness=0.3",
         "media.deep={sigma_a_per_mm=0.1,sigma_s_per_mm=10,phase={type=\"hg\",g=0.8},density={type=\"ramp\",axis=\"z\",from_mm=0.3,to_mm=0.8,density_from=0.5,density_to=1.5}}",
         "layers.1.medium=\"deep\"",
@@ -229,7 +256,7 @@ fn unscattered_reflections_agree_with_the_forward_paths() {
     assert!(internal > 5.0 * pc.1.hypot(pf.1), "the test cannot see the reflection: σ {}", pc.1);
     let (a, b) = (output(&fwd, "camera.image"), output(&cam, "camera.image"));
     let (stat, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-    assert!(p > 1e-4, "image: χ² = {stat:.1} over {dof} pixels (p = {p:.2e})");
+    assert!(dof == 64 && p > 1e-4, "image: χ² = {stat:.1} over {dof} pixels (p = {p:.2e})");
 }
 
 /// `estimator = "auto"`: the pilot decides from counted work and batch variances (so the same on

@@ -6,6 +6,7 @@
 mod support;
 
 mod atmosphere;
+mod bsdf_chi2;
 mod camera;
 mod cli;
 mod config_fixtures;
@@ -13,6 +14,7 @@ mod control_variate;
 mod converge;
 mod determinism;
 mod doppler;
+mod estimators;
 mod figures;
 mod fmcw;
 mod grid;

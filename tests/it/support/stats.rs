@@ -56,7 +56,8 @@ pub fn chi2_sf(stat: f64, dof: usize) -> f64 {
 }
 
 /// Pearson chi-square of observed counts against expected probabilities (bins with an expected
-/// count below 5 are merged into their neighbour). Returns (statistic, dof, p-value).
+/// count below 5 are merged into their neighbour). Returns (statistic, dof, p-value); panics when
+/// the bins merge into one (0 degrees of freedom: nothing was tested).
 pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) {
     assert_eq!(observed.len(), probabilities.len());
     let n: f64 = observed.iter().sum();
@@ -81,7 +82,44 @@ pub fn chi_square(observed: &[f64], probabilities: &[f64]) -> (f64, usize, f64) 
         }
     }
     let stat: f64 = merged.iter().map(|&(o, e)| (o - e) * (o - e) / e).sum();
-    let dof = merged.len().saturating_sub(1).max(1);
+    let dof = merged.len().saturating_sub(1);
+    assert!(dof > 0, "χ² over 0 degrees of freedom: {} bins merged into {}", observed.len(), merged.len());
+    (stat, dof, chi2_sf(stat, dof))
+}
+
+/// Pearson chi-square of observed counts against expected counts over the same cells, pooled as
+/// pbrt-v4's and Mitsuba's χ² tests pool them: the cells expected below 5 become one, which joins
+/// the smallest other cell if it is still below 5. A draw in a cell expected empty gives χ² = ∞
+/// (p = 0). Returns (statistic, dof, p-value); panics below 1 degree of freedom (nothing tested).
+pub fn chi_square_counts(observed: &[f64], expected: &[f64]) -> (f64, usize, f64) {
+    assert_eq!(observed.len(), expected.len());
+    let impossible = observed.iter().zip(expected).any(|(&o, &e)| e <= 0.0 && o > 0.0);
+    let mut cells: Vec<(f64, f64)> = Vec::new();
+    let (mut o_pool, mut e_pool) = (0.0, 0.0);
+    for (&o, &e) in observed.iter().zip(expected) {
+        if e < 5.0 {
+            o_pool += o;
+            e_pool += e;
+        } else {
+            cells.push((o, e));
+        }
+    }
+    if o_pool > 0.0 || e_pool > 0.0 {
+        let smallest = (0..cells.len()).min_by(|&a, &b| cells[a].1.total_cmp(&cells[b].1));
+        match smallest {
+            Some(k) if e_pool < 5.0 => {
+                cells[k].0 += o_pool;
+                cells[k].1 += e_pool;
+            }
+            _ => cells.push((o_pool, e_pool)),
+        }
+    }
+    let dof = cells.len().saturating_sub(1);
+    assert!(dof > 0, "χ² over 0 degrees of freedom: {} cells pooled into {}", observed.len(), cells.len());
+    if impossible {
+        return (f64::INFINITY, dof, 0.0);
+    }
+    let stat: f64 = cells.iter().filter(|c| c.1 > 0.0).map(|&(o, e)| (o - e) * (o - e) / e).sum();
     (stat, dof, chi2_sf(stat, dof))
 }
 
@@ -194,9 +232,32 @@ fn harness_self_check() {
     assert!((contrast(&[1.0, 3.0, 1.0, 3.0]).0 - 0.5).abs() < 1e-15);
 }
 
+/// A comparison with nothing to compare fails, and so does a slot without an error that differs.
+#[test]
+#[should_panic(expected = "0 degrees of freedom")]
+fn a_difference_over_no_degree_of_freedom_fails() {
+    chi2_difference((&[1.0, 2.0], &[0.0, 0.0]), (&[1.0, 2.0], &[0.0, 0.0]));
+}
+
+#[test]
+#[should_panic(expected = "no error on either side")]
+fn a_slot_without_errors_must_be_equal() {
+    chi2_difference((&[1.0, 2.0], &[0.0, 0.1]), (&[1.5, 2.0], &[0.0, 0.1]));
+}
+
+/// Cells expected below 5 are pooled, the pool joins the smallest cell while below 5, and a draw
+/// where none is expected fails.
+#[test]
+fn counts_pool_their_small_cells() {
+    let (stat, dof, p) = chi_square_counts(&[10.0, 0.0, 0.0, 90.0], &[10.0, 1.0, 1.0, 88.0]);
+    assert_eq!(dof, 1);
+    assert!((stat - (4.0 / 12.0 + 4.0 / 88.0)).abs() < 1e-12 && p > 0.5);
+    assert_eq!(chi_square_counts(&[10.0, 1.0, 89.0], &[10.0, 0.0, 90.0]).2, 0.0);
+}
+
 /// Chi-square of binned estimates against expected values, using their standard errors; a bin
 /// with a zero standard error must be within 1e-3 of the total of its expected value. Returns
-/// (chi², dof, p).
+/// (chi², dof, p); panics when no bin has an error (0 degrees of freedom).
 pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) -> (f64, usize, f64) {
     let mut stat = 0.0;
     let mut dof = 0;
@@ -210,19 +271,36 @@ pub fn chi_square_estimates(values: &[f64], stderr: &[f64], expected: &[f64]) ->
             assert!((v - e).abs() <= 1e-3 * scale, "bin with zero error: {v} vs {e}");
         }
     }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
+    assert!(dof > 0, "χ² over 0 degrees of freedom: no bin of {} has an error", values.len());
+    (stat, dof, chi2_sf(stat, dof))
 }
 
-/// χ² of the differences of two estimates over their combined standard errors (slots where
-/// neither has an error are skipped): (χ², dof, p).
+/// χ² of the differences of two estimates over their combined standard errors: (χ², dof, p).
+/// A slot where neither has an error is no degree of freedom; there the two must be equal to
+/// rounding (10⁻⁹ of the larger), else it panics naming the slot. A comparison with no degree of
+/// freedom at all (every slot without an error: nothing was compared) panics too: it is a failed
+/// test, not a pass with p = 1.
 pub fn chi2_difference(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize, f64) {
+    assert!(
+        a.0.len() == b.0.len() && a.1.len() == a.0.len() && b.1.len() == b.0.len(),
+        "χ² of differences: {} and {} slots",
+        a.0.len(),
+        b.0.len()
+    );
     let (mut stat, mut dof) = (0.0, 0);
     for i in 0..a.0.len() {
         let var = a.1[i].powi(2) + b.1[i].powi(2);
         if var > 0.0 {
             stat += (a.0[i] - b.0[i]).powi(2) / var;
             dof += 1;
+        } else {
+            let (x, y) = (a.0[i], b.0[i]);
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
+                "χ² of differences: slot {i} has no error on either side but {x:e} against {y:e}"
+            );
         }
     }
-    (stat, dof, chi2_sf(stat, dof.max(1)))
+    assert!(dof > 0, "χ² of differences over 0 degrees of freedom: no slot of {} has an error", a.0.len());
+    (stat, dof, chi2_sf(stat, dof))
 }
