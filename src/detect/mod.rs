@@ -789,7 +789,7 @@ impl Recorder<'_> {
     /// detectors).
     #[inline(always)]
     pub fn escape(&mut self, side: Side, e: PathState, exit: Exit, n_ambient: f64) {
-        debug_assert!(!(e.weight < 0.0), "a negative contribution {}", e.weight);
+        debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -824,7 +824,7 @@ impl Recorder<'_> {
     /// scalar tallies count the walk's own, [`Exit::ScalarsOnly`]).
     #[inline(never)]
     pub fn reflection(&mut self, e: &PathState, twin: Twin, n_ambient: f64) {
-        debug_assert!(!(e.weight < 0.0), "a negative contribution {}", e.weight);
+        debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -836,7 +836,7 @@ impl Recorder<'_> {
     /// what the path's layered twin scores along it.
     #[inline(never)]
     pub fn next_event(&mut self, i: usize, e: &PathState, twin: Twin, n_ambient: f64) {
-        debug_assert!(!(e.weight < 0.0), "a negative contribution {}", e.weight);
+        debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -859,7 +859,7 @@ impl Recorder<'_> {
     /// optical path length).
     #[inline(never)]
     pub fn camera(&mut self, shot: &Shot, e: &PathState) {
-        debug_assert!(!(e.weight < 0.0), "a negative contribution {}", e.weight);
+        debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;

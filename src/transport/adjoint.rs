@@ -25,7 +25,6 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
     const GATE: bool = false;
     const LATERAL: bool = false;
     const VOLUME: bool = false;
-    const TWIN: bool = false;
     const MIS: bool = true;
 
     #[inline(always)]

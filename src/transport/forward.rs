@@ -14,10 +14,11 @@ use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
 use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
 
-use super::event::{deflect, doppler_event, doppler_increment, particle_velocity};
+use super::event::{RENORMALISE_EVERY, deflect, doppler_event, doppler_increment, particle_velocity};
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::policy::WalkSettings;
+use super::tracking::{Flight, LayerRay};
 use super::twin::TWIN_BAND;
 use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, turn, walk_to_the_end};
 use super::windows::Windows;
@@ -51,7 +52,6 @@ impl<
     const GATE: bool = GATE;
     const LATERAL: bool = LATERAL;
     const VOLUME: bool = VOLUME;
-    const TWIN: bool = NEE;
     const MIS: bool = NEE;
 
     /// Absorption weighting, then (with `NEE`) the shadow rays ([`collide_nee`]) or the plain
@@ -99,6 +99,37 @@ impl<
     fn track(ctx: &WalkContext, rec: &mut Recorder, s: &PathState, t: f64, n: f64) {
         if VOLUME && let Some(v) = ctx.volume {
             v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
+        }
+    }
+
+    /// Through density regions a path carrying its layered twin flies with it.
+    #[inline(always)]
+    fn own_flight(
+        ray: &LayerRay,
+        t_end: f64,
+        li: usize,
+        s: &PathState,
+        rng: &mut PathRng,
+        null_collisions: &mut u64,
+        rec: &mut Recorder,
+    ) -> Option<Flight> {
+        let coupled = NEE && ray.layer.heterogeneous && rec.twin.is_some_and(|t| !t.only);
+        coupled.then(|| super::twin::coupled_flight::<LENGTH>(ray, t_end, li, s, rng, null_collisions, rec))
+    }
+
+    /// The twin's transmittance over the path's through the regions.
+    #[inline(always)]
+    fn flew(scene: &Scene, layer: &crate::medium::Layer, s: &PathState, t: f64, rec: &mut Recorder) {
+        if NEE {
+            super::twin::weigh_flight(scene, layer, s, t, rec);
+        }
+    }
+
+    /// The layered twin, which has no solids, parts from the path here.
+    #[inline(always)]
+    fn at_solid(s: &PathState, li: usize, rng: &PathRng, rec: &mut Recorder) {
+        if NEE && rec.twin.is_some() {
+            super::twin::part_at_solid(s, li, rng, rec);
         }
     }
 
@@ -299,7 +330,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
         End::Truncated | End::AtBottom | End::AtOpaque(_) | End::AtRough(_) => rec.stats.truncated_paths += 1,
     }
     if NEE && let Some(split) = rec.split.take() {
-        super::twin::twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
+        twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
     }
 }
 
@@ -600,4 +631,64 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         doppler_event(s, pop, n, v, delta);
     }
     turn(s, out, settings, rng, checkpoint)
+}
+
+/// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene
+/// (`ctx.twin_scene`: the regions removed): its collision there (or, parted in flight, its
+/// flight on from there), then its walk, every
+/// contribution scored as the twin's alone ([`Twin::Only`]); nothing of it reaches the scalar
+/// tallies or the volume tally.
+#[cold]
+#[inline(never)]
+pub(super) fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
+    ctx: &WalkContext,
+    split: Split,
+    rec: &mut Recorder,
+) {
+    let Some(scene) = ctx.twin_scene else { return };
+    let ctx = WalkContext { scene, volume: None, reflections: false, windows: None, ..*ctx };
+    let Split { mut s, li, twin, mut rng, flying } = split;
+    rec.twin = Some(TwinPath { only: true, ..twin });
+    let layer = &scene.layers[li];
+    let fill = &scene.media[layer.medium];
+    let (mut absorbed, mut nulls) = (0.0, 0);
+    let mut checkpoint = s.order.saturating_add(RENORMALISE_EVERY).min(ctx.settings.max_events);
+    let first = if flying {
+        None
+    } else {
+        collide_nee::<DOPPLER, LENGTH>(
+            scene,
+            ctx.nee,
+            None,
+            li,
+            &mut s,
+            fill,
+            fill.albedo(),
+            layer.n,
+            ctx.settings,
+            &mut rng,
+            &mut absorbed,
+            &mut checkpoint,
+            rec,
+        )
+    };
+    let end = match first {
+        Some(end) => end,
+        None => walk_to_the_end::<Forward<DOPPLER, LENGTH, true, false, GATE, false>>(
+            &ctx,
+            li,
+            &mut s,
+            &mut rng,
+            &mut absorbed,
+            &mut nulls,
+            rec,
+            false,
+        ),
+    };
+    if let End::Escaped { side, n_ambient, .. } = end
+        && in_gate::<GATE>(ctx.settings, s.l)
+    {
+        rec.escape(side, s, Exit::Walked, n_ambient);
+    }
+    rec.twin = None;
 }

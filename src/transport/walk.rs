@@ -101,9 +101,6 @@ pub(super) trait Estimator {
     const LATERAL: bool;
     /// The volume tally (`[volume]`) scores the path's track lengths and collisions.
     const VOLUME: bool;
-    /// The path may carry a layered twin (`Recorder::twin`, [`super::twin`]): its flights
-    /// through regions weigh it, and it parts from the path at opaque solids.
-    const TWIN: bool;
     /// The path carries a density ratio in `PathState::mis` for the balance heuristic of its
     /// connections, which a reflection at a smooth face resets (no connection takes that way).
     const MIS: bool;
@@ -127,6 +124,30 @@ pub(super) trait Estimator {
     /// depth), flown with the path's weight: the volume tally's track length.
     #[inline(always)]
     fn track(_ctx: &WalkContext, _rec: &mut Recorder, _s: &PathState, _t: f64, _n: f64) {}
+
+    /// A flight of `s` along `ray` in layer `li` up to `t_end` that the estimator flies itself
+    /// (the path with its layered twin through density regions, [`super::twin`]); `None`: the
+    /// walk's own flight.
+    #[inline(always)]
+    fn own_flight(
+        _ray: &LayerRay,
+        _t_end: f64,
+        _li: usize,
+        _s: &PathState,
+        _rng: &mut PathRng,
+        _null_collisions: &mut u64,
+        _rec: &mut Recorder,
+    ) -> Option<Flight> {
+        None
+    }
+
+    /// The walk's own flight of `s` through `layer`, which holds regions, went `t`.
+    #[inline(always)]
+    fn flew(_scene: &Scene, _layer: &crate::medium::Layer, _s: &PathState, _t: f64, _rec: &mut Recorder) {}
+
+    /// `s` in layer `li` has flown to an opaque solid's boundary (where it now is).
+    #[inline(always)]
+    fn at_solid(_s: &PathState, _li: usize, _rng: &PathRng, _rec: &mut Recorder) {}
 
     /// `s` has just refracted from index `n` into `n2` through a smooth face of reflectance `r`.
     #[inline(always)]
@@ -416,9 +437,9 @@ fn walk<E: Estimator>(
 /// A flight of `s` through layer `li` that is not sampled inline (regions, density media, opaque
 /// solids, a box phantom's side faces): to the first real collision, or to the nearest of the
 /// plane ahead, a side face and the first opaque solid ahead, whose distance and index it also
-/// returns (`∞` and `usize::MAX` without one). A layer with density regions flies the path and its
-/// layered twin together ([`super::twin::coupled_flight`]); through other regions the flight
-/// weighs the twin ([`super::twin::weigh_flight`]).
+/// returns (`∞` and `usize::MAX` without one). The estimator may fly it itself
+/// ([`Estimator::own_flight`]: a path with its layered twin through density regions), and hears of
+/// the walk's own flights through regions ([`Estimator::flew`]).
 #[inline(always)]
 fn tracked_flight<E: Estimator>(
     ctx: &WalkContext,
@@ -436,23 +457,21 @@ fn tracked_flight<E: Estimator>(
     let (t_opaque, opaque) =
         if layer.opaque.is_empty() { (f64::INFINITY, usize::MAX) } else { scene.first_opaque(layer, s.pos, s.dir) };
     let ray = LayerRay { scene, layer, pos: s.pos, dir: s.dir };
-    let coupled = E::TWIN && layer.heterogeneous && rec.twin.is_some_and(|t| !t.only);
     let flight = if E::LATERAL {
         // The nearer of the plane ahead and the side face ahead (`min` takes the face for a
         // horizontal ray, whose distance to the plane is ∞ or NaN).
         let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs()).min(t_opaque);
         free_flight_to(ray, t_end, settings.tracking, rng, null_collisions)
-    } else if coupled {
-        let t_end = (dz / s.dir.z.abs()).min(t_opaque);
-        super::twin::coupled_flight::<E>(&ray, t_end, li, s, rng, null_collisions, rec)
+    } else if let Some(f) = E::own_flight(&ray, (dz / s.dir.z.abs()).min(t_opaque), li, s, rng, null_collisions, rec) {
+        return (f, t_opaque, opaque);
     } else if t_opaque < f64::INFINITY {
         free_flight_to(ray, (dz / s.dir.z.abs()).min(t_opaque), settings.tracking, rng, null_collisions)
     } else {
         free_flight(ray, dz, s.dir.z.abs(), settings.tracking, rng, null_collisions)
     };
-    if E::TWIN && !coupled && !layer.regions.is_empty() {
+    if !layer.regions.is_empty() {
         let (Flight::Collision { t, .. } | Flight::Boundary { t }) = flight;
-        super::twin::weigh_flight(scene, layer, s, t, rec);
+        E::flew(scene, layer, s, t, rec);
     }
     (flight, t_opaque, opaque)
 }
@@ -742,9 +761,7 @@ fn to_solid<E: Estimator>(
         return End::Gated;
     }
     advance::<E>(s, t, n);
-    if E::TWIN && rec.twin.is_some() {
-        super::twin::part_at_solid(s, li, rng, rec);
-    }
+    E::at_solid(s, li, rng, rec);
     End::AtOpaque(k)
 }
 
