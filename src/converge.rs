@@ -225,7 +225,16 @@ pub struct Study {
     pub skipped: Vec<(String, String)>,
     /// The reference run made on the fly, if any.
     pub reference_run: Option<Rung>,
+    /// The run's main output ([`Experiment::main_output`]): its name, and its first tally slot.
     pub main_output: String,
+    pub main_slot: usize,
+}
+
+impl Study {
+    /// Whether `o` is the run's main output.
+    pub fn is_main(&self, o: &NamedOutput) -> bool {
+        o.slots.start == self.main_slot
+    }
 }
 
 /// Least-squares line through `(x, y)`: `(slope, its standard error, intercept)`; the slope's
@@ -404,5 +413,6 @@ pub fn study(
         res.paths_per_second = rate;
         kept.push(res);
     }
-    Study { rungs: ladder, outputs: kept, skipped, reference_run, main_output: exp.main_output().name }
+    let main = exp.main_output();
+    Study { rungs: ladder, outputs: kept, skipped, reference_run, main_output: main.name, main_slot: main.slots.start }
 }

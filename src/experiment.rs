@@ -253,24 +253,14 @@ impl RunOutput {
     /// chirp `chirp` (0 = up-chirp or single frequency, 1 = down-chirp) and channel `channel` (0 =
     /// total, then the splits; see [`SpectrumSpec::channels`](crate::detect::SpectrumSpec::channels)).
     /// `None` if the detector has no spectrum or there is no such chirp or channel.
-    pub fn spectrum(&self, exp: &Experiment, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
-        let what = match (self.beat.chirps(), chirp) {
-            (1, 0) => "spectrum",
-            (2, 0) => "spectrum_up",
-            (2, 1) => "spectrum_down",
-            _ => return None,
-        };
-        let total = format!("{}.{what}", exp.detectors.get(i)?.name);
-        let split = format!("{total}_by_");
-        // The total, then the splits, each output a block of channels.
-        let mut k = channel;
-        for o in self.layout.registry.of_detector(i).filter(|o| o.name == total || o.name.starts_with(&split)) {
-            if k < o.slots.rows {
-                return Some(&self.estimates.mean()[o.slots.row_range(k)]);
-            }
-            k -= o.slots.rows;
+    pub fn spectrum(&self, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
+        let lay = self.layout.detectors.get(i)?.spectrum()?;
+        if chirp >= self.beat.chirps() || channel >= lay.channels {
+            return None;
         }
-        None
+        let start = lay.start + (chirp * lay.channels + channel) * lay.stride;
+        // The bins of the row, without its two out-of-range tallies.
+        Some(&self.estimates.mean()[start..start + lay.stride - 2])
     }
 }
 
@@ -468,10 +458,10 @@ impl Experiment {
         self.output_layout().registry.named().cloned().collect()
     }
 
-    /// The run's main output ([`crate::output::Registry::main`]), whose error `ohd run
-    /// --target-error` controls and the progress bar shows.
+    /// The run's main output ([`TallyLayout::main`]), whose error `ohd run --target-error`
+    /// controls and the progress bar shows.
     pub fn main_output(&self) -> Output {
-        self.output_layout().registry.main().clone()
+        self.output_layout().main().clone()
     }
 
     /// The same experiment with the beam (and the axes of the lidar receiver and of monostatic
@@ -515,7 +505,7 @@ impl Experiment {
         let mut layout = TallyLayout::new(&self.detectors, &self.beat_model());
         // After every detector's block: a volume tally moves no other output.
         if let Some(v) = &self.volume {
-            v.declare(&mut layout.registry);
+            layout.volume = Some(v.declare(&mut layout.registry));
         }
         // Last, so that a run without lateral bounds lays out what it did before.
         if self.scene.lateral.is_some() {
@@ -695,7 +685,7 @@ impl Experiment {
     pub fn fmcw_estimates(&self, out: &RunOutput, i: usize) -> Option<Result<FmcwEstimate, RetrievalError>> {
         let chirp = self.source.chirp?;
         let axis = self.detectors.get(i)?.surface()?.spectrum()?.axis;
-        let (up, down) = (out.spectrum(self, i, 0, 0)?, out.spectrum(self, i, 1, 0)?);
+        let (up, down) = (out.spectrum(i, 0, 0)?, out.spectrum(i, 1, 0)?);
         Some(fmcw_estimates(&axis, up, down, self.source.wavelength, chirp.bandwidth, chirp.duration))
     }
 
@@ -857,7 +847,7 @@ impl Experiment {
         let batches = estimates.batches() as u64;
         let layout = self.tally_layout();
         layout.finish_run(&mut estimates);
-        let main = layout.registry.main();
+        let main = layout.main();
         let main_output = (main.name.clone(), main.relative_error(&estimates));
         RunOutput {
             layout,
@@ -911,7 +901,7 @@ impl Experiment {
         let twin_scene = twin.then(|| self.scene.layered_twin());
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
-            slots: VolumeGrid::slots(&layout.registry),
+            slots: layout.volume.expect("a volume tally lays out its outputs"),
             gate: self.plan.walk.gate,
         });
         let walk = WalkContext {

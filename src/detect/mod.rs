@@ -370,6 +370,9 @@ pub struct TallyLayout {
     /// The sums of an importance pilot ([`importance`]; only in the pilot's own run,
     /// [`crate::experiment::Experiment::importance_table`]).
     pub importance: Option<importance::ImportanceLayout>,
+    /// The slots of the `[volume]` grid's outputs ([`volume::VolumeGrid::declare`]; `None`
+    /// without one).
+    pub volume: Option<volume::VolumeSlots>,
 }
 
 /// Offsets of one detector's block.
@@ -403,7 +406,24 @@ impl TallyLayout {
             });
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
-        TallyLayout { registry: reg, detectors: layouts, lateral: None, importance: None }
+        TallyLayout { registry: reg, detectors: layouts, lateral: None, importance: None, volume: None }
+    }
+
+    /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
+    /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
+    /// (up-chirp) total spectrum, else its image, else its power; without detectors the diffuse
+    /// reflectance. Never g1, g2 or K: their values and σ exist only once the run's batches are
+    /// all in ([`TallyLayout::finish_run`]), while this error is read off the batches as they
+    /// come; a correlation detector's power is what their noise follows.
+    pub fn main(&self) -> &Output {
+        let slot = self.detectors.first().map_or(Scalar::ReflectanceDiffuse as usize, |d| {
+            (d.ldh().map(|l| l.m0_plus))
+                .or(d.lidar.as_ref().map(|l| l.spectra))
+                .or(d.spectrum().map(|s| s.start))
+                .or(d.image())
+                .unwrap_or(d.power)
+        });
+        self.registry.at(slot)
     }
 
     /// Give every camera with a control variate (a forward-estimated top detector with an image

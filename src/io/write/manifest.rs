@@ -326,7 +326,10 @@ fn write_run_to<S: super::Sink>(
         det_info.insert(d.name.clone(), info);
     }
     let volume = match &exp.volume {
-        Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
+        Some(g) => {
+            let slots = out.layout.volume.expect("a volume tally lays out its outputs");
+            Some(super::volume::write_volume(&mut w, g, slots, exp.source.position.y)?)
+        }
         None => None,
     };
     let asked = exp.plan.importance != crate::transport::windows::Importance::Off;
