@@ -672,12 +672,12 @@ fn tail_line(t: &crate::stats::TailCheck) -> String {
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
     out!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
-    for d in &exp.detectors {
-        if let Some(a) = d.surface().and_then(|s| s.auto) {
+    for e in &output.decisions.estimators {
+        if let Some(a) = e.figures {
             out!(
                 "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
-                d.name,
-                d.surface().map_or("forward", |s| s.estimator().name()),
+                exp.detectors[e.detector].name,
+                e.estimator.name(),
                 a.forward / a.camera
             );
         }

@@ -155,11 +155,9 @@ pub struct Surface {
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
     /// How its light is to be estimated, as configured (`estimator = "…"`). What a run uses is
-    /// [`Surface::estimator`], never this.
+    /// [`Surface::estimator`], never this: a run applies the pilot's decision of `"auto"`
+    /// ([`crate::experiment::Experiment::decided`]).
     pub choice: EstimatorChoice,
-    /// What the pilot of `estimator = "auto"` measured, once it has decided ([`crate::pilot`]):
-    /// its decision, read by [`Surface::estimator`]. `None` for any other choice.
-    pub auto: Option<AutoChoice>,
 }
 
 /// The pilot's figures for `estimator = "auto"` ([`crate::pilot`]): the mean per-pixel relative
@@ -215,15 +213,15 @@ impl Surface {
         cone_solid_angle(self.cos_acceptance)
     }
 
-    /// The estimator a run uses: the configured one, or for `"auto"` the pilot's decision —
-    /// forward until a pilot has decided, so that every reader (the paths traced, their
-    /// weights, the manifest) sees one estimator.
+    /// The estimator a run uses: the configured one — a run with a pilot's decision of
+    /// `"auto"` has it applied here ([`crate::experiment::Experiment::decided`]) — and forward for
+    /// an undecided `"auto"`, so that every reader (the paths traced, their weights, the
+    /// manifest) sees one estimator.
     #[inline]
     pub fn estimator(&self) -> Estimator {
         match self.choice {
-            EstimatorChoice::Forward => Estimator::Forward,
+            EstimatorChoice::Forward | EstimatorChoice::Auto => Estimator::Forward,
             EstimatorChoice::Camera => Estimator::Camera,
-            EstimatorChoice::Auto => self.auto.map_or(Estimator::Forward, AutoChoice::chosen),
         }
     }
 
