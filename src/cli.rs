@@ -631,15 +631,17 @@ struct Figures {
 /// The one place the report reads its numbers.
 fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
     let (mean, se) = (output.estimates.mean(), output.estimates.stderr());
-    let outputs = exp.outputs();
-    // A box phantom's side faces after the transmittance (its name only where it is declared).
-    let lateral = exp.scene.lateral.map(|_| crate::detect::LATERAL_SCALAR);
-    let scalars = ["reflectance_specular", "reflectance_diffuse", "transmittance_total"]
+    use crate::detect::{LATERAL_SCALAR, Scalar};
+    let scalar = |s: Scalar| (s.name(), Some(s as usize));
+    // A box phantom's side faces after the transmittance (its slot only where it is declared).
+    let lateral = exp.scene.lateral.map(|_| (LATERAL_SCALAR, output.layout.lateral));
+    let scalars = [Scalar::ReflectanceSpecular, Scalar::ReflectanceDiffuse, Scalar::TransmittanceTotal]
+        .map(scalar)
         .into_iter()
         .chain(lateral)
-        .chain(["absorbed_fraction"])
-        .map(|k| match outputs.iter().find(|o| o.name == *k) {
-            Some(o) => (k.to_string(), mean[o.slots.start], se[o.slots.start]),
+        .chain([scalar(Scalar::AbsorbedFraction)])
+        .map(|(k, slot)| match slot {
+            Some(s) => (k.to_string(), mean[s], se[s]),
             None => (k.to_string(), f64::NAN, f64::NAN),
         })
         .collect();
@@ -670,12 +672,12 @@ fn tail_line(t: &crate::stats::TailCheck) -> String {
 fn report(exp: &Experiment, output: &RunOutput) {
     let (main, err) = &output.main_output;
     out!("  main output {main}: relative error {:.4}% (all values together)", 100.0 * err);
-    for d in &exp.detectors {
-        if let Some(a) = d.surface().and_then(|s| s.auto) {
+    for e in &output.decisions.estimators {
+        if let Some(a) = e.figures {
             out!(
                 "  {}: estimator auto chose {} (pilot: camera-side efficiency {:.2}× forward)",
-                d.name,
-                d.surface().map_or("forward", |s| s.estimator().name()),
+                exp.detectors[e.detector].name,
+                e.estimator.name(),
                 a.forward / a.camera
             );
         }
@@ -794,7 +796,7 @@ fn converge(req: &ConvergeRequest, quiet: bool) -> Result<(), Error> {
             fmt(o.seconds_to(0.01)),
             fmt(o.seconds_to(0.001)),
             o.sigma_ratio_rms(),
-            if o.output.name == study.main_output { "  (main)" } else { "" }
+            if study.is_main(&o.output) { "  (main)" } else { "" }
         );
     }
     for (name, why) in &study.skipped {

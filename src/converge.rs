@@ -20,7 +20,7 @@
 //! With a noisy reference, the expected squared error is the sum of both runs' variances, so the
 //! agreement check compares the measured error with `√(σ² + σ_ref²)`.
 
-use crate::experiment::{Experiment, Progress, RunOutput};
+use crate::experiment::{Decisions, Experiment, Progress, RunOutput};
 pub use crate::experiment::{Target, TargetOutcome};
 use crate::stats::BatchAccumulator;
 
@@ -225,7 +225,16 @@ pub struct Study {
     pub skipped: Vec<(String, String)>,
     /// The reference run made on the fly, if any.
     pub reference_run: Option<Rung>,
+    /// The run's main output ([`Experiment::main_output`]): its name, and its first tally slot.
     pub main_output: String,
+    pub main_slot: usize,
+}
+
+impl Study {
+    /// Whether `o` is the run's main output.
+    pub fn is_main(&self, o: &NamedOutput) -> bool {
+        o.slots.start == self.main_slot
+    }
 }
 
 /// Least-squares line through `(x, y)`: `(slope, its standard error, intercept)`; the slope's
@@ -262,13 +271,19 @@ pub fn ladder_samples(top: u64, rungs: usize, batches: u64) -> Vec<u64> {
 /// the speed (growing until it takes a quarter second, so that start-up costs do not dominate its
 /// rate); the ladder (≈ 2× its top rung) and a reference run (`reference_factor` × the top rung)
 /// share the budget. At least 16 paths per batch on the smallest rung.
-fn top_rung_for_budget(exp: &Experiment, opts: &LadderOptions, need_run: bool, log: &mut dyn StudyLog) -> u64 {
+fn top_rung_for_budget(
+    exp: &Experiment,
+    decisions: &Decisions,
+    opts: &LadderOptions,
+    need_run: bool,
+    log: &mut dyn StudyLog,
+) -> u64 {
     let batches = exp.plan.batches;
     let mut pilot = exp.clone();
     let mut n = batches * 256;
     let rate = loop {
         pilot.plan.set_samples(n);
-        let t = pilot.run(log.progress()).wall_seconds.max(1e-6);
+        let t = pilot.run_decided(decisions, log.progress()).wall_seconds.max(1e-6);
         if t >= 0.25 || n >= batches << 16 {
             break pilot.plan.samples() as f64 / t;
         }
@@ -290,9 +305,10 @@ pub trait StudyLog {
 /// `references[i]` the reference of output `i` when known (read from disk); the configuration's
 /// analytic references take precedence, and a reference run of the rest is made on the fly with
 /// the configured seed. Rung `k` runs with seed `seed + 1 + k`, independent of the others
-/// and of the reference.
+/// and of the reference. Every run applies `decisions` (the pilots', made once for the study).
 pub fn study(
     exp: &Experiment,
+    decisions: &Decisions,
     mut references: Vec<Option<Reference>>,
     opts: &LadderOptions,
     log: &mut dyn StudyLog,
@@ -310,7 +326,7 @@ pub fn study(
     let rungs = opts.rungs.max(2);
     let top = match opts.top_samples {
         Some(n) => n,
-        None => top_rung_for_budget(exp, opts, need_run, log),
+        None => top_rung_for_budget(exp, decisions, opts, need_run, log),
     };
     let samples = ladder_samples(top, rungs, batches);
     let mut reference_run = None;
@@ -318,7 +334,7 @@ pub fn study(
         let mut r = exp.clone();
         r.plan.set_samples(opts.reference_factor.max(1) * samples[rungs - 1]);
         log.line(&format!("reference run: {} paths, seed {}", r.plan.samples(), r.plan.seed));
-        let out = r.run(log.progress());
+        let out = r.run_decided(decisions, log.progress());
         let se = out.estimates.stderr();
         for (o, slot) in outputs.iter().zip(references.iter_mut()) {
             if slot.is_none() {
@@ -357,7 +373,7 @@ pub fn study(
         let mut e = exp.clone();
         e.plan.seed = exp.plan.seed.wrapping_add(1 + k as u64);
         e.plan.set_samples(n);
-        let out: RunOutput = e.run(log.progress());
+        let out: RunOutput = e.run_decided(decisions, log.progress());
         let se = out.estimates.stderr();
         for (res, r) in results.iter_mut().zip(&references) {
             let Some(r) = r else { continue };
@@ -404,5 +420,6 @@ pub fn study(
         res.paths_per_second = rate;
         kept.push(res);
     }
-    Study { rungs: ladder, outputs: kept, skipped, reference_run, main_output: exp.main_output().name }
+    let main = exp.main_output();
+    Study { rungs: ladder, outputs: kept, skipped, reference_run, main_output: main.name, main_slot: main.slots.start }
 }

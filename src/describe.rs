@@ -799,9 +799,9 @@ impl Display for Detector {
                 format!("{} from the surface", length(d.distance))
             }
         )?;
-        if d.choice == crate::detect::EstimatorChoice::Auto && d.auto.is_none() {
-            // Undecided: a run that is not the CLI's or Python's (which decide first) estimates
-            // it forward ([`crate::detect::Surface::estimator`]).
+        if d.choice == crate::detect::EstimatorChoice::Auto {
+            // As configured: a pilot decides before the CLI's run (`crate::pilot::decide`); a run
+            // without its decision estimates it forward ([`crate::detect::Surface::estimator`]).
             write!(f, ", estimator auto (a pilot before the run chooses camera-side or forward estimation)")?;
         } else if d.estimator() == crate::detect::Estimator::Camera {
             write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
@@ -964,35 +964,23 @@ impl Display for Experiment {
         }
         // The importance table (`run.importance`).
         if self.plan.importance != Importance::Off {
-            let windows = match (self.plan.importance, self.plan.importance_auto) {
-                (Importance::Windows, _) => {
+            let windows = match self.plan.importance {
+                Importance::Windows => {
                     "the forward walk's weight windows follow it (split above, roulette below a window of width 5 about R/I*)"
                         .to_string()
                 }
-                (Importance::Guided, _) => {
+                Importance::Guided => {
                     "the forward walk's weight windows follow it, and where its importance varies over the directions \
                      a scattering reaches, each continuation is one of 4 phase-function directions resampled on it"
                         .to_string()
                 }
-                (Importance::Auto, None) => format!(
+                Importance::Auto => format!(
                     "the forward walk follows its weight windows, or its windows and guided directions, where a pilot \
                      of 1/{} of the paths, without, with the windows and with both, measures a lower squared relative \
                      error × work of the main output",
                     crate::pilot::PILOT_SHARE
                 ),
-                (Importance::Auto, Some(a)) => format!(
-                    "{} by the pilot (squared relative error × work {:.3e} without, {:.3e} with the windows, {:.3e} \
-                     with the windows and guided directions)",
-                    match a.choice() {
-                        Importance::Guided => "weight windows and guided directions chosen",
-                        Importance::Windows => "weight windows chosen",
-                        _ => "neither weight windows nor guided directions chosen",
-                    },
-                    a.off,
-                    a.windows,
-                    a.guided
-                ),
-                _ => "written, not used by the walk".to_string(),
+                Importance::Off | Importance::Table => "written, not used by the walk".to_string(),
             };
             match (self.importance_obstacle(), self.main_output().detector) {
                 (Some(why), _) => writeln!(f, "importance table: none ({why})")?,

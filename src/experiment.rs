@@ -6,8 +6,14 @@
 //! The random walk is compiled once per scene kind ([`Features`]); each batch hands its paths to
 //! the one dispatch there.
 
+use std::borrow::Cow;
+use std::sync::Arc;
+
+use crate::detect::importance::ImportanceTable;
 use crate::detect::volume::{VolumeGrid, VolumeTally};
-use crate::detect::{BeatModel, Detector, DetectorKind, RecordedLine, Recorder, TallyLayout};
+use crate::detect::{
+    AutoChoice, BeatModel, Detector, DetectorKind, EstimatorChoice, RecordedLine, Recorder, TallyLayout,
+};
 use crate::error::Result;
 use crate::medium::Scene;
 use crate::output::Output;
@@ -15,7 +21,7 @@ use crate::retrieval::{FmcwEstimate, RetrievalError, fmcw_estimates};
 use crate::sampling::{Purpose, StreamKey};
 use crate::source::{Pointing, Source};
 use crate::stats::{BatchAccumulator, RunStats};
-use crate::transport::windows::{Importance, Windows};
+use crate::transport::windows::{AutoWindows, Importance, Windows};
 use crate::transport::{
     CameraTarget, ControlVariate, Features, NeeTarget, WalkContext, WalkSettings, control_variate_obstacle,
 };
@@ -37,23 +43,75 @@ pub struct RunPlan {
     /// ([`crate::sys::memory_limit`]), if one did.
     pub memory_limited_by: Option<&'static str>,
     /// Camera paths are traced from every `camera_pixel_stride`-th pixel only: 1, but in the
-    /// pilot of `estimator = "auto"` ([`crate::pilot`]).
+    /// pilot of `estimator = "auto"`'s own run ([`crate::pilot::pilot_run`]).
     pub camera_pixel_stride: usize,
     /// What resolving counted against the budget besides the tallies (the media of the layers
     /// and regions, voxel grids, speckle records), in the order it was counted.
     pub memory: Vec<MemoryBlock>,
     /// `run.importance`: the importance table of the main output's detector, and the weight
-    /// windows it gives ([`Experiment::importance_table`], [`crate::transport::windows`]).
+    /// windows it gives ([`Experiment::importance_table`], [`crate::transport::windows`]); what
+    /// `"auto"` chose is a [`Decisions`] value, not written here.
     pub importance: Importance,
-    /// With `run.importance = "auto"`, once a pilot has decided ([`crate::pilot::decide`]): its
-    /// figures, which say whether the walk uses the windows ([`RunPlan::windows`]).
-    pub importance_auto: Option<crate::transport::windows::AutoWindows>,
-    /// The importance table, once computed (by the pilot of `"auto"`): the run's windows and
-    /// the written table are this one, not computed again.
-    pub importance_table: Option<std::sync::Arc<crate::detect::importance::ImportanceTable>>,
-    /// In an importance pilot's own run: the detector whose states' values it tallies
-    /// ([`crate::detect::importance`]); `None` in any other run.
+    /// In the importance table's pilot's own run ([`Experiment::importance_pilot_run`]): the
+    /// detector whose states' values it tallies ([`crate::detect::importance`]); `None` in any
+    /// other run.
     pub importance_trace: Option<usize>,
+}
+
+/// What the pilots decided for a run of an experiment ([`crate::pilot::decide`]), as a value:
+/// the run applies it when it builds its walk context ([`Experiment::decided`], and the weight
+/// windows of [`Decisions::steering`]); the experiment stays as configured. Every shard, merge
+/// and resume of a run decides again, the same (the pilots count work, never time), and a run's
+/// output keeps the decisions it ran with ([`RunOutput::decisions`]) for the manifest. The
+/// default decides nothing: an `estimator = "auto"` detector is estimated forward, `run.importance
+/// = "auto"` follows no windows, `"windows"` and `"guided"` make their table when the run starts.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Decisions {
+    /// The estimator of each detector decided for the run, in detector order.
+    pub estimators: Vec<EstimatorDecision>,
+    /// The importance table made before the run and what the forward walk does with it.
+    pub importance: Option<ImportanceDecision>,
+}
+
+/// The estimator a run uses for a surface detector configured `estimator = "auto"`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorDecision {
+    /// The detector's index.
+    pub detector: usize,
+    pub estimator: crate::detect::Estimator,
+    /// The pilot's figures that chose it ([`AutoChoice::chosen`]); `None` in the pilot's own
+    /// runs, which impose each estimator in turn.
+    pub figures: Option<AutoChoice>,
+}
+
+/// The importance table of a run and what its forward walk does with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportanceDecision {
+    /// [`Importance::Off`] (the table only written), [`Importance::Windows`] or
+    /// [`Importance::Guided`].
+    pub steering: Importance,
+    /// The figures of `run.importance = "auto"`'s pilot that chose `steering`
+    /// ([`AutoWindows::choice`]); `None` in that pilot's own runs, which impose each in turn.
+    pub figures: Option<AutoWindows>,
+    pub table: Arc<ImportanceTable>,
+}
+
+impl Decisions {
+    /// The decision on detector `i`'s estimator, if one was made.
+    pub fn estimator(&self, i: usize) -> Option<&EstimatorDecision> {
+        self.estimators.iter().find(|d| d.detector == i)
+    }
+
+    /// What the forward walk of a run of `plan` does with the importance table: the decision's,
+    /// else `run.importance = "windows"` or `"guided"` as configured (their table made when the
+    /// run starts); an undecided `"auto"` follows no windows.
+    pub fn steering(&self, plan: &RunPlan) -> Importance {
+        match (&self.importance, plan.importance) {
+            (Some(d), _) => d.steering,
+            (None, i @ (Importance::Windows | Importance::Guided)) => i,
+            (None, Importance::Off | Importance::Table | Importance::Auto) => Importance::Off,
+        }
+    }
 }
 
 /// A block of memory an experiment holds, as counted against `run.memory_budget_gib`.
@@ -66,26 +124,6 @@ pub struct MemoryBlock {
 
 impl RunPlan {
     /// Paths actually traced: the request rounded up to a whole number per batch.
-    /// Whether the forward walk follows weight windows: `run.importance = "windows"`, or
-    /// `"auto"` where its pilot chose them (undecided: not).
-    pub fn windows(&self) -> bool {
-        match self.importance {
-            Importance::Windows | Importance::Guided => true,
-            Importance::Auto => self.importance_auto.is_some_and(|a| a.windows_chosen()),
-            Importance::Off | Importance::Table => false,
-        }
-    }
-
-    /// Whether the forward walk's directions are guided by the importance table as well:
-    /// `run.importance = "guided"`, or `"auto"` where its pilot chose them.
-    pub fn guided(&self) -> bool {
-        match self.importance {
-            Importance::Guided => true,
-            Importance::Auto => self.importance_auto.is_some_and(|a| a.choice() == Importance::Guided),
-            Importance::Off | Importance::Table | Importance::Windows => false,
-        }
-    }
-
     pub fn samples(&self) -> u64 {
         self.batches * self.paths_per_batch
     }
@@ -207,7 +245,9 @@ pub struct RunOutput {
     pub target: Option<TargetOutcome>,
     /// The importance table its weight windows followed (`run.importance = "windows"`; `None`
     /// otherwise, and after a merge of shards: the writer computes it again).
-    pub importance: Option<crate::detect::importance::ImportanceTable>,
+    pub importance: Option<ImportanceTable>,
+    /// The pilots' decisions it ran with (for the manifest and the report).
+    pub decisions: Decisions,
     /// `Some(planned batches)` when the run ended early because its caller asked
     /// ([`Progress::stopping`]): its estimates and errors are those of the `batches` done, and
     /// [`final_state`](Self::final_state) continues it to the plan.
@@ -253,24 +293,14 @@ impl RunOutput {
     /// chirp `chirp` (0 = up-chirp or single frequency, 1 = down-chirp) and channel `channel` (0 =
     /// total, then the splits; see [`SpectrumSpec::channels`](crate::detect::SpectrumSpec::channels)).
     /// `None` if the detector has no spectrum or there is no such chirp or channel.
-    pub fn spectrum(&self, exp: &Experiment, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
-        let what = match (self.beat.chirps(), chirp) {
-            (1, 0) => "spectrum",
-            (2, 0) => "spectrum_up",
-            (2, 1) => "spectrum_down",
-            _ => return None,
-        };
-        let total = format!("{}.{what}", exp.detectors.get(i)?.name);
-        let split = format!("{total}_by_");
-        // The total, then the splits, each output a block of channels.
-        let mut k = channel;
-        for o in self.layout.registry.of_detector(i).filter(|o| o.name == total || o.name.starts_with(&split)) {
-            if k < o.slots.rows {
-                return Some(&self.estimates.mean()[o.slots.row_range(k)]);
-            }
-            k -= o.slots.rows;
+    pub fn spectrum(&self, i: usize, chirp: usize, channel: usize) -> Option<&[f64]> {
+        let lay = self.layout.detectors.get(i)?.spectrum()?;
+        if chirp >= self.beat.chirps() || channel >= lay.channels {
+            return None;
         }
-        None
+        let start = lay.start + (chirp * lay.channels + channel) * lay.stride;
+        // The bins of the row, without its two out-of-range tallies.
+        Some(&self.estimates.mean()[start..start + lay.stride - 2])
     }
 }
 
@@ -347,25 +377,28 @@ struct BatchRunner<'a> {
     /// batch runs long, few enough to bound memory.
     in_flight: u64,
     spare: Vec<Tallies>,
-    /// The importance table of `run.importance = "windows"` and its weight windows, from a
-    /// pilot run here.
-    table: Option<crate::detect::importance::ImportanceTable>,
+    /// The importance table the weight windows follow (the decision's, or from a pilot run
+    /// here for `run.importance = "windows"`), and the windows.
+    table: Option<ImportanceTable>,
     windows: Option<Windows>,
 }
 
 impl<'a> BatchRunner<'a> {
-    fn new(exp: &'a Experiment) -> Self {
+    /// The runner of `exp`, with `decisions` applied ([`Experiment::decided`]) to it, and its
+    /// weight windows.
+    fn new(exp: &'a Experiment, decisions: &Decisions) -> Self {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(exp.plan.effective_threads()).build().ok();
         let layout = exp.tally_layout();
         let (beat, in_flight) = (exp.beat_model(), exp.batches_in_flight());
-        let table = match &exp.plan.importance_table {
-            _ if !exp.plan.windows() => None,
-            Some(t) => Some(t.as_ref().clone()),
+        let steering = decisions.steering(&exp.plan);
+        let table = match &decisions.importance {
+            _ if steering == Importance::Off => None,
+            Some(d) => Some(d.table.as_ref().clone()),
             None => exp.importance_table(),
         };
         let windows = table.as_ref().map(|t| {
             let w = Windows::new(t.grid.clone(), &t.value, t.response);
-            if exp.plan.guided() { w.guided(&exp.scene, &t.value) } else { w }
+            if steering == Importance::Guided { w.guided(&exp.scene, &t.value) } else { w }
         });
         BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
     }
@@ -468,10 +501,10 @@ impl Experiment {
         self.output_layout().registry.named().cloned().collect()
     }
 
-    /// The run's main output ([`crate::output::Registry::main`]), whose error `ohd run
-    /// --target-error` controls and the progress bar shows.
+    /// The run's main output ([`TallyLayout::main`]), whose error `ohd run --target-error`
+    /// controls and the progress bar shows.
     pub fn main_output(&self) -> Output {
-        self.output_layout().registry.main().clone()
+        self.output_layout().main().clone()
     }
 
     /// The same experiment with the beam (and the axes of the lidar receiver and of monostatic
@@ -515,7 +548,7 @@ impl Experiment {
         let mut layout = TallyLayout::new(&self.detectors, &self.beat_model());
         // After every detector's block: a volume tally moves no other output.
         if let Some(v) = &self.volume {
-            v.declare(&mut layout.registry);
+            layout.volume = Some(v.declare(&mut layout.registry));
         }
         // Last, so that a run without lateral bounds lays out what it did before.
         if self.scene.lateral.is_some() {
@@ -574,38 +607,81 @@ impl Experiment {
         ImportanceGrid::new(&self.scene, lateral)
     }
 
+    /// The run of the importance table's pilot for detector `detector`, built here alone: every
+    /// field said, so that a new one is decided for the pilot too. The detector alone, its power
+    /// alone (the light it receives), scored as the run scores it, through the scene without its
+    /// regions (the layered stack), on streams of its own, without the control variate, launches
+    /// near the regions, a volume tally or windows, tallying its states' values
+    /// ([`RunPlan::importance_trace`]).
+    pub fn importance_pilot_run(&self, detector: usize) -> Experiment {
+        use crate::detect::importance::{IMPORTANCE_SEED, PILOT_BATCHES, pilot_paths};
+        let mut d = self.detectors[detector].clone();
+        if let DetectorKind::Surface(s) = &mut d.kind {
+            s.parts.clear();
+        }
+        let (plan, walk) = (&self.plan, &self.plan.walk);
+        Experiment {
+            name: self.name.clone(),
+            scene: if self.scene.regions.is_empty() { self.scene.clone() } else { self.scene.layered_twin() },
+            source: self.source.clone(),
+            detectors: vec![d],
+            plan: RunPlan {
+                requested_samples: plan.requested_samples,
+                batches: PILOT_BATCHES,
+                paths_per_batch: pilot_paths(plan.samples()) / PILOT_BATCHES,
+                seed: crate::sampling::rng::mix64(plan.seed ^ IMPORTANCE_SEED),
+                threads: plan.threads,
+                walk: WalkSettings {
+                    tracking: walk.tracking,
+                    roulette_threshold: walk.roulette_threshold,
+                    roulette_survival: walk.roulette_survival,
+                    max_events: walk.max_events,
+                    gate: walk.gate,
+                    reflections: walk.reflections,
+                    control_variate: ControlVariate::Off,
+                    launches: None,
+                },
+                memory_budget: plan.memory_budget,
+                memory_limited_by: plan.memory_limited_by,
+                camera_pixel_stride: plan.camera_pixel_stride,
+                memory: plan.memory.clone(),
+                importance: Importance::Off,
+                importance_trace: Some(0),
+            },
+            references: Vec::new(),
+            volume: None,
+        }
+    }
+
+    /// This experiment as a run with `decisions` runs it: each detector whose estimator was
+    /// decided estimated by it (the configured `"auto"` stays in `self` and in the decision);
+    /// `self` where no estimator was decided. The one place a decision reaches the detectors.
+    pub fn decided(&self, decisions: &Decisions) -> Cow<'_, Experiment> {
+        if decisions.estimators.is_empty() {
+            return Cow::Borrowed(self);
+        }
+        let mut exp = self.clone();
+        for d in &decisions.estimators {
+            if let DetectorKind::Surface(s) = &mut exp.detectors[d.detector].kind {
+                s.choice = match d.estimator {
+                    crate::detect::Estimator::Forward => EstimatorChoice::Forward,
+                    crate::detect::Estimator::Camera => EstimatorChoice::Camera,
+                };
+            }
+        }
+        Cow::Owned(exp)
+    }
+
     /// The importance table of the main output's detector ([`crate::detect::importance`]; `None`
     /// where [`importance_obstacle`](Self::importance_obstacle) finds one), from a pilot of
     /// [`pilot_paths`](crate::detect::importance::pilot_paths) paths on its own streams.
-    pub fn importance_table(&self) -> Option<crate::detect::importance::ImportanceTable> {
-        use crate::detect::importance::{IMPORTANCE_SEED, ImportanceTable, PILOT_BATCHES, pilot_paths};
+    pub fn importance_table(&self) -> Option<ImportanceTable> {
         if self.importance_obstacle().is_some() {
             return None;
         }
         let detector = self.main_output().detector?;
         let start = std::time::Instant::now();
-        let mut pilot = self.clone();
-        if !pilot.scene.regions.is_empty() {
-            pilot.scene = self.scene.layered_twin();
-        }
-        // The detector alone, its power alone (the light it receives), scored as the run scores it.
-        let mut d = self.detectors[detector].clone();
-        if let DetectorKind::Surface(s) = &mut d.kind {
-            s.parts.clear();
-        }
-        pilot.detectors = vec![d];
-        pilot.volume = None;
-        pilot.references.clear();
-        pilot.plan.seed = crate::sampling::rng::mix64(self.plan.seed ^ IMPORTANCE_SEED);
-        pilot.plan.batches = PILOT_BATCHES;
-        pilot.plan.paths_per_batch = pilot_paths(self.plan.samples()) / PILOT_BATCHES;
-        pilot.plan.walk.control_variate = ControlVariate::Off;
-        pilot.plan.walk.launches = None;
-        pilot.plan.importance = Importance::Off;
-        pilot.plan.importance_auto = None;
-        pilot.plan.importance_table = None;
-        pilot.plan.importance_trace = Some(0);
-        let out = pilot.run(&Silent);
+        let out = self.importance_pilot_run(detector).run(&Silent);
         let lay = out.layout.importance.as_ref().expect("the pilot lays out its sums");
         let mean = out.estimates.mean();
         let paths = (out.estimates.batches() as u64 * out.paths_per_batch) as f64;
@@ -695,7 +771,7 @@ impl Experiment {
     pub fn fmcw_estimates(&self, out: &RunOutput, i: usize) -> Option<Result<FmcwEstimate, RetrievalError>> {
         let chirp = self.source.chirp?;
         let axis = self.detectors.get(i)?.surface()?.spectrum()?.axis;
-        let (up, down) = (out.spectrum(self, i, 0, 0)?, out.spectrum(self, i, 1, 0)?);
+        let (up, down) = (out.spectrum(i, 0, 0)?, out.spectrum(i, 1, 0)?);
         Some(fmcw_estimates(&axis, up, down, self.source.wavelength, chirp.bandwidth, chirp.duration))
     }
 
@@ -723,9 +799,14 @@ impl Experiment {
         self.plan.memory.iter().fold(self.memory_estimate(), |a, b| a.saturating_add(b.bytes))
     }
 
-    /// Run every batch and reduce them in batch order.
+    /// Run every batch and reduce them in batch order, nothing decided ([`Decisions`]'s default).
     pub fn run(&self, progress: &dyn Progress) -> RunOutput {
         self.run_until(progress, None)
+    }
+
+    /// Run every batch with `decisions` applied and reduce them in batch order.
+    pub fn run_decided(&self, decisions: &Decisions, progress: &dyn Progress) -> RunOutput {
+        self.run_resumable(decisions, progress, None, None, None).expect("a run without checkpoints cannot fail")
     }
 
     /// Run every batch and reduce them in batch order; with a `target`, keep adding rounds of
@@ -733,14 +814,31 @@ impl Experiment {
     /// target's output reaches its relative error. The number of rounds is decided only from
     /// folded results, so the output still does not depend on the thread count.
     pub fn run_until(&self, progress: &dyn Progress, target: Option<&Target>) -> RunOutput {
-        self.run_resumable(progress, target, None, None).expect("a run without checkpoints cannot fail")
+        self.run_resumable(&Decisions::default(), progress, target, None, None)
+            .expect("a run without checkpoints cannot fail")
     }
 
-    /// As [`run_until`](Self::run_until), continuing from `resume` (a state saved by an earlier
-    /// process of the same experiment) and saving states through `checkpoint`. Batches are folded
-    /// in batch order whatever the process, so a resumed run equals an uninterrupted one.
+    /// As [`run_until`](Self::run_until) with `decisions` applied, continuing from `resume` (a
+    /// state saved by an earlier process of the same experiment) and saving states through
+    /// `checkpoint`. Batches are folded in batch order whatever the process, so a resumed run
+    /// equals an uninterrupted one.
     pub fn run_resumable(
         &self,
+        decisions: &Decisions,
+        progress: &dyn Progress,
+        target: Option<&Target>,
+        resume: Option<RunState>,
+        checkpoint: Option<&dyn Checkpoint>,
+    ) -> Result<RunOutput> {
+        let decided = self.decided(decisions);
+        decided.run_applied(decisions, progress, target, resume, checkpoint)
+    }
+
+    /// [`run_resumable`](Self::run_resumable) of this experiment, `decisions` already applied to
+    /// it.
+    fn run_applied(
+        &self,
+        decisions: &Decisions,
         progress: &dyn Progress,
         target: Option<&Target>,
         resume: Option<RunState>,
@@ -748,7 +846,7 @@ impl Experiment {
     ) -> Result<RunOutput> {
         let start = std::time::Instant::now();
         let round = self.plan.batches;
-        let mut runner = BatchRunner::new(self);
+        let mut runner = BatchRunner::new(self, decisions);
         let mut st = resume.unwrap_or_else(|| RunState {
             estimates: BatchAccumulator::new(runner.layout.tallies()),
             stats: RunStats::default(),
@@ -802,7 +900,7 @@ impl Experiment {
             return Err(crate::error::Error::Cancelled);
         }
         let RunState { estimates, stats, lines, end, err, .. } = st;
-        let mut out = self.finish(estimates, stats, lines, elapsed + start.elapsed().as_secs_f64());
+        let mut out = self.output(decisions, estimates, stats, lines, elapsed + start.elapsed().as_secs_f64());
         out.importance = runner.table.take();
         out.interrupted = interrupted;
         out.main_output = (main.name, err);
@@ -824,18 +922,21 @@ impl Experiment {
         part(index)..part(index + 1)
     }
 
-    /// Run the batches `range` (once each, in parallel) and hand each one's tally sums, counters
-    /// and recorded lines to `sink` in batch order: the pieces of a run that other processes run
-    /// the rest of (`ohd run --shard`). Stops at the first error of `sink`.
+    /// Run the batches `range` (once each, in parallel) with `decisions` applied and hand each
+    /// one's tally sums, counters and recorded lines to `sink` in batch order: the pieces of a run
+    /// that other processes run the rest of (`ohd run --shard`). Stops at the first error of
+    /// `sink`.
     pub fn run_batches(
         &self,
+        decisions: &Decisions,
         range: std::ops::Range<u64>,
         progress: &dyn Progress,
         sink: &mut BatchSink,
     ) -> Result<()> {
         progress.set_total((range.end - range.start) * self.plan.paths_per_batch);
         let (mut handed, end) = (range.start, range.end);
-        BatchRunner::new(self).run(range, progress, &mut |sums, s, l| {
+        let decided = self.decided(decisions);
+        BatchRunner::new(&decided, decisions).run(range, progress, &mut |sums, s, l| {
             handed += 1;
             sink(sums, s, l)
         })?;
@@ -843,11 +944,24 @@ impl Experiment {
         if handed < end { Err(crate::error::Error::Cancelled) } else { Ok(()) }
     }
 
-    /// The output of a run whose batches (`estimates.batches()` of them) were folded into
-    /// `estimates` in batch order, with its counters and recorded lines: the main output's error
-    /// read off. `threads` is the plan's.
+    /// The output of a run with `decisions` whose batches (`estimates.batches()` of them) were
+    /// folded into `estimates` in batch order, with its counters and recorded lines: the main
+    /// output's error read off. `threads` is the plan's.
     pub fn finish(
         &self,
+        decisions: &Decisions,
+        estimates: BatchAccumulator,
+        stats: RunStats,
+        lines: Vec<RecordedLine>,
+        wall_seconds: f64,
+    ) -> RunOutput {
+        self.decided(decisions).output(decisions, estimates, stats, lines, wall_seconds)
+    }
+
+    /// [`finish`](Self::finish) of this experiment, `decisions` already applied to it.
+    fn output(
+        &self,
+        decisions: &Decisions,
         estimates: BatchAccumulator,
         stats: RunStats,
         lines: Vec<RecordedLine>,
@@ -857,7 +971,7 @@ impl Experiment {
         let batches = estimates.batches() as u64;
         let layout = self.tally_layout();
         layout.finish_run(&mut estimates);
-        let main = layout.registry.main();
+        let main = layout.main();
         let main_output = (main.name.clone(), main.relative_error(&estimates));
         RunOutput {
             layout,
@@ -872,6 +986,7 @@ impl Experiment {
             main_output,
             target: None,
             importance: None,
+            decisions: decisions.clone(),
             interrupted: None,
         }
     }
@@ -911,7 +1026,7 @@ impl Experiment {
         let twin_scene = twin.then(|| self.scene.layered_twin());
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
-            slots: VolumeGrid::slots(&layout.registry),
+            slots: layout.volume.expect("a volume tally lays out its outputs"),
             gate: self.plan.walk.gate,
         });
         let walk = WalkContext {

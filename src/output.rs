@@ -564,7 +564,7 @@ impl Registry {
     pub fn declare(&mut self, o: Output) {
         debug_assert!(o.slots.start + o.slots.footprint() <= self.len || o.slots.rows == 0);
         debug_assert!(!o.primary || o.slots.rows == 1, "a main output is one row");
-        debug_assert!(self.get(&o.name).is_none(), "output {} declared twice", o.name);
+        debug_assert!(self.outputs.iter().all(|x| x.name != o.name), "output {} declared twice", o.name);
         self.outputs.push(o);
     }
 
@@ -667,12 +667,13 @@ impl Registry {
             .unwrap_or_else(|| panic!("an output is declared at slot {start}"))
     }
 
-    /// The output called `name`.
+    /// The output called `name`, as a user names it (tests and scripts; the crate's own code
+    /// finds an output by the slot its detector's layout holds, [`Registry::at`]).
     pub fn get(&self, name: &str) -> Option<&Output> {
         self.outputs.iter().find(|o| o.name == name)
     }
 
-    /// The output called `name`, which the caller's detector declared (a bug otherwise).
+    /// The output called `name`, which must be declared ([`Registry::get`]).
     pub fn expect(&self, name: &str) -> &Output {
         self.get(name).unwrap_or_else(|| panic!("the output {name} is declared"))
     }
@@ -691,22 +692,6 @@ impl Registry {
     /// power, total spectrum (per chirp), image, LDH M0± images and lidar range–Doppler spectra.
     pub fn named(&self) -> impl Iterator<Item = &Output> {
         self.outputs.iter().filter(|o| o.primary)
-    }
-
-    /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
-    /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
-    /// (up-chirp) spectrum, else its image, else its power; without detectors the diffuse
-    /// reflectance. Never g1, g2 or K: their values and σ exist only once the run's batches are
-    /// all in (`detect::TallyLayout::finish_run`), while this error is read off the batches as
-    /// they come; a correlation detector's power is what their noise follows.
-    pub fn main(&self) -> &Output {
-        let first: Vec<&Output> = self.named().filter(|o| o.detector == Some(0)).collect();
-        let pick = |what: &str| first.iter().copied().find(|o| o.name.rsplit_once('.').is_some_and(|(_, w)| w == what));
-        ["m0_plus", "range_doppler", "spectrum", "spectrum_up", "image", "detected_power"]
-            .into_iter()
-            .find_map(pick)
-            .or_else(|| self.get("reflectance_diffuse"))
-            .expect("the scalar tallies are always outputs")
     }
 
     /// The blocks of tallies that grow with a configuration key, `(key, value, slots)`, per

@@ -35,8 +35,9 @@
 use std::sync::Arc;
 
 use crate::detect::importance::ImportanceTable;
-use crate::detect::{AutoChoice, DetectorKind, EstimatorChoice};
-use crate::experiment::{Experiment, RunOutput, Silent};
+use crate::detect::{AutoChoice, Estimator, EstimatorChoice};
+pub use crate::experiment::{Decisions, EstimatorDecision, ImportanceDecision};
+use crate::experiment::{Experiment, RunOutput, RunPlan, Silent};
 use crate::sampling::rng::mix64;
 use crate::transport::windows::{AutoWindows, Importance};
 
@@ -55,27 +56,57 @@ const PILOT_SEED: u64 = 0x0050_494c_4f54;
 /// Mixed in besides for the pilot of `run.importance = "auto"`.
 const IMPORTANCE_PILOT_SEED: u64 = 0x5757_494e;
 
-/// `exp` with every undecided `estimator = "auto"` decided by a pilot ([`pilot`]; itself,
-/// cloned, when there is none): the pilot's figures kept on the detector, whose
-/// [`crate::detect::Surface::estimator`] is then the one they choose. Then an undecided
-/// `run.importance = "auto"` ([`importance_pilot`]; where the experiment has no importance table
-/// it stays undecided: no windows).
-pub fn decide(exp: &Experiment) -> Experiment {
-    let mut out = exp.clone();
-    for (i, choice) in pilot(exp) {
-        if let DetectorKind::Surface(s) = &mut out.detectors[i].kind {
-            s.auto = Some(choice);
-        }
-    }
-    if out.plan.importance == Importance::Auto
-        && out.plan.importance_auto.is_none()
-        && let Some(table) = out.importance_table()
+/// What the pilots decide for a run of `exp`, as a value the run applies ([`Decisions`]; `exp`
+/// itself is not changed): every `estimator = "auto"` detector's estimator, chosen by [`pilot`]
+/// (its figures kept in the decision), then for `run.importance = "auto"` the importance table
+/// and whether the walk follows its windows, or its windows and guided directions
+/// ([`importance_pilot`]; where the experiment has no importance table nothing is decided: no
+/// windows). Deterministic: every shard, merge and resume of the run decides the same.
+pub fn decide(exp: &Experiment) -> Decisions {
+    let estimators = pilot(exp)
+        .into_iter()
+        .map(|(detector, figures)| EstimatorDecision { detector, estimator: figures.chosen(), figures: Some(figures) })
+        .collect();
+    let mut decisions = Decisions { estimators, importance: None };
+    if exp.plan.importance == Importance::Auto
+        && let Some(table) = exp.decided(&decisions).importance_table()
     {
         let table = Arc::new(table);
-        out.plan.importance_auto = Some(importance_pilot(&out, &table));
-        out.plan.importance_table = Some(table);
+        let figures = importance_pilot(exp, &decisions, &table);
+        decisions.importance = Some(ImportanceDecision { steering: figures.choice(), figures: Some(figures), table });
     }
-    out
+    decisions
+}
+
+/// The run of a pilot of `exp`, built here alone, every field said (a new one is decided for the
+/// pilots too): `exp`'s scene, source, detectors and walk on the pilot's own streams (`seed`), in
+/// [`PILOT_BATCHES`] batches of `paths_per_batch` paths, its camera paths from every
+/// `camera_pixel_stride`-th pixel. What it estimates with (an estimator imposed on each `"auto"`
+/// detector, the windows) is the [`Decisions`] it is run with.
+pub fn pilot_run(exp: &Experiment, seed: u64, paths_per_batch: u64, camera_pixel_stride: usize) -> Experiment {
+    let plan = &exp.plan;
+    Experiment {
+        name: exp.name.clone(),
+        scene: exp.scene.clone(),
+        source: exp.source.clone(),
+        detectors: exp.detectors.clone(),
+        plan: RunPlan {
+            requested_samples: paths_per_batch * PILOT_BATCHES,
+            batches: PILOT_BATCHES,
+            paths_per_batch,
+            seed,
+            threads: plan.threads,
+            walk: plan.walk,
+            memory_budget: plan.memory_budget,
+            memory_limited_by: plan.memory_limited_by,
+            camera_pixel_stride,
+            memory: plan.memory.clone(),
+            importance: plan.importance,
+            importance_trace: None,
+        },
+        references: exp.references.clone(),
+        volume: exp.volume.clone(),
+    }
 }
 
 /// The pilot of `run.importance = "auto"`: the run without the weight windows of `table`
@@ -93,21 +124,20 @@ pub fn decide(exp: &Experiment) -> Experiment {
 /// `N`): over the run, error × work is `v·(w + C/N)` with the table, `v·w` without. The table is
 /// made before the choice, but the figures are also what a user reads to set the key for the
 /// next runs of the experiment: windows are chosen where they pay for their table.
-pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoWindows {
+///
+/// `decided`: the decisions made before it (the estimators), which its runs apply.
+pub fn importance_pilot(exp: &Experiment, decided: &Decisions, table: &Arc<ImportanceTable>) -> AutoWindows {
     let samples = exp.plan.samples();
     let most = (samples / IMPORTANCE_PILOT_SHARE / 3 / PILOT_BATCHES).max(1);
     let ppb = (samples / PILOT_SHARE / PILOT_BATCHES).max(PILOT_MIN_PATHS).min(most);
-    let variant = |importance: Importance| {
-        let mut v = exp.clone();
-        v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED ^ IMPORTANCE_PILOT_SEED);
-        v.plan.batches = PILOT_BATCHES;
-        v.plan.paths_per_batch = ppb;
-        v.plan.requested_samples = ppb * PILOT_BATCHES;
-        v.plan.importance = importance;
-        v.plan.importance_table = Some(Arc::clone(table));
-        v
+    let seed = mix64(exp.plan.seed ^ PILOT_SEED ^ IMPORTANCE_PILOT_SEED);
+    let run = pilot_run(exp, seed, ppb, exp.plan.camera_pixel_stride);
+    let imposed = |steering: Importance| Decisions {
+        importance: Some(ImportanceDecision { steering, figures: None, table: Arc::clone(table) }),
+        ..decided.clone()
     };
-    let runs = [Importance::Off, Importance::Windows, Importance::Guided].map(|i| variant(i).run(&Silent));
+    let runs =
+        [Importance::Off, Importance::Windows, Importance::Guided].map(|i| run.run_decided(&imposed(i), &Silent));
     let range = exp.main_output().range();
     let means = runs.each_ref().map(|o| o.estimates.mean());
     let m2: f64 = range.clone().map(|k| (means.iter().map(|m| m[k]).sum::<f64>() / 3.0).powi(2)).sum();
@@ -120,9 +150,8 @@ pub fn importance_pilot(exp: &Experiment, table: &Arc<ImportanceTable>) -> AutoW
     AutoWindows { off, windows, guided }
 }
 
-/// The pilot's figures for every undecided `estimator = "auto"` detector of `exp`, by detector
-/// index (none when there is none to decide, without a pilot run); each chooses by
-/// [`AutoChoice::chosen`].
+/// The pilot's figures for every `estimator = "auto"` detector of `exp`, by detector index (none
+/// when there is none to decide, without a pilot run); each chooses by [`AutoChoice::chosen`].
 pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
     let autos: Vec<usize> = (0..exp.detectors.len()).filter(|&i| undecided(exp, i)).collect();
     if autos.is_empty() {
@@ -133,21 +162,16 @@ pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
     // paths, one per traced pixel and batch.
     let pixels = autos.iter().map(|&i| pixels_of(exp, i)).sum::<usize>() as u64;
     let stride = (4 * pixels).div_ceil(ppb).max(1) as usize;
-    let variant = |e: EstimatorChoice| {
-        let mut v = exp.clone();
-        v.plan.seed = mix64(exp.plan.seed ^ PILOT_SEED);
-        v.plan.batches = PILOT_BATCHES;
-        v.plan.paths_per_batch = ppb;
-        v.plan.requested_samples = ppb * PILOT_BATCHES;
-        v.plan.camera_pixel_stride = stride;
-        autos.iter().for_each(|&i| set_estimator(&mut v, i, e));
-        v
+    let run = pilot_run(exp, mix64(exp.plan.seed ^ PILOT_SEED), ppb, stride);
+    let imposed = |estimator: Estimator| Decisions {
+        estimators: autos.iter().map(|&detector| EstimatorDecision { detector, estimator, figures: None }).collect(),
+        importance: None,
     };
-    let (forward_exp, camera_exp) = (variant(EstimatorChoice::Forward), variant(EstimatorChoice::Camera));
-    let (forward, camera) = (forward_exp.run(&Silent), camera_exp.run(&Silent));
+    let (on_forward, on_camera) = (imposed(Estimator::Forward), imposed(Estimator::Camera));
+    let (forward, camera) = (run.run_decided(&on_forward, &Silent), run.run_decided(&on_camera, &Silent));
     // Work per path of each kind (forward paths of each pilot, camera paths), in steps.
     let forward_paths = (ppb * PILOT_BATCHES) as f64;
-    let camera_paths = (camera_exp.camera_paths_per_batch() * PILOT_BATCHES) as f64;
+    let camera_paths = (run.decided(&on_camera).camera_paths_per_batch() * PILOT_BATCHES) as f64;
     let per_forward = forward.stats.forward_work() / forward_paths;
     let per_forward_beside = camera.stats.forward_work() / forward_paths;
     let per_camera = camera.stats.camera_work() / camera_paths;
@@ -167,16 +191,9 @@ pub fn pilot(exp: &Experiment) -> Vec<(usize, AutoChoice)> {
     autos.iter().map(|&i| figures(i)).collect()
 }
 
-/// Whether detector `i` is an `estimator = "auto"` one no pilot has decided yet.
+/// Whether detector `i` is configured `estimator = "auto"`.
 fn undecided(exp: &Experiment, i: usize) -> bool {
-    exp.detectors[i].surface().is_some_and(|s| s.choice == EstimatorChoice::Auto && s.auto.is_none())
-}
-
-/// Set detector `i`'s configured estimator to `e` (a pilot's variant).
-fn set_estimator(exp: &mut Experiment, i: usize, e: EstimatorChoice) {
-    if let DetectorKind::Surface(s) = &mut exp.detectors[i].kind {
-        s.choice = e;
-    }
+    exp.detectors[i].surface().is_some_and(|s| s.choice == EstimatorChoice::Auto)
 }
 
 fn pixels_of(exp: &Experiment, i: usize) -> usize {

@@ -247,7 +247,7 @@ impl Experiment {
         let loaded = &self.loaded;
         let exp = &loaded.exp;
         let ((manifest, files), stopped) = watched(py, exp.plan.samples(), report.as_ref(), Keep::Work, |progress| {
-            let output = exp.run_resumable(progress, None, None, None)?;
+            let output = exp.run_resumable(&ohd::experiment::Decisions::default(), progress, None, None, None)?;
             let inv = ohd::io::write::manifest::Invocation { figures, ..loaded.invocation() };
             let (_, memory) = ohd::io::write::manifest::write_run_memory(
                 exp,

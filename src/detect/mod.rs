@@ -155,11 +155,9 @@ pub struct Surface {
     /// narrow cone) rather than by the paths that happen to leave into its cone.
     pub next_event: bool,
     /// How its light is to be estimated, as configured (`estimator = "…"`). What a run uses is
-    /// [`Surface::estimator`], never this.
+    /// [`Surface::estimator`], never this: a run applies the pilot's decision of `"auto"`
+    /// ([`crate::experiment::Experiment::decided`]).
     pub choice: EstimatorChoice,
-    /// What the pilot of `estimator = "auto"` measured, once it has decided ([`crate::pilot`]):
-    /// its decision, read by [`Surface::estimator`]. `None` for any other choice.
-    pub auto: Option<AutoChoice>,
 }
 
 /// The pilot's figures for `estimator = "auto"` ([`crate::pilot`]): the mean per-pixel relative
@@ -215,15 +213,15 @@ impl Surface {
         cone_solid_angle(self.cos_acceptance)
     }
 
-    /// The estimator a run uses: the configured one, or for `"auto"` the pilot's decision —
-    /// forward until a pilot has decided, so that every reader (the paths traced, their
-    /// weights, the manifest) sees one estimator.
+    /// The estimator a run uses: the configured one — a run with a pilot's decision of
+    /// `"auto"` has it applied here ([`crate::experiment::Experiment::decided`]) — and forward for
+    /// an undecided `"auto"`, so that every reader (the paths traced, their weights, the
+    /// manifest) sees one estimator.
     #[inline]
     pub fn estimator(&self) -> Estimator {
         match self.choice {
-            EstimatorChoice::Forward => Estimator::Forward,
+            EstimatorChoice::Forward | EstimatorChoice::Auto => Estimator::Forward,
             EstimatorChoice::Camera => Estimator::Camera,
-            EstimatorChoice::Auto => self.auto.map_or(Estimator::Forward, AutoChoice::chosen),
         }
     }
 
@@ -370,6 +368,9 @@ pub struct TallyLayout {
     /// The sums of an importance pilot ([`importance`]; only in the pilot's own run,
     /// [`crate::experiment::Experiment::importance_table`]).
     pub importance: Option<importance::ImportanceLayout>,
+    /// The slots of the `[volume]` grid's outputs ([`volume::VolumeGrid::declare`]; `None`
+    /// without one).
+    pub volume: Option<volume::VolumeSlots>,
 }
 
 /// Offsets of one detector's block.
@@ -403,7 +404,24 @@ impl TallyLayout {
             });
         }
         let layouts = detectors.iter().enumerate().map(|(i, d)| d.declare(i, beat, &mut reg)).collect();
-        TallyLayout { registry: reg, detectors: layouts, lateral: None, importance: None }
+        TallyLayout { registry: reg, detectors: layouts, lateral: None, importance: None, volume: None }
+    }
+
+    /// The run's main output, whose error `ohd run --target-error` controls and the progress bar
+    /// shows: the first detector's LDH M0+ image, else its lidar range–Doppler spectra, else its
+    /// (up-chirp) total spectrum, else its image, else its power; without detectors the diffuse
+    /// reflectance. Never g1, g2 or K: their values and σ exist only once the run's batches are
+    /// all in ([`TallyLayout::finish_run`]), while this error is read off the batches as they
+    /// come; a correlation detector's power is what their noise follows.
+    pub fn main(&self) -> &Output {
+        let slot = self.detectors.first().map_or(Scalar::ReflectanceDiffuse as usize, |d| {
+            (d.ldh().map(|l| l.m0_plus))
+                .or(d.lidar.as_ref().map(|l| l.spectra))
+                .or(d.spectrum().map(|s| s.start))
+                .or(d.image())
+                .unwrap_or(d.power)
+        });
+        self.registry.at(slot)
     }
 
     /// Give every camera with a control variate (a forward-estimated top detector with an image

@@ -25,12 +25,44 @@ pub struct SpectrumLayout {
     /// Slots of one channel: the bins, then the below/above tallies.
     pub stride: usize,
     pub channels: usize,
+    /// Channels of the split by scattering order (0 without it): the split by Doppler events
+    /// follows them.
+    pub order_channels: usize,
 }
+
+/// The chirp of a detector's spectra in file and output names: `""` without a chirp (one
+/// spectrum), `"up"` and `"down"` with one.
+pub fn chirp_name(chirps: usize, chirp: usize) -> &'static str {
+    match (chirps, chirp) {
+        (1, _) => "",
+        (_, 0) => "up",
+        _ => "down",
+    }
+}
+
+/// The split of a spectrum into channels by the scattering order, in file and output names.
+pub const BY_ORDER: &str = "by_order";
+/// The split by the number of Doppler events, likewise.
+pub const BY_DOPPLER_EVENTS: &str = "by_doppler_events";
 
 impl SpectrumLayout {
     /// The slots of every chirp's spectra (`chirps` of them).
     pub fn slots(&self, chirps: usize) -> std::ops::Range<usize> {
         self.start..self.start + chirps * self.channels * self.stride
+    }
+
+    /// What the output starting at tally slot `slot` (one of these spectra) holds: its chirp
+    /// ([`chirp_name`] of it) and its split ([`BY_ORDER`], [`BY_DOPPLER_EVENTS`]; `None`: the
+    /// total).
+    pub fn role(&self, slot: usize, chirps: usize) -> (&'static str, Option<&'static str>) {
+        let block = self.channels * self.stride;
+        let (chirp, channel) = ((slot - self.start) / block, (slot - self.start) % block / self.stride);
+        let split = match channel {
+            0 => None,
+            c if c <= self.order_channels => Some(BY_ORDER),
+            _ => Some(BY_DOPPLER_EVENTS),
+        };
+        (chirp_name(chirps, chirp), split)
     }
 }
 
@@ -50,21 +82,21 @@ impl SpectrumSpec {
         let mut groups: Vec<(&str, usize, Vec<String>)> = Vec::new();
         if let Some(k) = self.by_order {
             let names = (0..=k).map(|i| if i == k { format!("order>={k}") } else { format!("order={i}") });
-            groups.push(("_by_order", 1, names.collect()));
+            groups.push((BY_ORDER, 1, names.collect()));
         }
         if let Some(e) = self.by_doppler_events {
             let first = 1 + self.by_order.map_or(0, |k| k as usize + 1);
             let names =
                 (0..=e).map(|i| if i == e { format!("doppler_events>={e}") } else { format!("doppler_events={i}") });
-            groups.push(("_by_doppler_events", first, names.collect()));
+            groups.push((BY_DOPPLER_EVENTS, first, names.collect()));
         }
         for c in 0..beat.chirps() {
             let base = start + c * channels * stride;
-            let (what, chirp) = match (beat.chirps(), c) {
-                (1, _) => ("spectrum", ""),
-                (_, 0) => ("spectrum_up", "_up"),
-                _ => ("spectrum_down", "_down"),
+            let chirp = match chirp_name(beat.chirps(), c) {
+                "" => String::new(),
+                n => format!("_{n}"),
             };
+            let what = format!("spectrum{chirp}");
             let kind = |channels: Vec<String>| Kind::Spectrum { axis: self.axis, channels, mirrored: false };
             reg.declare(Output {
                 file: format!("{name}{chirp}_spectrum.npy"),
@@ -82,12 +114,12 @@ impl SpectrumSpec {
             for (suffix, first, names) in &groups {
                 let rows = names.len();
                 reg.declare(Output {
-                    file: format!("{name}{chirp}_spectrum{suffix}.npy"),
+                    file: format!("{name}{chirp}_spectrum_{suffix}.npy"),
                     units: PER_BIN,
                     budget_key: budget.clone(),
                     ..detector_output(
                         i,
-                        format!("{name}.{what}{suffix}"),
+                        format!("{name}.{what}_{suffix}"),
                         kind(names.clone()),
                         Slots { start: base + first * stride, rows, stride, len: bins },
                         vec![rows, bins],
@@ -95,7 +127,7 @@ impl SpectrumSpec {
                 });
             }
         }
-        SpectrumLayout { start, stride, channels }
+        SpectrumLayout { start, stride, channels, order_channels: self.by_order.map_or(0, |k| k as usize + 1) }
     }
 
     /// Record `hit` into every chirp's total and its split channels (a non-finite beat frequency

@@ -248,19 +248,6 @@ impl VolumeGrid {
         }
         slots
     }
-
-    /// The slots of the outputs [`declare`](Self::declare) made in `reg`.
-    pub fn slots(reg: &Registry) -> VolumeSlots {
-        let at = |name: &str| reg.get(name).map_or(usize::MAX, |o| o.slots.start);
-        VolumeSlots {
-            absorbed: at("volume.absorbed"),
-            fluence_collision: at("volume.fluence_collision"),
-            fluence_track: at("volume.fluence_track"),
-            absorbed_time: at("volume.absorbed_time"),
-            fluence_collision_time: at("volume.fluence_collision_time"),
-            fluence_track_time: at("volume.fluence_track_time"),
-        }
-    }
 }
 
 impl VolumeTally<'_> {

@@ -62,14 +62,14 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
         match &d.kind {
             DetectorKind::Surface(s) => {
                 let (Some(spec), Some(sl)) = (s.spectrum(), lay.spectrum()) else { continue };
-                let prefix = format!("{}.spectrum", d.name);
-                let totals = reg.within(sl.slots(out.beat.chirps())).filter(|o| o.primary);
+                let chirps = out.beat.chirps();
+                let totals = reg.within(sl.slots(chirps)).filter(|o| o.primary);
                 for o in totals {
                     let (below, above) = o.tails(mean, 0);
                     if below + above > OFF_AXIS_POWER_FRACTION * power {
-                        let chirp = match &o.name[prefix.len()..] {
+                        let chirp = match sl.role(o.slots.start, chirps).0 {
                             "" => String::new(),
-                            c => format!(" ({}-chirp)", c.trim_start_matches('_')),
+                            c => format!(" ({c}-chirp)"),
                         };
                         w.push(Warning {
                             code: "off_axis_power",

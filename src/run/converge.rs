@@ -91,8 +91,8 @@ pub fn converge(req: &ConvergeRequest, obs: &dyn Observer, log: &mut dyn StudyLo
         rungs: req.rungs,
         ..Default::default()
     };
-    let exp = crate::pilot::decide(&exp);
-    let study = crate::converge::study(&exp, refs, &opts, log);
+    let decisions = crate::pilot::decide(&exp);
+    let study = crate::converge::study(&exp, &decisions, refs, &opts, log);
     crate::io::write::converge::write_study(&out, &study, &origin, !req.no_figures)?;
     Ok(StudyWritten { study, dir })
 }

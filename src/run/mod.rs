@@ -291,7 +291,7 @@ fn simulate_part(part: &Part, opts: &RunOptions, keep: bool, obs: &dyn Observer)
     let checkpoint = checkpoint.as_ref().map(|c| c as &dyn crate::experiment::Checkpoint);
     let target = opts.target.as_ref();
     let progress = obs.progress(exp.plan.samples(), target.map(|t| t.relative_error));
-    exp.run_resumable(&*progress, target, resume, checkpoint)
+    exp.run_resumable(&part.decisions, &*progress, target, resume, checkpoint)
 }
 
 /// Write the outputs of `part` (run as `opts` asked) into its directory and keep (a pointing of

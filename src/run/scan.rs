@@ -6,17 +6,21 @@ use std::path::{Path, PathBuf};
 
 use super::{Event, Observer};
 use crate::error::Result;
-use crate::experiment::{Experiment, RunOutput};
+use crate::experiment::{Decisions, Experiment, RunOutput};
 use crate::io::outdir::OutDir;
 use crate::io::persist::{config_fingerprint, fingerprint};
 use crate::io::write::dir::{DirWriter, Output, VAD};
 use crate::io::write::manifest::Timing;
 use crate::scan::GateWind;
 
-/// A run, or one pointing of a scan: its experiment, output directory and fingerprint.
+/// A run, or one pointing of a scan: its experiment, its pilots' decisions, output directory and
+/// fingerprint.
 #[derive(Debug, Clone)]
 pub struct Part {
+    /// As configured (pointed, for a pointing of a scan).
     pub exp: Experiment,
+    /// What its pilots decided ([`crate::pilot::decide`]), which its runs apply.
+    pub decisions: Decisions,
     /// The output directory (locked), or a scan's pointing directory inside it.
     pub dir: OutDir,
     /// Of the configuration as run and the pointing: a checkpoint or shard of one pointing is
@@ -51,7 +55,8 @@ pub fn pointing_dir(dir: &Path, i: usize) -> PathBuf {
 pub fn parts(exp: &Experiment, table: &toml::Table, dir: &OutDir) -> Result<Vec<Part>> {
     let fp = config_fingerprint(table);
     if exp.source.pointings.len() <= 1 {
-        return Ok(vec![Part { exp: crate::pilot::decide(exp), dir: dir.clone(), fingerprint: fp, pointing: None }]);
+        let decisions = crate::pilot::decide(exp);
+        return Ok(vec![Part { exp: exp.clone(), decisions, dir: dir.clone(), fingerprint: fp, pointing: None }]);
     }
     // Every pointing directory, locked before any pilot runs (issue 52: a run into one of them
     // while the scan wrote was not refused).
@@ -63,11 +68,15 @@ pub fn parts(exp: &Experiment, table: &toml::Table, dir: &OutDir) -> Result<Vec<
             Ok(sub)
         })
         .collect::<Result<Vec<_>>>()?;
-    let pointing = |(i, (p, dir)): (usize, (&crate::source::Pointing, OutDir))| Part {
-        exp: crate::pilot::decide(&exp.pointed(p)),
-        dir,
-        fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
-        pointing: Some(i),
+    let pointing = |(i, (p, dir)): (usize, (&crate::source::Pointing, OutDir))| {
+        let exp = exp.pointed(p);
+        Part {
+            decisions: crate::pilot::decide(&exp),
+            exp,
+            dir,
+            fingerprint: fingerprint(&format!("{fp:016x} pointing {i}")),
+            pointing: Some(i),
+        }
     };
     Ok(exp.source.pointings.iter().zip(dirs).enumerate().map(pointing).collect())
 }

@@ -12,7 +12,7 @@ use super::scan::Scan;
 use super::{Event, Finished, Loaded, Observer, Part, parts, pointing_dir};
 use crate::detect::RecordedLine;
 use crate::error::{Error, Result};
-use crate::experiment::{Experiment, RunOutput};
+use crate::experiment::{Decisions, Experiment, RunOutput};
 use crate::io::outdir::OutDir;
 use crate::io::persist::shard::{FILE_NAME, ShardHeader, ShardReader, ShardTrailer, ShardWriter};
 use crate::io::write::dir::{DirWriter, Output};
@@ -70,7 +70,7 @@ pub fn run_shard(loaded: &Loaded, part: &Part, index: u64, count: u64, obs: &dyn
     let paths = (range.end - range.start) * exp.plan.paths_per_batch;
     {
         let progress = obs.progress(paths, None);
-        exp.run_batches(range.clone(), &*progress, &mut sink)?;
+        exp.run_batches(&part.decisions, range.clone(), &*progress, &mut sink)?;
     }
     trailer.seconds = start.elapsed().as_secs_f64();
     let seconds = trailer.seconds;
@@ -114,7 +114,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, figures: bool, obs: &dyn Observer) ->
             ));
         }
         let count = shards.len();
-        let output = fold(&part.exp, shards)?;
+        let output = fold(&part.exp, &part.decisions, shards)?;
         scan.writing(&out, &parts, part)?;
         let timing = write_run_with(&part.dir, &part.exp, &output, &table, &inv, &*obs.postprocess())?.timing;
         let dir = part.dir.path();
@@ -171,10 +171,10 @@ pub fn check_set(mut shards: Vec<ShardReader>) -> Result<Vec<ShardReader>> {
     Ok(shards)
 }
 
-/// Fold the batches of `shards` (from [`check_set`]: every part of one run of `exp`, in order)
-/// into the run's output, exactly as a single process folds them. The output's wall time is the
-/// shards' total and its thread count their largest.
-pub fn fold(exp: &Experiment, shards: Vec<ShardReader>) -> Result<RunOutput> {
+/// Fold the batches of `shards` (from [`check_set`]: every part of one run of `exp` with
+/// `decisions`, in order) into the run's output, exactly as a single process folds them. The
+/// output's wall time is the shards' total and its thread count their largest.
+pub fn fold(exp: &Experiment, decisions: &Decisions, shards: Vec<ShardReader>) -> Result<RunOutput> {
     let len = exp.output_layout().tallies();
     let mut estimates = BatchAccumulator::new(len);
     let (mut stats, mut lines, mut seconds, mut threads) = (RunStats::default(), Vec::new(), 0.0, 0);
@@ -199,7 +199,7 @@ pub fn fold(exp: &Experiment, shards: Vec<ShardReader>) -> Result<RunOutput> {
         seconds += t.seconds;
         threads = threads.max(t.threads as usize);
     }
-    let mut out = exp.finish(estimates, stats, lines, seconds);
+    let mut out = exp.finish(decisions, estimates, stats, lines, seconds);
     out.threads = threads;
     Ok(out)
 }

@@ -311,20 +311,25 @@ fn auto_runs_the_estimator_its_pilot_finds_cheaper() {
         };
         let load =
             |estimator: &str, threads: u32| ohd::config::load(text, "auto", &sets(estimator, threads)).unwrap().1;
-        let decided = ohd::pilot::decide(&load("auto", 1));
-        let s = decided.detectors[0].surface().unwrap();
-        let a = s.auto.expect("the pilot's figures are kept");
+        let exp = load("auto", 1);
+        let decided = ohd::pilot::decide(&exp);
+        let e = decided.estimator(0).expect("the pilot decided");
+        let a = e.figures.expect("the pilot's figures are kept");
         assert!(a.forward.is_finite() && a.camera.is_finite() && a.forward > 0.0 && a.camera > 0.0, "{a:?}");
-        assert_eq!(s.estimator(), expect, "{half_angle}°: {a:?}");
-        assert_eq!(s.estimator() == Estimator::Camera, a.camera < a.forward);
+        assert_eq!(e.estimator, expect, "{half_angle}°: {a:?}");
+        assert_eq!(e.estimator == Estimator::Camera, a.camera < a.forward);
+        assert_eq!(exp.decided(&decided).detectors[0].surface().unwrap().estimator(), expect);
         // The same decision, figures and all, on two threads.
-        let mut two = ohd::pilot::decide(&load("auto", 2));
-        two.plan.threads = 1;
+        let two = ohd::pilot::decide(&load("auto", 2));
         assert_eq!(two, decided, "{half_angle}°: the decision depends on the thread count");
         // The decided run is the explicit estimator's.
-        let chosen = ohd::pilot::decide(&load(expect.name(), 1));
-        assert!(chosen.detectors[0].surface().unwrap().auto.is_none());
-        let (x, y) = (decided.run(&ohd::experiment::Silent), chosen.run(&ohd::experiment::Silent));
+        let explicit = load(expect.name(), 1);
+        let chosen = ohd::pilot::decide(&explicit);
+        assert!(chosen.estimators.is_empty());
+        let (x, y) = (
+            exp.run_decided(&decided, &ohd::experiment::Silent),
+            explicit.run_decided(&chosen, &ohd::experiment::Silent),
+        );
         assert_eq!(x.estimates.mean(), y.estimates.mean(), "{half_angle}°");
         assert_eq!(x.estimates.stderr(), y.estimates.stderr(), "{half_angle}°");
     }

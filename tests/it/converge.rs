@@ -5,7 +5,7 @@ use crate::support::run::experiment;
 use crate::support::stats::assert_within_sigma;
 
 use ohd::converge::{LadderOptions, Reference, Study, StudyLog, Target, study};
-use ohd::experiment::{Progress, Silent};
+use ohd::experiment::{Decisions, Progress, Silent};
 
 /// The van de Hulst slab with its published references (validation/vdh_slab.toml).
 const VDH: &str = include_str!("../../validation/vdh_slab.toml");
@@ -58,7 +58,7 @@ bins = 40
 #[test]
 fn self_reported_sigma_agrees_with_the_measured_error() {
     let exp = moving_slab();
-    let s = study(&exp, Vec::new(), &ladder(3_200_000, 5), &mut Quiet);
+    let s = study(&exp, &Decisions::default(), Vec::new(), &ladder(3_200_000, 5), &mut Quiet);
     assert_eq!(s.rungs.len(), 5);
     assert_eq!(s.main_output, "top.spectrum");
     let r = s.reference_run.as_ref().expect("a reference run made on the fly");
@@ -102,7 +102,7 @@ fn self_reported_sigma_agrees_with_the_measured_error() {
 fn analytic_references_from_the_configuration() {
     let exp = experiment(VDH, &["run.seed=5"]);
     assert_eq!(exp.references.len(), 5);
-    let s = study(&exp, Vec::new(), &ladder(2_000_000, 4), &mut Quiet);
+    let s = study(&exp, &Decisions::default(), Vec::new(), &ladder(2_000_000, 4), &mut Quiet);
     assert!(s.reference_run.is_none(), "all outputs with variance have analytic references");
     assert_eq!(s.main_output, "reflectance_diffuse");
     let mut ratios = Vec::new();
@@ -138,7 +138,7 @@ fn a_biased_reference_is_detected() {
             Some(Reference { values: m.iter().map(|v| v * bias).collect(), stderr: s.to_vec(), kind: "directory" })
         })
         .collect();
-    let s = study(&exp, refs, &ladder(1_600_000, 3), &mut Quiet);
+    let s = study(&exp, &Decisions::default(), refs, &ladder(1_600_000, 3), &mut Quiet);
     assert!(s.reference_run.is_none());
     let spec = s.outputs.iter().find(|o| o.output.name == "top.spectrum").unwrap();
     assert_eq!(spec.reference_kind, "directory");
@@ -231,7 +231,7 @@ area = { type = "rect", size_mm = [2, 2] }
 image = { pixels = [8, 8] }
 "#;
     let exp = experiment(text, &[]);
-    let s = study(&exp, Vec::new(), &ladder(320_000, 5), &mut Quiet);
+    let s = study(&exp, &Decisions::default(), Vec::new(), &ladder(320_000, 5), &mut Quiet);
     let image = s.outputs.iter().find(|o| o.output.name == "camera.image").expect("the image is measured");
     assert_eq!((image.pixel_median.len(), image.region_median.len()), (5, 5));
     for (what, fit) in [("all pixels", image.pixel_median_fit), ("the drop's footprint", image.region_median_fit)] {

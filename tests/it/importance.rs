@@ -185,9 +185,11 @@ fn weight_windows_keep_a_distant_dcs_fibre_estimate_and_auto_takes_them() {
     assert!(over > 10.0 * at_beam, "up over the ring {over:.3e} against up at the beam {at_beam:.3e}");
 
     let run = |threads: u32, importance: &str| {
-        let mut exp = experiment(&dcs_ring(threads, importance), &[]);
-        exp.plan.importance_table = Some(Arc::clone(&t));
-        Run { out: exp.run(&ohd::experiment::Silent), exp }
+        use ohd::experiment::{Decisions, ImportanceDecision};
+        let exp = experiment(&dcs_ring(threads, importance), &[]);
+        let table = ImportanceDecision { steering: exp.plan.importance, figures: None, table: Arc::clone(&t) };
+        let decisions = Decisions { importance: Some(table), ..Decisions::default() };
+        Run { out: exp.run_decided(&decisions, &ohd::experiment::Silent), exp }
     };
     let windowed = run(2, "windows");
     let plain = run(2, "off");
@@ -211,8 +213,11 @@ fn weight_windows_keep_a_distant_dcs_fibre_estimate_and_auto_takes_them() {
     assert_eq!(bits(&windowed), bits(&guided), "the guide acted where the importance is nearly isotropic");
 
     // Decided for a run of 8·10⁵ paths (its table the one above), then run with 3·10⁵.
-    let mut auto = ohd::pilot::decide(&experiment(&dcs_ring(2, "auto"), &large));
-    let a = auto.plan.importance_auto.expect("the pilot decided");
+    let mut auto = experiment(&dcs_ring(2, "auto"), &large);
+    let decided = ohd::pilot::decide(&auto);
+    let d = decided.importance.as_ref().expect("the pilot decided");
+    let a = d.figures.expect("the pilot's figures are kept");
+    assert_eq!(d.steering, a.choice());
     assert!(
         a.windows_chosen(),
         "auto: figures {:.3e} without, {:.3e} with the windows, {:.3e} guided",
@@ -220,14 +225,19 @@ fn weight_windows_keep_a_distant_dcs_fibre_estimate_and_auto_takes_them() {
         a.windows,
         a.guided
     );
-    let table = auto.plan.importance_table.as_ref().expect("auto's table");
+    let table = &d.table;
     let value_bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!((table.paths, value_bits(&table.value)), (t.paths, value_bits(&t.value)), "auto's table");
     auto.plan.set_samples(windowed.exp.plan.samples());
     let chosen = if a.choice() == ohd::transport::windows::Importance::Guided { &guided } else { &windowed };
     assert_eq!(
         bits(chosen),
-        auto.run(&ohd::experiment::Silent).estimates.mean().iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        auto.run_decided(&decided, &ohd::experiment::Silent)
+            .estimates
+            .mean()
+            .iter()
+            .map(|x| x.to_bits())
+            .collect::<Vec<_>>()
     );
 }
 
@@ -252,8 +262,8 @@ fn a_lidar_receiver_gets_no_importance_table() {
     let e = e.to_string();
     assert!(e.contains("run.importance") && e.contains("lidar receiver") && e.contains("\"auto\" or \"off\""), "{e}");
     let auto = ohd::pilot::decide(&exp);
-    assert_eq!(auto.plan.importance_auto, None);
-    assert!(!auto.plan.windows());
+    assert_eq!(auto.importance, None);
+    assert_eq!(auto.steering(&exp.plan), ohd::transport::windows::Importance::Off);
 }
 
 /// Issue 52: the pilot was 2·10⁵ paths whatever the run's size, ten times a run of 20,000 paths of
@@ -281,8 +291,11 @@ fn the_pilot_follows_the_run_and_auto_counts_its_cost() {
     // (the same paths: the figures differ by that charge alone).
     let auto = experiment(&slab(2), &[&sets[..], &["run.importance = \"auto\""]].concat());
     let free = ohd::detect::importance::ImportanceTable { work: 0.0, ..t.clone() };
-    let (a, b) =
-        (ohd::pilot::importance_pilot(&auto, &Arc::new(t)), ohd::pilot::importance_pilot(&auto, &Arc::new(free)));
+    let none = ohd::experiment::Decisions::default();
+    let (a, b) = (
+        ohd::pilot::importance_pilot(&auto, &none, &Arc::new(t)),
+        ohd::pilot::importance_pilot(&auto, &none, &Arc::new(free)),
+    );
     assert!(a.off.is_finite() && a.windows.is_finite() && a.guided.is_finite(), "{a:?}");
     assert_eq!(a.off, b.off, "the plain walk needs no table");
     assert!(a.windows > b.windows && a.guided > b.guided, "charged {a:?}, free {b:?}");

@@ -16,7 +16,8 @@ validation/features/*.toml, validation/vdb/vessels_bench.toml and tests/configs/
 (with --samples N, default 20000, unless the case sets fewer), the built-in default, an LDH
 camera with the sign flipped (mirrored spectra) and speckle, a run in
 3 shards merged, a run with --target-error, a checkpointed run, `ohd converge` with a fixed
-ladder, and `ohd mie` with a table. Baseline outputs are cached in --work/baseline (delete it,
+ladder, the pilots' decisions (`estimator = "auto"`, each `run.importance`, both in shards merged
+and in a checkpointed run), and `ohd mie` with a table. Baseline outputs are cached in --work/baseline (delete it,
 or pass --fresh, after changing the baseline binary).
 
 Exit status 0 when every case matches, 1 otherwise (the differing files are listed).
@@ -104,6 +105,39 @@ def cases(samples):
         (
             "converge",
             [["converge", slab, "--samples", str(4 * samples), "--rungs", "3", "--quiet", "--out", "{out}"]],
+        )
+    )
+    # The pilots' decisions (`estimator = "auto"`, `run.importance`), recorded in the manifest, in
+    # a run, in shards merged and in a checkpointed run.
+    camera = os.path.join(ROOT, "tests", "configs", "good", "camera_estimator.toml")
+    auto = ["--set", 'detectors.0.estimator="auto"']
+    out.append(("pilot_estimator_auto", [["run", camera, "--samples", str(samples), "--quiet"] + auto
+                                         + ["--out", "{out}"]]))
+    for importance in ["auto", "windows", "guided", "table"]:
+        out.append(
+            (
+                f"pilot_importance_{importance}",
+                [["run", default, "--samples", str(samples), "--quiet", "--set", f'run.importance="{importance}"',
+                  "--out", "{out}"]],
+            )
+        )
+    dcs = os.path.join(ROOT, "configs", "dcs_forearm.toml")
+    out.append(("pilot_importance_auto_dcs", [["run", dcs, "--samples", str(samples), "--quiet", "--set",
+                                              'run.importance="auto"', "--out", "{out}"]]))
+    both = auto + ["--set", 'run.importance="auto"']
+    out.append(
+        (
+            "pilots_shards_merged",
+            [["run", camera, "--samples", str(samples), "--quiet", "--shard", f"{i}/2", "--out", "{out}/s%d" % i]
+             + both for i in range(2)]
+            + [["merge", "{out}/s0", "{out}/s1", "--out", "{out}/merged"]],
+        )
+    )
+    out.append(
+        (
+            "pilots_checkpointed",
+            [["run", default, "--samples", str(samples), "--quiet", "--checkpoint-seconds", "0.001", "--set",
+              'run.importance="auto"', "--out", "{out}"]],
         )
     )
     out.append(

@@ -600,7 +600,6 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             next_event,
             parts: parts.into_iter().flatten().collect(),
             choice,
-            auto: None,
         };
         out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
     }

@@ -152,8 +152,6 @@ pub(super) fn resolve_run(r: &RunSection) -> R<RunPlan> {
             ImportanceKind::Guided => Importance::Guided,
             ImportanceKind::Auto => Importance::Auto,
         },
-        importance_auto: None,
-        importance_table: None,
         importance_trace: None,
     })
 }

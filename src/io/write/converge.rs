@@ -155,7 +155,7 @@ pub fn json(study: &Study, config_source: &str) -> Value {
 /// through the main output's points.
 pub fn plot(study: &Study) -> LinePlot {
     let mut order: Vec<&_> = study.outputs.iter().collect();
-    order.sort_by_key(|o| o.output.name != study.main_output);
+    order.sort_by_key(|o| !study.is_main(&o.output));
     let seconds: Vec<f64> = study.rungs.iter().map(|r| r.seconds).collect();
     let mut plot = LinePlot::new("Error against run time", "wall time (s)", "relative error");
     plot.log_x = true;

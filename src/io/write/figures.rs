@@ -277,18 +277,20 @@ pub fn mark_frequency(plot: &mut LinePlot, f: f64, div: f64, label: String, colo
 /// The spectrum figures of surface detector `i` (`name`): each spectrum output (total and its
 /// splits) with all its channels; a chirped detector's up- and down-chirp totals in one figure
 /// instead, with the beat frequencies read off (`fmcw`) marked and the range and velocity they
-/// give in the title.
+/// give in the title. `roles`: each output's chirp and split
+/// ([`crate::detect::SpectrumLayout::role`]).
 pub fn spectra_figures(
     w: &mut Writer,
     name: &str,
     outputs: &[&Output],
+    roles: &[(&str, Option<&str>)],
     fmcw: Option<&crate::retrieval::FmcwEstimate>,
 ) -> Result<()> {
     if !w.figures {
         return Ok(());
     }
-    let prefix = format!("{name}.spectrum");
-    let chirped = outputs.iter().any(|o| o.name == format!("{prefix}_up"));
+    let total = |chirp: &str| outputs.iter().zip(roles).find(|(_, r)| **r == (chirp, None)).map(|(o, _)| *o);
+    let chirped = total("up").is_some();
     let axis_of = |o: &Output| -> Vec<f64> {
         match &o.kind {
             Kind::Spectrum { axis, mirrored, .. } => {
@@ -307,7 +309,7 @@ pub fn spectra_figures(
     if chirped {
         let mut totals = Vec::new();
         for chirp in ["up", "down"] {
-            if let Some(o) = outputs.iter().find(|o| o.name == format!("{prefix}_{chirp}")) {
+            if let Some(o) = total(chirp) {
                 let (v, e) = o.values(w.mean, w.stderr);
                 let bins = axis_of(o).len().max(1);
                 totals.push((
@@ -342,7 +344,7 @@ pub fn spectra_figures(
         }
         return w.figure(&format!("{name}_spectra"), &plot);
     }
-    for o in outputs {
+    for (o, (chirp, split)) in outputs.iter().zip(roles) {
         let (v, e) = o.values(w.mean, w.stderr);
         let freq = axis_of(o);
         let bins = freq.len().max(1);
@@ -352,7 +354,8 @@ pub fn spectra_figures(
             .zip(v.chunks_exact(bins).zip(e.chunks_exact(bins)))
             .map(|(n, (values, stderr))| Channel { name: n, values, stderr })
             .collect();
-        let what = o.name[prefix.len()..].trim_start_matches('_').replace('_', " ");
+        let what = [*chirp, split.unwrap_or("")].into_iter().filter(|w| !w.is_empty()).collect::<Vec<_>>().join(" ");
+        let what = what.replace('_', " ");
         let title = if what.is_empty() { format!("{name}: spectrum") } else { format!("{name}: spectrum {what}") };
         w.figure(&stem(o), &spectrum_plot(&title, &freq, &channels, "power per bin (dB re emitted)"))?;
     }

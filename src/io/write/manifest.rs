@@ -216,7 +216,9 @@ pub fn write_run_with(
     inv: &Invocation,
     progress: &dyn Progress,
 ) -> Result<Manifest> {
-    let finished = Finished::new(exp, out, progress)?;
+    // As the run ran: its pilots' decisions applied.
+    let exp = exp.decided(&out.decisions);
+    let finished = Finished::new(&exp, out, progress)?;
     let open = || DirWriter::begin(dir, super::dir::Output::Run, &[]);
     let (writer, manifest, text) = write_run_to(open, &finished, config, inv)?;
     writer.finish(Some((super::dir::MANIFEST, text.as_bytes())))?;
@@ -233,7 +235,8 @@ pub fn write_run_memory(
     inv: &Invocation,
     progress: &dyn Progress,
 ) -> Result<(Manifest, super::memory::Memory)> {
-    let finished = Finished::new(exp, out, progress)?;
+    let exp = exp.decided(&out.decisions);
+    let finished = Finished::new(&exp, out, progress)?;
     let open = || Ok(super::memory::Memory::default());
     let (mut memory, manifest, text) = write_run_to(open, &finished, config, inv)?;
     memory.files.push((super::dir::MANIFEST.to_string(), text.into_bytes()));
@@ -295,7 +298,7 @@ fn write_run_to<S: super::Sink>(
         let mut info = DetectorEntry {
             side: if d.side() == Side::Top { "top" } else { "bottom" },
             estimator: d.surface().map(|s| s.estimator().name()),
-            estimator_pilot: d.surface().and_then(|s| s.auto),
+            estimator_pilot: out.decisions.estimator(i).and_then(|e| e.figures),
             parts: BTreeMap::new(),
         };
         match &d.kind {
@@ -326,23 +329,25 @@ fn write_run_to<S: super::Sink>(
         det_info.insert(d.name.clone(), info);
     }
     let volume = match &exp.volume {
-        Some(g) => Some(super::volume::write_volume(&mut w, g, exp.source.position.y)?),
+        Some(g) => {
+            let slots = out.layout.volume.expect("a volume tally lays out its outputs");
+            Some(super::volume::write_volume(&mut w, g, slots, exp.source.position.y)?)
+        }
         None => None,
     };
     let asked = exp.plan.importance != crate::transport::windows::Importance::Off;
+    let decided = out.decisions.importance.as_ref();
     let table = || {
-        out.importance
-            .clone()
-            .or_else(|| exp.plan.importance_table.as_deref().cloned())
-            .or_else(|| exp.importance_table())
+        out.importance.clone().or_else(|| decided.map(|d| d.table.as_ref().clone())).or_else(|| exp.importance_table())
     };
     let importance = match asked.then(table).flatten() {
         Some(t) => {
             let name = &exp.detectors[t.detector].name;
             let mut entry = super::importance::write_importance(&mut w, &t, &exp.scene, name)?;
-            entry.auto = exp.plan.importance_auto;
-            entry.windows = exp.plan.windows();
-            entry.guided = exp.plan.guided();
+            let steering = out.decisions.steering(&exp.plan);
+            entry.auto = decided.and_then(|d| d.figures);
+            entry.windows = steering != crate::transport::windows::Importance::Off;
+            entry.guided = steering == crate::transport::windows::Importance::Guided;
             Some(entry)
         }
         None => None,

@@ -36,9 +36,10 @@ pub fn write_part(w: &mut Writer, part: &Placed, cx: &mut Context) -> Result<()>
     match part {
         Placed::Spectrum(spec, lay) => {
             let spectra: Vec<&Output> = w.registry.within(lay.slots(out.beat.chirps())).collect();
-            let (entry, oor) = write_spectra(w, name, spec, &spectra, cx.detector)?;
+            let roles: Vec<_> = spectra.iter().map(|o| lay.role(o.slots.start, out.beat.chirps())).collect();
+            let (entry, oor) = write_spectra(w, name, spec, &spectra, &roles, cx.detector)?;
             let fmcw = exp.fmcw_estimates(out, cx.i).and_then(|r| r.ok());
-            super::figures::spectra_figures(w, name, &spectra, fmcw.as_ref())?;
+            super::figures::spectra_figures(w, name, &spectra, &roles, fmcw.as_ref())?;
             cx.entries.insert(part.name(), to_value(entry));
             cx.out_of_range += oor;
             if let Some(entry) = super::fmcw::detector_entry(exp, out, cx.i, cx.detector) {
@@ -82,14 +83,16 @@ fn to_value(entry: impl Serialize) -> Value {
     serde_json::to_value(entry).expect("a manifest entry serialises")
 }
 
-/// A surface detector's spectra `spectra` (every chirp, the total and its splits) with their
-/// frequency axis, and its out-of-range tallies into `de`; returns the manifest entry and the total
-/// channels' out-of-range weight.
+/// A surface detector's spectra `spectra` (every chirp, the total and its splits; `roles`: each
+/// one's chirp and split, [`crate::detect::SpectrumLayout::role`]) with their frequency axis, and
+/// its out-of-range tallies into `de`; returns the manifest entry and the total channels'
+/// out-of-range weight.
 fn write_spectra(
     w: &mut Writer,
     name: &str,
     spec: &SpectrumSpec,
     spectra: &[&Output],
+    roles: &[(&str, Option<&str>)],
     de: &mut BTreeMap<String, Entry>,
 ) -> Result<(SpectrumEntry, f64)> {
     let (mean, se) = (w.mean, w.stderr);
@@ -97,7 +100,6 @@ fn write_spectra(
     let centres: Vec<f64> = (0..bins).map(|k| spec.axis.center(k)).collect();
     let frequency_file = format!("{name}_frequency_hz.npy");
     w.axis_file(frequency_file.clone(), "frequency_hz", "Hz", &centres)?;
-    let prefix = format!("{name}.spectrum");
     let mut channel_names: Vec<String> = Vec::new();
     let mut chirps = BTreeMap::new();
     let mut out_of_range_total = 0.0;
@@ -106,7 +108,7 @@ fn write_spectra(
     let starts: Vec<usize> = totals.chain(std::iter::once(spectra.len())).collect();
     for bounds in starts.windows(2) {
         let group = &spectra[bounds[0]..bounds[1]];
-        let chirp = group[0].name[prefix.len()..].trim_start_matches('_');
+        let chirp = roles[bounds[0]].0;
         let (key, infix) = if chirp.is_empty() { ("single", String::new()) } else { (chirp, format!("_{chirp}")) };
         let mut oor = BTreeMap::new();
         let mut names = Vec::new();

@@ -6,7 +6,7 @@
 use serde::Serialize;
 
 use super::Writer;
-use crate::detect::volume::{VOLUME_LAYOUT, VOLUME_TIME_LAYOUT, VolumeGrid};
+use crate::detect::volume::{VOLUME_LAYOUT, VOLUME_TIME_LAYOUT, VolumeGrid, VolumeSlots};
 use crate::error::Result;
 use crate::io::figures::image::{ImageFigure, Panel};
 use crate::io::figures::scale::{Colormap, TOP_QUANTILE, quantile};
@@ -44,7 +44,7 @@ pub const VDB_LAYOUT: &str = "FloatGrids named as the .npy files without volume_
 
 /// Write the untimed volumes and their standard errors as `FloatGrid`s of one OpenVDB file
 /// ([`VDB_LAYOUT`]).
-fn write_vdb(w: &mut Writer, grid: &VolumeGrid) -> Result<()> {
+fn write_vdb(w: &mut Writer, grid: &VolumeGrid, slots: VolumeSlots) -> Result<()> {
     let [nx, ny, nz] = grid.voxels;
     // Written rows are y descending: index j = ny − 1 − row.
     let reorder = |v: &[f64]| -> Vec<f32> {
@@ -60,7 +60,6 @@ fn write_vdb(w: &mut Writer, grid: &VolumeGrid) -> Result<()> {
         out
     };
     let mut volumes = Vec::new();
-    let slots = VolumeGrid::slots(w.registry);
     let declared = |slot: usize| (slot != usize::MAX).then(|| w.registry.at(slot));
     for (what, slot) in [
         ("fluence_track", slots.fluence_track),
@@ -96,11 +95,10 @@ pub struct VolumeTimeEntry {
     pub layout: &'static str,
 }
 
-/// Write the volume outputs declared in the registry; `beam_y` is where the x–z slice of the
-/// figures is cut (the source's `y`, m).
-pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<VolumeEntry> {
+/// Write the volume outputs declared in the registry at `slots`; `beam_y` is where the x–z slice
+/// of the figures is cut (the source's `y`, m).
+pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, slots: VolumeSlots, beam_y: f64) -> Result<VolumeEntry> {
     let mut files = std::collections::BTreeMap::new();
-    let slots = VolumeGrid::slots(w.registry);
     let declared = |slot: usize| (slot != usize::MAX).then(|| w.registry.at(slot));
     for (what, slot) in [
         ("absorbed", slots.absorbed),
@@ -140,7 +138,7 @@ pub fn write_volume(w: &mut Writer, grid: &VolumeGrid, beam_y: f64) -> Result<Vo
         w.figure(&super::figures::stem(o), &fig)?;
     }
     if grid.vdb {
-        write_vdb(w, grid)?;
+        write_vdb(w, grid, slots)?;
         files.insert(VDB_FILE.to_string(), "OpenVDB FloatGrids of the untimed volumes and their σ (see the layout)");
     }
     let e = grid.edge();
