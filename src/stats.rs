@@ -40,7 +40,7 @@ pub struct Work {
     /// ([`crate::transport::guide`]).
     pub guided: u64,
     /// Steps of the ways down and up of forward paths' deterministic unscattered reflections
-    /// ([`crate::transport::walk`]'s `unscattered_reflections`): a layer crossed, or a run of
+    /// ([`crate::transport::forward`]'s `unscattered_reflections`): a layer crossed, or a run of
     /// homogeneous layers crossed at once on a way up. Linear in the number of interfaces (`2N`
     /// per path through `N` plain layers); not in the pilots' cost, which was measured without it.
     pub reflection_steps: u64,

@@ -108,9 +108,9 @@ impl TwinPath {
 }
 
 /// Where a forward path's layered twin parts from it: a collision of the path in a region with
-/// `Λ` beyond `transport::walk::TWIN_BAND`, which the twin makes in its layer's filling medium (with the weight
+/// `Λ` beyond `transport::twin::TWIN_BAND`, which the twin makes in its layer's filling medium (with the weight
 /// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
-/// and walks on from in the twin's scene with a copy of the path's generator (`transport::walk::twin_walk`;
+/// and walks on from in the twin's scene with a copy of the path's generator (`transport::forward::twin_walk`;
 /// common random numbers, each walk a proper sample of its own). Until then the twin shares the
 /// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
 /// share out of the pixels it meets, into the kernels).

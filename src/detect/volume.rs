@@ -25,7 +25,7 @@
 //! radiance toward a pixel, not power from the laser).
 //!
 //! The walk is compiled with this hook only when `[volume]` is given (`VOLUME` in
-//! `transport::walk`); without it nothing is looked up or scored.
+//! `transport::forward`); without it nothing is looked up or scored.
 //!
 //! **Time bins** (`[volume.time]`, the axis type of a detector's TPSF): each estimate is also
 //! scored per time-of-flight bin, `volume.<what>_time`, [`VOLUME_TIME_LAYOUT`]. The time of an
