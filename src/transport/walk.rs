@@ -547,11 +547,6 @@ pub(super) fn walk_to_the_end<E: Estimator>(
     }
 }
 
-/// The rough faces' sides: the frame whose normal points up, out of the layer below (the
-/// beam's side), and the one whose normal points down (a path arriving from below).
-const FACE_UP: crate::surface::Frame = crate::surface::Frame { n: DVec3::NEG_Z, t: DVec3::X, b: DVec3::NEG_Y };
-const FACE_DOWN: crate::surface::Frame = crate::surface::Frame { n: DVec3::Z, t: DVec3::X, b: DVec3::Y };
-
 /// The path `s` reaches the rough top face of layer `face` at `s.pos`: the estimator's
 /// connections from the face ([`Estimator::at_rough_face`]), then a reflection or refraction
 /// drawn from the layer's face model ([`crate::surface::RoughDielectric`]: visible normals, each
@@ -571,8 +566,12 @@ fn cross_rough_face<E: Estimator>(
     let down = s.dir.z > 0.0;
     let (n_above, n_below) = (scene.n_above_layer(face), scene.layers[face].n);
     let (n_i, n_t) = if down { (n_above, n_below) } else { (n_below, n_above) };
-    // The normal on the side the light comes from.
-    let frame = if down { FACE_UP } else { FACE_DOWN };
+    // The normal on the side the light comes from (up, the beam's side, as the bottom's frame).
+    let frame = if down {
+        crate::medium::Surface::bottom_frame()
+    } else {
+        crate::surface::Frame { n: DVec3::Z, t: DVec3::X, b: DVec3::Y }
+    };
     let interface = scene.layers[face].face;
     let wi = frame.to_local(-s.dir);
     debug_assert!(wi.z > 0.0, "a rough face met from behind: wi = {wi}");
