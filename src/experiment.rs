@@ -1014,12 +1014,9 @@ impl Experiment {
             stats: &mut stats,
             lines: if record { Some(&mut lines) } else { None },
             scratch: Vec::new(),
-            twin: None,
             kernels: layout.twin_kernels(),
-            split: None,
             path_scores: layout.tail_scores(),
             trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
-            copies: Vec::new(),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());

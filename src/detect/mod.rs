@@ -601,13 +601,6 @@ pub struct PathState {
     /// `Σ D_k n_k² |dir_in − dir_out|²` over events on diffusing particles, m²/s; the Lorentzian
     /// half-width of the path's line is [`BeatModel::brownian_hwhm`] of it.
     pub brownian: f64,
-    /// For next-event estimation: the phase-function density of the last scattering direction
-    /// divided by `n_k² cos θ_k` at the vertex (see `transport::nee`), or −1 when the path has not
-    /// scattered or was reflected at an interface since (its escape is then not a direct
-    /// connection, which the shadow rays do not cover). On a camera path: the ratio of the walk's
-    /// density of its last direction (times the Fresnel transmittances crossed since) to the
-    /// guide lobe's (`transport::camera`, "Two ways to the last vertex"), or −1.
-    pub mis: f64,
 }
 
 impl PathState {
@@ -615,7 +608,7 @@ impl PathState {
     /// scattering event.
     #[inline(always)]
     pub fn new(pos: DVec3, dir: DVec3, weight: f64, l: f64) -> Self {
-        PathState { pos, dir, weight, l, dldt: 0.0, order: 0, doppler_events: 0, brownian: 0.0, mis: -1.0 }
+        PathState { pos, dir, weight, l, dldt: 0.0, order: 0, doppler_events: 0, brownian: 0.0 }
     }
 }
 
@@ -685,46 +678,46 @@ pub struct Recorder<'a> {
     pub lines: Option<&'a mut Vec<RecordedLine>>,
     /// Scratch space of the lidar receiver's pulse samples.
     pub scratch: Vec<f64>,
-    /// The current forward path's layered twin ([`twin::TwinPath`]; `None` in a run without a
-    /// control variate and on camera paths).
-    pub twin: Option<twin::TwinPath>,
     /// This batch's twin kernels, one per detector (empty for those without a control variate).
     pub kernels: Vec<Vec<f64>>,
-    /// Where the current path's twin parted from it, to walk on once the path has ended.
-    pub split: Option<twin::Split>,
     /// The current path's scores into each detector's regions' footprints, per [`tail`]
-    /// channel (empty without a tail check, [`TallyLayout::tail_scores`]).
+    /// channel (empty without a tail check, [`TallyLayout::tail_scores`]): a tally's sums over
+    /// one path, filed when it ends ([`Recorder::end_path`]).
     pub path_scores: Vec<[f64; tail::CHANNELS]>,
-    /// The current path's states and score, in an importance pilot ([`importance`]).
+    /// The current path's states and score, in an importance pilot ([`importance`]): the pilot's
+    /// tally over one path, filed when it ends.
     pub trace: Option<importance::Trace>,
-    /// Copies of the current path split off by its weight windows, waiting to walk on after it
-    /// (`transport::windows`).
-    pub copies: Vec<Pending>,
 }
 
-/// A copy of a forward path made by a weight window's split (`transport::windows`): its state,
-/// layer, own stream and layered twin, to walk on from after the path.
-#[derive(Clone)]
-pub struct Pending {
-    pub s: PathState,
-    pub li: usize,
-    pub rng: crate::sampling::PathRng,
-    pub twin: Option<twin::TwinPath>,
-}
+/// Where a path entered the stack (its layered twin's launch point, `TwinPath::launch`), m.
+pub type Launch = (f64, f64);
 
-/// What a contribution's layered twin scores ([`Recorder::next_event`], [`Recorder::reflection`]).
+/// What a contribution's layered twin scores ([`Recorder::escape`], [`Recorder::next_event`],
+/// [`Recorder::reflection`]), with the launch point of the path carrying it (the twin kernels'
+/// offsets are from it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Twin {
     /// No control variate for this path: the contribution alone.
     Off,
     /// The path's own state (`Λ = 1`, the same Doppler shift and transmittance): its share of the
     /// pixels cancels, it goes to the kernels only.
-    Same,
+    Same(Launch),
     /// A state of its own.
-    Other(PathState),
+    Other(PathState, Launch),
     /// The contribution is the twin's alone (its own walk after parting from its path): out of
     /// the covered pixels it meets, into the kernels; nothing else records it.
-    Only,
+    Only(Launch),
+}
+
+impl Twin {
+    /// The launch point of the path whose twin this is (`None`: no twin).
+    #[inline]
+    pub fn launch(&self) -> Option<Launch> {
+        match *self {
+            Twin::Off => None,
+            Twin::Same(l) | Twin::Other(_, l) | Twin::Only(l) => Some(l),
+        }
+    }
 }
 
 impl Recorder<'_> {
@@ -799,24 +792,36 @@ impl Recorder<'_> {
     }
 
     /// A path leaving the stack through `side` into ambient index `n_ambient` (`exit`: what kind
-    /// of escape, for the tallies).
+    /// of escape, for the tallies), carrying its layered twin `twin` (`None`: none) and, for the
+    /// balance against next-event estimation's shadow rays, `direct`: the density of its last
+    /// direction at its last vertex over `n_k² |cos θ_k|` there (`transport::nee`), `None` for an
+    /// escape that is no direct connection from a vertex (unscattered, or reflected at a smooth
+    /// face since), which no shadow ray covers.
     ///
     /// Inlined into the walk: the scalar tallies are a few adds, and where the walk does not
     /// track `l` or `dl/dt` their finiteness checks fold away. The detectors are an outlined
     /// call made only if there are any (measured: ~60 → ~15 instructions per escape without
     /// detectors).
     #[inline(always)]
-    pub fn escape(&mut self, side: Side, e: PathState, exit: Exit, n_ambient: f64) {
+    pub fn escape(
+        &mut self,
+        side: Side,
+        e: PathState,
+        exit: Exit,
+        n_ambient: f64,
+        twin: Option<&twin::TwinPath>,
+        direct: Option<f64>,
+    ) {
         debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
         }
         let specular = exit == Exit::Specular;
-        if self.twin.is_some_and(|t| t.only) {
+        if twin.is_some_and(|t| t.only) {
             // A twin's own walk: the detectors' kernels alone.
             let e = PathState { ..e };
-            self.detect(side, &e, specular, n_ambient);
+            self.detect(side, &e, specular, n_ambient, twin, direct);
             return;
         }
         match (side, specular) {
@@ -833,7 +838,7 @@ impl Recorder<'_> {
             // A copy made here: taking `&e` directly made LLVM build `e` on the stack before the
             // first test, for every path (13 stores; measured 182.8M → 177.8M instructions).
             let e = PathState { ..e };
-            self.detect(side, &e, specular, n_ambient);
+            self.detect(side, &e, specular, n_ambient, twin, direct);
         }
     }
 
@@ -847,7 +852,7 @@ impl Recorder<'_> {
             self.stats.non_finite += 1;
             return;
         }
-        self.detect_with(Side::Top, e, false, n_ambient, twin);
+        self.detect_with(Side::Top, e, false, n_ambient, twin, None);
     }
 
     /// A shadow ray of next-event estimation reaching detector `i` (already in its cone), and
@@ -888,18 +893,29 @@ impl Recorder<'_> {
     /// The detectors' share of [`escape`](Self::escape) (a finite path); its twin is the path's
     /// [`twin::TwinPath`] state.
     #[inline(never)]
-    fn detect(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64) {
-        let twin = match &self.twin {
-            None => Twin::Off,
-            Some(t) if t.only => Twin::Only,
-            Some(t) if !t.touched => Twin::Same,
-            Some(t) => Twin::Other(t.state(e)),
-        };
-        self.detect_with(side, e, specular, n_ambient, twin);
+    fn detect(
+        &mut self,
+        side: Side,
+        e: &PathState,
+        specular: bool,
+        n_ambient: f64,
+        twin: Option<&twin::TwinPath>,
+        direct: Option<f64>,
+    ) {
+        let twin = twin.map_or(Twin::Off, |t| t.share(e));
+        self.detect_with(side, e, specular, n_ambient, twin, direct);
     }
 
     /// [`detect`](Self::detect) with the twin's contribution `twin`.
-    fn detect_with(&mut self, side: Side, e: &PathState, specular: bool, n_ambient: f64, twin: Twin) {
+    fn detect_with(
+        &mut self,
+        side: Side,
+        e: &PathState,
+        specular: bool,
+        n_ambient: f64,
+        twin: Twin,
+        direct: Option<f64>,
+    ) {
         for (i, d) in self.detectors.iter().enumerate() {
             let DetectorKind::Surface(d) = &d.kind else { continue };
             if d.side != side
@@ -915,14 +931,14 @@ impl Recorder<'_> {
                 // the cone (pdfs in exit solid angle: the phase function's, p·n0² cos θ0 /
                 // (n_k² cos θ_k), and 1/Ω). Escapes after a smooth interface's reflection, and
                 // unscattered ones, are not direct connections, which the shadow rays do not
-                // cover: full weight (their `mis` is negative). A rough face's crossing is a
-                // vertex of shadow rays, scattered or not.
-                if e.mis >= 0.0 {
-                    let p = e.mis * n_ambient * n_ambient * e.dir.z.abs();
+                // cover: full weight (no `direct` density). A rough face's crossing is a vertex
+                // of shadow rays, scattered or not.
+                if let Some(q) = direct {
+                    let p = q * n_ambient * n_ambient * e.dir.z.abs();
                     let w = p / (p + 1.0 / d.solid_angle());
                     let e = PathState { weight: e.weight * w, ..*e };
                     let twin = match twin {
-                        Twin::Other(t) => Twin::Other(PathState { weight: t.weight * w, ..t }),
+                        Twin::Other(t, launch) => Twin::Other(PathState { weight: t.weight * w, ..t }, launch),
                         same_only_or_off => same_only_or_off,
                     };
                     self.detect_one(i, &e, n_ambient, twin);
@@ -943,21 +959,15 @@ impl Recorder<'_> {
         let p = e.pos + dist * e.dir;
         let l = e.l + n_ambient * dist;
         let pixel = || d.image().and_then(|im| im.pixel_at(p.x, p.y));
-        let (Some(tl), Some(path)) = (&layout.detectors[i].twin, self.twin) else {
+        let (Some(tl), Some(launch)) = (&layout.detectors[i].twin, twin.launch()) else {
             if d.area.contains(p.x, p.y) {
                 self.score(i, p.x, p.y, pixel(), l, e);
             }
             return;
         };
         let t = match twin {
-            Twin::Off => {
-                if d.area.contains(p.x, p.y) {
-                    self.score(i, p.x, p.y, pixel(), l, e);
-                }
-                return;
-            }
-            Twin::Same | Twin::Only => *e,
-            Twin::Other(t) => t,
+            Twin::Other(t, _) => t,
+            _ => *e,
         };
         let gamma = |b: f64| if b > 0.0 { beat.brownian_hwhm(b) } else { 0.0 };
         let hit = |s: &PathState, pixel: Option<usize>| Hit {
@@ -974,9 +984,9 @@ impl Recorder<'_> {
         };
         let lay = &layout.detectors[i];
         let on_area = d.area.contains(p.x, p.y);
-        let same = matches!(twin, Twin::Same);
+        let same = matches!(twin, Twin::Same(_));
         let px = if on_area { pixel() } else { None };
-        if on_area && twin != Twin::Only {
+        if on_area && !matches!(twin, Twin::Only(_)) {
             // The path into every part (`Same`: its share of the covered parts cancels with its
             // twin's, the pixel spectra and speckle records keep it).
             let h = hit(e, px);
@@ -994,9 +1004,9 @@ impl Recorder<'_> {
         let mut values = [0.0; 1 + ldh::MAX_BLOCKS];
         let mut n = 0;
         for placed in &lay.parts {
-            n += placed.twin_values(self, &ht, path.launch, tl, on_area && !same, &mut values[n..]);
+            n += placed.twin_values(self, &ht, launch, tl, on_area && !same, &mut values[n..]);
         }
-        tl.record(&mut self.kernels[i], path.launch, (p.x, p.y), &values[..n]);
+        tl.record(&mut self.kernels[i], launch, (p.x, p.y), &values[..n]);
     }
 
     /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the

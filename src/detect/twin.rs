@@ -10,7 +10,7 @@
 //! twin's `Λ·f_twin`, `Λ` being the likelihood ratio of the path under the twin (flights and
 //! perturbation Monte Carlo as Hayakawa et al. 2001: the flights' transmittance ratios, and for
 //! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
-//! `Λ` leaves a band and the twin parts from the path to walk on by itself, [`Split`]; or where
+//! `Λ` leaves a band and the twin parts from the path to walk on by itself, `transport::twin::Split`; or where
 //! the path meets an opaque solid, which the twin flies on through), and `f_twin` what the twin
 //! scores (its phase function and Doppler shift, shadow rays without the regions' optical depth;
 //! after parting, its own walk's).
@@ -43,14 +43,13 @@ use std::sync::Arc;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::{ImageSpec, PathState};
-use crate::sampling::PathRng;
+use super::{ImageSpec, PathState, Twin};
 use crate::source::{Footprint, Profile};
 
 /// The twin's bookkeeping along one forward path: where it entered the stack, the likelihood
 /// ratio `Λ` of the path under the twin and how the twin's Doppler state differs from the path's
 /// (events on particles of a region are the twin's on its layer's medium), until the twin parts
-/// from the path ([`Split`]) and walks on by itself.
+/// from the path (`transport::twin::Split`) and walks on by itself.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinPath {
     /// The entry point on the top surface, m.
@@ -105,24 +104,17 @@ impl TwinPath {
             ..*e
         }
     }
-}
 
-/// Where a forward path's layered twin parts from it: a collision of the path in a region with
-/// `Λ` beyond `transport::twin::TWIN_BAND`, which the twin makes in its layer's filling medium (with the weight
-/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
-/// and walks on from in the twin's scene with a copy of the path's generator (`transport::forward::twin_walk`;
-/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
-/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
-/// share out of the pixels it meets, into the kernels).
-#[derive(Clone)]
-pub struct Split {
-    pub s: PathState,
-    pub li: usize,
-    pub twin: TwinPath,
-    pub rng: PathRng,
-    /// Parted in a flight through a density region where the path collided and the twin did not
-    /// (`transport::tracking::coupled_flight`): the twin flies on from `s` (else it collides there).
-    pub flying: bool,
+    /// What the twin scores of the path's contribution `e`: the twin's alone in its own walk,
+    /// the path's own share until it meets a region, else its own state.
+    #[inline]
+    pub fn share(&self, e: &PathState) -> Twin {
+        match self {
+            t if t.only => Twin::Only(t.launch),
+            t if !t.touched => Twin::Same(t.launch),
+            t => Twin::Other(t.state(e), t.launch),
+        }
+    }
 }
 
 /// Where a camera's twin kernels lie and how they become its images: the offset grid, the

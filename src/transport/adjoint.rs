@@ -16,8 +16,38 @@ use super::event::{deflect, doppler_event, doppler_increment, particle_velocity,
 use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, turn, walk_to_the_end};
 
 /// Camera paths through a scene where something moves (`DOPPLER`) and whose optical path length
-/// is needed (`LENGTH`).
-pub(super) struct Adjoint<const DOPPLER: bool, const LENGTH: bool>;
+/// is needed (`LENGTH`); its value is the path's [`Balance`] against its connections.
+pub(super) struct Adjoint<const DOPPLER: bool, const LENGTH: bool> {
+    balance: Balance,
+}
+
+/// What a camera path's next vertex is weighed against: the connection from an earlier vertex
+/// that also reaches it, with the ratio of the walk's density of its way there (times the
+/// Fresnel transmittances of the smooth faces crossed since, which that connection crosses
+/// deterministically) to the connection's density. The balance heuristic then gives the vertex's
+/// own connection the weight `ratio/(ratio + 1)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Balance {
+    /// No connection takes the path's way to its next vertex (its start, a smooth face's
+    /// reflection, a rough face's crossing, a mirror): full weight.
+    Full,
+    /// Above the stack's first rough face: the beam-lobe connection of the vertex before
+    /// (`super::camera`, "Two ways to the last vertex"), against the guide lobe's density.
+    BeamLobe(f64),
+    /// At or below the first rough face: the face-lobe connection of the vertex before
+    /// ([`face_connection`]), which the face's own connection from below weighs against
+    /// ([`face_mis`]).
+    FaceLobe(f64),
+}
+
+impl Balance {
+    /// The balance heuristic's weight of a vertex's connection when `ratio` is the one it is
+    /// weighed against (else full).
+    #[inline(always)]
+    fn weight(ratio: Option<f64>) -> f64 {
+        ratio.map_or(1.0, |q| q / (q + 1.0))
+    }
+}
 
 impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LENGTH> {
     const DOPPLER: bool = DOPPLER;
@@ -25,10 +55,10 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
     const GATE: bool = false;
     const LATERAL: bool = false;
     const VOLUME: bool = false;
-    const MIS: bool = true;
 
     #[inline(always)]
     fn collide(
+        &mut self,
         ctx: &WalkContext,
         s: &mut PathState,
         t: f64,
@@ -39,17 +69,35 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
         rec: &mut Recorder,
     ) -> Option<End> {
         super::walk::advance::<Self>(s, t, v.n);
-        collide_camera::<DOPPLER, LENGTH>(ctx, v.li, s, v.medium, v.albedo, v.n, rng, checkpoint, rec)
+        collide_camera::<DOPPLER, LENGTH>(
+            ctx,
+            v.li,
+            s,
+            &mut self.balance,
+            v.medium,
+            v.albedo,
+            v.n,
+            rng,
+            checkpoint,
+            rec,
+        )
     }
 
     /// Radiance across the interface: `L/n²` is invariant. The beam-lobe connection crosses it
     /// deterministically: its density ratio takes the transmittance.
     #[inline(always)]
-    fn refracted(s: &mut PathState, n: f64, n2: f64, r: f64) {
+    fn refracted(&mut self, s: &mut PathState, n: f64, n2: f64, r: f64) {
         s.weight *= (n / n2) * (n / n2);
-        if s.mis >= 0.0 {
-            s.mis *= 1.0 - r;
+        match &mut self.balance {
+            Balance::BeamLobe(q) | Balance::FaceLobe(q) => *q *= 1.0 - r,
+            Balance::Full => {}
         }
+    }
+
+    /// No connection takes a smooth face's reflection.
+    #[inline(always)]
+    fn mirrored(&mut self) {
+        self.balance = Balance::Full;
     }
 
     /// The stack's first rough face is where the laser's beam stops being a Dirac direction, so
@@ -59,9 +107,10 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
     /// reflection when the path came down, its transmission when it came up). Coming down, no
     /// other way reaches that light (the beam-lobe connection crosses no rough face): full
     /// weight; coming up, the vertex before also connected through the face's lobe
-    /// ([`face_connection`]), and the two are balanced by `s.mis` ([`face_mis`]).
+    /// ([`face_connection`]), and the two are balanced ([`Balance::FaceLobe`]).
     #[inline(always)]
     fn at_rough_face(
+        &mut self,
         ctx: &WalkContext,
         face: usize,
         s: &PathState,
@@ -87,14 +136,16 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
             if f > 0.0 {
                 let radiance = b.irradiance * to_light.z * f / to_camera.z.abs();
                 // From below, weighted against the face-lobe connection of the vertex before
-                // (`s.mis`, [`face_mis`]); from above no other way reaches it.
+                // ([`face_mis`]); from above no other way reaches it.
                 let down = s.dir.z > 0.0;
-                let w = if !down && s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
+                let against = match self.balance {
+                    Balance::FaceLobe(q) if !down => Some(q),
+                    _ => None,
+                };
                 let e = PathState {
                     dir: -s.dir,
-                    weight: s.weight * w * boost * radiance * shot.scale,
+                    weight: s.weight * Balance::weight(against) * boost * radiance * shot.scale,
                     l: if LENGTH { s.l + b.length } else { 0.0 },
-                    mis: -1.0,
                     ..*s
                 };
                 rec.camera(&shot, &e);
@@ -111,21 +162,36 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
 
     /// The next vertex is no beam-lobe connection's (none crosses a rough face): full weight.
     #[inline(always)]
-    fn crossed(s: &mut PathState, _at: &RoughFace, _c: &crate::surface::Crossed) {
-        s.mis = -1.0;
+    fn crossed(&mut self, _s: &mut PathState, _at: &RoughFace, _c: &crate::surface::Crossed) {
+        self.balance = Balance::Full;
     }
 
     #[inline(always)]
-    fn at_surface(ctx: &WalkContext, hit: &SurfaceHit, s: &PathState, rng: &mut PathRng, rec: &mut Recorder) {
+    fn at_surface(
+        &mut self,
+        ctx: &WalkContext,
+        hit: &SurfaceHit,
+        s: &PathState,
+        rng: &mut PathRng,
+        rec: &mut Recorder,
+    ) {
         let SurfaceHit { surface, frame, wi, li, moving, v } = *hit;
         camera_surface_connection::<LENGTH>(ctx, surface, frame, wi, li, s, (moving, v), rng, rec);
     }
 
     /// Below the first rough face, against the face-lobe connection ([`face_mis`]).
     #[inline(always)]
-    fn reflected(ctx: &WalkContext, hit: &SurfaceHit, s: &mut PathState, smp: &crate::surface::Sampled, out: DVec3) {
+    fn reflected(
+        &mut self,
+        ctx: &WalkContext,
+        hit: &SurfaceHit,
+        _s: &mut PathState,
+        smp: &crate::surface::Sampled,
+        out: DVec3,
+    ) {
         let beyond = hit.li >= ctx.scene.first_rough_face && !smp.delta;
-        s.mis = if beyond { face_mis(ctx, hit.li, out, hit.surface.bsdf.pdf(hit.wi, smp.wo)) } else { -1.0 };
+        self.balance =
+            if beyond { face_mis(ctx, hit.li, out, hit.surface.bsdf.pdf(hit.wi, smp.wo)) } else { Balance::Full };
     }
 }
 
@@ -161,7 +227,8 @@ pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     let mut s = PathState::new(pos, dir, weight, if LENGTH { l } else { 0.0 });
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
-    let end = walk_to_the_end::<Adjoint<DOPPLER, LENGTH>>(
+    let end = walk_to_the_end(
+        &mut Adjoint::<DOPPLER, LENGTH> { balance: Balance::Full },
         &ctx,
         0,
         &mut s,
@@ -211,25 +278,24 @@ fn face_connection<const LENGTH: bool>(
         weight: s.weight * boost * f * h.radiance / (h.density + q * h.transmit) * shot.scale,
         l: if LENGTH { s.l + h.length } else { 0.0 },
         order: s.order + 1,
-        mis: -1.0,
         ..*s
     };
     mark(&mut e, -h.dir);
     rec.camera(shot, &e);
 }
 
-/// A camera path's `mis` after a vertex in layer `li` (at or below the stack's first rough face)
-/// sent it along `out` with the density `q`: `q/q_lobe`, the ratio of its density to the
+/// A camera path's [`Balance`] after a vertex in layer `li` (at or below the stack's first rough
+/// face) sent it along `out` with the density `q`: `q/q_lobe`, the ratio of its density to the
 /// face-lobe connection's ([`super::camera::face_lobe_density`]), which the crossings of smooth
 /// faces on the way multiply by their transmittances and the rough face's connection from below
-/// turns into its weight; −1 (full weight) where no face-lobe connection takes that way. (The
+/// turns into its weight; full where no face-lobe connection takes that way. (The
 /// density is evaluated in here: a phase function's evaluation added to `collide_camera` made
 /// the compiler outline it from there, +1 % of the camera walk's instructions.)
 #[cold]
 #[inline(never)]
-fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: f64) -> f64 {
+fn face_mis(ctx: &WalkContext, li: usize, out: DVec3, q: f64) -> Balance {
     let lobe = super::camera::face_lobe_density(ctx.scene, ctx.source, li, out);
-    if lobe > 0.0 { q / lobe } else { -1.0 }
+    if lobe > 0.0 { Balance::FaceLobe(q / lobe) } else { Balance::Full }
 }
 
 /// A camera path's ([`super::camera`]) connection to the laser from its reflection at an opaque
@@ -285,7 +351,6 @@ pub(super) fn camera_surface_connection<const LENGTH: bool>(
                 weight: s.weight * boost * f * b.irradiance * shot.scale,
                 l: if LENGTH { s.l + b.length } else { 0.0 },
                 order: s.order + 1,
-                mis: -1.0,
                 ..*s
             };
             mark(&mut e, b.dir);
@@ -306,6 +371,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     ctx: &WalkContext,
     li: usize,
     s: &mut PathState,
+    balance: &mut Balance,
     m: &Medium,
     albedo: f64,
     n: f64,
@@ -319,7 +385,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     }
     let scene = ctx.scene;
     if li >= scene.first_rough_face {
-        return collide_camera_beyond::<DOPPLER, LENGTH>(ctx, li, s, m, n, rng, checkpoint, rec);
+        return collide_camera_beyond::<DOPPLER, LENGTH>(ctx, li, s, balance, m, n, rng, checkpoint, rec);
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
     let dynamic = DOPPLER && dynamic;
@@ -331,9 +397,12 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
     if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
         // This vertex as the walk's last: weighted against the lobe connection from the vertex
-        // before, `s.mis` = (walk density · Fresnel transmittances)/(guide density) of the way
-        // here (−1 when the lobe connection cannot make it).
-        let w = if s.mis >= 0.0 { s.mis / (s.mis + 1.0) } else { 1.0 };
+        // before, [`Balance::BeamLobe`] = (walk density · Fresnel transmittances)/(guide density)
+        // of the way here (full when the lobe connection cannot make it).
+        let w = Balance::weight(match *balance {
+            Balance::BeamLobe(q) => Some(q),
+            _ => None,
+        });
         let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
         let tail = *s;
         rec.stats.work.camera_connections += 1;
@@ -368,9 +437,9 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         }
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
-    s.mis = match up {
-        Some(up) => pop.phase.eval(d.cos) / guide.eval(up.dot(out)),
-        None => -1.0,
+    *balance = match up {
+        Some(up) => Balance::BeamLobe(pop.phase.eval(d.cos) / guide.eval(up.dot(out))),
+        None => Balance::Full,
     };
     if dynamic {
         doppler_event(s, pop, n, v, delta);
@@ -389,6 +458,7 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
     ctx: &WalkContext,
     li: usize,
     s: &mut PathState,
+    balance: &mut Balance,
     m: &Medium,
     n: f64,
     rng: &mut PathRng,
@@ -415,7 +485,7 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
         face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
-    s.mis = face_mis(ctx, li, out, pop.phase.eval(d.cos));
+    *balance = face_mis(ctx, li, out, pop.phase.eval(d.cos));
     if dynamic {
         doppler_event(s, pop, n, v, delta);
     }
@@ -457,7 +527,6 @@ fn connect<const LENGTH: bool>(
         weight: w * p * b.irradiance * shot.scale,
         l: if LENGTH { tail.l + b.length } else { 0.0 },
         order: tail.order + 1,
-        mis: -1.0,
         ..tail
     };
     if at.dynamic {

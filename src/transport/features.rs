@@ -21,7 +21,7 @@ use crate::sampling::StreamKey;
 
 use super::adjoint::trace_camera_path;
 use super::camera::CameraTarget;
-use super::forward::trace_path;
+use super::forward::Forward;
 use super::walk::WalkContext;
 
 /// Paths between two calls of the batch loop's `tick` ([`Features::forward_paths`]): progress
@@ -170,9 +170,10 @@ fn paths_loop<
     paths: u64,
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
+    let mut estimator = Forward::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>::new();
     for i in 0..paths {
         let mut rng = key.path(i);
-        trace_path::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>(ctx, rec, &mut rng);
+        estimator.trace_path(ctx, rec, &mut rng);
         rec.end_path();
         if (i + 1) % PATHS_PER_TICK == 0 && tick() {
             return true;

@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 
-use crate::detect::twin::{Split, TwinPath};
+use crate::detect::twin::TwinPath;
 use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
 use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
@@ -18,8 +18,9 @@ use super::event::{RENORMALISE_EVERY, deflect, doppler_event, doppler_increment,
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::policy::WalkSettings;
+use super::steering::Pending;
 use super::tracking::{Flight, LayerRay};
-use super::twin::TWIN_BAND;
+use super::twin::{Split, TWIN_BAND};
 use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, turn, walk_to_the_end};
 use super::windows::Windows;
 
@@ -28,7 +29,8 @@ use super::windows::Windows;
 /// gates), `NEE = false` the shadow rays and the layered twin (no next-event detector, no control
 /// variate), `VOLUME = false` the volume tally's hooks (no `[volume]`), `GATE = false` the time
 /// gate's checks (no `run.time_gate_ns`; a gated walk also tracks the length), `LATERAL = false`
-/// the side faces of a box phantom (no `[lateral]`: the layers are infinite slabs).
+/// the side faces of a box phantom (no `[lateral]`: the layers are infinite slabs). Its value is
+/// the path's [`ForwardState`], one per batch, reused path after path.
 pub(super) struct Forward<
     const DOPPLER: bool,
     const LENGTH: bool,
@@ -36,7 +38,44 @@ pub(super) struct Forward<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
->;
+>(ForwardState);
+
+/// What a forward path carries besides its [`PathState`]: what its escape is balanced against the
+/// shadow rays with, its layered twin and where the twin parted from it, and the copies its weight
+/// windows split off. (Not generic: the outlined collision [`collide_nee`] and the twin's and
+/// windows' functions take it as it is, compiled once per kind of walk.)
+#[derive(Default)]
+pub(super) struct ForwardState {
+    /// The density of the path's last direction at its last vertex (a particle's phase function,
+    /// a rough face's or a surface's sampling density), over `n_k² |cos θ_k|` there: a direct
+    /// escape weighs itself against the shadow rays with it ([`Recorder::escape`]). `None` before
+    /// the first vertex, after a reflection at a smooth face and after a mirror's (no shadow ray
+    /// takes those ways), and in a walk without next-event estimation.
+    pub direct: Option<f64>,
+    /// The path's layered twin for the control variate (`None`: no control variate, or the twin
+    /// has parted, [`super::twin`]).
+    pub twin: Option<TwinPath>,
+    /// Where the twin parted from the path, to walk on once the path has ended.
+    pub split: Option<Split>,
+    /// Copies of the path split off by its weight windows, waiting to walk on after it
+    /// ([`super::steering::split`]).
+    pub copies: Vec<Pending>,
+}
+
+impl<
+    const DOPPLER: bool,
+    const LENGTH: bool,
+    const NEE: bool,
+    const VOLUME: bool,
+    const GATE: bool,
+    const LATERAL: bool,
+> Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
+{
+    /// The estimator for a batch of paths.
+    pub(super) fn new() -> Self {
+        Forward(ForwardState::default())
+    }
+}
 
 impl<
     const DOPPLER: bool,
@@ -52,13 +91,13 @@ impl<
     const GATE: bool = GATE;
     const LATERAL: bool = LATERAL;
     const VOLUME: bool = VOLUME;
-    const MIS: bool = NEE;
 
     /// Absorption weighting, then (with `NEE`) the shadow rays ([`collide_nee`]) or the plain
     /// continuation ([`collide`]), the importance pilot's record of the state, and the weight
     /// window ([`super::steering::window`]).
     #[inline(always)]
     fn collide(
+        &mut self,
         ctx: &WalkContext,
         s: &mut PathState,
         t: f64,
@@ -84,6 +123,7 @@ impl<
                 rng,
                 absorbed,
                 checkpoint,
+                &mut self.0,
                 rec,
             ) {
                 return Some(end);
@@ -92,11 +132,11 @@ impl<
             return Some(end);
         }
         rec.scattered(li, s);
-        super::steering::window(ctx, rec, s, li, rng)
+        super::steering::window(ctx, rec, &mut self.0, s, li, rng)
     }
 
     #[inline(always)]
-    fn track(ctx: &WalkContext, rec: &mut Recorder, s: &PathState, t: f64, n: f64) {
+    fn track(&self, ctx: &WalkContext, rec: &mut Recorder, s: &PathState, t: f64, n: f64) {
         if VOLUME && let Some(v) = ctx.volume {
             v.track::<GATE>(rec.acc, s.pos, s.dir, t, s.weight, s.l, n);
         }
@@ -105,31 +145,39 @@ impl<
     /// Through density regions a path carrying its layered twin flies with it.
     #[inline(always)]
     fn own_flight(
+        &mut self,
         ray: &LayerRay,
         t_end: f64,
         li: usize,
         s: &PathState,
         rng: &mut PathRng,
         null_collisions: &mut u64,
-        rec: &mut Recorder,
     ) -> Option<Flight> {
-        let coupled = NEE && ray.layer.heterogeneous && rec.twin.is_some_and(|t| !t.only);
-        coupled.then(|| super::twin::coupled_flight::<LENGTH>(ray, t_end, li, s, rng, null_collisions, rec))
+        let coupled = NEE && ray.layer.heterogeneous && self.0.twin.is_some_and(|t| !t.only);
+        coupled.then(|| super::twin::coupled_flight::<LENGTH>(ray, t_end, li, s, rng, null_collisions, &mut self.0))
     }
 
     /// The twin's transmittance over the path's through the regions.
     #[inline(always)]
-    fn flew(scene: &Scene, layer: &crate::medium::Layer, s: &PathState, t: f64, rec: &mut Recorder) {
+    fn flew(&mut self, scene: &Scene, layer: &crate::medium::Layer, s: &PathState, t: f64) {
         if NEE {
-            super::twin::weigh_flight(scene, layer, s, t, rec);
+            super::twin::weigh_flight(scene, layer, s, t, &mut self.0);
         }
     }
 
     /// The layered twin, which has no solids, parts from the path here.
     #[inline(always)]
-    fn at_solid(s: &PathState, li: usize, rng: &PathRng, rec: &mut Recorder) {
-        if NEE && rec.twin.is_some() {
-            super::twin::part_at_solid(s, li, rng, rec);
+    fn at_solid(&mut self, s: &PathState, li: usize, rng: &PathRng) {
+        if NEE && self.0.twin.is_some() {
+            super::twin::part_at_solid(s, li, rng, &mut self.0);
+        }
+    }
+
+    /// No shadow ray takes a smooth face's reflection: full weight for the escape after it.
+    #[inline(always)]
+    fn mirrored(&mut self) {
+        if NEE {
+            self.0.direct = None;
         }
     }
 
@@ -138,6 +186,7 @@ impl<
     /// balanced against the direct escapes by the sampling density).
     #[inline(always)]
     fn at_rough_face(
+        &mut self,
         ctx: &WalkContext,
         face: usize,
         s: &PathState,
@@ -151,16 +200,17 @@ impl<
                 let wo = at.frame.to_local(d);
                 (at.interface.eval(at.wi, wo, at.n_i, at.n_t), at.interface.pdf(at.wi, wo, at.n_i, at.n_t))
             };
-            surface_shadow_rays::<LENGTH>(ctx, face.checked_sub(1), s, density, s.order, None, rng, rec);
+            let twin = self.0.twin.as_ref();
+            surface_shadow_rays::<LENGTH>(ctx, face.checked_sub(1), s, twin, density, s.order, None, rng, rec);
         }
     }
 
     /// The density of the direction drawn over `n²|cos|` in the medium it goes on in.
     #[inline(always)]
-    fn crossed(s: &mut PathState, at: &RoughFace, c: &crate::surface::Crossed) {
+    fn crossed(&mut self, _s: &mut PathState, at: &RoughFace, c: &crate::surface::Crossed) {
         if NEE {
             let n = if c.transmitted { at.n_t } else { at.n_i };
-            s.mis = at.interface.pdf(at.wi, c.wo, at.n_i, at.n_t) / (n * n * c.wo.z.abs());
+            self.0.direct = Some(at.interface.pdf(at.wi, c.wo, at.n_i, at.n_t) / (n * n * c.wo.z.abs()));
         }
     }
 
@@ -168,7 +218,14 @@ impl<
     /// against its own density where a direct escape can also reach the detector), with the
     /// surface's Doppler term.
     #[inline(always)]
-    fn at_surface(ctx: &WalkContext, hit: &SurfaceHit, s: &PathState, rng: &mut PathRng, rec: &mut Recorder) {
+    fn at_surface(
+        &mut self,
+        ctx: &WalkContext,
+        hit: &SurfaceHit,
+        s: &PathState,
+        rng: &mut PathRng,
+        rec: &mut Recorder,
+    ) {
         let SurfaceHit { surface, frame, wi, li, moving, v } = *hit;
         if NEE && surface.bsdf.has_continuous_part() {
             let n = ctx.scene.layers[li].n;
@@ -177,7 +234,8 @@ impl<
                 (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
             };
             let doppler = moving.then_some((n, v));
-            surface_shadow_rays::<LENGTH>(ctx, Some(li), s, density, s.order + 1, doppler, rng, rec);
+            let twin = self.0.twin.as_ref();
+            surface_shadow_rays::<LENGTH>(ctx, Some(li), s, twin, density, s.order + 1, doppler, rng, rec);
         }
     }
 
@@ -185,106 +243,123 @@ impl<
     /// collision's phase-function density): a direct escape weighs itself against the shadow
     /// rays by it; a mirror's Dirac lobe is no shadow ray's (full weight).
     #[inline(always)]
-    fn reflected(ctx: &WalkContext, hit: &SurfaceHit, s: &mut PathState, smp: &crate::surface::Sampled, out: DVec3) {
+    fn reflected(
+        &mut self,
+        ctx: &WalkContext,
+        hit: &SurfaceHit,
+        _s: &mut PathState,
+        smp: &crate::surface::Sampled,
+        out: DVec3,
+    ) {
         if NEE {
             let n = ctx.scene.layers[hit.li].n;
-            s.mis = if smp.delta { -1.0 } else { hit.surface.bsdf.pdf(hit.wi, smp.wo) / (n * n * out.z.abs()) };
+            self.0.direct = (!smp.delta).then(|| hit.surface.bsdf.pdf(hit.wi, smp.wo) / (n * n * out.z.abs()));
         }
     }
 }
 
-/// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
-///
-/// The walk itself (`walk`) does not touch the recorder: it accumulates the absorbed weight in
-/// a local and reports how it ended, and the path is recorded once here. Keeping the tally
-/// vector and counters out of the event loop frees registers there and removes a bounds-checked
-/// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
-///
-/// Inlined into the batch's loop over paths: left to itself, the compiler stopped inlining it once
-/// the surfaces' calls were added, and the vdH slab took 7.7 % more instructions (its generator
-/// and path state passed through memory).
-#[inline(always)]
-pub(super) fn trace_path<
+impl<
     const DOPPLER: bool,
     const LENGTH: bool,
     const NEE: bool,
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
->(
-    ctx: &WalkContext,
-    rec: &mut Recorder,
-    rng: &mut PathRng,
-) {
-    let WalkContext { scene, source, .. } = *ctx;
-    rec.stats.paths += 1;
-    let (start, w0) = match ctx.launches {
-        None => (source.emit(rng), 1.0),
-        Some(l) => l.emit(source, rng),
-    };
-    let dir = source.emit_direction(rng);
-    // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
-    let t0 = (0.0 - start.z) / dir.z;
-    let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
-    let mut s = PathState::new(pos, dir, w0, if LENGTH { scene.n_above * t0 } else { 0.0 });
-    if NEE && ctx.twin {
-        rec.twin = Some(TwinPath::new(pos.x, pos.y));
-    }
-    // A rough top surface: the walk starts at its face, which reflects or refracts the beam.
-    let n_top = scene.layers[0].n;
-    let rough_entry = scene.layers[0].face.is_rough() && n_top != scene.n_above;
-    // Specular reflection at entry, scored deterministically (as MCML).
-    let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
-    if r_sp > 0.0 && !rough_entry {
-        let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: w0 * r_sp, ..s };
-        if in_gate::<GATE>(ctx.settings, s.l) {
-            rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above);
+> Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
+{
+    /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
+    ///
+    /// The walk itself (`walk`) does not touch the recorder: it accumulates the absorbed weight in
+    /// a local and reports how it ended, and the path is recorded once here. Keeping the tally
+    /// vector and counters out of the event loop frees registers there and removes a bounds-checked
+    /// read-modify-write of `acc[AbsorbedFraction]` and a counter increment per collision.
+    ///
+    /// Inlined into the batch's loop over paths: left to itself, the compiler stopped inlining it once
+    /// the surfaces' calls were added, and the vdH slab took 7.7 % more instructions (its generator
+    /// and path state passed through memory).
+    #[inline(always)]
+    pub(super) fn trace_path(&mut self, ctx: &WalkContext, rec: &mut Recorder, rng: &mut PathRng) {
+        let WalkContext { scene, source, .. } = *ctx;
+        rec.stats.paths += 1;
+        let (start, w0) = match ctx.launches {
+            None => (source.emit(rng), 1.0),
+            Some(l) => l.emit(source, rng),
+        };
+        let dir = source.emit_direction(rng);
+        // Travel through the ambient medium to the top surface (dir.z > 0 is validated).
+        let t0 = (0.0 - start.z) / dir.z;
+        let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
+        let mut s = PathState::new(pos, dir, w0, if LENGTH { scene.n_above * t0 } else { 0.0 });
+        if NEE {
+            self.0.direct = None;
+            if ctx.twin {
+                self.0.twin = Some(TwinPath::new(pos.x, pos.y));
+            }
         }
-        s.weight = w0 * (1.0 - r_sp);
-        if s.weight <= 0.0 {
-            return;
+        // A rough top surface: the walk starts at its face, which reflects or refracts the beam.
+        let n_top = scene.layers[0].n;
+        let rough_entry = scene.layers[0].face.is_rough() && n_top != scene.n_above;
+        // Specular reflection at entry, scored deterministically (as MCML).
+        let (r_sp, cos_t) = fresnel::reflectance(scene.n_above, n_top, dir.z);
+        if r_sp > 0.0 && !rough_entry {
+            let reflected = PathState { dir: DVec3::new(dir.x, dir.y, -dir.z), weight: w0 * r_sp, ..s };
+            if in_gate::<GATE>(ctx.settings, s.l) {
+                rec.escape(Side::Top, reflected, Exit::Specular, scene.n_above, self.0.twin.as_ref(), None);
+            }
+            s.weight = w0 * (1.0 - r_sp);
+            if s.weight <= 0.0 {
+                return;
+            }
         }
-    }
-    if !rough_entry {
-        s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
-    }
-    if ctx.reflections {
-        // The path by value and the generator on a copy handed back, as the walk's: the address
-        // of neither leaves this inlined function (else it lives in memory through the walk;
-        // `&s` measured +54 instructions per path on the vdH slab, where this never runs).
+        if !rough_entry {
+            s.dir = fresnel::refract(dir, scene.n_above, n_top, cos_t);
+        }
+        if ctx.reflections {
+            // The path by value and the generator on a copy handed back, as the walk's: the address
+            // of neither leaves this inlined function (else it lives in memory through the walk;
+            // `&s` measured +54 instructions per path on the vdH slab, where this never runs).
+            let mut local = rng.clone();
+            unscattered_reflections::<NEE, LENGTH, GATE>(ctx, s, dir, self.0.twin.as_ref(), &mut local, rec);
+            *rng = local;
+        }
+
+        // The walk draws from a copy local to this path, handed back at the end (a clone repeats its
+        // original's numbers: the stream is unchanged). With `rng` itself (a local of the batch
+        // loop, into which this function is inlined twice: with and without next-event targets)
+        // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
+        // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
         let mut local = rng.clone();
-        unscattered_reflections::<NEE, LENGTH, GATE>(ctx, s, dir, &mut local, rec);
+        // The path's walk, then those of the copies its weight windows split off, each walked on from
+        // where it was made (layer, scattering order, own stream and twin). One call of the walk:
+        // it is inlined, and a second call site for the copies doubled the code compiled per walk.
+        let (mut li, mut entering, mut order) = (0, rough_entry, 0);
+        loop {
+            let (mut absorbed, mut null_collisions) = (0.0, 0);
+            let end = walk_to_the_end::<Self>(
+                self,
+                ctx,
+                li,
+                &mut s,
+                &mut local,
+                &mut absorbed,
+                &mut null_collisions,
+                rec,
+                entering,
+            );
+            finish_walk::<DOPPLER, LENGTH, NEE, GATE>(
+                ctx,
+                rec,
+                &mut self.0,
+                &s,
+                end,
+                (absorbed, null_collisions, order),
+            );
+            let Some(c) = self.0.copies.pop() else { break };
+            (self.0.twin, self.0.direct) = (c.twin, c.direct);
+            (s, local, li, entering, order) = (c.s, c.rng, c.li, false, c.s.order);
+        }
         *rng = local;
     }
-
-    // The walk draws from a copy local to this path, handed back at the end (a clone repeats its
-    // original's numbers: the stream is unchanged). With `rng` itself (a local of the batch
-    // loop, into which this function is inlined twice: with and without next-event targets)
-    // the walk stored and reloaded the generator's state around its draws: callgrind, vdH slab
-    // 2·10⁵ paths, 192.0M → 175.7M instructions (166.1M before next-event estimation, c3d5384).
-    let mut local = rng.clone();
-    // The path's walk, then those of the copies its weight windows split off, each walked on from
-    // where it was made (layer, scattering order, own stream and twin). One call of the walk:
-    // it is inlined, and a second call site for the copies doubled the code compiled per walk.
-    let (mut li, mut entering, mut order) = (0, rough_entry, 0);
-    loop {
-        let (mut absorbed, mut null_collisions) = (0.0, 0);
-        let end = walk_to_the_end::<Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>>(
-            ctx,
-            li,
-            &mut s,
-            &mut local,
-            &mut absorbed,
-            &mut null_collisions,
-            rec,
-            entering,
-        );
-        finish_walk::<DOPPLER, LENGTH, NEE, GATE>(ctx, rec, &s, end, (absorbed, null_collisions, order));
-        let Some(c) = rec.copies.pop() else { break };
-        rec.twin = c.twin;
-        (s, local, li, entering, order) = (c.s, c.rng, c.li, false, c.s.order);
-    }
-    *rng = local;
 }
 
 /// Record how the walk of `s` ended (`end`), with its absorbed weight, its null collisions and
@@ -294,6 +369,7 @@ pub(super) fn trace_path<
 fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
+    st: &mut ForwardState,
     s: &PathState,
     end: End,
     (absorbed, null_collisions, order): (f64, u64, u32),
@@ -308,7 +384,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
             if in_gate::<GATE>(ctx.settings, s.l) {
                 // With deterministic reflections their detectors' share is scored already.
                 let exit = if reflected_once && ctx.reflections { Exit::ScalarsOnly } else { Exit::Walked };
-                rec.escape(side, s, exit, n_ambient);
+                rec.escape(side, s, exit, n_ambient, st.twin.as_ref(), st.direct);
             }
         }
         End::Lateral => {
@@ -329,7 +405,7 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
         // (`walk_to_the_end` never ends at the surface.)
         End::Truncated | End::AtBottom | End::AtOpaque(_) | End::AtRough(_) => rec.stats.truncated_paths += 1,
     }
-    if NEE && let Some(split) = rec.split.take() {
+    if NEE && let Some(split) = st.split.take() {
         twin_walk::<DOPPLER, LENGTH, GATE>(ctx, split, rec);
     }
 }
@@ -352,6 +428,7 @@ pub(super) fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const
     ctx: &WalkContext,
     s: PathState,
     b: DVec3,
+    twin: Option<&TwinPath>,
     rng: &mut PathRng,
     rec: &mut Recorder,
 ) {
@@ -364,14 +441,17 @@ pub(super) fn unscattered_reflections<const NEE: bool, const LENGTH: bool, const
         let l = if LENGTH { c.length } else { 0.0 };
         let weight = s.weight * c.transmit * (-c.tau).exp();
         // The twin's way down and up meets no region: without their excess optical depth.
-        let twin = match rec.twin {
-            Some(_) if NEE && (c.excess != 0.0 || c.twin_transmit != c.transmit) => Twin::Other(PathState::new(
-                c.pos,
-                DVec3::new(b.x, b.y, -b.z),
-                s.weight * c.twin_transmit * (c.excess - c.tau).exp(),
-                l,
-            )),
-            Some(_) if NEE => Twin::Same,
+        let twin = match twin {
+            Some(t) if NEE && (c.excess != 0.0 || c.twin_transmit != c.transmit) => Twin::Other(
+                PathState::new(
+                    c.pos,
+                    DVec3::new(b.x, b.y, -b.z),
+                    s.weight * c.twin_transmit * (c.excess - c.tau).exp(),
+                    l,
+                ),
+                t.launch,
+            ),
+            Some(t) if NEE => Twin::Same(t.launch),
             _ => Twin::Off,
         };
         if (weight > 0.0 || twin != Twin::Off) && in_gate::<GATE>(ctx.settings, l) {
@@ -392,6 +472,7 @@ fn surface_shadow_rays<const LENGTH: bool>(
     ctx: &WalkContext,
     from: Option<usize>,
     s: &PathState,
+    twin: Option<&TwinPath>,
     density: impl Fn(DVec3) -> (f64, f64),
     order: u32,
     doppler: Option<(f64, DVec3)>,
@@ -415,7 +496,6 @@ fn surface_shadow_rays<const LENGTH: bool>(
             weight: s.weight * h.factor * boost,
             l: if LENGTH { s.l + h.length } else { 0.0 },
             order,
-            mis: -1.0,
             ..*s
         };
         if let Some((n, v)) = doppler {
@@ -424,14 +504,14 @@ fn surface_shadow_rays<const LENGTH: bool>(
         }
         // The layered twin has the same planar surface (the bottom, a rough face): its shadow ray
         // is the path's without the regions' excess optical depth, weighted by `Λ`.
-        let twin = match rec.twin {
+        let twin = match twin {
             None => Twin::Off,
-            Some(tw) if tw.only => Twin::Only,
-            Some(tw) if !tw.touched && h.twin_is_path() => Twin::Same,
+            Some(tw) if tw.only => Twin::Only(tw.launch),
+            Some(tw) if !tw.touched && h.twin_is_path() => Twin::Same(tw.launch),
             Some(tw) => {
                 let mut t = tw.state(&e);
                 t.weight = s.weight * tw.lambda * boost * h.twin_factor(density(h.dir_vertex).0);
-                Twin::Other(t)
+                Twin::Other(t, tw.launch)
             }
         };
         rec.next_event(target.detector, &e, twin, ctx.scene.n_above);
@@ -503,6 +583,7 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     rng: &mut PathRng,
     absorbed: &mut f64,
     checkpoint: &mut u32,
+    st: &mut ForwardState,
     rec: &mut Recorder,
 ) -> Option<End> {
     // The layered twin collides in the layer's filling medium where the path collides in a region.
@@ -511,15 +592,21 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     // path) from the path's state arriving here, weighted by `Λ` and the collision densities'
     // ratio `σt,fill / σt,medium`; the path goes on without a twin.
     let fill = &scene.media[scene.layers[li].medium];
-    let in_region = rec.twin.is_some_and(|t| !t.only) && !std::ptr::eq(m, fill);
+    let in_region = st.twin.is_some_and(|t| !t.only) && !std::ptr::eq(m, fill);
     if in_region
-        && let Some(tw) = rec.twin
+        && let Some(tw) = st.twin
         && !(1.0 / TWIN_BAND..=TWIN_BAND).contains(&tw.lambda)
     {
         let weight = s.weight * fill.sigma_t() / m.sigma_t();
-        rec.split =
-            Some(Split { s: tw.state(&PathState { weight, ..*s }), li, twin: tw, rng: rng.clone(), flying: false });
-        rec.twin = None;
+        st.split = Some(Split {
+            s: tw.state(&PathState { weight, ..*s }),
+            li,
+            twin: tw,
+            rng: rng.clone(),
+            flying: false,
+            direct: st.direct,
+        });
+        st.twin = None;
     }
     if absorb(s, albedo, absorbed) {
         return Some(End::Absorbed);
@@ -534,12 +621,12 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     // = σs,fill/σs` (the flight's share is in from the flight). Not over the population's σs:
     // the path's draw of its particles is no part of the twin's density (measured: a vessel of
     // two populations, 14 and 6 /mm, gave an image 19 % low, χ² 57 over 16 pixels).
-    let coupled = (in_region && rec.twin.is_some()).then(|| {
+    let coupled = (in_region && st.twin.is_some()).then(|| {
         let (tpop, tdyn) = fill.pick_dynamic(rng);
         let tdyn = DOPPLER && tdyn;
         (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
     });
-    if let (Some(tw), true) = (rec.twin.as_mut(), coupled.is_some()) {
+    if let (Some(tw), true) = (st.twin.as_mut(), coupled.is_some()) {
         tw.lambda *= fill.sigma_s() / m.sigma_s();
         tw.touched = true;
     }
@@ -567,16 +654,15 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             weight: s.weight * h.factor * boost,
             l: if LENGTH { s.l + h.length } else { 0.0 },
             order: s.order + 1,
-            mis: -1.0,
             ..*s
         };
         let in_out = s.dir - h.dir_vertex;
         // The twin's shadow ray: its phase function (its own particles' where it shares a
         // collision in a region), without the regions' excess optical depth, its Doppler state.
-        let twin = match rec.twin {
+        let twin = match st.twin {
             None => Twin::Off,
-            Some(tw) if tw.only => Twin::Only,
-            Some(tw) if !tw.touched && coupled.is_none() && h.twin_is_path() => Twin::Same,
+            Some(tw) if tw.only => Twin::Only(tw.launch),
+            Some(tw) if !tw.touched && coupled.is_none() && h.twin_is_path() => Twin::Same(tw.launch),
             Some(tw) => {
                 let mut t = tw.state(&e);
                 let p = coupled.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
@@ -587,7 +673,7 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
                     None if dynamic => doppler_event(&mut t, pop, n, v, in_out),
                     None => {}
                 }
-                Twin::Other(t)
+                Twin::Other(t, tw.launch)
             }
         };
         if dynamic {
@@ -609,9 +695,9 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         }
     };
     if !nee.is_empty() {
-        s.mis = pop.phase.eval(cos) / (n * n * out.z.abs());
+        st.direct = Some(pop.phase.eval(cos) / (n * n * out.z.abs()));
     }
-    if let (Some(tw), Some((tpop, tdyn, tv))) = (rec.twin.as_mut(), coupled) {
+    if let (Some(tw), Some((tpop, tdyn, tv))) = (st.twin.as_mut(), coupled) {
         // The coupled twin's density of the direction drawn over the path's, and its Doppler
         // event instead of the path's.
         tw.lambda *= tpop.phase.eval(cos) / pop.phase.eval(cos);
@@ -647,8 +733,12 @@ pub(super) fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: boo
 ) {
     let Some(scene) = ctx.twin_scene else { return };
     let ctx = WalkContext { scene, volume: None, reflections: false, windows: None, ..*ctx };
-    let Split { mut s, li, twin, mut rng, flying } = split;
-    rec.twin = Some(TwinPath { only: true, ..twin });
+    let Split { mut s, li, twin, mut rng, flying, direct } = split;
+    let mut own = Forward::<DOPPLER, LENGTH, true, false, GATE, false>(ForwardState {
+        direct,
+        twin: Some(TwinPath { only: true, ..twin }),
+        ..ForwardState::default()
+    });
     let layer = &scene.layers[li];
     let fill = &scene.media[layer.medium];
     let (mut absorbed, mut nulls) = (0.0, 0);
@@ -669,26 +759,17 @@ pub(super) fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: boo
             &mut rng,
             &mut absorbed,
             &mut checkpoint,
+            &mut own.0,
             rec,
         )
     };
     let end = match first {
         Some(end) => end,
-        None => walk_to_the_end::<Forward<DOPPLER, LENGTH, true, false, GATE, false>>(
-            &ctx,
-            li,
-            &mut s,
-            &mut rng,
-            &mut absorbed,
-            &mut nulls,
-            rec,
-            false,
-        ),
+        None => walk_to_the_end(&mut own, &ctx, li, &mut s, &mut rng, &mut absorbed, &mut nulls, rec, false),
     };
     if let End::Escaped { side, n_ambient, .. } = end
         && in_gate::<GATE>(ctx.settings, s.l)
     {
-        rec.escape(side, s, Exit::Walked, n_ambient);
+        rec.escape(side, s, Exit::Walked, n_ambient, own.0.twin.as_ref(), own.0.direct);
     }
-    rec.twin = None;
 }

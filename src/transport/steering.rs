@@ -5,10 +5,12 @@
 
 use glam::DVec3;
 
-use crate::detect::{PathState, Pending, Recorder};
+use crate::detect::twin::TwinPath;
+use crate::detect::{PathState, Recorder};
 use crate::sampling::PathRng;
 
 use super::event::deflect;
+use super::forward::ForwardState;
 use super::walk::{End, WalkContext};
 use super::windows::{Action, MAX_PENDING};
 
@@ -18,6 +20,7 @@ use super::windows::{Action, MAX_PENDING};
 pub(super) fn window(
     ctx: &WalkContext,
     rec: &mut Recorder,
+    st: &mut ForwardState,
     s: &mut PathState,
     li: usize,
     rng: &mut PathRng,
@@ -28,7 +31,7 @@ pub(super) fn window(
     }
     match w.check(li, s) {
         Action::Keep => {}
-        Action::Split(n) => split(rec, s, li, n, rng.split_key()),
+        Action::Split(n) => split(st, s, li, n, rng.split_key()),
         Action::Roulette { p, w } => {
             if rng.uniform() >= p {
                 return Some(End::Roulette);
@@ -40,19 +43,32 @@ pub(super) fn window(
 }
 
 /// Split `s` (in layer `li`) into `n` paths of equal weight ([`super::windows`]): `s` goes on
-/// with its share, `n − 1` copies wait in `rec` to walk on after it, copy `k` on the stream
-/// `PathRng::copy(key, k)`, each with the path's layered twin as it is now. No split once
-/// [`MAX_PENDING`] copies wait.
+/// with its share, `n − 1` copies wait in `st` to walk on after it, copy `k` on the stream
+/// `PathRng::copy(key, k)`, each with what the path carries as it is now (its layered twin, its
+/// escape's balance). No split once [`MAX_PENDING`] copies wait.
 #[cold]
 #[inline(never)]
-fn split(rec: &mut Recorder, s: &mut PathState, li: usize, n: u32, key: u64) {
-    if rec.copies.len() + n as usize > MAX_PENDING {
+pub(super) fn split(st: &mut ForwardState, s: &mut PathState, li: usize, n: u32, key: u64) {
+    if st.copies.len() + n as usize > MAX_PENDING {
         return;
     }
     s.weight /= f64::from(n);
     for k in 1..n {
-        rec.copies.push(Pending { s: *s, li, rng: PathRng::copy(key, u64::from(k)), twin: rec.twin });
+        let rng = PathRng::copy(key, u64::from(k));
+        st.copies.push(Pending { s: *s, li, rng, twin: st.twin, direct: st.direct });
     }
+}
+
+/// A copy of a forward path made by a weight window's split ([`split`]): its state, layer, own
+/// stream and what it carries (its layered twin, [`ForwardState::direct`]), to walk on from
+/// after the path.
+#[derive(Clone)]
+pub(super) struct Pending {
+    pub s: PathState,
+    pub li: usize,
+    pub rng: PathRng,
+    pub twin: Option<TwinPath>,
+    pub direct: Option<f64>,
 }
 
 /// The continuation of `s` from a scatterer of phase function `phase` where the guide acts with

@@ -6,12 +6,34 @@
 //! path has ended (`forward::twin_walk`). Its collisions are shared with the forward estimator's
 //! ([`super::forward::collide_nee`]).
 
-use crate::detect::twin::{Split, TwinPath};
-use crate::detect::{PathState, Recorder};
+use crate::detect::PathState;
+use crate::detect::twin::TwinPath;
 use crate::medium::{Layer, Scene};
 use crate::sampling::PathRng;
 
+use super::forward::ForwardState;
 use super::tracking::{Flight, LayerRay};
+
+/// Where a forward path's layered twin parts from it: a collision of the path in a region with
+/// `Λ` beyond [`TWIN_BAND`], which the twin makes in its layer's filling medium (with the weight
+/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
+/// and walks on from in the twin's scene with a copy of the path's generator (`forward::twin_walk`;
+/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
+/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
+/// share out of the pixels it meets, into the kernels).
+#[derive(Clone)]
+pub struct Split {
+    pub s: PathState,
+    pub li: usize,
+    pub twin: TwinPath,
+    pub rng: PathRng,
+    /// Parted in a flight through a density region where the path collided and the twin did not
+    /// ([`super::tracking::coupled_flight`]): the twin flies on from `s` (else it collides there).
+    pub flying: bool,
+    /// The path's [`ForwardState::direct`] there, which an escape of the twin flying on is
+    /// balanced with.
+    pub direct: Option<f64>,
+}
 
 /// A flight of the path `s` in layer `li` through density regions, flown with its layered twin
 /// (`coupled_flight` of [`super::tracking`]) up to `t_end`: where they part, the twin is split off
@@ -26,15 +48,15 @@ pub(super) fn coupled_flight<const LENGTH: bool>(
     s: &PathState,
     rng: &mut PathRng,
     null_collisions: &mut u64,
-    rec: &mut Recorder,
+    st: &mut ForwardState,
 ) -> Flight {
     let (scene, layer) = (ray.scene, ray.layer);
     let fill = &scene.media[layer.medium];
     let (flight, parting) = super::tracking::coupled_flight(ray, t_end, fill.sigma_t(), rng, null_collisions);
     match parting {
-        Some(p) => part_in_flight::<LENGTH>(s, li, layer.n, p, rec),
+        Some(p) => part_in_flight::<LENGTH>(s, li, layer.n, p, st),
         None => {
-            if let (Flight::Collision { medium, .. }, Some(tw)) = (flight, rec.twin.as_mut())
+            if let (Flight::Collision { medium, .. }, Some(tw)) = (flight, st.twin.as_mut())
                 && medium != layer.medium
             {
                 tw.lambda *= scene.media[medium].sigma_t() / fill.sigma_t();
@@ -48,8 +70,8 @@ pub(super) fn coupled_flight<const LENGTH: bool>(
 /// path carries one) is weighted by its transmittance over the path's (the regions' excess optical
 /// depth along it).
 #[inline(always)]
-pub(super) fn weigh_flight(scene: &Scene, layer: &Layer, s: &PathState, t: f64, rec: &mut Recorder) {
-    if let Some(tw) = rec.twin.as_mut() {
+pub(super) fn weigh_flight(scene: &Scene, layer: &Layer, s: &PathState, t: f64, st: &mut ForwardState) {
+    if let Some(tw) = st.twin.as_mut() {
         tw.flight(super::nee::region_excess(scene, layer, s.pos, s.dir, t));
     }
 }
@@ -72,12 +94,18 @@ fn part_in_flight<const LENGTH: bool>(
     li: usize,
     n: f64,
     p: super::tracking::Parting,
-    rec: &mut Recorder,
+    st: &mut ForwardState,
 ) {
-    let Some(tw) = rec.twin.take() else { return };
+    let Some(tw) = st.twin.take() else { return };
     let at = PathState { pos: s.pos + p.t * s.dir, l: if LENGTH { s.l + n * p.t } else { 0.0 }, ..*s };
-    rec.split =
-        Some(Split { s: tw.state(&at), li, twin: TwinPath { touched: true, ..tw }, rng: p.rng, flying: !p.collides });
+    st.split = Some(Split {
+        s: tw.state(&at),
+        li,
+        twin: TwinPath { touched: true, ..tw },
+        rng: p.rng,
+        flying: !p.collides,
+        direct: st.direct,
+    });
 }
 
 /// The path `s` in layer `li` has flown to an opaque solid's boundary, which its layered twin
@@ -87,8 +115,14 @@ fn part_in_flight<const LENGTH: bool>(
 /// ([`Split`]); the path goes on without a twin.
 #[cold]
 #[inline(never)]
-pub(super) fn part_at_solid(s: &PathState, li: usize, rng: &PathRng, rec: &mut Recorder) {
-    let Some(tw) = rec.twin.take() else { return };
-    rec.split =
-        Some(Split { s: tw.state(s), li, twin: TwinPath { touched: true, ..tw }, rng: rng.clone(), flying: true });
+pub(super) fn part_at_solid(s: &PathState, li: usize, rng: &PathRng, st: &mut ForwardState) {
+    let Some(tw) = st.twin.take() else { return };
+    st.split = Some(Split {
+        s: tw.state(s),
+        li,
+        twin: TwinPath { touched: true, ..tw },
+        rng: rng.clone(),
+        flying: true,
+        direct: st.direct,
+    });
 }

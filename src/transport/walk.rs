@@ -8,8 +8,8 @@
 //! a type implementing [`Estimator`], whose hooks the walk calls at a collision, a smooth face, a
 //! rough face and an opaque surface, and whose associated consts say what the path must track
 //! (the Doppler term, the optical path length, the time gate, a box phantom's faces, the volume
-//! tally, a layered twin, the balance heuristic's `mis`). The walk is monomorphised per estimator
-//! type, so a scene in which nothing moves never looks up a velocity and one without a chirp never
+//! tally), and whose values hold what the estimator carries along the path. The walk is
+//! monomorphised per estimator type, so a scene in which nothing moves never looks up a velocity and one without a chirp never
 //! tracks the path length. The estimators, a file each:
 //!
 //! | estimator | file | hooks it fills |
@@ -60,10 +60,10 @@ pub struct WalkContext<'a> {
     /// one (`run.control_variate`, [`crate::detect::twin`]): the likelihood ratio `Λ` of the
     /// path under the twin (each flight through a region: the twin's transmittance over the
     /// path's) until the twin parts from it at the path's first collision in a region
-    /// ([`crate::detect::twin::Split`]), in [`Recorder::twin`].
+    /// ([`super::twin::Split`]), in the forward estimator's state ([`super::forward::Forward`]).
     pub twin: bool,
     /// The twin's scene (the regions removed), where a twin walks on once it parts from its path
-    /// ([`crate::detect::twin::Split`]); `None` without a control variate.
+    /// ([`super::twin::Split`]); `None` without a control variate.
     pub twin_scene: Option<&'a Scene>,
     /// Forward paths start near the regions ([`crate::source::Launches`]; `None`: from the
     /// profile).
@@ -86,7 +86,10 @@ pub(super) struct Vertex<'a> {
 /// What scores a path, and what the path must track for it: the walk ([`walk_to_the_end`]) is
 /// generic over one such type and calls its hooks at the path's events, monomorphised per type (as
 /// pbrt-v4's `SampleT_maj` takes its integrator's callback). The consts are folded at compile time:
-/// a walk that does not track the optical path length carries none of its arithmetic.
+/// a walk that does not track the optical path length carries none of its arithmetic. A value of
+/// the type is the estimator's state along the path it scores (the forward estimator's layered
+/// twin and weight-window copies, a camera path's balance against its connections); the walk
+/// holds it by reference and hands it to every hook.
 ///
 /// A new estimator is a type implementing this trait in a file of its own, plus its entry (how
 /// its paths start and end) and one arm in [`super::features`] that picks it.
@@ -101,15 +104,13 @@ pub(super) trait Estimator {
     const LATERAL: bool;
     /// The volume tally (`[volume]`) scores the path's track lengths and collisions.
     const VOLUME: bool;
-    /// The path carries a density ratio in `PathState::mis` for the balance heuristic of its
-    /// connections, which a reflection at a smooth face resets (no connection takes that way).
-    const MIS: bool;
 
     /// A real collision `v` at distance `t` along `s` (the path not yet moved there): the
     /// absorption weighting, the estimator's connections, a new direction, the Doppler term, the
     /// event cap and Russian roulette ([`end_of_event`]). `Some` if the path ends here.
     #[allow(clippy::too_many_arguments)]
     fn collide(
+        &mut self,
         ctx: &WalkContext,
         s: &mut PathState,
         t: f64,
@@ -123,39 +124,45 @@ pub(super) trait Estimator {
     /// The straight piece of `s` of length `t` in a layer of index `n` (to a collision, a face,
     /// depth), flown with the path's weight: the volume tally's track length.
     #[inline(always)]
-    fn track(_ctx: &WalkContext, _rec: &mut Recorder, _s: &PathState, _t: f64, _n: f64) {}
+    fn track(&self, _ctx: &WalkContext, _rec: &mut Recorder, _s: &PathState, _t: f64, _n: f64) {}
 
     /// A flight of `s` along `ray` in layer `li` up to `t_end` that the estimator flies itself
     /// (the path with its layered twin through density regions, [`super::twin`]); `None`: the
     /// walk's own flight.
     #[inline(always)]
     fn own_flight(
+        &mut self,
         _ray: &LayerRay,
         _t_end: f64,
         _li: usize,
         _s: &PathState,
         _rng: &mut PathRng,
         _null_collisions: &mut u64,
-        _rec: &mut Recorder,
     ) -> Option<Flight> {
         None
     }
 
     /// The walk's own flight of `s` through `layer`, which holds regions, went `t`.
     #[inline(always)]
-    fn flew(_scene: &Scene, _layer: &crate::medium::Layer, _s: &PathState, _t: f64, _rec: &mut Recorder) {}
+    fn flew(&mut self, _scene: &Scene, _layer: &crate::medium::Layer, _s: &PathState, _t: f64) {}
 
     /// `s` in layer `li` has flown to an opaque solid's boundary (where it now is).
     #[inline(always)]
-    fn at_solid(_s: &PathState, _li: usize, _rng: &PathRng, _rec: &mut Recorder) {}
+    fn at_solid(&mut self, _s: &PathState, _li: usize, _rng: &PathRng) {}
 
     /// `s` has just refracted from index `n` into `n2` through a smooth face of reflectance `r`.
     #[inline(always)]
-    fn refracted(_s: &mut PathState, _n: f64, _n2: f64, _r: f64) {}
+    fn refracted(&mut self, _s: &mut PathState, _n: f64, _n2: f64, _r: f64) {}
+
+    /// The path has just been reflected by a smooth face (by Fresnel's draw, or totally): no
+    /// connection of an estimator's takes that way, so its balance against them ends.
+    #[inline(always)]
+    fn mirrored(&mut self) {}
 
     /// `s` is at the rough top face of layer `face`, about to cross it: the connections from there.
     #[inline(always)]
     fn at_rough_face(
+        &mut self,
         _ctx: &WalkContext,
         _face: usize,
         _s: &PathState,
@@ -174,16 +181,25 @@ pub(super) trait Estimator {
 
     /// `s` has crossed the rough face `at` as `c` drew it (its new direction set).
     #[inline(always)]
-    fn crossed(_s: &mut PathState, _at: &RoughFace, _c: &crate::surface::Crossed) {}
+    fn crossed(&mut self, _s: &mut PathState, _at: &RoughFace, _c: &crate::surface::Crossed) {}
 
     /// `s` is at the opaque surface `hit`, about to reflect: the connections from there.
     #[inline(always)]
-    fn at_surface(_ctx: &WalkContext, _hit: &SurfaceHit, _s: &PathState, _rng: &mut PathRng, _rec: &mut Recorder) {}
+    fn at_surface(
+        &mut self,
+        _ctx: &WalkContext,
+        _hit: &SurfaceHit,
+        _s: &PathState,
+        _rng: &mut PathRng,
+        _rec: &mut Recorder,
+    ) {
+    }
 
     /// `s` has reflected at `hit` toward `out`, as `smp` drew it (its weight taken, its direction
     /// not yet turned).
     #[inline(always)]
     fn reflected(
+        &mut self,
         _ctx: &WalkContext,
         _hit: &SurfaceHit,
         _s: &mut PathState,
@@ -252,6 +268,7 @@ pub(super) enum End {
 /// camera paths are not run in a box (refused at resolve time).
 #[inline(always)]
 fn walk<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     start: usize,
     s: &mut PathState,
@@ -306,7 +323,7 @@ fn walk<E: Estimator>(
                 }
                 (t, fill, fill.albedo())
             } else {
-                let (flight, t_opaque, opaque) = tracked_flight::<E>(ctx, li, s, &bounds, rng, null_collisions, rec);
+                let (flight, t_opaque, opaque) = tracked_flight::<E>(est, ctx, li, s, &bounds, rng, null_collisions);
                 match flight {
                     Flight::Collision { t, medium } => {
                         let m = &scene.media[medium];
@@ -316,7 +333,7 @@ fn walk<E: Estimator>(
                     // face): there the surface reflects it, outside the walk.
                     // (A flight to depth has t = ∞, and so has `t_opaque` without a solid ahead.)
                     Flight::Boundary { t } if t_opaque <= t && opaque != usize::MAX => {
-                        return to_solid::<E>(ctx, s, (t, n, li), opaque, rng, rec);
+                        return to_solid::<E>(est, ctx, s, (t, n, li), opaque, rng, rec);
                     }
                     Flight::Boundary { .. } => break,
                 }
@@ -330,7 +347,7 @@ fn walk<E: Estimator>(
                 // back out of the absorbed weight (and the volume tally's).
                 let l = s.l + n * t;
                 if l > l1 {
-                    E::track(ctx, rec, s, t, n);
+                    est.track(ctx, rec, s, t, n);
                     return End::Gated;
                 }
                 if l < l0 {
@@ -342,13 +359,13 @@ fn walk<E: Estimator>(
                 && let Some(v) = ctx.volume
             {
                 let p = s.pos + t * s.dir;
-                E::track(ctx, rec, s, t, n);
+                est.track(ctx, rec, s, t, n);
                 if !before_gate {
                     v.collision(rec.acc, p, s.l + n * t, s.weight, albedo, medium.sigma_t_at(p));
                 }
             }
             if let Some(end) =
-                E::collide(ctx, s, t, Vertex { medium, albedo, n, li }, rng, absorbed, &mut checkpoint, rec)
+                est.collide(ctx, s, t, Vertex { medium, albedo, n, li }, rng, absorbed, &mut checkpoint, rec)
             {
                 return end;
             }
@@ -365,7 +382,7 @@ fn walk<E: Estimator>(
             // The side face comes first, or the ray is horizontal (`t_boundary` −∞ or NaN; +∞
             // is a way to depth, taken unless a face comes first).
             if t_side < t_boundary || t_boundary.is_nan() || t_boundary < 0.0 {
-                if let Some(end) = side_face::<E>(ctx, s, t_side, axis, n, bounds, rng, rec) {
+                if let Some(end) = side_face::<E>(est, ctx, s, t_side, axis, n, bounds, rng, rec) {
                     return end;
                 }
                 if bounces.trapped(s.order) {
@@ -375,7 +392,7 @@ fn walk<E: Estimator>(
             }
         }
         // To depth (t = ∞) the track is clipped to the grid's box (and to the gate's end).
-        E::track(ctx, rec, s, if t_boundary.is_finite() { t_boundary } else { f64::INFINITY }, n);
+        est.track(ctx, rec, s, if t_boundary.is_finite() { t_boundary } else { f64::INFINITY }, n);
         if E::GATE && past_gate(settings, s.l + n * t_boundary) {
             return End::Gated;
         }
@@ -410,9 +427,7 @@ fn walk<E: Estimator>(
                 return End::Truncated;
             }
             s.dir.z = -s.dir.z;
-            if E::MIS {
-                s.mis = -1.0;
-            }
+            est.mirrored();
             continue;
         }
         s.dir = fresnel::refract(s.dir, n, n2, cos_t);
@@ -429,7 +444,7 @@ fn walk<E: Estimator>(
             let reflected_once = s.order == 0 && bounces.count == 1;
             return End::Escaped { side, n_ambient: n2, reflected_once };
         }
-        E::refracted(s, n, n2, r);
+        est.refracted(s, n, n2, r);
         li = next;
     }
 }
@@ -442,13 +457,13 @@ fn walk<E: Estimator>(
 /// the walk's own flights through regions ([`Estimator::flew`]).
 #[inline(always)]
 fn tracked_flight<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     li: usize,
     s: &PathState,
     bounds: &crate::medium::Lateral,
     rng: &mut PathRng,
     null_collisions: &mut u64,
-    rec: &mut Recorder,
 ) -> (Flight, f64, usize) {
     let WalkContext { scene, settings, .. } = *ctx;
     let layer = &scene.layers[li];
@@ -462,7 +477,7 @@ fn tracked_flight<E: Estimator>(
         // horizontal ray, whose distance to the plane is ∞ or NaN).
         let t_end = bounds.exit(s.pos, s.dir).0.min(dz / s.dir.z.abs()).min(t_opaque);
         free_flight_to(ray, t_end, settings.tracking, rng, null_collisions)
-    } else if let Some(f) = E::own_flight(&ray, (dz / s.dir.z.abs()).min(t_opaque), li, s, rng, null_collisions, rec) {
+    } else if let Some(f) = est.own_flight(&ray, (dz / s.dir.z.abs()).min(t_opaque), li, s, rng, null_collisions) {
         return (f, t_opaque, opaque);
     } else if t_opaque < f64::INFINITY {
         free_flight_to(ray, (dz / s.dir.z.abs()).min(t_opaque), settings.tracking, rng, null_collisions)
@@ -471,7 +486,7 @@ fn tracked_flight<E: Estimator>(
     };
     if !layer.regions.is_empty() {
         let (Flight::Collision { t, .. } | Flight::Boundary { t }) = flight;
-        E::flew(scene, layer, s, t, rec);
+        est.flew(scene, layer, s, t);
     }
     (flight, t_opaque, opaque)
 }
@@ -483,6 +498,7 @@ fn tracked_flight<E: Estimator>(
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn walk_to_the_end<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     start: usize,
     s: &mut PathState,
@@ -502,7 +518,7 @@ pub(super) fn walk_to_the_end<E: Estimator>(
     // and an end that could also come from here was kept in memory and dispatched there, +12
     // instructions per path on the vdH slab.)
     if entering {
-        let (deposit, next) = cross_rough_face::<E>(ctx, 0, s, rng, rec);
+        let (deposit, next) = cross_rough_face::<E>(est, ctx, 0, s, rng, rec);
         *absorbed += deposit;
         match next {
             Ok(l) => li = l,
@@ -510,7 +526,7 @@ pub(super) fn walk_to_the_end<E: Estimator>(
         }
     }
     loop {
-        let end = walk::<E>(ctx, li, s, rng, absorbed, null_collisions, rec);
+        let end = walk::<E>(est, ctx, li, s, rng, absorbed, null_collisions, rec);
         // (The deposits come back by value: `absorbed`'s address handed to a call kept it in
         // memory through every collision of the walk, +1 instruction each.)
         let (deposit, ended) = match end {
@@ -518,7 +534,7 @@ pub(super) fn walk_to_the_end<E: Estimator>(
                 if crossings.trapped(s.order) {
                     return End::Truncated;
                 }
-                match cross_rough_face::<E>(ctx, face, s, rng, rec) {
+                match cross_rough_face::<E>(est, ctx, face, s, rng, rec) {
                     (deposit, Ok(l)) => {
                         li = l;
                         (deposit, None)
@@ -530,13 +546,13 @@ pub(super) fn walk_to_the_end<E: Estimator>(
                 let Some(bottom) = &scene.bottom else { return end };
                 li = scene.layers.len() - 1;
                 let frame = crate::medium::Surface::bottom_frame();
-                reflect_at_surface::<E>(ctx, bottom, &frame, li, s, rng, rec)
+                reflect_at_surface::<E>(est, ctx, bottom, &frame, li, s, rng, rec)
             }
             End::AtOpaque(k) => {
                 let o = &scene.opaque[k];
                 li = o.layer;
                 let frame = crate::surface::Frame::new(o.shape.outward_normal(s.pos, -s.dir));
-                reflect_at_surface::<E>(ctx, &o.surface, &frame, li, s, rng, rec)
+                reflect_at_surface::<E>(est, ctx, &o.surface, &frame, li, s, rng, rec)
             }
             _ => return end,
         };
@@ -556,6 +572,7 @@ pub(super) fn walk_to_the_end<E: Estimator>(
 /// layer the path goes on in, else how it ended (through the stack's top surface: an escape).
 #[inline(never)]
 fn cross_rough_face<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     face: usize,
     s: &mut PathState,
@@ -576,7 +593,7 @@ fn cross_rough_face<E: Estimator>(
     let wi = frame.to_local(-s.dir);
     debug_assert!(wi.z > 0.0, "a rough face met from behind: wi = {wi}");
     let at = RoughFace { interface, frame, wi, n_i, n_t };
-    E::at_rough_face(ctx, face, s, &at, rng, rec);
+    est.at_rough_face(ctx, face, s, &at, rng, rec);
     let u = [rng.uniform(), rng.uniform(), rng.uniform()];
     let Some(c) = interface.sample(wi, n_i, n_t, u) else {
         return (s.weight, Err(End::Absorbed));
@@ -588,7 +605,7 @@ fn cross_rough_face<E: Estimator>(
         return (deposit, Err(End::Absorbed));
     }
     s.dir = frame.to_world(c.wo);
-    E::crossed(s, &at, &c);
+    est.crossed(s, &at, &c);
     if s.dir.z > 0.0 {
         (deposit, Ok(face))
     } else if face > 0 {
@@ -633,6 +650,7 @@ pub(super) struct SurfaceHit<'a> {
 /// ends here.
 #[inline(never)]
 fn reflect_at_surface<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     surface: &crate::medium::Surface,
     frame: &crate::surface::Frame,
@@ -650,7 +668,7 @@ fn reflect_at_surface<E: Estimator>(
     let moving = E::DOPPLER && surface.is_moving();
     let v = if moving { surface.velocity_at(s.pos) } else { DVec3::ZERO };
     let hit = SurfaceHit { surface, frame, wi, li, moving, v };
-    E::at_surface(ctx, &hit, s, rng, rec);
+    est.at_surface(ctx, &hit, s, rng, rec);
     let u = [rng.uniform(), rng.uniform(), rng.uniform()];
     let Some(smp) = surface.bsdf.sample(wi, u) else {
         return (s.weight, Some(End::Absorbed));
@@ -662,7 +680,7 @@ fn reflect_at_surface<E: Estimator>(
     if s.weight <= 0.0 {
         return (deposit, Some(End::Absorbed));
     }
-    E::reflected(ctx, &hit, s, &smp, out);
+    est.reflected(ctx, &hit, s, &smp, out);
     if moving {
         s.dldt += doppler_increment(n, v, s.dir - out);
         s.doppler_events += 1;
@@ -679,6 +697,7 @@ fn reflect_at_surface<E: Estimator>(
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn side_face<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     s: &mut PathState,
     t: f64,
@@ -689,7 +708,7 @@ fn side_face<E: Estimator>(
     rec: &mut Recorder,
 ) -> Option<End> {
     // Clipped to the gate's end if the path ends there.
-    E::track(ctx, rec, s, t, n);
+    est.track(ctx, rec, s, t, n);
     if E::GATE && past_gate(ctx.settings, s.l + n * t) {
         return Some(End::Gated);
     }
@@ -748,6 +767,7 @@ impl Bounces {
 /// it, outside the walk. The layered twin, which has no solids, parts from the path here.
 #[inline(always)]
 fn to_solid<E: Estimator>(
+    est: &mut E,
     ctx: &WalkContext,
     s: &mut PathState,
     (t, n, li): (f64, f64, usize),
@@ -755,12 +775,12 @@ fn to_solid<E: Estimator>(
     rng: &PathRng,
     rec: &mut Recorder,
 ) -> End {
-    E::track(ctx, rec, s, t, n);
+    est.track(ctx, rec, s, t, n);
     if E::GATE && past_gate(ctx.settings, s.l + n * t) {
         return End::Gated;
     }
     advance::<E>(s, t, n);
-    E::at_solid(s, li, rng, rec);
+    est.at_solid(s, li, rng);
     End::AtOpaque(k)
 }
 
