@@ -13,7 +13,7 @@ use crate::sampling::{PathRng, warp};
 
 use super::camera::CameraTarget;
 use super::event::{deflect, doppler_event, doppler_increment, particle_velocity, scatter_direction};
-use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, turn, walk_to_the_end};
+use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, scatter, walk_to_the_end};
 
 /// Camera paths through a scene where something moves (`DOPPLER`) and whose optical path length
 /// is needed (`LENGTH`); its value is the path's [`Balance`] against its connections.
@@ -441,10 +441,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         Some(up) => Balance::BeamLobe(pop.phase.eval(d.cos) / guide.eval(up.dot(out))),
         None => Balance::Full,
     };
-    if dynamic {
-        doppler_event(s, pop, n, v, delta);
-    }
-    turn(s, out, ctx.settings, rng, checkpoint)
+    scatter(s, pop, n, dynamic.then_some(v), (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// [`collide_camera`] at or below the stack's first rough face, where the beam's light arrives
@@ -486,10 +483,7 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     *balance = face_mis(ctx, li, out, pop.phase.eval(d.cos));
-    if dynamic {
-        doppler_event(s, pop, n, v, delta);
-    }
-    turn(s, out, ctx.settings, rng, checkpoint)
+    scatter(s, pop, n, dynamic.then_some(v), (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// A vertex a camera path connects to the laser from: where, the walk's direction into it, the

@@ -51,9 +51,9 @@
 //! connection at `y`. The walk reaches the same `y` by drawing `u` from `p(d · u)` and crossing the
 //! same interfaces by the Fresnel coin, so the two are weighted by the balance heuristic (Veach
 //! 1997, ch. 9) with the densities `p(d·u)·ΠT_i` and `q(u)` (the flights' densities are common):
-//! the walk's connection at `y` by `r/(r + 1)` with `r = p(d·u)·ΠT_i/q(u)` carried in
-//! `PathState::mis` (weight 1 when an interface reflected it on the way: no lobe path has
-//! that), the lobe's by `p(d·u)·ΠT_i/(p(d·u)·ΠT_i + q(u))`. Where `x` lies in a layer of broad
+//! the walk's connection at `y` by `r/(r + 1)` with `r = p(d·u)·ΠT_i/q(u)` carried in the
+//! camera path's balance (`adjoint::Balance::BeamLobe`; weight 1 when an interface reflected it
+//! on the way: no lobe path has that), the lobe's by `p(d·u)·ΠT_i/(p(d·u)·ΠT_i + q(u))`. Where `x` lies in a layer of broad
 //! scattering (the RPE, the choroid), `p(d·u)` is smooth and the spike of the retina's phase
 //! function at `y` is sampled by `q` instead of met by chance.
 //!
@@ -72,8 +72,9 @@
 //! ([`face_lobe`]): a transmitted direction drawn from the face's microfacets for the beam's
 //! direction, the straight way up to the face along it, and the radiance the face sends down
 //! there. The walk reaches the same face point by drawing the direction from its vertex, so the
-//! two are balanced as the beam-lobe connection is (`PathState::mis` carries the ratio of the
-//! walk's density, times the smooth faces' transmittances, to the lobe's, [`face_lobe_density`]).
+//! two are balanced as the beam-lobe connection is (`adjoint::Balance::FaceLobe` carries the ratio
+//! of the walk's density, times the smooth faces' transmittances, to the lobe's,
+//! [`face_lobe_density`]).
 //! A smooth mirror in the beam above every rough face would reflect a second collimated beam,
 //! which no connection reaches: refused at resolve time.
 
@@ -477,7 +478,7 @@ pub fn face_lobe(
     let dir = up_in(n)?;
     let mut way = Crossing { pos, ..Crossing::START };
     // The smooth faces' Fresnel transmittances alone (`way.transmit` also holds ratio tracking's
-    // factors through density layers, which the walk's `mis` does not).
+    // factors through density layers, which the walk's balance does not).
     let mut fresnel = 1.0;
     for j in (face..=li).rev() {
         let layer = &scene.layers[j];

@@ -14,14 +14,16 @@ use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
 use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
 
-use super::event::{RENORMALISE_EVERY, deflect, doppler_event, doppler_increment, particle_velocity};
+use super::event::{RENORMALISE_EVERY, doppler_event, doppler_increment, particle_velocity};
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::policy::WalkSettings;
 use super::steering::Pending;
 use super::tracking::{Flight, LayerRay};
 use super::twin::{Split, TWIN_BAND};
-use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, turn, walk_to_the_end};
+use super::walk::{
+    End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, scatter, walk_to_the_end,
+};
 use super::windows::Windows;
 
 /// The forward estimator, compiled per kind of scene: `DOPPLER = false` drops every velocity
@@ -540,22 +542,9 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
         return Some(End::Absorbed);
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
-    let (out, delta) = match ctx.windows {
-        Some(w) if w.guide.is_some() => {
-            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
-            let (_, out, delta) = super::steering::continue_guided(s, &pop.phase, cell, rng);
-            (out, delta)
-        }
-        _ => {
-            let (_, out, delta) = deflect(s.dir, &pop.phase, rng);
-            (out, delta)
-        }
-    };
-    if DOPPLER && dynamic {
-        let v = particle_velocity(pop, s.pos, rng);
-        doppler_event(s, pop, n, v, delta);
-    }
-    turn(s, out, ctx.settings, rng, checkpoint)
+    let (_, out, delta) = super::steering::continuation(ctx.windows, li, s, &pop.phase, rng);
+    let v = (DOPPLER && dynamic).then(|| particle_velocity(pop, s.pos, rng));
+    scatter(s, pop, n, v, (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
@@ -684,16 +673,8 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     // The continuation: guided where the weight windows have a guide that acts here, but not at
     // a collision the twin shares in a region (its likelihood ratio takes the phase function's own
     // draw).
-    let (cos, out, delta) = match windows {
-        Some(w) if w.guide.is_some() && coupled.is_none() => {
-            let cell = w.guide_cell(li, s.pos, s.dir, &pop.phase);
-            super::steering::continue_guided(s, &pop.phase, cell, rng)
-        }
-        _ => {
-            let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
-            (d.cos, out, delta)
-        }
-    };
+    let steer = windows.filter(|_| coupled.is_none());
+    let (cos, out, delta) = super::steering::continuation(steer, li, s, &pop.phase, rng);
     if !nee.is_empty() {
         st.direct = Some(pop.phase.eval(cos) / (n * n * out.z.abs()));
     }
@@ -713,10 +694,7 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
         tw.brownian += shift.brownian - own.brownian;
         tw.doppler_events += i64::from(shift.doppler_events) - i64::from(own.doppler_events);
     }
-    if dynamic {
-        doppler_event(s, pop, n, v, delta);
-    }
-    turn(s, out, settings, rng, checkpoint)
+    scatter(s, pop, n, dynamic.then_some(v), (out, delta), settings, rng, checkpoint)
 }
 
 /// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene

@@ -102,30 +102,75 @@ impl Guide {
         Guide { value, acts }
     }
 
-    /// The table's values (per polar band) at a vertex in layer `li` at `pos`, reached along
-    /// `dir_in`, of a scatterer of phase function `phase`, where the guide acts there; `None`
-    /// where it does not.
+    /// The guide's distribution of the continuation at a vertex in layer `li` at `pos`, reached
+    /// along `dir_in`, of a scatterer of phase function `phase`, where the guide acts there
+    /// (Open PGL's `VolumeSamplingDistribution::Init` for a vertex); `None` where it does not
+    /// (the continuation is then the phase function's own draw, unweighted).
     #[inline]
-    pub fn cell(
-        &self,
+    pub fn at<'a>(
+        &'a self,
         grid: &ImportanceGrid,
         li: usize,
         pos: DVec3,
         dir_in: DVec3,
-        phase: &PhaseFunction,
-    ) -> Option<&[f64]> {
+        phase: &'a PhaseFunction,
+    ) -> Option<Directions<'a>> {
         let key = PhaseKey::of(phase);
         let (_, acts) = self.acts.iter().find(|(k, _)| *k == key)?;
         // The table's bins at this depth (and lateral bin) start at the bin of θ = 0.
         let base = grid.bin(li, pos, 1.0);
-        acts[base + ImportanceGrid::angle_bin(dir_in.z)].then(|| &self.value[base..base + ANGLE_BINS])
+        acts[base + ImportanceGrid::angle_bin(dir_in.z)].then(|| Directions {
+            values: &self.value[base..base + ANGLE_BINS],
+            phase,
+            dir_in,
+        })
+    }
+}
+
+/// The guide's distribution of a path's continuation at one vertex, in the shape of Open PGL's
+/// `VolumeSamplingDistribution`: made for the vertex ([`Guide::at`]: the table's values per polar
+/// band there, the particle's phase function, the direction the path arrived along), then sampled
+/// ([`sample`](Self::sample)), with the importance it leans toward ([`importance`](Self::importance),
+/// Open PGL's `IncomingRadiancePDF` up to its normalisation).
+///
+/// Unlike Open PGL's mixtures it offers no `pdf`: a direction kept by resampling [`CANDIDATES`]
+/// phase-function draws has no closed-form density (the expectation over the other candidates of
+/// `K·w/Σw` times the phase function's). The draw carries its weight factor instead, which keeps
+/// the estimate unbiased whatever the values; an estimator balancing its own techniques against
+/// this one weighs the continuation by the phase function's density (any partition of unity keeps
+/// the estimators unbiased, as next-event estimation's escapes do here).
+#[derive(Debug, Clone, Copy)]
+pub struct Directions<'a> {
+    values: &'a [f64],
+    phase: &'a PhaseFunction,
+    dir_in: DVec3,
+}
+
+impl Directions<'_> {
+    /// A continuation `(cos θ, out, dir_in − out)` and the factor on the path's weight
+    /// ([`resample`]), drawing its candidates with `draw` (the phase function's own sampling,
+    /// [`super::event::deflect`]).
+    #[inline]
+    pub fn sample(&self, rng: &mut PathRng) -> (Candidate, f64) {
+        let (dir, phase) = (self.dir_in, self.phase);
+        resample(self.values, rng, |rng| {
+            let (d, out, delta) = super::event::deflect(dir, phase, rng);
+            (d.cos, out, delta)
+        })
+    }
+
+    /// The table's importance toward `out` (its polar band's value), which the candidates are
+    /// resampled on (before the floor).
+    #[inline]
+    pub fn importance(&self, out: DVec3) -> f64 {
+        self.values[ImportanceGrid::angle_bin(out.z)]
     }
 }
 
 /// One of [`CANDIDATES`] directions from the phase function: `(cos θ, out, dir − out)`.
 pub type Candidate = (f64, DVec3, DVec3);
 
-/// The guided continuation at a cell of values `values` (per polar band, [`Guide::cell`]):
+/// The guided continuation at a cell of values `values` (per polar band, [`Guide::at`]):
 /// [`CANDIDATES`] directions drawn by `draw` from the phase function, one kept by resampling on
 /// their bands' values (with the [`FLOOR`]); returns it and the path's weight factor.
 #[inline]

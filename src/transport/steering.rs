@@ -12,7 +12,7 @@ use crate::sampling::PathRng;
 use super::event::deflect;
 use super::forward::ForwardState;
 use super::walk::{End, WalkContext};
-use super::windows::{Action, MAX_PENDING};
+use super::windows::{Action, MAX_PENDING, Windows};
 
 /// The weight window of `s` after a scattering event in layer `li` (`run.importance =
 /// "windows"`, [`super::windows`]): split it, play roulette (`Some`: it has ended) or keep it.
@@ -71,25 +71,46 @@ pub(super) struct Pending {
     pub direct: Option<f64>,
 }
 
-/// The continuation of `s` from a scatterer of phase function `phase` where the guide acts with
-/// the table's values `cell` ([`super::guide`]): one of several directions drawn from the phase
-/// function, resampled on their importance, and the weight times the resampling's factor; the
-/// phase function's draw alone (weight unchanged) where it does not (`cell` `None`). Returns
-/// `(cos θ, out, dir − out)` of the deflection.
-#[inline(never)]
-pub(super) fn continue_guided(
+/// The continuation of a forward path `s` from a scatterer of phase function `phase` in layer
+/// `li`: from the guide's distribution at the vertex where the weight windows have a guide
+/// ([`continue_guided`]), else the phase function's draw. Returns `(cos θ, out, dir − out)` of
+/// the deflection.
+#[inline(always)]
+pub(super) fn continuation(
+    windows: Option<&Windows>,
+    li: usize,
     s: &mut PathState,
     phase: &crate::phase::PhaseFunction,
-    cell: Option<&[f64]>,
     rng: &mut PathRng,
 ) -> (f64, DVec3, DVec3) {
-    let dir = s.dir;
-    let draw = |rng: &mut PathRng| {
-        let (d, out, delta) = deflect(dir, phase, rng);
-        (d.cos, out, delta)
+    match windows {
+        Some(w) if w.guide.is_some() => {
+            let guided = w.guide_at(li, s.pos, s.dir, phase);
+            continue_guided(s, phase, guided, rng)
+        }
+        _ => {
+            let (d, out, delta) = deflect(s.dir, phase, rng);
+            (d.cos, out, delta)
+        }
+    }
+}
+
+/// The continuation of `s` from a scatterer of phase function `phase` where the guide acts
+/// (`guided`, [`super::guide::Directions`]): one of several directions drawn from the phase
+/// function, resampled on their importance, and the weight times the resampling's factor; the
+/// phase function's draw alone (weight unchanged) where it does not (`None`).
+#[inline(never)]
+fn continue_guided(
+    s: &mut PathState,
+    phase: &crate::phase::PhaseFunction,
+    guided: Option<super::guide::Directions>,
+    rng: &mut PathRng,
+) -> (f64, DVec3, DVec3) {
+    let Some(guided) = guided else {
+        let (d, out, delta) = deflect(s.dir, phase, rng);
+        return (d.cos, out, delta);
     };
-    let Some(cell) = cell else { return draw(rng) };
-    let (chosen, factor) = super::guide::resample(cell, rng, draw);
+    let (chosen, factor) = guided.sample(rng);
     s.weight *= factor;
     chosen
 }

@@ -266,6 +266,7 @@ pub(super) enum End {
 /// flight that would leave the box stops at the face ahead, where Fresnel's law against
 /// `n_outside` reflects the path back in or lets it out (`End::Lateral`). Shadow rays and
 /// camera paths are not run in a box (refused at resolve time).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn walk<E: Estimator>(
     est: &mut E,
@@ -648,6 +649,7 @@ pub(super) struct SurfaceHit<'a> {
 /// as is a rough surface's masked share), and the surface's Doppler term. A reflection is a
 /// scattering event: one more order, the event cap and Russian roulette. `Some` end if the path
 /// ends here.
+#[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn reflect_at_surface<E: Estimator>(
     est: &mut E,
@@ -816,6 +818,29 @@ pub(super) fn absorb(s: &mut PathState, albedo: f64, absorbed: &mut f64) -> bool
     *absorbed += s.weight * (1.0 - albedo);
     s.weight *= albedo;
     s.weight <= 0.0
+}
+
+/// The tail of every real scattering event on a particle of population `pop` in a layer of index
+/// `n`, once the estimator has drawn the new direction `out` (`delta` = `dir − out`): the event's
+/// Doppler and Brownian terms if the particle moves at `v` (`None`: it does not, or the walk does
+/// not track them), then the turn ([`turn`]). The forward and adjoint estimators' collisions all
+/// end here.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn scatter(
+    s: &mut PathState,
+    pop: &crate::medium::Population,
+    n: f64,
+    v: Option<DVec3>,
+    (out, delta): (DVec3, DVec3),
+    settings: &WalkSettings,
+    rng: &mut PathRng,
+    checkpoint: &mut u32,
+) -> Option<End> {
+    if let Some(v) = v {
+        super::event::doppler_event(s, pop, n, v, delta);
+    }
+    turn(s, out, settings, rng, checkpoint)
 }
 
 /// The path turns to `out` at a real collision: one more scattering order, then the end of the

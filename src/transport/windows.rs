@@ -110,17 +110,17 @@ impl Windows {
         Windows { guide: Some(Guide::new(scene, value)), ..self }
     }
 
-    /// The table's values at a vertex where the guide acts there ([`Guide::cell`]); `None`
-    /// without a guide.
+    /// The guide's distribution of the continuation at a vertex where it acts there
+    /// ([`Guide::at`]); `None` without a guide.
     #[inline]
-    pub fn guide_cell(
-        &self,
+    pub fn guide_at<'a>(
+        &'a self,
         li: usize,
         pos: glam::DVec3,
         dir_in: glam::DVec3,
-        phase: &crate::phase::PhaseFunction,
-    ) -> Option<&[f64]> {
-        self.guide.as_ref()?.cell(&self.grid, li, pos, dir_in, phase)
+        phase: &'a crate::phase::PhaseFunction,
+    ) -> Option<super::guide::Directions<'a>> {
+        self.guide.as_ref()?.at(&self.grid, li, pos, dir_in, phase)
     }
 
     /// What the window of the state of `s` in layer `li` does to it.
