@@ -8,11 +8,11 @@
 use glam::DVec3;
 
 use crate::detect::{PathState, Recorder, Shot};
-use crate::medium::{Medium, Population};
+use crate::medium::Medium;
 use crate::sampling::{PathRng, warp};
 
 use super::camera::CameraTarget;
-use super::event::{deflect, doppler_event, doppler_increment, particle_velocity, scatter_direction};
+use super::event::{Particle, deflect, doppler_increment, scatter_direction};
 use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, scatter, walk_to_the_end};
 
 /// Camera paths through a scene where something moves (`DOPPLER`) and whose optical path length
@@ -387,9 +387,8 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     if li >= scene.first_rough_face {
         return collide_camera_beyond::<DOPPLER, LENGTH>(ctx, li, s, balance, m, n, rng, checkpoint, rec);
     }
-    let (pop, dynamic) = m.pick_dynamic(rng);
-    let dynamic = DOPPLER && dynamic;
-    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    let particle = Particle::pick::<DOPPLER>(m, s.pos, rng);
+    let pop = particle.pop;
     // The beam reaches the vertex through at least the same optical depth as a shadow ray.
     let boost = super::nee::connection_roulette(scene, li, s, rng);
     // The guide lobe about the beam's reversed direction in this layer.
@@ -403,7 +402,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
             Balance::BeamLobe(q) => Some(q),
             _ => None,
         });
-        let here = Link { pos: s.pos, dir_in: s.dir, pop, v, dynamic, n };
+        let here = Link { pos: s.pos, dir_in: s.dir, particle, n };
         let tail = *s;
         rec.stats.work.camera_connections += 1;
         connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
@@ -418,17 +417,13 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
             if let Some(h) = super::camera::lobe_flight(scene, li, s.pos, dir, ctx.settings.tracking, rng) {
                 let m2 = &scene.media[h.medium];
                 let albedo2 = if scene.layers[h.layer].heterogeneous { m2.albedo_at(h.pos) } else { m2.albedo() };
-                let (pop2, dynamic2) = m2.pick_dynamic(rng);
-                let dynamic2 = DOPPLER && dynamic2;
-                let v2 = if dynamic2 { particle_velocity(pop2, h.pos, rng) } else { DVec3::ZERO };
+                let there_particle = Particle::pick::<DOPPLER>(m2, h.pos, rng);
                 let mut tail = tail;
-                if dynamic {
-                    doppler_event(&mut tail, pop, n, v, s.dir - dir);
-                }
+                particle.event(&mut tail, n, s.dir - dir);
                 tail.order += 1;
                 tail.l += if LENGTH { h.length } else { 0.0 };
                 let n2 = scene.layers[h.layer].n;
-                let there = Link { pos: h.pos, dir_in: h.dir, pop: pop2, v: v2, dynamic: dynamic2, n: n2 };
+                let there = Link { pos: h.pos, dir_in: h.dir, particle: there_particle, n: n2 };
                 let pt = p_walk * h.transmit;
                 let w = s.weight * boost * pt / (pt + p_guide) * h.radiance * albedo2;
                 rec.stats.work.camera_connections += 1;
@@ -441,7 +436,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         Some(up) => Balance::BeamLobe(pop.phase.eval(d.cos) / guide.eval(up.dot(out))),
         None => Balance::Full,
     };
-    scatter(s, pop, n, dynamic.then_some(v), (out, delta), ctx.settings, rng, checkpoint)
+    scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// [`collide_camera`] at or below the stack's first rough face, where the beam's light arrives
@@ -462,9 +457,8 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
     checkpoint: &mut u32,
     rec: &mut Recorder,
 ) -> Option<End> {
-    let (pop, dynamic) = m.pick_dynamic(rng);
-    let dynamic = DOPPLER && dynamic;
-    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    let particle = Particle::pick::<DOPPLER>(m, s.pos, rng);
+    let pop = particle.pop;
     let boost = super::nee::connection_roulette(ctx.scene, li, s, rng);
     if boost > 0.0
         && let Some(shot) = ctx.shot
@@ -475,15 +469,13 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
             (p, p)
         };
         let mark = |e: &mut PathState, arrive: DVec3| {
-            if dynamic {
-                doppler_event(e, pop, n, v, arrive + dir_in);
-            }
+            particle.event(e, n, arrive + dir_in);
         };
         face_connection::<LENGTH>(ctx, li, &shot, s, density, boost, mark, rng, rec);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     *balance = face_mis(ctx, li, out, pop.phase.eval(d.cos));
-    scatter(s, pop, n, dynamic.then_some(v), (out, delta), ctx.settings, rng, checkpoint)
+    scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// A vertex a camera path connects to the laser from: where, the walk's direction into it, the
@@ -492,9 +484,7 @@ fn collide_camera_beyond<const DOPPLER: bool, const LENGTH: bool>(
 struct Link<'a> {
     pos: DVec3,
     dir_in: DVec3,
-    pop: &'a Population,
-    v: DVec3,
-    dynamic: bool,
+    particle: Particle<'a>,
     n: f64,
 }
 
@@ -514,7 +504,7 @@ fn connect<const LENGTH: bool>(
 ) {
     let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
     // The light arrives along `b.dir` and leaves towards the camera along `−dir_in`.
-    let p = at.pop.phase.eval(-b.dir.dot(at.dir_in));
+    let p = at.particle.pop.phase.eval(-b.dir.dot(at.dir_in));
     let mut e = PathState {
         pos: at.pos,
         dir: -at.dir_in,
@@ -523,8 +513,6 @@ fn connect<const LENGTH: bool>(
         order: tail.order + 1,
         ..tail
     };
-    if at.dynamic {
-        doppler_event(&mut e, at.pop, at.n, at.v, b.dir + at.dir_in);
-    }
+    at.particle.event(&mut e, at.n, b.dir + at.dir_in);
     rec.camera(shot, &e);
 }

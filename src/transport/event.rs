@@ -86,6 +86,34 @@ pub(super) fn deflect(
     (d, out, delta)
 }
 
+/// The particle a path scatters on at a real collision: its population and, if it moves, its
+/// velocity (`None` where it does not, or where the walk does not track the Doppler term).
+#[derive(Clone, Copy)]
+pub(super) struct Particle<'a> {
+    pub pop: &'a Population,
+    pub v: Option<DVec3>,
+}
+
+impl<'a> Particle<'a> {
+    /// A particle of the medium `m` at `pos`: a population by the medium's shares, then its
+    /// velocity if it moves (and `DOPPLER`).
+    #[inline(always)]
+    pub fn pick<const DOPPLER: bool>(m: &'a crate::medium::Medium, pos: DVec3, rng: &mut PathRng) -> Self {
+        let (pop, dynamic) = m.pick_dynamic(rng);
+        let v = (DOPPLER && dynamic).then(|| particle_velocity(pop, pos, rng));
+        Particle { pop, v }
+    }
+
+    /// The event's Doppler and Brownian terms on `s`, in a layer of index `n`, for
+    /// `dir_in − dir_out = delta` ([`doppler_event`]); nothing if the particle does not move.
+    #[inline(always)]
+    pub fn event(&self, s: &mut PathState, n: f64, delta: DVec3) {
+        if let Some(v) = self.v {
+            doppler_event(s, self.pop, n, v, delta);
+        }
+    }
+}
+
 /// The velocity of the particle a path scatters on at `p`: the flow plus, for a medium with a
 /// velocity dispersion, a Gaussian random velocity drawn for this event.
 #[inline(always)]

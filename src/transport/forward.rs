@@ -14,13 +14,13 @@ use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
 use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
 
-use super::event::{RENORMALISE_EVERY, doppler_event, doppler_increment, particle_velocity};
+use super::event::{Particle, RENORMALISE_EVERY, doppler_increment, particle_velocity};
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::policy::WalkSettings;
 use super::steering::Pending;
 use super::tracking::{Flight, LayerRay};
-use super::twin::{Split, TWIN_BAND};
+use super::twin::Split;
 use super::walk::{
     End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, scatter, walk_to_the_end,
 };
@@ -506,16 +506,13 @@ fn surface_shadow_rays<const LENGTH: bool>(
         }
         // The layered twin has the same planar surface (the bottom, a rough face): its shadow ray
         // is the path's without the regions' excess optical depth, weighted by `Λ`.
-        let twin = match twin {
-            None => Twin::Off,
-            Some(tw) if tw.only => Twin::Only(tw.launch),
-            Some(tw) if !tw.touched && h.twin_is_path() => Twin::Same(tw.launch),
-            Some(tw) => {
-                let mut t = tw.state(&e);
-                t.weight = s.weight * tw.lambda * boost * h.twin_factor(density(h.dir_vertex).0);
-                Twin::Other(t, tw.launch)
-            }
-        };
+        let twin = super::twin::shadow_ray(
+            twin,
+            &e,
+            || h.twin_is_path(),
+            |tw| s.weight * tw.lambda * boost * h.twin_factor(density(h.dir_vertex).0),
+            |_| {},
+        );
         rec.next_event(target.detector, &e, twin, ctx.scene.n_above);
     }
 }
@@ -543,8 +540,9 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     }
     let (pop, dynamic) = m.pick_dynamic(rng);
     let (_, out, delta) = super::steering::continuation(ctx.windows, li, s, &pop.phase, rng);
-    let v = (DOPPLER && dynamic).then(|| particle_velocity(pop, s.pos, rng));
-    scatter(s, pop, n, v, (out, delta), ctx.settings, rng, checkpoint)
+    // (The velocity after the direction: this walk's streams as they always were.)
+    let particle = Particle { pop, v: (DOPPLER && dynamic).then(|| particle_velocity(pop, s.pos, rng)) };
+    scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
 }
 
 /// [`collide`] with next-event estimation: after the absorption weighting, a shadow ray toward
@@ -575,50 +573,19 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     st: &mut ForwardState,
     rec: &mut Recorder,
 ) -> Option<End> {
-    // The layered twin collides in the layer's filling medium where the path collides in a region.
-    // While `Λ` stays within [1/TWIN_BAND, TWIN_BAND] it shares the path's collision (below);
-    // beyond, it parts from the path here and walks on by itself ([`Split`], traced after the
-    // path) from the path's state arriving here, weighted by `Λ` and the collision densities'
-    // ratio `σt,fill / σt,medium`; the path goes on without a twin.
+    // The layered twin at its path's collision: parted here, or sharing it in a region
+    // ([`super::twin::at_collision`]).
     let fill = &scene.media[scene.layers[li].medium];
-    let in_region = st.twin.is_some_and(|t| !t.only) && !std::ptr::eq(m, fill);
-    if in_region
-        && let Some(tw) = st.twin
-        && !(1.0 / TWIN_BAND..=TWIN_BAND).contains(&tw.lambda)
-    {
-        let weight = s.weight * fill.sigma_t() / m.sigma_t();
-        st.split = Some(Split {
-            s: tw.state(&PathState { weight, ..*s }),
-            li,
-            twin: tw,
-            rng: rng.clone(),
-            flying: false,
-            direct: st.direct,
-        });
-        st.twin = None;
-    }
+    let in_region = super::twin::at_collision(st, s, m, fill, li, rng);
     if absorb(s, albedo, absorbed) {
         return Some(End::Absorbed);
     }
-    // One population serves the shadow rays and the continuation (so that the balance heuristic
+    // One particle serves the shadow rays and the continuation (so that the balance heuristic
     // of `shadow_ray` weighs against the density the continuation is drawn from).
-    let (pop, dynamic) = m.pick_dynamic(rng);
-    let dynamic = DOPPLER && dynamic;
-    let v = if dynamic { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
-    // The coupled twin's particles here (drawn by the fill's shares, on its own: no ratio), their
-    // velocity, and its collision and weight after it over the path's: `σt,fill·a_fill / (σt·a)
-    // = σs,fill/σs` (the flight's share is in from the flight). Not over the population's σs:
-    // the path's draw of its particles is no part of the twin's density (measured: a vessel of
-    // two populations, 14 and 6 /mm, gave an image 19 % low, χ² 57 over 16 pixels).
-    let coupled = (in_region && st.twin.is_some()).then(|| {
-        let (tpop, tdyn) = fill.pick_dynamic(rng);
-        let tdyn = DOPPLER && tdyn;
-        (tpop, tdyn, if tdyn { particle_velocity(tpop, s.pos, rng) } else { DVec3::ZERO })
-    });
-    if let (Some(tw), true) = (st.twin.as_mut(), coupled.is_some()) {
-        tw.lambda *= fill.sigma_s() / m.sigma_s();
-        tw.touched = true;
-    }
+    let path = Particle::pick::<DOPPLER>(m, s.pos, rng);
+    let pop = path.pop;
+    // The coupled twin's own particle where it shares a collision in a region.
+    let coupled = if in_region { super::twin::couple::<DOPPLER>(st, m, fill, s.pos, rng) } else { None };
     // (Without next-event targets this walk runs for the layered twin alone: no roulette draw, no
     // shadow ray, no density for the escapes' weights against them.)
     let boost = if nee.is_empty() { 0.0 } else { super::nee::connection_roulette(scene, li, s, rng) };
@@ -646,28 +613,17 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             ..*s
         };
         let in_out = s.dir - h.dir_vertex;
-        // The twin's shadow ray: its phase function (its own particles' where it shares a
+        // The twin's shadow ray: its phase function (its own particle's where it shares a
         // collision in a region), without the regions' excess optical depth, its Doppler state.
-        let twin = match st.twin {
-            None => Twin::Off,
-            Some(tw) if tw.only => Twin::Only(tw.launch),
-            Some(tw) if !tw.touched && coupled.is_none() && h.twin_is_path() => Twin::Same(tw.launch),
-            Some(tw) => {
-                let mut t = tw.state(&e);
-                let p = coupled.map_or(&pop.phase, |(tpop, ..)| &tpop.phase);
-                t.weight = s.weight * tw.lambda * boost * h.twin_factor(p.eval(s.dir.dot(h.dir_vertex)));
-                match coupled {
-                    Some((tpop, true, tv)) => doppler_event(&mut t, tpop, n, tv, in_out),
-                    Some(_) => {}
-                    None if dynamic => doppler_event(&mut t, pop, n, v, in_out),
-                    None => {}
-                }
-                Twin::Other(t, tw.launch)
-            }
-        };
-        if dynamic {
-            doppler_event(&mut e, pop, n, v, in_out);
-        }
+        let own = coupled.unwrap_or(path);
+        let twin = super::twin::shadow_ray(
+            st.twin.as_ref(),
+            &e,
+            || coupled.is_none() && h.twin_is_path(),
+            |tw| s.weight * tw.lambda * boost * h.twin_factor(own.pop.phase.eval(s.dir.dot(h.dir_vertex))),
+            |t| own.event(t, n, in_out),
+        );
+        path.event(&mut e, n, in_out);
         rec.next_event(target.detector, &e, twin, scene.n_above);
     }
     // The continuation: guided where the weight windows have a guide that acts here, but not at
@@ -678,23 +634,10 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     if !nee.is_empty() {
         st.direct = Some(pop.phase.eval(cos) / (n * n * out.z.abs()));
     }
-    if let (Some(tw), Some((tpop, tdyn, tv))) = (st.twin.as_mut(), coupled) {
-        // The coupled twin's density of the direction drawn over the path's, and its Doppler
-        // event instead of the path's.
-        tw.lambda *= tpop.phase.eval(cos) / pop.phase.eval(cos);
-        let mut shift = PathState::new(s.pos, s.dir, 0.0, 0.0);
-        if tdyn {
-            doppler_event(&mut shift, tpop, n, tv, delta);
-        }
-        let mut own = PathState::new(s.pos, s.dir, 0.0, 0.0);
-        if dynamic {
-            doppler_event(&mut own, pop, n, v, delta);
-        }
-        tw.dldt += shift.dldt - own.dldt;
-        tw.brownian += shift.brownian - own.brownian;
-        tw.doppler_events += i64::from(shift.doppler_events) - i64::from(own.doppler_events);
+    if let Some(own) = coupled {
+        super::twin::turned(st, own, path, s, n, cos, delta);
     }
-    scatter(s, pop, n, dynamic.then_some(v), (out, delta), settings, rng, checkpoint)
+    scatter(s, path, n, (out, delta), settings, rng, checkpoint)
 }
 
 /// The twin's own walk from where it parted from its path ([`Split`]), in the twin's scene

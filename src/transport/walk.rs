@@ -31,7 +31,7 @@ use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
 use crate::source::Source;
 
-use super::event::{RENORMALISE_EVERY, doppler_increment, renormalise};
+use super::event::{Particle, RENORMALISE_EVERY, doppler_increment, renormalise};
 use super::fresnel;
 use super::nee::NeeTarget;
 use super::policy::WalkSettings;
@@ -820,26 +820,21 @@ pub(super) fn absorb(s: &mut PathState, albedo: f64, absorbed: &mut f64) -> bool
     s.weight <= 0.0
 }
 
-/// The tail of every real scattering event on a particle of population `pop` in a layer of index
-/// `n`, once the estimator has drawn the new direction `out` (`delta` = `dir − out`): the event's
-/// Doppler and Brownian terms if the particle moves at `v` (`None`: it does not, or the walk does
-/// not track them), then the turn ([`turn`]). The forward and adjoint estimators' collisions all
-/// end here.
-#[allow(clippy::too_many_arguments)]
+/// The tail of every real scattering event on the particle `p` in a layer of index `n`, once the
+/// estimator has drawn the new direction `out` (`delta` = `dir − out`): the event's Doppler and
+/// Brownian terms if the particle moves ([`Particle::event`]), then the turn ([`turn`]). The
+/// forward and adjoint estimators' collisions all end here.
 #[inline(always)]
 pub(super) fn scatter(
     s: &mut PathState,
-    pop: &crate::medium::Population,
+    p: Particle,
     n: f64,
-    v: Option<DVec3>,
     (out, delta): (DVec3, DVec3),
     settings: &WalkSettings,
     rng: &mut PathRng,
     checkpoint: &mut u32,
 ) -> Option<End> {
-    if let Some(v) = v {
-        super::event::doppler_event(s, pop, n, v, delta);
-    }
+    p.event(s, n, delta);
     turn(s, out, settings, rng, checkpoint)
 }
 
