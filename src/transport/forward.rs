@@ -71,21 +71,6 @@ impl<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
-> Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
-{
-    /// The estimator for a batch of paths.
-    pub(super) fn new() -> Self {
-        Forward(ForwardState::default())
-    }
-}
-
-impl<
-    const DOPPLER: bool,
-    const LENGTH: bool,
-    const NEE: bool,
-    const VOLUME: bool,
-    const GATE: bool,
-    const LATERAL: bool,
 > Estimator for Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
 {
     const DOPPLER: bool = DOPPLER;
@@ -269,6 +254,11 @@ impl<
     const LATERAL: bool,
 > Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
 {
+    /// The estimator for a batch of paths.
+    pub(super) fn new() -> Self {
+        Forward(ForwardState::default())
+    }
+
     /// Trace one path from the source until it leaves the stack or ends, recording it into `rec`.
     ///
     /// The walk itself (`walk`) does not touch the recorder: it accumulates the absorbed weight in
