@@ -86,12 +86,15 @@ pub(super) fn deflect(
     (d, out, delta)
 }
 
-/// The particle a path scatters on at a real collision: its population and, if it moves, its
-/// velocity (`None` where it does not, or where the walk does not track the Doppler term).
+/// The particle a path scatters on at a real collision: its population, whether it moves (never
+/// where the walk does not track the Doppler term) and its velocity then. (A flag and a vector, not
+/// an `Option`: held as an `Option<DVec3>` through the shadow rays' loop it cost fmcw_target's
+/// collisions 28 instructions each, callgrind.)
 #[derive(Clone, Copy)]
 pub(super) struct Particle<'a> {
     pub pop: &'a Population,
-    pub v: Option<DVec3>,
+    pub moving: bool,
+    pub v: DVec3,
 }
 
 impl<'a> Particle<'a> {
@@ -100,16 +103,17 @@ impl<'a> Particle<'a> {
     #[inline(always)]
     pub fn pick<const DOPPLER: bool>(m: &'a crate::medium::Medium, pos: DVec3, rng: &mut PathRng) -> Self {
         let (pop, dynamic) = m.pick_dynamic(rng);
-        let v = (DOPPLER && dynamic).then(|| particle_velocity(pop, pos, rng));
-        Particle { pop, v }
+        let moving = DOPPLER && dynamic;
+        let v = if moving { particle_velocity(pop, pos, rng) } else { DVec3::ZERO };
+        Particle { pop, moving, v }
     }
 
     /// The event's Doppler and Brownian terms on `s`, in a layer of index `n`, for
     /// `dir_in − dir_out = delta` ([`doppler_event`]); nothing if the particle does not move.
     #[inline(always)]
     pub fn event(&self, s: &mut PathState, n: f64, delta: DVec3) {
-        if let Some(v) = self.v {
-            doppler_event(s, self.pop, n, v, delta);
+        if self.moving {
+            doppler_event(s, self.pop, n, self.v, delta);
         }
     }
 }

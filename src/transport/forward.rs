@@ -531,7 +531,9 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
     let (pop, dynamic) = m.pick_dynamic(rng);
     let (_, out, delta) = super::steering::continuation(ctx.windows, li, s, &pop.phase, rng);
     // (The velocity after the direction: this walk's streams as they always were.)
-    let particle = Particle { pop, v: (DOPPLER && dynamic).then(|| particle_velocity(pop, s.pos, rng)) };
+    let moving = DOPPLER && dynamic;
+    let v = if moving { particle_velocity(pop, s.pos, rng) } else { DVec3::ZERO };
+    let particle = Particle { pop, moving, v };
     scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
 }
 
