@@ -16,7 +16,7 @@
 //! |---|---|---|
 //! | forward packets (escapes, next-event estimation, unscattered reflections, the volume tally) | [`super::forward`] | collision, rough face, surface |
 //! | adjoint camera paths (beam, beam-lobe and face-lobe connections) | [`super::adjoint`] | collision, refraction, rough face, surface |
-//! | the layered twin of the control variate (rides on forward paths) | [`super::twin`] | flights through regions, solids, its own walk |
+//! | the layered twin of the control variate (rides on forward paths, in their state) | [`super::twin`] | flights through regions, solids, its part of a collision (called by the forward estimator), its own walk |
 //! | steering: weight windows and the guide | [`super::steering`] | the end of a forward collision |
 //!
 //! Forward transport is packet tracing with absorption weighting and Russian roulette, as MCML
