@@ -41,7 +41,7 @@
 use std::sync::Arc;
 
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
+use ohd_fft::{Fft, Planner};
 
 use super::{ImageSpec, PathState, Twin};
 use crate::source::{Footprint, Profile};
@@ -223,12 +223,12 @@ impl TwinLayout {
         let first = (-(j1x - 1), -(j1y - 1));
         let size = (im.nx + cells.0 - 1, im.ny + cells.1 - 1);
         let fft = (fast_size(size.0), fast_size(size.1));
-        let mut planner = FftPlanner::new();
+        let mut planner = Planner::new();
         let plans = Plans {
-            x: planner.plan_fft_forward(fft.0),
-            y: planner.plan_fft_forward(fft.1),
-            x_inv: planner.plan_fft_inverse(fft.0),
-            y_inv: planner.plan_fft_inverse(fft.1),
+            x: planner.forward(fft.0),
+            y: planner.forward(fft.1),
+            x_inv: planner.inverse(fft.0),
+            y_inv: planner.inverse(fft.1),
         };
         // The footprint's mass per launch cell, transformed.
         let mut m = vec![Complex64::new(0.0, 0.0); fft.0 * fft.1];

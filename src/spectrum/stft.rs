@@ -32,7 +32,7 @@ use std::f64::consts::PI;
 
 use super::FrequencyAxis;
 use num_complex::Complex;
-use rustfft::FftPlanner;
+use ohd_fft::Planner;
 
 /// The analysis window of the STFT.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -171,14 +171,14 @@ impl Stft {
         if count == 0 {
             return None;
         }
-        let mut planner = FftPlanner::new();
-        let fft = planner.plan_fft_forward(n);
+        let mut planner = Planner::new();
+        let fft = planner.forward(n);
         let mut c: Vec<Complex<f64>> = self.coefficients.iter().map(|w| Complex::new(w * w, 0.0)).collect();
         fft.process(&mut c);
         // Pairs m apart: the cyclic autocorrelation of the indicator, |FFT|² transformed back.
         fft.process(&mut indicator);
         let mut pairs: Vec<Complex<f64>> = indicator.iter().map(|x| Complex::new(x.norm_sqr(), 0.0)).collect();
-        planner.plan_fft_inverse(n).process(&mut pairs);
+        planner.inverse(n).process(&mut pairs);
         let sum: f64 = c.iter().zip(&pairs).map(|(c, p)| c.norm_sqr() * p.re / n as f64).sum();
         Some(sum.max(0.0).sqrt() / (count as f64 * c[0].re))
     }
@@ -233,7 +233,7 @@ impl Stft {
             let weight = if d == 0 { 1.0 } else { 2.0 };
             *c *= sign * weight * self.autocorrelation[d] / self.norm;
         }
-        FftPlanner::new().plan_fft_inverse(n).process(&mut lag);
+        Planner::new().inverse(n).process(&mut lag);
         lag.iter().map(|c| c.re).collect()
     }
 }
@@ -465,8 +465,8 @@ pub struct BinnedPeriodogram {
     steps: Vec<Complex<f64>>,
     /// `(−1)^d c_d R_w(d)/(N Σw²)`, `c_0 = 1`, `c_d = 2`.
     weights: Vec<f64>,
-    forward: std::sync::Arc<dyn rustfft::Fft<f64>>,
-    inverse: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    forward: std::sync::Arc<dyn ohd_fft::Fft<f64>>,
+    inverse: std::sync::Arc<dyn ohd_fft::Fft<f64>>,
     lag: Vec<Complex<f64>>,
     scratch: Vec<Complex<f64>>,
 }
@@ -491,9 +491,9 @@ impl BinnedPeriodogram {
                 sign * c * stft.autocorrelation[d] / stft.norm
             })
             .collect();
-        let mut planner = FftPlanner::new();
-        let forward = planner.plan_fft_forward(n);
-        let inverse = planner.plan_fft_inverse(n);
+        let mut planner = Planner::new();
+        let forward = planner.forward(n);
+        let inverse = planner.inverse(n);
         let scratch_len = forward.get_inplace_scratch_len().max(inverse.get_inplace_scratch_len());
         let zero = Complex::new(0.0, 0.0);
         BinnedPeriodogram {

@@ -31,7 +31,7 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 use num_complex::Complex;
-use rustfft::{Fft, FftPlanner};
+use ohd_fft::{Fft, Planner};
 
 use super::stft::{Line, Stft, cycles};
 use crate::sampling::rng::PathRng;
@@ -164,9 +164,9 @@ impl Synthesizer {
             .collect();
         let scale = 1.0 / stft.norm().sqrt();
         let post = deconvolution.iter().zip(stft.coefficients()).map(|(d, w)| d * w * scale).collect();
-        let mut planner = FftPlanner::new();
-        let inverse = planner.plan_fft_inverse(grid);
-        let forward = planner.plan_fft_forward(n);
+        let mut planner = Planner::new();
+        let inverse = planner.inverse(grid);
+        let forward = planner.forward(n);
         let scratch_len = inverse.get_inplace_scratch_len().max(forward.get_inplace_scratch_len());
         let zero = Complex::new(0.0, 0.0);
         Synthesizer {
