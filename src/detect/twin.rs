@@ -10,7 +10,7 @@
 //! twin's `Λ·f_twin`, `Λ` being the likelihood ratio of the path under the twin (flights and
 //! perturbation Monte Carlo as Hayakawa et al. 2001: the flights' transmittance ratios, and for
 //! a collision in a region `σs,layer·p_layer / (σs·p)` of the particles and direction drawn, until
-//! `Λ` leaves a band and the twin parts from the path to walk on by itself, `transport::twin::Split`; or where
+//! `Λ` leaves a band and the twin parts from the path to walk on by itself, `transport::carried::Split`; or where
 //! the path meets an opaque solid, which the twin flies on through), and `f_twin` what the twin
 //! scores (its phase function and Doppler shift, shadow rays without the regions' optical depth;
 //! after parting, its own walk's).
@@ -49,7 +49,7 @@ use crate::source::{Footprint, Profile};
 /// The twin's bookkeeping along one forward path: where it entered the stack, the likelihood
 /// ratio `Λ` of the path under the twin and how the twin's Doppler state differs from the path's
 /// (events on particles of a region are the twin's on its layer's medium), until the twin parts
-/// from the path (`transport::twin::Split`) and walks on by itself.
+/// from the path (`transport::carried::Split`) and walks on by itself.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinPath {
     /// The entry point on the top surface, m.

@@ -14,13 +14,12 @@ use crate::detect::{Exit, PathState, Recorder, Scalar, Side, Twin};
 use crate::medium::{Medium, Scene};
 use crate::sampling::PathRng;
 
+use super::carried::{ForwardState, Split};
 use super::event::{Particle, RENORMALISE_EVERY, doppler_increment, particle_velocity};
 use super::fresnel;
 use super::nee::{Crossing, NeeTarget, reflections_below};
 use super::policy::WalkSettings;
-use super::steering::Pending;
 use super::tracking::{Flight, LayerRay};
-use super::twin::Split;
 use super::walk::{
     End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, absorb, in_gate, scatter, walk_to_the_end,
 };
@@ -41,28 +40,6 @@ pub(super) struct Forward<
     const GATE: bool,
     const LATERAL: bool,
 >(ForwardState);
-
-/// What a forward path carries besides its [`PathState`]: what its escape is balanced against the
-/// shadow rays with, its layered twin and where the twin parted from it, and the copies its weight
-/// windows split off. (Not generic: the outlined collision [`collide_nee`] and the twin's and
-/// windows' functions take it as it is, compiled once per kind of walk.)
-#[derive(Default)]
-pub(super) struct ForwardState {
-    /// The density of the path's last direction at its last vertex (a particle's phase function,
-    /// a rough face's or a surface's sampling density), over `n_k² |cos θ_k|` there: a direct
-    /// escape weighs itself against the shadow rays with it ([`Recorder::escape`]). `None` before
-    /// the first vertex, after a reflection at a smooth face and after a mirror's (no shadow ray
-    /// takes those ways), and in a walk without next-event estimation.
-    pub direct: Option<f64>,
-    /// The path's layered twin for the control variate (`None`: no control variate, or the twin
-    /// has parted, [`super::twin`]).
-    pub twin: Option<TwinPath>,
-    /// Where the twin parted from the path, to walk on once the path has ended.
-    pub split: Option<Split>,
-    /// Copies of the path split off by its weight windows, waiting to walk on after it
-    /// ([`super::steering::split`]).
-    pub copies: Vec<Pending>,
-}
 
 impl<
     const DOPPLER: bool,

@@ -3,6 +3,7 @@
 
 pub mod adjoint;
 pub mod camera;
+pub mod carried;
 pub mod event;
 pub mod features;
 pub mod forward;

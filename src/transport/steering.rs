@@ -5,12 +5,11 @@
 
 use glam::DVec3;
 
-use crate::detect::twin::TwinPath;
 use crate::detect::{PathState, Recorder};
 use crate::sampling::PathRng;
 
+use super::carried::{ForwardState, Pending};
 use super::event::deflect;
-use super::forward::ForwardState;
 use super::walk::{End, WalkContext};
 use super::windows::{Action, MAX_PENDING, Windows};
 
@@ -75,18 +74,6 @@ pub(super) fn split(st: &mut ForwardState, s: &mut PathState, li: usize, n: u32,
         let rng = PathRng::copy(key, u64::from(k));
         st.copies.push(Pending { s: *s, li, rng, twin: st.twin, direct: st.direct });
     }
-}
-
-/// A copy of a forward path made by a weight window's split ([`split`]): its state, layer, own
-/// stream and what it carries (its layered twin, [`ForwardState::direct`]), to walk on from
-/// after the path.
-#[derive(Clone)]
-pub(super) struct Pending {
-    pub s: PathState,
-    pub li: usize,
-    pub rng: PathRng,
-    pub twin: Option<TwinPath>,
-    pub direct: Option<f64>,
 }
 
 /// The continuation of a forward path `s` from a scatterer of phase function `phase` in layer

@@ -13,30 +13,9 @@ use crate::detect::{PathState, Twin};
 use crate::medium::{Layer, Medium, Scene};
 use crate::sampling::PathRng;
 
+use super::carried::{ForwardState, Split};
 use super::event::Particle;
-use super::forward::ForwardState;
 use super::tracking::{Flight, LayerRay};
-
-/// Where a forward path's layered twin parts from it: a collision of the path in a region with
-/// `Λ` beyond [`TWIN_BAND`], which the twin makes in its layer's filling medium (with the weight
-/// and Doppler state `s`: the path's arriving there times `Λ` and the collision densities' ratio)
-/// and walks on from in the twin's scene with a copy of the path's generator (`forward::twin_walk`;
-/// common random numbers, each walk a proper sample of its own). Until then the twin shares the
-/// path; after, the path scores without a twin and the twin's walk scores only as the twin (its
-/// share out of the pixels it meets, into the kernels).
-#[derive(Clone)]
-pub struct Split {
-    pub s: PathState,
-    pub li: usize,
-    pub twin: TwinPath,
-    pub rng: PathRng,
-    /// Parted in a flight through a density region where the path collided and the twin did not
-    /// ([`super::tracking::coupled_flight`]): the twin flies on from `s` (else it collides there).
-    pub flying: bool,
-    /// The path's [`ForwardState::direct`] there, which an escape of the twin flying on is
-    /// balanced with.
-    pub direct: Option<f64>,
-}
 
 /// The layered twin at a real collision of its path `s` in the medium `m` of layer `li`, whose
 /// filling medium is `fill` (the twin collides in `fill` where the path collides in a region).

@@ -60,10 +60,10 @@ pub struct WalkContext<'a> {
     /// one (`run.control_variate`, [`crate::detect::twin`]): the likelihood ratio `Λ` of the
     /// path under the twin (each flight through a region: the twin's transmittance over the
     /// path's) until the twin parts from it at the path's first collision in a region
-    /// ([`super::twin::Split`]), in the forward estimator's state ([`super::forward::Forward`]).
+    /// ([`super::carried::Split`]), in the forward estimator's state ([`super::forward::Forward`]).
     pub twin: bool,
     /// The twin's scene (the regions removed), where a twin walks on once it parts from its path
-    /// ([`super::twin::Split`]); `None` without a control variate.
+    /// ([`super::carried::Split`]); `None` without a control variate.
     pub twin_scene: Option<&'a Scene>,
     /// Forward paths start near the regions ([`crate::source::Launches`]; `None`: from the
     /// profile).
