@@ -130,8 +130,7 @@ impl Guide {
 /// The guide's distribution of a path's continuation at one vertex, in the shape of Open PGL's
 /// `VolumeSamplingDistribution`: made for the vertex ([`Guide::at`]: the table's values per polar
 /// band there, the particle's phase function, the direction the path arrived along), then sampled
-/// ([`sample`](Self::sample)), with the importance it leans toward ([`importance`](Self::importance),
-/// Open PGL's `IncomingRadiancePDF` up to its normalisation).
+/// ([`sample`](Self::sample)).
 ///
 /// Unlike Open PGL's mixtures it offers no `pdf`: a direction kept by resampling [`CANDIDATES`]
 /// phase-function draws has no closed-form density (the expectation over the other candidates of
@@ -157,13 +156,6 @@ impl Directions<'_> {
             let (d, out, delta) = super::event::deflect(dir, phase, rng);
             (d.cos, out, delta)
         })
-    }
-
-    /// The table's importance toward `out` (its polar band's value), which the candidates are
-    /// resampled on (before the floor).
-    #[inline]
-    pub fn importance(&self, out: DVec3) -> f64 {
-        self.values[ImportanceGrid::angle_bin(out.z)]
     }
 }
 

@@ -67,12 +67,10 @@ pub(super) fn couple<'a, const DOPPLER: bool>(
     pos: DVec3,
     rng: &mut PathRng,
 ) -> Option<Particle<'a>> {
-    st.twin.as_ref()?;
+    let tw = st.twin.as_mut()?;
     let own = Particle::pick::<DOPPLER>(fill, pos, rng);
-    if let Some(tw) = st.twin.as_mut() {
-        tw.lambda *= fill.sigma_s() / m.sigma_s();
-        tw.touched = true;
-    }
+    tw.lambda *= fill.sigma_s() / m.sigma_s();
+    tw.touched = true;
     Some(own)
 }
 
