@@ -67,7 +67,12 @@
 //!
 //! One library and a thin binary. The modules form layers; a module may import from its own layer
 //! (without cycles) and from the layers below it, never from above. `validation/architecture.py`
-//! checks both on every CI run (its `LAYERS` table is this one).
+//! checks both on every CI run (its `LAYERS` table is this one). The layers up to the runs are
+//! the workspace crate `ohd-core` (`core/`), which this crate re-exports module by module under
+//! the same names, so `ohd::transport` is `ohd_core::transport` and the compiler refuses an import
+//! from the physics into the configuration, the outputs or the command line. Two crates are
+//! optimised on two cores at once; one crate's release build is LLVM on one codegen unit on one
+//! core (`core/src/lib.rs`).
 //!
 //! | layer | modules | role |
 //! |---|---|---|
@@ -75,8 +80,8 @@
 //! | scene | [`medium`], [`flow`], [`source`], [`io::formats`] | media, density fields with their majorant grids, shapes and the layer stack; velocity fields; the laser; file formats read and written (`.npy`, EXR, PNG, phase tables, the OpenVDB reader) |
 //! | recording | [`detect`] | detectors ([`detect::DetectorKind`]) and the tally a finished path is recorded into; each detector declares its outputs in the registry as it lays out its tallies |
 //! | transport | [`transport`] | interfaces, free-flight tracking (analytic, delta and ratio tracking over majorant segments), the random walk (`walk`: the physics of a path, generic over an estimator) and its estimators: forward packets from the laser (`forward`), camera paths from a camera's pixels (`adjoint`), the layered twin of the control variate (`twin`), weight windows and the guide (`steering`) |
-//! | runs | [`experiment`], [`pilot`], [`post`], [`scan`], [`converge`] | an experiment and its run loop (batches, the target-error rule); the pilot that decides `estimator = "auto"`; the importance table's pilot (`Experiment::importance_table`); post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study |
-//! | configuration | [`config`], [`describe`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types; the resolved experiment printed in human units |
+//! | runs | [`experiment`], [`pilot`], [`post`], [`scan`], [`converge`], [`describe`] | an experiment and its run loop (batches, the target-error rule); the pilot that decides `estimator = "auto"`; the importance table's pilot (`Experiment::importance_table`); post-processing of a finished run (speckle); the VAD retrieval of a scan; errors of named outputs and the convergence study; the resolved experiment printed in human units |
+//! | configuration | [`config`] | TOML schema with typed quantities, `--set` overrides, the one resolve step into SI runtime types |
 //! | outputs | [`io`] ([`io::write`], [`io::persist`], [`io::figures`], [`io::outdir`]) | a finished run's files and manifest, read off the registry; shard and checkpoint files; figures; the output directory, held open and locked |
 //! | orchestration | [`run`] | running as the command line does: a run or a scan, to a target error, checkpointed and resumed, in shards and merged; the convergence study written |
 //! | binary | `cli` (`main.rs`) | argument parsing, the progress bar, printing, exit codes |
@@ -86,33 +91,15 @@
 
 pub mod cli;
 pub mod config;
-pub mod converge;
-pub mod describe;
-pub mod detect;
-pub mod error;
-pub mod experiment;
-pub mod flow;
 pub mod io;
-pub mod medium;
-pub mod mie;
-pub mod numeric;
-pub mod output;
-pub mod phase;
-pub mod pilot;
-pub mod post;
-pub mod retrieval;
 pub mod run;
-pub mod sampling;
-pub mod scan;
-pub mod source;
-pub mod spectrum;
-pub mod stats;
-pub mod surface;
-pub mod sys;
-pub mod transport;
 
-/// Speed of light in vacuum, m/s (exact, SI).
-pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
+// The physics (everything below the configuration in the table above) is the workspace crate
+// `ohd-core` (core/): it compiles beside this crate's configuration, outputs and command line.
+pub use ohd_core::{
+    SPEED_OF_LIGHT, converge, describe, detect, error, experiment, flow, medium, mie, numeric, output, phase, pilot,
+    post, retrieval, sampling, scan, source, spectrum, stats, surface, sys, transport,
+};
 
 /// The built-in default experiment (`ohd run` without a CONFIG): a vessel with Poiseuille flow in
 /// scattering tissue. The same file ships as `configs/default.toml`.

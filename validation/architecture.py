@@ -5,7 +5,8 @@ one.
     python3 validation/architecture.py            # the cycles, or "no import cycles"
     python3 validation/architecture.py --edges    # also every module's dependencies
 
-A module is a file (`src/io/formats/vdb.rs` is `io::formats::vdb`, `src/io/mod.rs` is `io`). Module A depends on
+A module is a file (`core/src/io/formats/vdb.rs` is `io::formats::vdb`, `src/io/mod.rs` is `io`; the
+physics crate's `core/src/` and `src/` are one tree, as `ohd` re-exports every module of ohd-core). Module A depends on
 module B when A's code (comments, doc links and `#[cfg(test)]` modules left out) names a path into
 B: a `use` of `crate::…`, `super::…`, `self::…` or of a child module, or an inline `crate::…` /
 `super::…` path. A path is followed through modules and through `pub use` re-exports to the module
@@ -27,6 +28,10 @@ from collections import deque
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parent.parent / "src"
+# The physics crate `ohd-core` (core/src): `ohd` re-exports each of its modules under the same
+# name, so the two crates are read as one tree of modules (the two `io` modules, the input side
+# in ohd-core and the output side in ohd, as one).
+CORE = SRC.parent / "core" / "src"
 
 
 # The layers of src/, lowest first (src/lib.rs, "Architecture"): (name, module prefixes).
@@ -35,8 +40,8 @@ LAYERS = [
     ("scene", ["medium", "flow", "source", "io::formats"]),
     ("recording", ["detect"]),
     ("transport", ["transport"]),
-    ("runs", ["experiment", "pilot", "post", "scan", "converge"]),
-    ("configuration", ["config", "describe"]),
+    ("runs", ["experiment", "pilot", "post", "scan", "converge", "describe"]),
+    ("configuration", ["config"]),
     ("outputs", ["io::write", "io::persist", "io::figures", "io"]),
     ("orchestration", ["run"]),
     ("binary", ["cli"]),
@@ -155,14 +160,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--edges", action="store_true", help="print every module's dependencies")
     ap.add_argument("--src", type=Path, default=SRC, help="the crate's source directory (default: src/)")
+    ap.add_argument("--core", type=Path, default=CORE, help="ohd-core's source directory (default: core/src/)")
     args = ap.parse_args()
-    SRC = args.src.resolve()
 
     files = {}
-    for p in sorted(SRC.rglob("*.rs")):
-        mod = module_of(p)
-        if mod is not None:
-            files[mod] = strip(p.read_text())
+    for root in (args.core.resolve(), args.src.resolve()):
+        SRC = root
+        for p in sorted(root.rglob("*.rs")):
+            mod = module_of(p)
+            if mod is not None:
+                files[mod] = files.get(mod, "") + strip(p.read_text()) + "\n"
     modules = set(files)
 
     # `pub use` re-exports: (module, name) → the path it re-exports (absolute segments).
