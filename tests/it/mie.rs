@@ -93,7 +93,7 @@ fn num(v: &serde_json::Value, key: &str) -> f64 {
 /// * For x ≥ 3e3: Qext, Qsca, g stay at 1e-7; Qback and S at 2e-5. Qback and S near 180° are
 ///   sums with strong cancellation, and miepython's coefficients are less accurate there: at
 ///   x = 1e4, m = 1.33 − 1e-5i its a_1 differs from a 40-digit mpmath evaluation by 3e-11, ours
-///   by 7e-13 (see `coefficients_match_high_precision_values` in src/mie/solver.rs); observed
+///   by 7e-13 (see `coefficients_match_high_precision_values` in core/src/mie/solver.rs); observed
 ///   differences reach 7e-6 (Qback, m = 1.33 − 1e-5i, x = 1e4).
 #[test]
 fn miepython_reference_grid() {

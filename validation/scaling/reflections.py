@@ -8,7 +8,7 @@ stopped and reported as such.
 
 Before issue 52 the way up from each interface was traced layer by layer: N²/2 crossings per
 path (1,000 interfaces: 17–37 s against 0.1–0.25 s sampled; 3,000 timed out). After, a stack of
-homogeneous layers costs 2N steps per path (`src/transport/nee.rs`, `reflections_below`).
+homogeneous layers costs 2N steps per path (`core/src/transport/nee.rs`, `reflections_below`).
 
 Measured (issue 52; a8c4817 before, after the change; 1,000 paths, 3 repeats, whole-process
 seconds min / median / max, on a shared 2-core machine; a run stopped at 150 s is not repeated):

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Check ohd's OpenVDB writer (`[volume] vdb = true`, src/io/formats/vdb_write.rs) with OpenVDB
+"""Check ohd's OpenVDB writer (`[volume] vdb = true`, core/src/io/formats/vdb_write.rs) with OpenVDB
 itself: Debian's pyopenvdb (OpenVDB 10.0.1, `apt-get install python3-openvdb`, run with
 /usr/bin/python3) reads `volume.vdb` and every grid must equal the run's `.npy` files voxel by
 voxel (as f32, the index j counting up from the smallest y), with the voxel size and transform of
