@@ -656,7 +656,11 @@ fn figures(exp: &Experiment, output: &RunOutput) -> Figures {
 fn tail_line(t: &crate::stats::TailCheck) -> String {
     match t.slope {
         Some(s) => {
-            let verdict = if s >= 3.0 { "≥ 3: a finite variance" } else { "< 3: the variance may not exist yet" };
+            let verdict = if s >= 3.0 {
+                "≥ 3: a finite variance"
+            } else {
+                "< 3: not yet sampled, a typical run reads these pixels low"
+            };
             format!(
                 "largest scores of {} paths there: slope {s:.1} of their density's tail ({verdict}; from the largest {})",
                 t.scores, t.largest
@@ -703,7 +707,8 @@ fn report(exp: &Experiment, output: &RunOutput) {
             // Split by the regions' footprints (`NAME_region_mask.npy`).
             let regions = exp.region_mask_of(o).map(|mask| {
                 let (v, e) = o.slice(mean, &stderr);
-                crate::output::RegionErrors::of(v, e, &mask).with_tail(tails.get(&o.slots.start).copied())
+                crate::output::RegionErrors::of(v, e, &mask)
+                    .with_run(tails.get(&o.slots.start).copied(), output.paths() as f64)
             });
             if let Some(r) = &regions {
                 out!(
@@ -713,6 +718,12 @@ fn report(exp: &Experiment, output: &RunOutput) {
                     pct(r.median_rest),
                     pct(r.rest_sigma_over_region_mean),
                     pct(r.region_top_percent_variance_share)
+                );
+                let g = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
+                out!(
+                    "    regions' footprints: RMS relative error ε {} (√(mean σ²)/mean; the median reads low), variance per path N·ε² {}",
+                    g(r.region_rms),
+                    r.region_variance_per_path.map_or("–".to_string(), |v| format!("{v:.3e}"))
                 );
                 if let Some(t) = r.tail {
                     out!("    {}", tail_line(&t));
@@ -724,8 +735,9 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 let k = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
                 let split = if regions.is_some() {
                     format!(
-                        " (regions' footprints {}, rest {})",
+                        " (regions' footprints {}, at their RMS ε {}; rest {})",
                         k(s.windows_at_region_median),
+                        k(s.windows_at_region_rms),
                         k(s.windows_at_rest_median)
                     )
                 } else {

@@ -255,10 +255,15 @@ pub struct RunOutput {
 }
 
 impl RunOutput {
+    /// The paths the run traced (its batches done, of `paths_per_batch` each).
+    pub fn paths(&self) -> u64 {
+        self.estimates.batches() as u64 * self.paths_per_batch
+    }
+
     /// The tail checks of the cameras' regions ([`crate::detect::tail`]), by the first slot of
     /// the image each one pools.
     pub fn tail_checks(&self) -> std::collections::BTreeMap<usize, crate::stats::TailCheck> {
-        let paths = (self.estimates.batches() as u64 * self.paths_per_batch) as f64;
+        let paths = self.paths() as f64;
         let mean = self.estimates.mean();
         self.layout
             .detectors

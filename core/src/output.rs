@@ -440,6 +440,16 @@ pub struct RegionErrors {
     pub region_top_percent_variance_share: Option<f64>,
     /// The relative error of the sum over the mask's pixels (their variances added).
     pub region_pooled: Option<f64>,
+    /// ε: the RMS of the mask's pixels' σ over their mean value, `√(mean σ²)/|mean value|`
+    /// (= `region_pooled · √region_pixels`), the relative error of a typical footprint pixel.
+    /// Unlike the median it cannot read low: the pixels that have not yet drawn their rare large
+    /// scores (small σ) do not hide those that have (issue 54).
+    pub region_rms: Option<f64>,
+    /// `N·ε²` over the run's `N` paths (set by the run, [`RegionErrors::with_run`]): the
+    /// relative variance per path of a typical footprint pixel, so `ε` reaches `e` at
+    /// `N·ε²/e²` paths. Constant in `N` once the tail is sampled; growing with `N` while it is not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub region_variance_per_path: Option<f64>,
     /// The slope of the largest of the paths' scores into the mask's pixels, pooled (MCNP's
     /// check, [`crate::stats::TailCheck`]; set by the run, [`RegionErrors::with_tail`]).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -479,13 +489,16 @@ impl RegionErrors {
             rest_sigma_over_region_mean: median(rest_sigma).map(|s| s / mean.abs()).and_then(finite),
             region_top_percent_variance_share: (total > 0.0).then(|| top / total),
             region_pooled: finite(total.sqrt() / (mean * n as f64).abs()),
+            region_rms: finite((total / n as f64).sqrt() / mean.abs()),
+            region_variance_per_path: None,
             tail: None,
         }
     }
 
-    /// The same with the run's tail check of the image.
-    pub fn with_tail(self, tail: Option<crate::stats::TailCheck>) -> Self {
-        RegionErrors { tail, ..self }
+    /// The same with the run's tail check of the image and its number of paths.
+    pub fn with_run(self, tail: Option<crate::stats::TailCheck>, paths: f64) -> Self {
+        let region_variance_per_path = self.region_rms.map(|e| paths * e * e);
+        RegionErrors { tail, region_variance_per_path, ..self }
     }
 }
 
@@ -493,8 +506,7 @@ impl RegionErrors {
 /// LDH camera's set-up has the speckle contrast `c` over its band (a flat in-band spectrum,
 /// [`crate::spectrum::stft::Stft::flat_band_contrast`]), the mean of `k` windows `c/√k`, so a
 /// per-pixel relative error `σ` is the speckle noise of `k = (c/σ)²` windows. A simulated image is
-/// as good as a measured one of `k` windows when its error is at most half theirs
-/// (shared/reference/variance-reduction.md §2).
+/// as good as a measured one of `k` windows when its error is at most half theirs.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SpeckleScale {
     /// `c`: `σ/M0` of one window over the band.
@@ -508,6 +520,11 @@ pub struct SpeckleScale {
     pub windows_at_region_median: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub windows_at_rest_median: Option<f64>,
+    /// `(c/ε)²` at the footprint's RMS relative error ε ([`RegionErrors::region_rms`]): the
+    /// windows a measurement of the regions' pixels must average to be as noisy as the image
+    /// there; the medians read high where a few pixels hold the variance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub windows_at_region_rms: Option<f64>,
 }
 
 impl SpeckleScale {
@@ -521,6 +538,7 @@ impl SpeckleScale {
             windows_at_median: windows(Some(median)),
             windows_at_region_median: windows(regions.and_then(|r| r.median_region)),
             windows_at_rest_median: windows(regions.and_then(|r| r.median_rest)),
+            windows_at_region_rms: windows(regions.and_then(|r| r.region_rms)),
         }
     }
 }
@@ -723,6 +741,26 @@ impl Registry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// ε is the RMS of the footprint's σ over its mean, which one noisy pixel among quiet ones
+    /// moves where the median does not; the variance per path is N·ε².
+    #[test]
+    fn the_footprints_rms_error_reads_the_noisy_pixel_the_median_hides() {
+        // 99 footprint pixels of value 1 and σ 0.1, one of value 1 and σ 10; one pixel outside.
+        let mut values = vec![1.0; 100];
+        let mut stderr = vec![0.1; 100];
+        stderr[7] = 10.0;
+        values.push(5.0);
+        stderr.push(0.5);
+        let mask: Vec<bool> = (0..101).map(|p| p < 100).collect();
+        let r = RegionErrors::of(&values, &stderr, &mask).with_run(None, 1e6);
+        assert!((r.median_region.unwrap() - 0.1).abs() < 1e-15);
+        let eps = ((99.0 * 0.01 + 100.0) / 100.0f64).sqrt();
+        assert!((r.region_rms.unwrap() - eps).abs() < 1e-12, "ε {:?} against {eps}", r.region_rms);
+        assert!((r.region_rms.unwrap() - r.region_pooled.unwrap() * 10.0).abs() < 1e-12);
+        assert!((r.region_variance_per_path.unwrap() - 1e6 * eps * eps).abs() < 1e-6);
+        assert!(RegionErrors::of(&values, &stderr, &mask).region_variance_per_path.is_none());
+    }
 
     #[test]
     fn pixel_errors_are_nearest_rank_percentiles_over_pixels_with_signal() {

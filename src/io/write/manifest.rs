@@ -281,6 +281,7 @@ fn write_run_to<S: super::Sink>(
     }
     w.speckle = exp.m0_speckle(&out.layout).collect();
     w.tails = out.tail_checks();
+    w.paths = out.paths() as f64;
     let reg = &out.layout.registry;
     let mut estimates: BTreeMap<String, Entry> =
         Scalar::ALL.iter().map(|&s| (s.name().to_string(), Entry::Estimate(w.estimate(reg.at(s as usize))))).collect();

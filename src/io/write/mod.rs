@@ -198,6 +198,8 @@ pub struct Writer<'a, 'p> {
     /// The tail checks of the cameras' regions, by the first tally slot of the image they pool
     /// ([`crate::experiment::RunOutput::tail_checks`]).
     pub tails: BTreeMap<usize, crate::stats::TailCheck>,
+    /// The run's paths (the regions' variance per path).
+    pub paths: f64,
 }
 
 /// The manifest's summary of an image's per-pixel relative errors ([`PixelErrors`]).
@@ -238,6 +240,7 @@ impl<'a, 'p> Writer<'a, 'p> {
             masks: BTreeMap::new(),
             speckle: BTreeMap::new(),
             tails: BTreeMap::new(),
+            paths: 0.0,
             figures: true,
             table: BTreeMap::new(),
         }
@@ -325,7 +328,8 @@ impl<'a, 'p> Writer<'a, 'p> {
         let finite = |v: f64| v.is_finite().then_some(v);
         let regions = o.detector.and_then(|d| self.masks.get(&d)).map(|(mask_file, mask)| RegionEntry {
             mask_file: mask_file.clone(),
-            errors: crate::output::RegionErrors::of(v, e, mask).with_tail(self.tails.get(&o.slots.start).copied()),
+            errors: crate::output::RegionErrors::of(v, e, mask)
+                .with_run(self.tails.get(&o.slots.start).copied(), self.paths),
         });
         let speckle = self.speckle.get(&o.slots.start).map(|&(c, frames)| {
             crate::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref().map(|r| &r.errors))
