@@ -349,7 +349,8 @@ fn launches_near_the_regions_equal_launches_from_the_profile() {
 /// The tail check's histograms ([`ohd::detect::tail`]) hold every path's score into the vessel's
 /// footprint: without the control variate the scores are the pixels' own contributions, so their
 /// sum over the histogram is the footprint's pooled intensity and M0+ (times the paths), to
-/// rounding; the slope of the largest is a power law's (finite: a bounded next-event weight).
+/// rounding; the slope of the largest is a power law's (finite: a bounded next-event weight), and
+/// a slope below 3 is among the run's warnings.
 #[test]
 fn the_tail_histograms_add_up_to_the_footprints_pooled_values() {
     let plain = run(&retina(100_000, BLOOD, "off"), &[]);
@@ -371,6 +372,12 @@ fn the_tail_histograms_add_up_to_the_footprints_pooled_values() {
         );
         let slope = checks[&start].slope.expect("enough scores");
         assert!((1.0..=10.0).contains(&slope), "channel {c}: slope {slope}");
+        // A slope below 3 is warned of, naming the image; one at or above it is not.
+        let name = &out.layout.registry.outputs.iter().find(|o| o.slots.start == start).expect("the image").name;
+        let warned = ohd::post::warnings::warnings(&plain.exp, out)
+            .iter()
+            .any(|w| w.code == "heavy_tail" && w.message.starts_with(&format!("{name}: ")));
+        assert_eq!(warned, slope < ohd::post::warnings::TAIL_SLOPE, "channel {c} ({name}): slope {slope}");
     }
 }
 

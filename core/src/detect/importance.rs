@@ -2,7 +2,7 @@
 //! "table"` or `"windows"`): what a unit of weight at depth `z`, leaving a scattering event along a direction of
 //! polar angle θ (`μ = cos θ`; θ = 0 down into the stack, π up out of it), goes on to bring the
 //! detector. It is the adjoint solution that guided directions and weight windows steer by
-//! (issue 36; shared/reference/variance-reduction.md §3: CADIS, and CADIS-Ω's angular importance
+//! (issue 36; CADIS, and CADIS-Ω's angular importance
 //! for collimated beams): in g 0.95–0.97 tissue under a small pupil, what a path brings the
 //! camera depends mostly on its direction and depth.
 //!

@@ -34,6 +34,14 @@ pub const ALIASED_POWER_FRACTION: f64 = 0.01;
 /// paths and lost 0.8 % of the power.)
 pub const TRUNCATED_PATH_FRACTION: f64 = 1e-4;
 
+/// Warn when the largest path scores into a camera's regions' footprints fall off slower than
+/// this power: MCNP's check of a tally's history scores (the density of the largest ∝ x^−s; the
+/// variance exists for s > 2, its estimate converges for s > 3, and MCNP asks for s ≥ 3). Below
+/// it the footprint's mean is carried by rare large scores that most runs do not draw, so a
+/// typical run reads those pixels low, and their errors low with them (issue 54: over retina_ldh's
+/// artery, 16 forward runs against the camera-side estimator, validation/README.md).
+pub const TAIL_SLOPE: f64 = 3.0;
+
 /// A fraction as a percentage to three significant digits or so (`31.2 %`, `0.794 %`).
 fn percent(x: f64) -> String {
     let p = 100.0 * x;
@@ -47,7 +55,8 @@ fn percent(x: f64) -> String {
 }
 
 /// The warnings of run `out` of `exp`, in a fixed order: per detector (off-axis power, aliasing),
-/// per detector again (FMCW estimates missing), then the run's (truncated paths, non-finite detections).
+/// per detector again (FMCW estimates missing), per image with regions (a heavy tail of the scores
+/// into their footprints), then the run's (truncated paths, non-finite detections).
 pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
     let mean = out.estimates.mean();
     let reg = &out.layout.registry;
@@ -122,6 +131,19 @@ pub fn warnings(exp: &Experiment, out: &RunOutput) -> Vec<Warning> {
                 d.name, d.name
             ),
         });
+    }
+    // The regions' tail checks, per image (the manifest's `pixel_errors.<output>.regions.tail`).
+    for (slot, t) in out.tail_checks() {
+        let (Some(slope), Some(o)) = (t.slope, reg.outputs.iter().find(|o| o.slots.start == slot)) else { continue };
+        if slope < TAIL_SLOPE {
+            w.push(Warning {
+                code: "heavy_tail",
+                message: format!(
+                    "{}: the largest path scores into the regions' footprints fall off with a slope of {slope:.1} (the largest {} of {} scores; below {TAIL_SLOPE} their variance is not yet sampled): a typical run then reads the footprint pixels low, and their errors low with them, as their mean is carried by rare large scores that most runs do not draw; run more paths, and trust the footprint's pixels when the slope is at least {TAIL_SLOPE}",
+                    o.name, t.largest, t.scores
+                ),
+            });
+        }
     }
     let st = &out.stats;
     let paths = st.paths.max(1) as f64;

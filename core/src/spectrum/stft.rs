@@ -596,7 +596,7 @@ mod tests {
 
     /// The speckle of one window's band sum over a flat spectrum: `1/√|B|` for a rectangular
     /// window; the Hann window's by its correlated neighbours, as a direct double sum gives it;
-    /// the figures of shared/reference/variance-reduction.md §2 (HoloDoppler's 512 frames at
+    /// the figures HoloDoppler's set-ups give (512 frames at
     /// 39 kHz over 6–18.3 kHz: 324 bins, 5.6 % / 7.7 %; 64 frames: 42 bins, 15 % / 21 %).
     #[test]
     fn flat_band_contrast_is_the_speckle_of_the_band_sum() {

@@ -1,5 +1,5 @@
 //! Guided directions from an importance table (`run.importance = "guided"`; issue 36 item 2;
-//! shared/reference/variance-reduction.md §3, after the product of the phase function and the
+//! after the product of the phase function and the
 //! incident importance that Herholz et al. 2019 sample): at a scattering event the forward path
 //! draws [`CANDIDATES`] directions from the phase function, keeps one with probability
 //! `w_j / Σw`, `w_j = I*(z, θ_j) + c` (the table's value in the candidate's polar band plus a

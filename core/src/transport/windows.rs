@@ -1,5 +1,5 @@
 //! Weight windows from an importance table (`run.importance = "windows"`; CADIS, Wagner &
-//! Haghighat 1998 (recalled, unchecked); shared/reference/variance-reduction.md §3): after each scattering
+//! Haghighat 1998 (recalled, unchecked)): after each scattering
 //! event a forward path's weight is held within a window about `R/I*(z, θ)` — `I*` the table's
 //! value of its state ([`crate::detect::importance`]), `R` the detector's response per path — so that
 //! `weight × importance`, what the path goes on to contribute, stays near `R` for every path:

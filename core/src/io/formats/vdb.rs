@@ -4,7 +4,7 @@
 //! # Why our own reader
 //! The crates.io `vdb-rs` 0.6.0 reads float grids correctly but returns an empty grid (or an
 //! end-of-file error) for vec3 grids, fails on half-float files, panics on rotated and frustum
-//! maps and drops root tiles (`shared/reference/crates.md` §2). Only the subset below is needed,
+//! maps and drops root tiles (validation/README.md, "Grid media from OpenVDB"). Only the subset below is needed,
 //! so it is implemented here from the published format (OpenVDB's `io/Archive`, `io/Compression.h`,
 //! `tree/RootNode.h`, `tree/InternalNode.h`, `tree/LeafNode.h`, `math/Maps.h`), and checked
 //! bit-exactly against files written by OpenVDB 10 itself (`tests/it/vdb.rs`,
