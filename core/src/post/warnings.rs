@@ -36,7 +36,7 @@ pub const TRUNCATED_PATH_FRACTION: f64 = 1e-4;
 
 /// Warn when the largest path scores into a camera's regions' footprints fall off slower than
 /// this power: MCNP's check of a tally's history scores (the density of the largest ∝ x^−s; the
-/// variance exists for s > 2, its estimate converges for s > 3, and MCNP asks for s ≥ 3). Below
+/// mean exists for s > 2, the variance for s > 3, and MCNP asks for s ≥ 3). Below
 /// it the footprint's mean is carried by rare large scores that most runs do not draw, so a
 /// typical run reads those pixels low, and their errors low with them (issue 54: over retina_ldh's
 /// artery, 16 forward runs against the camera-side estimator, validation/README.md).
