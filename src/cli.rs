@@ -691,6 +691,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
     let speckle: std::collections::BTreeMap<usize, (f64, usize)> = exp.m0_speckle(&output.layout).collect();
     let tails = output.tail_checks();
     let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}%", 100.0 * x));
+    let num = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
     for o in output.layout.registry.outputs.iter().filter(|o| o.primary) {
         if let Some(pe) = o.pixel_errors(mean, &stderr) {
             let blank = if pe.without_signal > 0 {
@@ -719,10 +720,9 @@ fn report(exp: &Experiment, output: &RunOutput) {
                     pct(r.rest_sigma_over_region_mean),
                     pct(r.region_top_percent_variance_share)
                 );
-                let g = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
                 out!(
                     "    regions' footprints: RMS relative error ε {} (√(mean σ²)/mean; the median reads low), variance per path N·ε² {}",
-                    g(r.region_rms),
+                    num(r.region_rms),
                     r.region_variance_per_path.map_or("–".to_string(), |v| format!("{v:.3e}"))
                 );
                 if let Some(t) = r.tail {
@@ -732,13 +732,12 @@ fn report(exp: &Experiment, output: &RunOutput) {
             // An M0+ image against the camera's own noise: the speckle of how many windows.
             if let Some(&(c, frames)) = speckle.get(&o.slots.start) {
                 let s = crate::output::SpeckleScale::new(c, frames, pe.median, regions.as_ref());
-                let k = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}"));
                 let split = if regions.is_some() {
                     format!(
                         " (regions' footprints {}, at their RMS ε {}; rest {})",
-                        k(s.windows_at_region_median),
-                        k(s.windows_at_region_rms),
-                        k(s.windows_at_rest_median)
+                        num(s.windows_at_region_median),
+                        num(s.windows_at_region_rms),
+                        num(s.windows_at_rest_median)
                     )
                 } else {
                     String::new()
@@ -746,7 +745,7 @@ fn report(exp: &Experiment, output: &RunOutput) {
                 out!(
                     "    speckle of one {frames}-frame window {:.1}%: the median error is that of {} windows{split}",
                     100.0 * c,
-                    k(s.windows_at_median)
+                    num(s.windows_at_median)
                 );
             }
         }
