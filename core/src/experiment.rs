@@ -671,6 +671,7 @@ impl Experiment {
                 s.choice = match d.estimator {
                     crate::detect::Estimator::Forward => EstimatorChoice::Forward,
                     crate::detect::Estimator::Camera => EstimatorChoice::Camera,
+                    crate::detect::Estimator::Footprints => EstimatorChoice::Footprints,
                 };
             }
         }
@@ -755,7 +756,7 @@ impl Experiment {
             .filter_map(|(i, d)| {
                 let s = d.surface()?;
                 let im = *s.image()?;
-                (s.estimator() == crate::detect::Estimator::Camera).then(|| CameraTarget {
+                (!s.estimator().forward() || s.footprints.is_some()).then(|| CameraTarget {
                     include_specular: s.include_specular,
                     stride: self.plan.camera_pixel_stride.max(1),
                     ..CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance)
@@ -767,7 +768,29 @@ impl Experiment {
     /// Camera paths traced per batch (all camera-estimated detectors together).
     pub fn camera_paths_per_batch(&self) -> u64 {
         let ppb = self.plan.paths_per_batch;
-        self.camera_targets().iter().map(|c| c.paths_per_pixel(ppb) * c.traced_pixels() as u64).sum()
+        self.camera_targets()
+            .iter()
+            .map(|c| self.camera_paths_per_pixel(c, ppb) * self.camera_pixels(c).len() as u64)
+            .sum()
+    }
+
+    /// The pixels camera paths leave from for `cam`: every `stride`-th of its image, or of its
+    /// camera pixels with `estimator = "footprints"` ([`crate::detect::image::Footprints`]).
+    pub fn camera_pixels(&self, cam: &CameraTarget) -> Vec<usize> {
+        match self.footprints_of(cam) {
+            Some(f) => f.pixels.iter().map(|&p| p as usize).step_by(cam.stride).collect(),
+            None => (0..cam.pixels()).step_by(cam.stride).collect(),
+        }
+    }
+
+    /// Camera paths per pixel of `cam` in a batch of `paths_per_batch` forward paths.
+    pub fn camera_paths_per_pixel(&self, cam: &CameraTarget, paths_per_batch: u64) -> u64 {
+        self.footprints_of(cam)
+            .map_or_else(|| cam.paths_per_pixel(paths_per_batch), |f| f.paths_per_pixel(paths_per_batch))
+    }
+
+    fn footprints_of(&self, cam: &CameraTarget) -> Option<&crate::detect::image::Footprints> {
+        self.detectors[cam.detector].surface()?.footprints.as_deref()
     }
 
     /// FMCW range and radial velocity of detector `i` from its total up- and down-chirp spectra
@@ -1022,6 +1045,7 @@ impl Experiment {
             kernels: layout.twin_kernels(),
             path_scores: layout.tail_scores(),
             trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
+            line_draws: None,
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());
@@ -1072,10 +1096,12 @@ impl Experiment {
         for cam in &cameras {
             // Pixel-major: every pixel gets `spp` paths, each weighing `ppb/spp` in the batch's
             // per-path mean, so each pixel's batch estimate is the mean of its own paths.
-            let spp = cam.paths_per_pixel(ppb);
+            let spp = self.camera_paths_per_pixel(cam, ppb);
             let batch_weight = ppb as f64 / spp as f64;
-            let key = StreamKey::new(self.plan.seed, Purpose::Camera, batch | (cam.detector as u64) << 48);
-            for pixel in (0..cam.pixels()).step_by(cam.stride) {
+            let element = batch | (cam.detector as u64) << 48;
+            let key = StreamKey::new(self.plan.seed, Purpose::Camera, element);
+            rec.line_draws = Some(StreamKey::new(self.plan.seed, Purpose::Lines, element).path(0));
+            for pixel in self.camera_pixels(cam) {
                 features.camera_paths(&walk, cam, pixel, spp, batch_weight, &mut rec, &key);
                 done += spp;
                 if progress.cancelled() {

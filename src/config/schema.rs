@@ -788,8 +788,12 @@ pub struct DetectorSection {
     /// default), `"camera"` (paths from its pixels, connected to the laser at every
     /// scattering vertex; a top detector with an image, under a disk or Gaussian beam) or
     /// `"auto"` (where `"camera"` could run: whichever a pilot before the run finds lower in
-    /// variance × work).
+    /// variance × work). `"footprints"`: camera paths from the pixels of the regions'
+    /// footprints (grown by a halo) and of the ROIs, the forward paths (with the layered control
+    /// variate) everywhere else ([`FootprintsSection`]).
     pub estimator: Option<EstimatorKind>,
+    /// With `estimator = "footprints"`: the halo and the number of camera paths.
+    pub footprints: Option<FootprintsSection>,
     pub spectrum: Option<SpectrumSection>,
     pub image: Option<ImageSection>,
     /// A time axis: the temporal point-spread function (and time-gated images).
@@ -808,7 +812,21 @@ pub struct DetectorSection {
 pub enum EstimatorKind {
     Forward,
     Camera,
+    Footprints,
     Auto,
+}
+
+/// `[detectors.footprints]`: the camera pixels of `estimator = "footprints"`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FootprintsSection {
+    /// Pixels whose centre lies within this distance of a footprint pixel's are camera pixels too
+    /// (default 20 µm: a vessel's light leaves the surface within ≈ 20 µm of where it last
+    /// scattered in the blood).
+    #[serde(rename = "halo_um", alias = "halo_mm")]
+    pub halo: Option<Quantity<Length>>,
+    /// Camera paths per forward path, spread evenly over the camera pixels (default 1).
+    pub camera_paths: Option<f64>,
 }
 
 /// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,

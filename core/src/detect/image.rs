@@ -96,3 +96,76 @@ pub fn region_mask(scene: &crate::medium::Scene, im: &ImageSpec) -> Option<Vec<b
         .collect();
     mask.iter().any(|&m| m).then_some(mask)
 }
+
+/// The pixels of a camera (`estimator = "footprints"`) whose light camera paths estimate
+/// ([`crate::transport::camera`]), the forward paths (with their control variate) estimating
+/// every other pixel: the regions' footprints ([`region_mask`]) grown by a halo, and every
+/// pixel an ROI touches. Fixed before the run, so each pixel's estimate is one unbiased
+/// estimator's; an ROI lies wholly within camera pixels, so its values and spectra are the camera
+/// paths' alone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Footprints {
+    /// Per pixel (the image's order): estimated by camera paths.
+    pub mask: Vec<bool>,
+    /// The camera pixels, in order.
+    pub pixels: Vec<u32>,
+    /// The halo around the regions' footprints, m.
+    pub halo: f64,
+    /// Camera paths per forward path (spread evenly over the camera pixels).
+    pub camera_paths: f64,
+}
+
+impl Footprints {
+    /// The footprints of `scene`'s regions on `im`, grown by `halo` (m: a pixel joins if its
+    /// centre lies within `halo` of a footprint pixel's centre), and the pixels of the rectangles
+    /// `rois` (`(min, max)`, m) touch. `None` if that is no pixel.
+    pub fn new(
+        scene: &crate::medium::Scene,
+        im: &ImageSpec,
+        halo: f64,
+        rois: &[([f64; 2], [f64; 2])],
+        camera_paths: f64,
+    ) -> Option<Footprints> {
+        let (nx, ny) = (im.nx, im.ny);
+        let (hx, hy) = ((im.max[0] - im.min[0]) / nx as f64, (im.max[1] - im.min[1]) / ny as f64);
+        let regions = region_mask(scene, im).unwrap_or_else(|| vec![false; nx * ny]);
+        let mut mask = regions.clone();
+        // The halo: every pixel within `halo` (centre to centre) of a footprint pixel.
+        let (rx, ry) = ((halo / hx).floor() as i64, (halo / hy).floor() as i64);
+        for (p, _) in regions.iter().enumerate().filter(|(_, m)| **m) {
+            let (i, j) = ((p % nx) as i64, (p / nx) as i64);
+            for dj in -ry..=ry {
+                for di in -rx..=rx {
+                    let (a, b) = (i + di, j + dj);
+                    let inside = a >= 0 && b >= 0 && (a as usize) < nx && (b as usize) < ny;
+                    let (ex, ey) = (di as f64 * hx, dj as f64 * hy);
+                    if inside && ex * ex + ey * ey <= halo * halo {
+                        mask[b as usize * nx + a as usize] = true;
+                    }
+                }
+            }
+        }
+        // Every pixel an ROI's rectangle overlaps (with an area: edges alone do not count).
+        let cell = |v: f64, lo: f64, h: f64, n: usize| ((v - lo) / h).clamp(0.0, n as f64);
+        for (min, max) in rois {
+            let (i0, i1) =
+                (cell(min[0], im.min[0], hx, nx).floor() as usize, cell(max[0], im.min[0], hx, nx).ceil() as usize);
+            let (j0, j1) =
+                (cell(min[1], im.min[1], hy, ny).floor() as usize, cell(max[1], im.min[1], hy, ny).ceil() as usize);
+            for j in j0..j1 {
+                for i in i0..i1 {
+                    mask[j * nx + i] = true;
+                }
+            }
+        }
+        let pixels: Vec<u32> = (0..nx * ny).filter(|&p| mask[p]).map(|p| p as u32).collect();
+        (!pixels.is_empty()).then_some(Footprints { mask, pixels, halo, camera_paths })
+    }
+
+    /// Camera paths per camera pixel in a batch of `paths_per_batch` forward paths: the share
+    /// `camera_paths` of them spread evenly, rounded up to a whole number (at least one).
+    pub fn paths_per_pixel(&self, paths_per_batch: u64) -> u64 {
+        let total = (paths_per_batch as f64 * self.camera_paths).ceil();
+        ((total / self.pixels.len() as f64).ceil() as u64).max(1)
+    }
+}

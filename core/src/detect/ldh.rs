@@ -23,6 +23,7 @@
 
 use super::{ImageSpec, detector_output};
 use crate::output::{Derivation, Kind, Output, Registry, Slots, Style};
+use crate::sampling::PathRng;
 use crate::spectrum::{BandKernel, BandMoments, BandPowers, FrequencyAxis, Stft};
 use crate::stats::GROUPS;
 
@@ -377,7 +378,16 @@ impl LdhSpec {
     /// Record one detected path `d`. Calls `in_roi` with the index of every ROI it fell in, for
     /// the speckle records. Returns what it added to its pixel of the M0+ image (0 outside).
     #[inline]
-    pub fn record(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) -> f64 {
+    /// With `draw`, its lines go into the spectra by one drawn slot each
+    /// ([`FrequencyAxis::drawn_slot`]).
+    pub fn record(
+        &self,
+        lay: &LdhLayout,
+        acc: &mut [f64],
+        d: Detection,
+        mut draw: Option<&mut PathRng>,
+        mut in_roi: impl FnMut(usize),
+    ) -> f64 {
         let Detection { pixel, x, y, weight: w, frequency: f, gamma, class } = d;
         // Each evaluated once, when first needed (a path in a pixel and an ROI).
         let mut values: Option<PixelValues> = None;
@@ -391,13 +401,13 @@ impl LdhSpec {
                     acc[block + p] += w * x;
                 }
             }
-            self.record_pixel_spectrum(lay, acc, p, w, f, gamma);
+            self.record_pixel_spectrum(lay, acc, p, w, f, gamma, draw.as_deref_mut());
         }
         for (i, (roi, rl)) in self.rois.iter().zip(&lay.rois).enumerate() {
             if !roi.contains(x, y) {
                 continue;
             }
-            self.record_roi(lay, rl, acc, w, &v(), f, gamma, class);
+            self.record_roi(lay, rl, acc, w, &v(), f, gamma, class, draw.as_deref_mut());
             in_roi(i);
         }
         m0_plus
@@ -408,7 +418,7 @@ impl LdhSpec {
     pub fn record_uncovered(&self, lay: &LdhLayout, acc: &mut [f64], d: Detection, mut in_roi: impl FnMut(usize)) {
         let Detection { pixel, x, y, weight: w, frequency: f, gamma, .. } = d;
         if let Some(p) = pixel {
-            self.record_pixel_spectrum(lay, acc, p, w, f, gamma);
+            self.record_pixel_spectrum(lay, acc, p, w, f, gamma, None);
         }
         for (i, roi) in self.rois.iter().enumerate() {
             if roi.contains(x, y) {
@@ -419,10 +429,42 @@ impl LdhSpec {
 
     /// Add a line of weight `w` at `f` (half-width `gamma`) to pixel `p`'s spectrum, if recorded.
     #[inline]
-    fn record_pixel_spectrum(&self, lay: &LdhLayout, acc: &mut [f64], p: usize, w: f64, f: f64, gamma: f64) {
+    #[allow(clippy::too_many_arguments)]
+    fn record_pixel_spectrum(
+        &self,
+        lay: &LdhLayout,
+        acc: &mut [f64],
+        p: usize,
+        w: f64,
+        f: f64,
+        gamma: f64,
+        draw: Option<&mut PathRng>,
+    ) {
         if let Some(o) = lay.pixel_spectra {
             let s = o + p * lay.stride;
-            self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+            self.add_lines(acc, &[s], w, f, gamma, draw);
+        }
+    }
+
+    /// Add a line of weight `w` at `f` (half-width `gamma`) to the spectra starting at `starts`:
+    /// integrated over every bin, or with `draw` (a broadened line) by one slot drawn from it,
+    /// the same for all.
+    #[inline]
+    fn add_lines(&self, acc: &mut [f64], starts: &[usize], w: f64, f: f64, gamma: f64, draw: Option<&mut PathRng>) {
+        let axis = &self.spectrum_axis;
+        match draw {
+            Some(rng) if gamma > 0.0 && w.is_finite() => {
+                if let Some(k) = axis.drawn_slot(f, gamma, rng.uniform()) {
+                    for &s in starts {
+                        acc[s + k] += w;
+                    }
+                }
+            }
+            _ => {
+                for &s in starts {
+                    axis.add_line(&mut acc[s..s + axis.bins + 2], w, f, gamma);
+                }
+            }
         }
     }
 
@@ -440,13 +482,11 @@ impl LdhSpec {
         f: f64,
         gamma: f64,
         class: usize,
+        draw: Option<&mut PathRng>,
     ) {
         acc[rl.m0_plus] += w * v.of_block[0];
         acc[rl.m0_minus] += w * v.of_block[1];
-        let s = rl.spectrum;
-        self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
-        let s = rl.spectrum + (1 + class) * lay.stride;
-        self.spectrum_axis.add_line(&mut acc[s..s + lay.stride], w, f, gamma);
+        self.add_lines(acc, &[rl.spectrum, rl.spectrum + (1 + class) * lay.stride], w, f, gamma, draw);
         if let Some(o) = rl.moments {
             for (k, m) in v.moments.into_iter().enumerate() {
                 acc[o + k] += w * m;

@@ -158,6 +158,9 @@ pub struct Surface {
     /// [`Surface::estimator`], never this: a run applies the pilot's decision of `"auto"`
     /// ([`crate::experiment::Experiment::decided`]).
     pub choice: EstimatorChoice,
+    /// With `estimator = "footprints"`: the pixels whose light camera paths estimate
+    /// ([`image::Footprints`]).
+    pub footprints: Option<std::sync::Arc<image::Footprints>>,
 }
 
 /// The pilot's figures for `estimator = "auto"` ([`crate::pilot`]): the mean per-pixel relative
@@ -186,6 +189,9 @@ pub enum Estimator {
     Forward,
     /// Paths from the camera's pixels, connected to the laser at every scattering vertex.
     Camera,
+    /// Camera paths from the pixels of the regions' footprints (and the ROIs,
+    /// [`image::Footprints`]), the forward paths everywhere else.
+    Footprints,
 }
 
 impl Estimator {
@@ -194,15 +200,23 @@ impl Estimator {
         match self {
             Estimator::Forward => "forward",
             Estimator::Camera => "camera",
+            Estimator::Footprints => "footprints",
         }
+    }
+
+    /// Whether forward paths score the detector (everywhere, or outside the footprints).
+    pub fn forward(self) -> bool {
+        self != Estimator::Camera
     }
 }
 
-/// A surface detector's configured estimator (`estimator = "forward" | "camera" | "auto"`).
+/// A surface detector's configured estimator (`estimator = "forward" | "camera" | "footprints" |
+/// "auto"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EstimatorChoice {
     Forward,
     Camera,
+    Footprints,
     /// Either, whichever a pilot finds lower in variance × work ([`crate::pilot`]).
     Auto,
 }
@@ -222,6 +236,7 @@ impl Surface {
         match self.choice {
             EstimatorChoice::Forward | EstimatorChoice::Auto => Estimator::Forward,
             EstimatorChoice::Camera => Estimator::Camera,
+            EstimatorChoice::Footprints => Estimator::Footprints,
         }
     }
 
@@ -229,7 +244,16 @@ impl Surface {
     /// escapes into its cone are weighted against them (a camera-estimated detector never is).
     #[inline]
     pub fn scored_by_next_event(&self) -> bool {
-        self.next_event && self.estimator() == Estimator::Forward
+        self.next_event && self.estimator().forward()
+    }
+
+    /// Whether forward paths leave pixel `pixel` of the image (if any) to camera paths.
+    #[inline]
+    pub fn camera_pixel(&self, pixel: Option<usize>) -> bool {
+        match (&self.footprints, pixel) {
+            (Some(f), Some(p)) => f.mask[p],
+            _ => false,
+        }
     }
 }
 
@@ -431,7 +455,10 @@ impl TallyLayout {
             if let Some(im) = twin_camera(d) {
                 let mut blocks: Vec<usize> = lay.image().into_iter().collect();
                 blocks.extend(lay.ldh().map_or(&[][..], |l| &l.blocks[..]));
-                lay.twin = Some(twin::TwinLayout::new(im, fp, blocks));
+                let skip = d.surface().and_then(|s| s.footprints.clone());
+                let mut twin = twin::TwinLayout::new(im, fp, blocks);
+                twin.skip = skip;
+                lay.twin = Some(twin);
             }
         }
     }
@@ -525,7 +552,7 @@ pub fn twin_camera(d: &Detector) -> Option<&ImageSpec> {
     let s = d.surface()?;
     let im = s.image()?;
     let fits = matches!(s.area, Area::Rect { min, max } if min == im.min && max == im.max);
-    (s.side == Side::Top && s.estimator() == Estimator::Forward && fits).then_some(im)
+    (s.side == Side::Top && s.estimator().forward() && fits).then_some(im)
 }
 
 /// An output of detector `i` with [`Output::new`]'s defaults, for struct update syntax.
@@ -687,6 +714,9 @@ pub struct Recorder<'a> {
     /// The current path's states and score, in an importance pilot ([`importance`]): the pilot's
     /// tally over one path, filed when it ends.
     pub trace: Option<importance::Trace>,
+    /// While camera paths are recorded: the stream their broadened lines' slots are drawn from
+    /// (`FrequencyAxis::drawn_slot`; a camera path adds a line per connection, tens per path).
+    pub line_draws: Option<crate::sampling::PathRng>,
 }
 
 /// Where a path entered the stack (its layered twin's launch point, `TwinPath::launch`), m.
@@ -887,7 +917,15 @@ impl Recorder<'_> {
             self.stats.non_finite += 1;
             return;
         }
-        self.score(shot.detector, shot.x, shot.y, Some(shot.pixel), e.l, e);
+        let i = shot.detector;
+        if let DetectorKind::Surface(d) = &self.detectors[i].kind
+            && d.footprints.is_some()
+        {
+            let hit = self.hit(i, DVec3::new(shot.x, shot.y, 0.0), Some(shot.pixel), e.l, e);
+            self.score_footprint(i, &hit);
+            return;
+        }
+        self.score(i, shot.x, shot.y, Some(shot.pixel), e.l, e);
     }
 
     /// The detectors' share of [`escape`](Self::escape) (a finite path); its twin is the path's
@@ -961,7 +999,12 @@ impl Recorder<'_> {
         let pixel = || d.image().and_then(|im| im.pixel_at(p.x, p.y));
         let (Some(tl), Some(launch)) = (&layout.detectors[i].twin, twin.launch()) else {
             if d.area.contains(p.x, p.y) {
-                self.score(i, p.x, p.y, pixel(), l, e);
+                let px = pixel();
+                if d.camera_pixel(px) {
+                    self.left_to_camera_paths(i, &self.hit(i, p, px, l, e));
+                } else {
+                    self.score(i, p.x, p.y, px, l, e);
+                }
             }
             return;
         };
@@ -986,7 +1029,12 @@ impl Recorder<'_> {
         let on_area = d.area.contains(p.x, p.y);
         let same = matches!(twin, Twin::Same(_));
         let px = if on_area { pixel() } else { None };
-        if on_area && !matches!(twin, Twin::Only(_)) {
+        // A camera pixel of `estimator = "footprints"`: the path's power and speckle records
+        // only, its twin into the kernel only (whose convolution skips the camera pixels).
+        let camera_px = d.camera_pixel(px);
+        if camera_px && !matches!(twin, Twin::Only(_)) {
+            self.left_to_camera_paths(i, &hit(e, px));
+        } else if on_area && !matches!(twin, Twin::Only(_)) {
             // The path into every part (`Same`: its share of the covered parts cancels with its
             // twin's, the pixel spectra and speckle records keep it).
             let h = hit(e, px);
@@ -1003,8 +1051,9 @@ impl Recorder<'_> {
         let ht = hit(&t, px);
         let mut values = [0.0; 1 + ldh::MAX_BLOCKS];
         let mut n = 0;
+        let (subtract, rois) = (on_area && !same && !camera_px, d.footprints.is_none());
         for placed in &lay.parts {
-            n += placed.twin_values(self, &ht, launch, tl, on_area && !same, &mut values[n..]);
+            n += placed.twin_values(self, &ht, launch, tl, subtract, rois, &mut values[n..]);
         }
         tl.record(&mut self.kernels[i], launch, (p.x, p.y), &values[..n]);
     }
@@ -1012,14 +1061,21 @@ impl Recorder<'_> {
     /// Record `e`, arrived at `(x, y)` of detector `i`'s plane (in image pixel `pixel`) with the
     /// optical path length `l`, into the detector's power and each of its parts.
     fn score(&mut self, i: usize, x: f64, y: f64, pixel: Option<usize>, l: f64, e: &PathState) {
-        let (detectors, layout) = (self.detectors, self.layout);
-        let (DetectorKind::Surface(_), lay) = (&detectors[i].kind, &layout.detectors[i]) else { return };
+        let hit = self.hit(i, DVec3::new(x, y, 0.0), pixel, l, e);
         self.detected(i, e.weight);
+        for placed in &self.layout.detectors[i].parts {
+            placed.record(self, &hit);
+        }
+    }
+
+    /// `e`, arrived at `p` of detector `i`'s plane (in image pixel `pixel`) with the optical path
+    /// length `l`, as its parts record it.
+    fn hit(&self, i: usize, p: DVec3, pixel: Option<usize>, l: f64, e: &PathState) -> Hit {
         let gamma = if e.brownian > 0.0 { self.beat.brownian_hwhm(e.brownian) } else { 0.0 };
-        let hit = Hit {
+        Hit {
             detector: i,
-            x,
-            y,
+            x: p.x,
+            y: p.y,
             pixel,
             weight: e.weight,
             l,
@@ -1027,9 +1083,24 @@ impl Recorder<'_> {
             gamma,
             order: e.order,
             doppler_events: e.doppler_events,
-        };
-        for placed in &lay.parts {
-            placed.record(self, &hit);
+        }
+    }
+
+    /// A forward path's `hit` on a camera pixel of `estimator = "footprints"`, whose light the
+    /// camera paths estimate: into the detector's power (the forward paths' over the whole area)
+    /// and the speckle records only.
+    fn left_to_camera_paths(&mut self, i: usize, hit: &Hit) {
+        self.detected(i, hit.weight);
+        for placed in &self.layout.detectors[i].parts {
+            placed.record_uncovered(self, hit);
+        }
+    }
+
+    /// A camera path's connection `hit` into detector `i` with `estimator = "footprints"`: its
+    /// pixel's maps and its ROIs (the power and the speckle records are the forward paths').
+    fn score_footprint(&mut self, i: usize, hit: &Hit) {
+        for placed in &self.layout.detectors[i].parts {
+            placed.record_without_lines(self, hit);
         }
     }
 }

@@ -78,6 +78,12 @@ impl Placed {
         self.record_into(r, hit, true);
     }
 
+    /// [`record`](Self::record) without the speckle records (a camera path's connection where the
+    /// forward paths keep them, `estimator = "footprints"`).
+    pub fn record_without_lines(&self, r: &mut Recorder, hit: &Hit) {
+        self.record_into(r, hit, false);
+    }
+
     #[inline(always)]
     fn record_into(&self, r: &mut Recorder, hit: &Hit, keep_lines: bool) {
         match self {
@@ -98,7 +104,8 @@ impl Placed {
                 let Some(d) = detection(r, hit) else { return };
                 let lines = if keep_lines { r.lines.as_deref_mut() } else { None };
                 let mut lines = lines;
-                let m0_plus = l.record(lay, r.acc, d, |roi| push_line(lines.as_deref_mut(), roi, &d));
+                let draw = r.line_draws.as_mut();
+                let m0_plus = l.record(lay, r.acc, d, draw, |roi| push_line(lines.as_deref_mut(), roi, &d));
                 r.tail_score(hit, tail::M0_PLUS, m0_plus);
             }
         }
@@ -125,6 +132,7 @@ impl Placed {
     /// shifted by the offset, [`TwinLayout::shifted_mass`]) straight into the tallies; with
     /// `subtract` (a twin of its own, met on the area), also its share taken out of the maps'
     /// pixel and the ROIs it lands in (the pixel spectra are not covered: they keep the path's).
+    /// Without `rois` (the ROIs are camera paths', `estimator = "footprints"`), nothing into them.
     #[allow(clippy::too_many_arguments)]
     pub fn twin_values(
         &self,
@@ -133,6 +141,7 @@ impl Placed {
         launch: (f64, f64),
         twin: &TwinLayout,
         subtract: bool,
+        rois: bool,
         out: &mut [f64],
     ) -> usize {
         let w = hit.weight;
@@ -163,13 +172,13 @@ impl Placed {
                     }
                     r.tail_score(hit, tail::M0_PLUS, -out[0]);
                 }
-                for (roi, rl) in l.rois.iter().zip(&lay.rois) {
+                for (roi, rl) in l.rois.iter().zip(&lay.rois).filter(|_| rois) {
                     if subtract && roi.contains(hit.x, hit.y) {
-                        l.record_roi(lay, rl, r.acc, -w, &v, d.frequency, d.gamma, d.class);
+                        l.record_roi(lay, rl, r.acc, -w, &v, d.frequency, d.gamma, d.class, None);
                     }
                     let m = twin.shifted_mass(roi.min, roi.max, launch, (hit.x, hit.y));
                     if m > 0.0 {
-                        l.record_roi(lay, rl, r.acc, w * m, &v, d.frequency, d.gamma, d.class);
+                        l.record_roi(lay, rl, r.acc, w * m, &v, d.frequency, d.gamma, d.class, None);
                     }
                 }
                 n

@@ -138,6 +138,9 @@ pub struct TwinLayout {
     splat: bool,
     /// The tally slot of each channel's first pixel (the image's, then the LDH maps').
     pub blocks: Vec<usize>,
+    /// The pixels the convolution leaves alone: a `estimator = "footprints"` camera's camera
+    /// pixels, whose light the camera paths estimate ([`super::image::Footprints`]).
+    pub skip: Option<Arc<super::image::Footprints>>,
     /// FFT sizes, the footprint's transform (transposed: `[x][y]`) and the plans.
     fft: (usize, usize),
     masses: Arc<Vec<Complex64>>,
@@ -250,6 +253,7 @@ impl TwinLayout {
             cells,
             splat: fp.profile != Profile::Pencil,
             blocks,
+            skip: None,
             fft,
             masses,
             plans,
@@ -351,10 +355,11 @@ impl TwinLayout {
             }
             let out = inverse_2d(&self.plans, self.fft, t);
             // Output pixel p is the linear convolution's index p + cells − 1.
+            let skipped = |p: usize| self.skip.as_ref().is_some_and(|f| f.mask[p]);
             for (slot, &c) in pair.iter().enumerate() {
                 let block = self.blocks[c];
                 for y in 0..py {
-                    for x in 0..px {
+                    for x in (0..px).filter(|&x| !skipped(y * px + x)) {
                         let v = out[(y + self.cells.1 - 1) * nx + x + self.cells.0 - 1];
                         let v = scale * if slot == 0 { v.re } else { v.im };
                         // Rounding residue where the convolution is 0 (beyond the footprint's

@@ -24,6 +24,9 @@ pub enum Purpose {
     /// Speckle of single measurements: Algorithm 2's random phases and Cauchy frequencies,
     /// Algorithm 1's per-bin `Exp(1)` draws ([`crate::spectrum::synth`]).
     Speckle = 0x5350_4543,
+    /// The slots camera paths' broadened spectral lines are drawn into
+    /// ([`crate::spectrum::FrequencyAxis::drawn_slot`]): element = batch and detector.
+    Lines = 0x4c49_4e45,
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.

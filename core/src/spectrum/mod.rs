@@ -116,6 +116,25 @@ pub fn lorentzian_tail_fractions(f_min: f64, f_max: f64, f: f64, gamma: f64) -> 
 }
 
 impl FrequencyAxis {
+    /// The slot (a bin, or `bins`/`bins + 1` below/above the axis) that a line at `f` with
+    /// Lorentzian half-width `gamma` puts its whole weight into for the uniform `u` in `[0, 1)`:
+    /// that of the frequency `f + γ·tan(π(u − ½))` drawn from the Lorentzian (a pure tone's own
+    /// slot). Each slot's probability is the line's fraction in it, so a weight added there has
+    /// [`add_line`](Self::add_line)'s expectation at the cost of one slot instead of every bin
+    /// (camera paths, whose connections add tens of lines each, [`crate::detect::ldh`]). `None`
+    /// for a non-finite `f`.
+    #[inline]
+    pub fn drawn_slot(&self, f: f64, gamma: f64, u: f64) -> Option<usize> {
+        let nu = if gamma > 0.0 { f + gamma * (PI * (u - 0.5)).tan() } else { f };
+        match self.locate(nu) {
+            Slot::Bin(k) => Some(k),
+            Slot::Below => Some(self.bins),
+            Slot::Above => Some(self.bins + 1),
+            // (u = 0 draws −∞: below.)
+            Slot::NonFinite => f.is_finite().then_some(self.bins),
+        }
+    }
+
     /// Add a line of weight `w` at frequency `f` with Lorentzian half-width `gamma` (Hz, 0 for a
     /// pure tone) to `hist`, laid out as this axis's `bins` followed by the below/above tallies.
     /// A broadened line is integrated exactly over every bin and both out-of-range tails, so the

@@ -137,11 +137,6 @@ impl CameraTarget {
         self.image.nx * self.image.ny
     }
 
-    /// Pixels camera paths leave from: every `stride`-th.
-    pub fn traced_pixels(&self) -> usize {
-        self.pixels().div_ceil(self.stride)
-    }
-
     /// Camera paths per pixel in a batch of `paths_per_batch` forward paths: as many camera paths
     /// as forward paths, rounded up to a whole number per pixel, so that every pixel gets exactly
     /// the same number in every batch (no pixel is left without an estimate in any batch).

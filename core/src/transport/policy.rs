@@ -180,9 +180,7 @@ pub fn deterministic_reflections(
     settings: &WalkSettings,
     detectors: &[crate::detect::Detector],
 ) -> bool {
-    let seen = detectors.iter().any(|d| {
-        d.surface().is_some_and(|s| s.side == Side::Top && s.estimator() == crate::detect::Estimator::Forward)
-    });
+    let seen = detectors.iter().any(|d| d.surface().is_some_and(|s| s.side == Side::Top && s.estimator().forward()));
     let mismatched = scene
         .layers
         .iter()

@@ -11,7 +11,7 @@ use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
 use crate::detect::{
     Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Part,
-    Roi, Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec,
+    Roi, Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec, image::Footprints,
 };
 use crate::error::ConfigError;
 use crate::medium::Scene;
@@ -365,6 +365,7 @@ fn resolve_estimator(
     let (estimator, name) = match kind {
         None | Some(EstimatorKind::Forward) => return Ok(EstimatorChoice::Forward),
         Some(EstimatorKind::Camera) => (EstimatorChoice::Camera, "camera"),
+        Some(EstimatorKind::Footprints) => (EstimatorChoice::Footprints, "footprints"),
         Some(EstimatorKind::Auto) => (EstimatorChoice::Auto, "auto"),
     };
     let why_not = if side != Side::Top {
@@ -377,6 +378,81 @@ fn resolve_estimator(
         return Ok(estimator);
     };
     err(join(path, "estimator"), format!("= \"{name}\": {why_not}"))
+}
+
+/// `[detectors.footprints] halo_um` by default, m.
+pub const FOOTPRINT_DEFAULT_HALO_M: f64 = 20e-6;
+
+/// The camera pixels of `estimator = "footprints"` ([`Footprints`]), `None` for any other
+/// estimator (where `[detectors.footprints]` is refused). The image's maps and ROIs are what it
+/// covers: refused beside a spectrum, time or correlation part or per-pixel spectra, which the
+/// two kinds of path would each estimate over a part of the area.
+fn resolve_footprints(
+    path: &str,
+    d: &DetectorSection,
+    choice: EstimatorChoice,
+    scene: &Scene,
+    parts: &[Option<Part>; 5],
+) -> R<Option<std::sync::Arc<Footprints>>> {
+    let p = join(path, "footprints");
+    if choice != EstimatorChoice::Footprints {
+        return match d.footprints {
+            Some(_) => err(p, "is set, but the detector's estimator is not \"footprints\""),
+            None => Ok(None),
+        };
+    }
+    let f = d.footprints.clone().unwrap_or_default();
+    let halo = match given(&p, &f.halo)? {
+        None => FOOTPRINT_DEFAULT_HALO_M,
+        Some(v) => non_negative(v, "a distance")?,
+    };
+    let camera_paths = f.camera_paths.unwrap_or(1.0);
+    if !(camera_paths.is_finite() && (1e-3..=1e3).contains(&camera_paths)) {
+        return err(
+            join(&p, "camera_paths"),
+            format!("= {camera_paths}: expected camera paths per forward path from 0.001 to 1000"),
+        );
+    }
+    let mut im = None;
+    let mut rois = Vec::new();
+    for part in parts.iter().flatten() {
+        match part {
+            Part::Image(i) => im = Some(*i),
+            Part::Ldh(l) if l.pixel_spectra => {
+                return err(
+                    join(path, "ldh.pixel_spectra"),
+                    "= true: with estimator = \"footprints\" each pixel's light is one estimator's, which per-pixel spectra of both kinds of path would mix: remove one of them",
+                );
+            }
+            Part::Ldh(l) => rois.extend(l.rois.iter().map(|r| (r.min, r.max))),
+            other => {
+                let name = match other {
+                    Part::Spectrum(_) => "spectrum",
+                    Part::Time(_) => "time",
+                    _ => "correlation",
+                };
+                return err(
+                    join(path, name),
+                    format!(
+                        "is set: estimator = \"footprints\" covers the image and its LDH maps and ROIs, not a {name}: estimate it with \"forward\" on a detector of its own"
+                    ),
+                );
+            }
+        }
+    }
+    let Some(im) = im else {
+        return err(
+            join(path, "estimator"),
+            "= \"footprints\": camera paths leave from the image's pixels: add [detectors.image] pixels = [nx, ny]",
+        );
+    };
+    let Some(fp) = Footprints::new(scene, &im, halo, &rois, camera_paths) else {
+        return err(
+            join(path, "estimator"),
+            "= \"footprints\": no region of the scene lies under the image, and no ROI: nothing for camera paths to estimate (use \"forward\")",
+        );
+    };
+    Ok(Some(std::sync::Arc::new(fp)))
 }
 
 pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &Source) -> R<Vec<Detector>> {
@@ -589,6 +665,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             correlation.map(Part::Correlation),
             ldh.map(Part::Ldh),
         ];
+        let footprints = resolve_footprints(&path, d, choice, scene, &parts)?;
         let surface = Surface {
             side,
             distance,
@@ -600,6 +677,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             next_event,
             parts: parts.into_iter().flatten().collect(),
             choice,
+            footprints,
         };
         out.push(Detector { name: d.name.clone(), kind: DetectorKind::Surface(surface) });
     }
