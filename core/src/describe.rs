@@ -805,6 +805,14 @@ impl Display for Detector {
             write!(f, ", estimator auto (a pilot before the run chooses camera-side or forward estimation)")?;
         } else if d.estimator() == crate::detect::Estimator::Camera {
             write!(f, ", camera-side estimation (paths from its pixels, at least one per pixel and batch)")?;
+        } else if let Some(fp) = &d.footprints {
+            write!(
+                f,
+                ", footprints: camera paths from {} pixels (the regions' footprints with a {} halo, and the ROIs'; {} camera paths per forward path), next-event estimation elsewhere",
+                fp.pixels.len(),
+                length(fp.halo),
+                fp.camera_paths
+            )?;
         } else if d.next_event {
             write!(f, ", next-event estimation")?;
         }

@@ -679,7 +679,8 @@ fn assert_same_run(a: &Path, b: &Path) -> usize {
 /// `ohd run --shard I/N` on every part (any thread counts) and `ohd merge` (shards in any
 /// order) give a single run's outputs byte for byte: the vessel camera's spectra and image, the
 /// retina LDH camera's M0± images and ROI speckle, which needs every recorded line in batch
-/// order, and a camera-estimated LDH camera (camera paths by batch and pixel). Mismatched,
+/// order, a camera-estimated LDH camera (camera paths by batch and pixel) and one estimated by
+/// camera paths on its footprints' pixels only. Mismatched,
 /// missing, repeated and truncated shards are refused (exit 2, nothing written).
 #[test]
 #[ignore = "deep tier (tens of seconds to minutes): bash .ci/deep"]
@@ -687,6 +688,7 @@ fn shards_merge_into_a_single_run() {
     let tmp = tempfile::tempdir().unwrap();
     let retina = repo().join("configs/retina_ldh.toml");
     let camera = repo().join("tests/configs/good/camera_estimator.toml");
+    let footprints = repo().join("tests/configs/good/footprints_estimator.toml");
     for (case, config, samples, count, set) in [
         ("vessel", None, "400000", 3u64, None),
         // With the LDH moments: their frequency images are ratios whose σ is a jackknife over
@@ -695,6 +697,8 @@ fn shards_merge_into_a_single_run() {
         ("camera", Some(&camera), "64000", 3, None),
         // Each shard and the merge decide `auto` by the same pilot.
         ("auto", Some(&camera), "64000", 2, Some("detectors.0.estimator=\"auto\"")),
+        // Camera paths from the footprints' pixels beside the forward paths, speckle from these.
+        ("footprints", Some(&footprints), "64000", 3, None),
     ] {
         let base = |dir: &Path| -> Vec<String> {
             let mut a: Vec<String> = vec!["run".into()];

@@ -12,6 +12,8 @@ fn one_and_two_threads_write_identical_outputs() {
         ("density_ramp", include_str!("../configs/good/density_ramp.toml")),
         // Camera paths, pixel by pixel, besides the forward ones.
         ("camera", include_str!("../configs/good/camera_estimator.toml")),
+        // Camera paths from the footprints' pixels, the forward paths elsewhere.
+        ("footprints", include_str!("../configs/good/footprints_estimator.toml")),
     ] {
         let dirs: Vec<tempfile::TempDir> = (0..2).map(|_| tempfile::tempdir().unwrap()).collect();
         let mut manifests = Vec::new();

@@ -129,22 +129,7 @@ impl Footprints {
         let (nx, ny) = (im.nx, im.ny);
         let (hx, hy) = ((im.max[0] - im.min[0]) / nx as f64, (im.max[1] - im.min[1]) / ny as f64);
         let regions = region_mask(scene, im).unwrap_or_else(|| vec![false; nx * ny]);
-        let mut mask = regions.clone();
-        // The halo: every pixel within `halo` (centre to centre) of a footprint pixel.
-        let (rx, ry) = ((halo / hx).floor() as i64, (halo / hy).floor() as i64);
-        for (p, _) in regions.iter().enumerate().filter(|(_, m)| **m) {
-            let (i, j) = ((p % nx) as i64, (p / nx) as i64);
-            for dj in -ry..=ry {
-                for di in -rx..=rx {
-                    let (a, b) = (i + di, j + dj);
-                    let inside = a >= 0 && b >= 0 && (a as usize) < nx && (b as usize) < ny;
-                    let (ex, ey) = (di as f64 * hx, dj as f64 * hy);
-                    if inside && ex * ex + ey * ey <= halo * halo {
-                        mask[b as usize * nx + a as usize] = true;
-                    }
-                }
-            }
-        }
+        let mut mask = grown(&regions, (nx, ny), (hx, hy), halo);
         // Every pixel an ROI's rectangle overlaps (with an area: edges alone do not count).
         let cell = |v: f64, lo: f64, h: f64, n: usize| ((v - lo) / h).clamp(0.0, n as f64);
         for (min, max) in rois {
@@ -167,5 +152,65 @@ impl Footprints {
     pub fn paths_per_pixel(&self, paths_per_batch: u64) -> u64 {
         let total = (paths_per_batch as f64 * self.camera_paths).ceil();
         ((total / self.pixels.len() as f64).ceil() as u64).max(1)
+    }
+}
+
+/// The pixels of an `nx × ny` grid of pitch `(hx, hy)` whose centre lies within `halo` of the
+/// centre of a pixel of `mask` (row-major). From a mask row `dj` rows away, the pixels within the
+/// disk's half-width there, read off the rows' running counts of mask pixels: O(pixels × (2·rows
+/// + 1)).
+pub fn grown(mask: &[bool], (nx, ny): (usize, usize), (hx, hy): (f64, f64), halo: f64) -> Vec<bool> {
+    let mut out = mask.to_vec();
+    let mut count = vec![0u32; (nx + 1) * ny];
+    for j in 0..ny {
+        for i in 0..nx {
+            count[j * (nx + 1) + i + 1] = count[j * (nx + 1) + i] + u32::from(mask[j * nx + i]);
+        }
+    }
+    let ry = ((halo / hy).floor() as usize).min(ny);
+    for dj in 0..=ry {
+        let reach = halo * halo - (dj as f64 * hy).powi(2);
+        if reach < 0.0 {
+            continue;
+        }
+        let w = ((reach.sqrt() / hx).floor() as usize).min(nx);
+        for j in 0..ny {
+            for src in [j.checked_sub(dj), (j + dj < ny).then_some(j + dj)].into_iter().flatten() {
+                let row = &count[src * (nx + 1)..(src + 1) * (nx + 1)];
+                for i in 0..nx {
+                    if row[(i + w + 1).min(nx)] > row[i.saturating_sub(w)] {
+                        out[j * nx + i] = true;
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod footprint_tests {
+    use super::grown;
+
+    /// The row-wise halo equals the brute-force one: every pixel within the distance, centre to
+    /// centre, of a marked pixel (anisotropic pitch, marks at the edges, several radii).
+    #[test]
+    fn the_halo_is_every_pixel_within_its_distance() {
+        let (nx, ny, hx, hy) = (23, 17, 1.0, 1.7);
+        let mut mask = vec![false; nx * ny];
+        for &(i, j) in &[(0, 0), (5, 8), (22, 16), (11, 3), (12, 3), (3, 15)] {
+            mask[j * nx + i] = true;
+        }
+        for halo in [0.0, 0.9, 1.0, 2.5, 4.0, 7.3, 40.0] {
+            let fast = grown(&mask, (nx, ny), (hx, hy), halo);
+            for p in 0..nx * ny {
+                let (i, j) = ((p % nx) as f64, (p / nx) as f64);
+                let near = (0..nx * ny).filter(|&q| mask[q]).any(|q| {
+                    let (a, b) = ((q % nx) as f64, (q / nx) as f64);
+                    ((i - a) * hx).powi(2) + ((j - b) * hy).powi(2) <= halo * halo
+                });
+                assert_eq!(fast[p], near, "halo {halo}, pixel {p}");
+            }
+        }
     }
 }

@@ -383,6 +383,9 @@ fn resolve_estimator(
 /// `[detectors.footprints] halo_um` by default, m.
 pub const FOOTPRINT_DEFAULT_HALO_M: f64 = 20e-6;
 
+/// The widest halo, in pixel pitches.
+pub const FOOTPRINT_MAX_HALO_PIXELS: f64 = 64.0;
+
 /// The camera pixels of `estimator = "footprints"` ([`Footprints`]), `None` for any other
 /// estimator (where `[detectors.footprints]` is refused). The image's maps and ROIs are what it
 /// covers: refused beside a spectrum, time or correlation part or per-pixel spectra, which the
@@ -446,6 +449,19 @@ fn resolve_footprints(
             "= \"footprints\": camera paths leave from the image's pixels: add [detectors.image] pixels = [nx, ny]",
         );
     };
+    // A few pixels' halo is what a vessel's light needs; a wide one is a camera estimator's job.
+    let pitch = ((im.max[0] - im.min[0]) / im.nx as f64).min((im.max[1] - im.min[1]) / im.ny as f64);
+    if halo > FOOTPRINT_MAX_HALO_PIXELS * pitch {
+        let key = f.halo.as_ref().map_or_else(|| join(&p, "halo_um"), |q| join(&p, &q.key));
+        return err(
+            key,
+            format!(
+                "= {} µm: expected at most {FOOTPRINT_MAX_HALO_PIXELS} pixels' pitch ({} µm; use estimator = \"camera\" for a wider area)",
+                shown(halo * 1e6),
+                shown(FOOTPRINT_MAX_HALO_PIXELS * pitch * 1e6)
+            ),
+        );
+    }
     let Some(fp) = Footprints::new(scene, &im, halo, &rois, camera_paths) else {
         return err(
             join(path, "estimator"),

@@ -161,10 +161,25 @@ pub struct DetectorEntry {
     /// lower was chosen).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator_pilot: Option<crate::detect::AutoChoice>,
+    /// With `estimator = "footprints"`: the pixels camera paths estimated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub footprints: Option<FootprintsEntry>,
     /// Per part of a surface detector (`spectrum`, `fmcw`, `image`, `time`, `correlation`,
     /// `ldh`) or a lidar receiver (`lidar`): what its files hold ([`super::parts`]).
     #[serde(flatten)]
     pub parts: BTreeMap<&'static str, Value>,
+}
+
+/// The camera pixels of `estimator = "footprints"` (`NAME_camera_pixels.npy`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FootprintsEntry {
+    /// How many pixels camera paths estimated (the regions' footprints, their halo, the ROIs').
+    pub camera_pixels: usize,
+    pub halo_m: f64,
+    /// Camera paths per forward path, as configured.
+    pub camera_paths_per_forward_path: f64,
+    /// Camera paths traced from each camera pixel over the run.
+    pub camera_paths_per_pixel: u64,
 }
 
 /// Where a run's wall time went, seconds (`timing` in the manifest; like `wall_seconds`, the only
@@ -279,6 +294,24 @@ fn write_run_to<S: super::Sink>(
         w.table.insert(file.clone(), entry);
         w.masks.insert(i, (file, written.iter().map(|&m| m != 0.0).collect()));
     }
+    // The camera pixels of `estimator = "footprints"`.
+    for d in &exp.detectors {
+        let (Some(im), Some(fp)) = (d.surface().and_then(|s| s.image()), d.surface().and_then(|s| s.footprints.as_ref()))
+        else {
+            continue;
+        };
+        let written =
+            crate::output::rows_reversed(&fp.mask.iter().map(|&m| f64::from(u8::from(m))).collect::<Vec<_>>(), im.nx);
+        let file = format!("{}_camera_pixels.npy", d.name);
+        w.put(file.clone(), crate::io::formats::npy::to_bytes(&[im.ny, im.nx], &written))?;
+        let entry = super::OutputEntry::made(
+            "camera_pixels",
+            &[im.ny, im.nx],
+            "1 (1: camera paths estimated the pixel, estimator = \"footprints\"; row 0 = the largest y)",
+            Vec::new(),
+        );
+        w.table.insert(file, entry);
+    }
     w.speckle = exp.m0_speckle(&out.layout).collect();
     w.tails = out.tail_checks();
     w.paths = out.paths() as f64;
@@ -300,6 +333,12 @@ fn write_run_to<S: super::Sink>(
             side: if d.side() == Side::Top { "top" } else { "bottom" },
             estimator: d.surface().map(|s| s.estimator().name()),
             estimator_pilot: out.decisions.estimator(i).and_then(|e| e.figures),
+            footprints: d.surface().and_then(|s| s.footprints.as_deref()).map(|fp| FootprintsEntry {
+                camera_pixels: fp.pixels.len(),
+                halo_m: fp.halo,
+                camera_paths_per_forward_path: fp.camera_paths,
+                camera_paths_per_pixel: fp.paths_per_pixel(out.paths_per_batch) * out.estimates.batches() as u64,
+            }),
             parts: BTreeMap::new(),
         };
         match &d.kind {
