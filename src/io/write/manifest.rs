@@ -296,7 +296,8 @@ fn write_run_to<S: super::Sink>(
     }
     // The camera pixels of `estimator = "footprints"`.
     for d in &exp.detectors {
-        let (Some(im), Some(fp)) = (d.surface().and_then(|s| s.image()), d.surface().and_then(|s| s.footprints.as_ref()))
+        let (Some(im), Some(fp)) =
+            (d.surface().and_then(|s| s.image()), d.surface().and_then(|s| s.footprints.as_ref()))
         else {
             continue;
         };
