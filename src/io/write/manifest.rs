@@ -295,7 +295,7 @@ fn write_run_to<S: super::Sink>(
         w.masks.insert(i, (file, written.iter().map(|&m| m != 0.0).collect()));
     }
     // The camera pixels of `estimator = "footprints"`.
-    for d in &exp.detectors {
+    for (i, d) in exp.detectors.iter().enumerate() {
         let (Some(im), Some(fp)) =
             (d.surface().and_then(|s| s.image()), d.surface().and_then(|s| s.footprints.as_ref()))
         else {
@@ -309,7 +309,7 @@ fn write_run_to<S: super::Sink>(
             "camera_pixels",
             &[im.ny, im.nx],
             "1 (1: camera paths estimated the pixel, estimator = \"footprints\"; row 0 = the largest y)",
-            Vec::new(),
+            out.layout.detectors[i].image().map_or_else(Vec::new, |slot| out.layout.registry.at(slot).axes.clone()),
         );
         w.table.insert(file, entry);
     }
