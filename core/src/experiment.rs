@@ -756,7 +756,7 @@ impl Experiment {
             .filter_map(|(i, d)| {
                 let s = d.surface()?;
                 let im = *s.image()?;
-                (!s.estimator().forward() || s.footprints.is_some()).then(|| CameraTarget {
+                (s.estimator() != crate::detect::Estimator::Forward).then(|| CameraTarget {
                     include_specular: s.include_specular,
                     stride: self.plan.camera_pixel_stride.max(1),
                     ..CameraTarget::new(i, im, s.area, s.distance, s.axis, s.cos_acceptance)
