@@ -377,9 +377,9 @@ impl LdhSpec {
 
     /// Record one detected path `d`. Calls `in_roi` with the index of every ROI it fell in, for
     /// the speckle records. Returns what it added to its pixel of the M0+ image (0 outside).
-    #[inline]
     /// With `draw`, its lines go into the spectra by one drawn slot each
     /// ([`FrequencyAxis::drawn_slot`]).
+    #[inline]
     pub fn record(
         &self,
         lay: &LdhLayout,
