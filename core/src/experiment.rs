@@ -368,6 +368,14 @@ impl Tallies {
     }
 }
 
+/// What a batch's walks follow beyond the experiment: the weight windows and the light field,
+/// both made when the run starts.
+#[derive(Clone, Copy)]
+struct Steer<'a> {
+    windows: Option<&'a Windows>,
+    field: Option<&'a crate::transport::field::FieldTable>,
+}
+
 /// Runs batches on a thread pool and hands their results over in batch order, reusing their
 /// tally vectors: a large camera's (O(pixels × bins)) would otherwise be fresh pages, faulted in
 /// and zeroed by the kernel, every batch.
@@ -386,6 +394,9 @@ struct BatchRunner<'a> {
     /// here for `run.importance = "windows"`), and the windows.
     table: Option<ImportanceTable>,
     windows: Option<Windows>,
+    /// The layered twin's light field camera paths connect to (`[detectors.footprints]
+    /// light_field`), made when the run starts.
+    field: Option<crate::transport::field::FieldTable>,
 }
 
 impl<'a> BatchRunner<'a> {
@@ -405,20 +416,36 @@ impl<'a> BatchRunner<'a> {
             let w = Windows::new(t.grid.clone(), &t.value, t.response);
             if steering == Importance::Guided { w.guided(&exp.scene, &t.value) } else { w }
         });
-        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows }
+        let field = exp.field_paths().map(|paths| {
+            let build = || {
+                crate::transport::field::FieldTable::build(
+                    &exp.scene,
+                    &exp.source,
+                    &exp.plan.walk,
+                    paths,
+                    exp.plan.seed,
+                )
+            };
+            match &pool {
+                Some(p) => p.install(build),
+                None => build(),
+            }
+        });
+        BatchRunner { exp, pool, layout, beat, in_flight, spare: Vec::new(), table, windows, field }
     }
 
     /// Run the batches `range` and give each result to `sink` in batch order, stopping at its
     /// first error. A pipeline, not rounds: as each batch is handed over the next one starts, so
     /// no thread waits for the slowest batch of a group (this thread only receives and folds).
     fn run(&mut self, range: std::ops::Range<u64>, progress: &dyn Progress, sink: &mut BatchSink) -> Result<()> {
-        let BatchRunner { exp, pool, layout, beat, in_flight, spare, windows, .. } = self;
-        let (exp, layout, beat, in_flight, windows) = (*exp, &*layout, *beat, *in_flight, windows.as_ref());
+        let BatchRunner { exp, pool, layout, beat, in_flight, spare, windows, field, .. } = self;
+        let (exp, layout, beat, in_flight) = (*exp, &*layout, *beat, *in_flight);
+        let steer = Steer { windows: windows.as_ref(), field: field.as_ref() };
         let len = layout.tallies();
         let Some(pool) = pool else {
             for b in range {
                 let sums = spare.pop().unwrap_or_else(|| Tallies::new(len));
-                let (sums, s, l) = exp.run_batch(b, sums, layout, beat, windows, progress);
+                let (sums, s, l) = exp.run_batch(b, sums, layout, beat, steer, progress);
                 if progress.cancelled() {
                     return Err(crate::error::Error::Cancelled);
                 }
@@ -438,7 +465,7 @@ impl<'a> BatchRunner<'a> {
             let spawn = |b: u64, sums: Tallies| {
                 let tx = tx.clone();
                 scope.spawn(move |_| {
-                    let run = std::panic::AssertUnwindSafe(|| exp.run_batch(b, sums, layout, beat, windows, progress));
+                    let run = std::panic::AssertUnwindSafe(|| exp.run_batch(b, sums, layout, beat, steer, progress));
                     // The receiver outlives the scope, so the send cannot fail.
                     let _ = tx.send((b, std::panic::catch_unwind(run)));
                 });
@@ -789,6 +816,12 @@ impl Experiment {
             .map_or_else(|| cam.paths_per_pixel(paths_per_batch), |f| f.paths_per_pixel(paths_per_batch))
     }
 
+    /// The pre-pass paths of the light field (`[detectors.footprints] light_field`), the most
+    /// any camera asks for; `None` if none connects to it.
+    pub fn field_paths(&self) -> Option<u64> {
+        self.detectors.iter().filter_map(|d| d.surface()?.footprints.as_ref()?.light_field).max()
+    }
+
     fn footprints_of(&self, cam: &CameraTarget) -> Option<&crate::detect::image::Footprints> {
         self.detectors[cam.detector].surface()?.footprints.as_deref()
     }
@@ -1026,7 +1059,7 @@ impl Experiment {
         mut sums: Tallies,
         layout: &TallyLayout,
         beat: BeatModel,
-        windows: Option<&Windows>,
+        Steer { windows, field }: Steer,
         progress: &dyn Progress,
     ) -> BatchResult {
         sums.sums_mut().fill(0.0);
@@ -1049,7 +1082,7 @@ impl Experiment {
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());
-        let twin_scene = twin.then(|| self.scene.layered_twin());
+        let twin_scene = (twin || field.is_some()).then(|| self.scene.layered_twin());
         let volume = self.volume.as_ref().map(|grid| VolumeTally {
             grid,
             slots: layout.volume.expect("a volume tally lays out its outputs"),
@@ -1072,6 +1105,7 @@ impl Experiment {
             twin_scene: twin_scene.as_ref(),
             launches: launches.as_ref(),
             windows,
+            field: None,
         };
         let key = StreamKey::new(self.plan.seed, Purpose::Path, batch);
         let ppb = self.plan.paths_per_batch;
@@ -1101,6 +1135,8 @@ impl Experiment {
             let element = batch | (cam.detector as u64) << 48;
             let key = StreamKey::new(self.plan.seed, Purpose::Camera, element);
             rec.line_draws = Some(StreamKey::new(self.plan.seed, Purpose::Lines, element).path(0));
+            let lit = self.footprints_of(cam).is_some_and(|f| f.light_field.is_some());
+            let walk = WalkContext { field: field.filter(|_| lit), ..walk };
             for pixel in self.camera_pixels(cam) {
                 features.camera_paths(&walk, cam, pixel, spp, batch_weight, &mut rec, &key);
                 done += spp;

@@ -827,6 +827,11 @@ pub struct FootprintsSection {
     pub halo: Option<Quantity<Length>>,
     /// Camera paths per forward path, spread evenly over the camera pixels (default 1).
     pub camera_paths: Option<f64>,
+    /// Camera paths connect to the layered scene's light field below the regions (default
+    /// false).
+    pub light_field: Option<bool>,
+    /// Forward paths of the light field's pre-pass (default 2·10⁶).
+    pub field_paths: Option<u64>,
 }
 
 /// `[detectors.lidar]`: a monostatic pulsed coherent lidar receiver at the source's position,

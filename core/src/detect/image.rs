@@ -113,6 +113,10 @@ pub struct Footprints {
     pub halo: f64,
     /// Camera paths per forward path (spread evenly over the camera pixels).
     pub camera_paths: f64,
+    /// Camera paths connect to the layered twin's light field below the regions, tabulated by
+    /// this many forward paths (`light_field`, `crate::transport::field`); `None`: to the beam
+    /// only.
+    pub light_field: Option<u64>,
 }
 
 impl Footprints {
@@ -144,7 +148,7 @@ impl Footprints {
             }
         }
         let pixels: Vec<u32> = (0..nx * ny).filter(|&p| mask[p]).map(|p| p as u32).collect();
-        (!pixels.is_empty()).then_some(Footprints { mask, pixels, halo, camera_paths })
+        (!pixels.is_empty()).then_some(Footprints { mask, pixels, halo, camera_paths, light_field: None })
     }
 
     /// Camera paths per camera pixel in a batch of `paths_per_batch` forward paths: the share

@@ -912,7 +912,6 @@ impl Recorder<'_> {
     /// optical path length).
     #[inline(never)]
     pub fn camera(&mut self, shot: &Shot, e: &PathState) {
-        debug_assert!(e.weight >= 0.0 || e.weight.is_nan(), "a negative contribution {}", e.weight);
         if !(e.weight.is_finite() && e.dldt.is_finite() && e.l.is_finite()) {
             self.stats.non_finite += 1;
             return;
@@ -921,10 +920,12 @@ impl Recorder<'_> {
         if let DetectorKind::Surface(d) = &self.detectors[i].kind
             && d.footprints.is_some()
         {
+            // (With the light field a camera path also scores its layered twin's light, negative.)
             let hit = self.hit(i, DVec3::new(shot.x, shot.y, 0.0), Some(shot.pixel), e.l, e);
             self.score_footprint(i, &hit);
             return;
         }
+        debug_assert!(e.weight >= 0.0, "a negative contribution {}", e.weight);
         self.score(i, shot.x, shot.y, Some(shot.pixel), e.l, e);
     }
 

@@ -27,6 +27,8 @@ pub enum Purpose {
     /// The slots camera paths' broadened spectral lines are drawn into
     /// ([`crate::spectrum::FrequencyAxis::drawn_slot`]): element = batch and detector.
     Lines = 0x4c49_4e45,
+    /// The light field's pre-pass ([`crate::transport::field`]): element 0, sample = the path.
+    Field = 0x4649_454c,
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.

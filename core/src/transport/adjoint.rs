@@ -17,7 +17,34 @@ use super::walk::{End, Estimator, RoughFace, SurfaceHit, Vertex, WalkContext, sc
 
 /// Camera paths through a scene where something moves (`DOPPLER`) and whose optical path length
 /// is needed (`LENGTH`); its value is the path's [`Balance`] against its connections.
-pub(super) struct Adjoint<const DOPPLER: bool, const LENGTH: bool> {
+pub(super) struct Adjoint<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> {
+    balance: Balance,
+    /// With `FIELD`, where the path stands with the light field ([`super::field`]).
+    field: FieldWalk,
+}
+
+/// A camera path's part in the light field's estimate ([`super::field`]).
+#[derive(Clone)]
+enum FieldWalk {
+    /// Above its first collision below every region: a plain camera path.
+    Before,
+    /// From that collision (`j*`) on, its walk shared with the layered twin's: the connections
+    /// score the scene's light minus the twin's. Holds where the next flight starts from.
+    Shared(Option<Start>),
+    /// Its flight from `Start` met a region: the path scores alone, and once it has ended the twin
+    /// walks on from there by itself.
+    Parted(Start),
+    /// A plain camera path to its end: the twin's own walk, or a path without the field.
+    Plain,
+}
+
+/// Where a flight starts: the path after its collision there, its generator, its layer and its
+/// balance against the connections.
+#[derive(Clone)]
+struct Start {
+    s: PathState,
+    rng: PathRng,
+    li: usize,
     balance: Balance,
 }
 
@@ -49,7 +76,7 @@ impl Balance {
     }
 }
 
-impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LENGTH> {
+impl<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> Estimator for Adjoint<DOPPLER, LENGTH, FIELD> {
     const DOPPLER: bool = DOPPLER;
     const LENGTH: bool = LENGTH;
     const GATE: bool = false;
@@ -69,18 +96,37 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
         rec: &mut Recorder,
     ) -> Option<End> {
         super::walk::advance::<Self>(s, t, v.n);
-        collide_camera::<DOPPLER, LENGTH>(
+        let end = collide_camera::<DOPPLER, LENGTH, FIELD>(
             ctx,
             v.li,
             s,
             &mut self.balance,
+            &mut self.field,
             v.medium,
             v.albedo,
             v.n,
             rng,
             checkpoint,
             rec,
-        )
+        );
+        if FIELD
+            && end.is_none()
+            && let FieldWalk::Shared(start) = &mut self.field
+        {
+            *start = Some(Start { s: *s, rng: rng.clone(), li: v.li, balance: self.balance });
+        }
+        end
+    }
+
+    /// A flight shared with the layered twin that meets a region parts the two.
+    #[inline(always)]
+    fn flew(&mut self, scene: &crate::medium::Scene, layer: &crate::medium::Layer, s: &PathState, t: f64) {
+        if FIELD
+            && let FieldWalk::Shared(start) = &mut self.field
+            && super::field::touches_region(scene, layer, s.pos, s.dir, t)
+        {
+            self.field = start.take().map_or(FieldWalk::Plain, FieldWalk::Parted);
+        }
     }
 
     /// Radiance across the interface: `L/n²` is invariant. The beam-lobe connection crosses it
@@ -197,7 +243,7 @@ impl<const DOPPLER: bool, const LENGTH: bool> Estimator for Adjoint<DOPPLER, LEN
 
 /// Trace one camera path of pixel `pixel` of `cam` ([`super::camera`]), recording its
 /// connections to the laser into `rec` with the tally weight `batch_weight` per path.
-pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
+pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
     ctx: &WalkContext,
     cam: &CameraTarget,
     pixel: usize,
@@ -227,8 +273,9 @@ pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     let mut s = PathState::new(pos, dir, weight, if LENGTH { l } else { 0.0 });
     let ctx = WalkContext { shot: Some(shot), ..*ctx };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
+    let mut est = Adjoint::<DOPPLER, LENGTH, FIELD> { balance: Balance::Full, field: FieldWalk::Before };
     let end = walk_to_the_end(
-        &mut Adjoint::<DOPPLER, LENGTH> { balance: Balance::Full },
+        &mut est,
         &ctx,
         0,
         &mut s,
@@ -243,6 +290,25 @@ pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool>(
     if end == End::Truncated {
         rec.stats.truncated_paths += 1;
     }
+    if FIELD && let FieldWalk::Parted(start) = est.field {
+        twin_walk::<DOPPLER, LENGTH>(&ctx, start, rec);
+    }
+}
+
+/// The layered twin's own walk from where it parted from its camera path ([`FieldWalk::Parted`]),
+/// in the twin's scene with the path's generator as it was there, every connection scored with
+/// the opposite sign.
+#[cold]
+#[inline(never)]
+fn twin_walk<const DOPPLER: bool, const LENGTH: bool>(ctx: &WalkContext, start: Start, rec: &mut Recorder) {
+    let (Some(scene), Some(shot)) = (ctx.twin_scene, ctx.shot) else { return };
+    let ctx = WalkContext { scene, shot: Some(Shot { scale: -shot.scale, ..shot }), field: None, ..*ctx };
+    let Start { mut s, mut rng, li, balance } = start;
+    let mut est = Adjoint::<DOPPLER, LENGTH, true> { balance, field: FieldWalk::Plain };
+    let (mut absorbed, mut null_collisions) = (0.0, 0);
+    let before = s.order;
+    let end = walk_to_the_end(&mut est, &ctx, li, &mut s, &mut rng, &mut absorbed, &mut null_collisions, rec, false);
+    rec.stats.work.camera_events += u64::from(s.order - before) + u64::from(end == End::Absorbed) + null_collisions;
 }
 
 /// The face-lobe connection of a camera path's vertex at `s.pos` in layer `li`, at or below the
@@ -362,16 +428,20 @@ pub(super) fn camera_surface_connection<const LENGTH: bool>(
 /// A real collision of a camera path at `s.pos`: the absorption weighting, the connection to the
 /// laser scored into the path's pixel, the beam-lobe connection through a vertex further up, then
 /// a new direction as [`collide`] (see [`super::camera`], "Two ways to the last vertex"). One
-/// particle velocity serves the connections and the continuation.
+/// particle velocity serves the connections and the continuation. With the light field
+/// (`FIELD`, [`super::field`]) the first collision below every region in a layer's filling medium
+/// also connects to the field's table, and from there on the connections score the scene's light
+/// minus its layered twin's.
 //
 // Outlined, as `collide_nee`: the connections are traces through every layer above.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
+fn collide_camera<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
     ctx: &WalkContext,
     li: usize,
     s: &mut PathState,
     balance: &mut Balance,
+    field: &mut FieldWalk,
     m: &Medium,
     albedo: f64,
     n: f64,
@@ -394,6 +464,9 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
     // The guide lobe about the beam's reversed direction in this layer.
     let guide = super::camera::guide();
     let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
+    // With the light field: shared with the twin from before, or from here (`j*`).
+    let shared = FIELD && matches!(field, FieldWalk::Shared(_));
+    let switch = FIELD && matches!(field, FieldWalk::Before) && switches_here(ctx, li, s.pos, m);
     if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
         // This vertex as the walk's last: weighted against the lobe connection from the vertex
         // before, [`Balance::BeamLobe`] = (walk density · Fresnel transmittances)/(guide density)
@@ -405,31 +478,41 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         let here = Link { pos: s.pos, dir_in: s.dir, particle, n };
         let tail = *s;
         rec.stats.work.camera_connections += 1;
-        connect::<LENGTH>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
+        if shared {
+            connect::<LENGTH, true>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
+        } else {
+            connect::<LENGTH, false>(ctx, li, &shot, here, tail, s.weight * w * boost, rng, rec);
+        }
         // The beam-lobe connection: a direction from the guide lobe, the straight refracted way
         // through the layers to a real collision there, and its connection.
         if let Some(up) = up {
             let dd = guide.sample(rng.uniform());
             let (cos_phi, sin_phi) = warp::azimuth_i32(|| rng.pair_i32());
             let (dir, _) = scatter_direction(up, dd, cos_phi, sin_phi);
-            let (p_walk, p_guide) = (pop.phase.eval(s.dir.dot(dir)), guide.eval(dd.cos));
-            rec.stats.work.camera_connections += 1;
-            if let Some(h) = super::camera::lobe_flight(scene, li, s.pos, dir, ctx.settings.tracking, rng) {
-                let m2 = &scene.media[h.medium];
-                let albedo2 = if scene.layers[h.layer].heterogeneous { m2.albedo_at(h.pos) } else { m2.albedo() };
-                let there_particle = Particle::pick::<DOPPLER>(m2, h.pos, rng);
-                let mut tail = tail;
-                particle.event(&mut tail, n, s.dir - dir);
-                tail.order += 1;
-                tail.l += if LENGTH { h.length } else { 0.0 };
-                let n2 = scene.layers[h.layer].n;
-                let there = Link { pos: h.pos, dir_in: h.dir, particle: there_particle, n: n2 };
-                let pt = p_walk * h.transmit;
-                let w = s.weight * boost * pt / (pt + p_guide) * h.radiance * albedo2;
-                rec.stats.work.camera_connections += 1;
-                connect::<LENGTH>(ctx, h.layer, &shot, there, tail, w, rng, rec);
+            let lobe = Lobe {
+                li,
+                pos: s.pos,
+                dir,
+                tail,
+                delta: s.dir - dir,
+                particle,
+                n,
+                p_walk: pop.phase.eval(s.dir.dot(dir)),
+                p_guide: guide.eval(dd.cos),
+                w: s.weight * boost,
+            };
+            if shared || switch {
+                lobe_pair::<DOPPLER, LENGTH>(ctx, &shot, lobe, rng, rec);
+            } else {
+                lobe_connection::<DOPPLER, LENGTH, false>(ctx, &shot, lobe, rng, rec);
             }
         }
+    }
+    if switch {
+        if let (Some(shot), Some(table)) = (ctx.shot, ctx.field) {
+            table_connection(ctx, table, li, &shot, s, particle, n, rng, rec);
+        }
+        *field = FieldWalk::Shared(None);
     }
     let (d, out, delta) = deflect(s.dir, &pop.phase, rng);
     *balance = match up {
@@ -437,6 +520,152 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool>(
         None => Balance::Full,
     };
     scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
+}
+
+/// Whether a camera path's collision at `pos` in layer `li` (in medium `m`) is its `j*`
+/// ([`super::field`]): below every region, in the layer's filling medium.
+#[inline(always)]
+fn switches_here(ctx: &WalkContext, li: usize, pos: DVec3, m: &Medium) -> bool {
+    ctx.field.is_some_and(|t| pos.z > t.z_switch) && std::ptr::eq(m, &ctx.scene.media[ctx.scene.layers[li].medium])
+}
+
+/// A beam-lobe connection from a camera path's vertex: the vertex's layer and position, the
+/// direction drawn from the guide lobe, the path there (`tail`) and the vertex's `dir_in −
+/// dir_out` toward it, its particle and index, the walk's and the guide's densities of the
+/// direction, and the path's weight with the connection roulette's boost.
+#[derive(Clone, Copy)]
+struct Lobe<'a> {
+    li: usize,
+    pos: DVec3,
+    dir: DVec3,
+    tail: PathState,
+    delta: DVec3,
+    particle: Particle<'a>,
+    n: f64,
+    p_walk: f64,
+    p_guide: f64,
+    w: f64,
+}
+
+/// The beam-lobe connection `lobe` in `ctx`'s scene: the straight way to a real collision further
+/// up ([`super::camera::lobe_flight`]) and its connection there, weighted against the walk's way
+/// there by the balance heuristic. With `PAIR` the collision's connection scores the scene's light
+/// minus the layered twin's (the way up met no region, [`lobe_pair`]).
+#[inline(always)]
+fn lobe_connection<const DOPPLER: bool, const LENGTH: bool, const PAIR: bool>(
+    ctx: &WalkContext,
+    shot: &Shot,
+    lobe: Lobe,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    rec.stats.work.camera_connections += 1;
+    let h = super::camera::lobe_flight(ctx.scene, lobe.li, lobe.pos, lobe.dir, ctx.settings.tracking, rng);
+    if let Some(h) = h {
+        lobe_vertex::<DOPPLER, LENGTH, PAIR>(ctx, shot, &lobe, h, rng, rec);
+    }
+}
+
+/// The connection at `h`, where `lobe`'s flight collided.
+#[inline(always)]
+fn lobe_vertex<const DOPPLER: bool, const LENGTH: bool, const PAIR: bool>(
+    ctx: &WalkContext,
+    shot: &Shot,
+    lobe: &Lobe,
+    h: super::camera::LobeHit,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let scene = ctx.scene;
+    let m2 = &scene.media[h.medium];
+    let albedo2 = if scene.layers[h.layer].heterogeneous { m2.albedo_at(h.pos) } else { m2.albedo() };
+    let there_particle = Particle::pick::<DOPPLER>(m2, h.pos, rng);
+    let mut tail = lobe.tail;
+    lobe.particle.event(&mut tail, lobe.n, lobe.delta);
+    tail.order += 1;
+    tail.l += if LENGTH { h.length } else { 0.0 };
+    let n2 = scene.layers[h.layer].n;
+    let there = Link { pos: h.pos, dir_in: h.dir, particle: there_particle, n: n2 };
+    let pt = lobe.p_walk * h.transmit;
+    let w = lobe.w * pt / (pt + lobe.p_guide) * h.radiance * albedo2;
+    rec.stats.work.camera_connections += 1;
+    connect::<LENGTH, PAIR>(ctx, h.layer, shot, there, tail, w, rng, rec);
+}
+
+/// The beam-lobe connection `lobe` of a camera path sharing its walk with the layered twin
+/// ([`FieldWalk::Shared`]): the scene's light minus the twin's. A way up that meets no region is
+/// the twin's too (the same numbers draw the same flight): one flight, its connection's
+/// difference; one that meets a region is flown again in the twin's scene from the same numbers
+/// and each scored on its own, the twin's with the opposite sign.
+#[cold]
+#[inline(never)]
+fn lobe_pair<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    shot: &Shot,
+    lobe: Lobe,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    rec.stats.work.camera_connections += 1;
+    let mut twin_rng = rng.clone();
+    let tracking = ctx.settings.tracking;
+    let (h, touched) =
+        super::camera::lobe_flight_touching::<true>(ctx.scene, lobe.li, lobe.pos, lobe.dir, tracking, rng);
+    if !touched {
+        if let Some(h) = h {
+            lobe_vertex::<DOPPLER, LENGTH, true>(ctx, shot, &lobe, h, rng, rec);
+        }
+        return;
+    }
+    if let Some(h) = h {
+        lobe_vertex::<DOPPLER, LENGTH, false>(ctx, shot, &lobe, h, rng, rec);
+    }
+    let Some(scene) = ctx.twin_scene else { return };
+    let twin_ctx = WalkContext { scene, field: None, ..*ctx };
+    let twin_shot = Shot { scale: -shot.scale, ..*shot };
+    if let Some(h) = super::camera::lobe_flight(scene, lobe.li, lobe.pos, lobe.dir, tracking, &mut twin_rng) {
+        lobe_vertex::<DOPPLER, LENGTH, false>(&twin_ctx, &twin_shot, &lobe, h, &mut twin_rng, rec);
+    }
+}
+
+/// The light field's connection at `j*` ([`super::field`]): the twin's scattered light arriving
+/// along directions `ω′` drawn from the phase function about the way to the camera, read from the
+/// table at the beam's irradiance above the vertex, each with a Doppler state drawn from its bin.
+#[allow(clippy::too_many_arguments)]
+#[cold]
+#[inline(never)]
+fn table_connection(
+    ctx: &WalkContext,
+    table: &super::field::FieldTable,
+    li: usize,
+    shot: &Shot,
+    s: &PathState,
+    particle: Particle,
+    n: f64,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) {
+    let source = ctx.source;
+    let e0 = source.irradiance_along(DVec3::new(s.pos.x, s.pos.y, 0.0), source.direction);
+    if e0 <= 0.0 {
+        return;
+    }
+    let to_camera = -s.dir;
+    let w = s.weight * e0 * shot.scale / super::field::TABLE_SAMPLES as f64;
+    for _ in 0..super::field::TABLE_SAMPLES {
+        let (_, arrive, _) = deflect(to_camera, &particle.pop.phase, rng);
+        let (radiance, iz, it) = table.radiance(li, s.pos.z, arrive);
+        let u = rng.uniform();
+        if radiance <= 0.0 {
+            continue;
+        }
+        let (events, dldt) = table.draw(iz, it, u);
+        let mut e = PathState { dir: to_camera, weight: w * radiance, order: s.order + 2, ..*s };
+        particle.event(&mut e, n, arrive + s.dir);
+        e.dldt += dldt;
+        e.doppler_events += events;
+        rec.camera(shot, &e);
+    }
 }
 
 /// [`collide_camera`] at or below the stack's first rough face, where the beam's light arrives
@@ -490,9 +719,11 @@ struct Link<'a> {
 
 /// Connect `at` (in layer `li`) to the laser and score the path into `shot`'s pixel with the
 /// weight `w` (the walk's weight, with every factor but the phase function and the irradiance).
+/// With `PAIR`, the scene's irradiance minus the layered twin's (nothing where the way up meets
+/// no region).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn connect<const LENGTH: bool>(
+fn connect<const LENGTH: bool, const PAIR: bool>(
     ctx: &WalkContext,
     li: usize,
     shot: &Shot,
@@ -503,12 +734,16 @@ fn connect<const LENGTH: bool>(
     rec: &mut Recorder,
 ) {
     let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
+    let irradiance = if PAIR { b.irradiance - b.twin_irradiance } else { b.irradiance };
+    if PAIR && irradiance == 0.0 {
+        return;
+    }
     // The light arrives along `b.dir` and leaves towards the camera along `−dir_in`.
     let p = at.particle.pop.phase.eval(-b.dir.dot(at.dir_in));
     let mut e = PathState {
         pos: at.pos,
         dir: -at.dir_in,
-        weight: w * p * b.irradiance * shot.scale,
+        weight: w * p * irradiance * shot.scale,
         l: if LENGTH { tail.l + b.length } else { 0.0 },
         order: tail.order + 1,
         ..tail

@@ -284,13 +284,28 @@ pub struct LobeHit {
 /// the layers.
 pub fn lobe_flight(
     scene: &Scene,
+    li: usize,
+    pos: DVec3,
+    dir: DVec3,
+    tracking: super::Tracking,
+    rng: &mut PathRng,
+) -> Option<LobeHit> {
+    lobe_flight_touching::<false>(scene, li, pos, dir, tracking, rng).0
+}
+
+/// [`lobe_flight`], and with `TOUCH` whether its way (to its collision, or out of the stack)
+/// met a region of the scene (a flight that meets none is the same in the layered twin, drawn
+/// from the same numbers: [`super::field`]).
+pub fn lobe_flight_touching<const TOUCH: bool>(
+    scene: &Scene,
     mut li: usize,
     mut pos: DVec3,
     mut dir: DVec3,
     tracking: super::Tracking,
     rng: &mut PathRng,
-) -> Option<LobeHit> {
+) -> (Option<LobeHit>, bool) {
     let (mut transmit, mut radiance, mut length) = (1.0, 1.0, 0.0);
+    let mut touched = false;
     loop {
         let layer = &scene.layers[li];
         let down = dir.z >= 0.0;
@@ -302,27 +317,33 @@ pub fn lobe_flight(
         // a vertex of its own (no lobe path has it). (The flight's distance is drawn as the walk's,
         // whose flight a solid cuts short: up to the solid the two have the same density.)
         let (super::Flight::Collision { t, .. } | super::Flight::Boundary { t }) = flight;
+        if TOUCH && !touched {
+            touched = super::field::touches_region(scene, layer, pos, dir, t);
+        }
         if !layer.opaque.is_empty() && scene.blocked(layer, pos, dir, t) {
-            return None;
+            return (None, touched);
         }
         match flight {
             super::Flight::Collision { t, medium } => {
                 let pos = pos + t * dir;
-                return Some(LobeHit { pos, layer: li, medium, dir, transmit, radiance, length: length + layer.n * t });
+                let hit = LobeHit { pos, layer: li, medium, dir, transmit, radiance, length: length + layer.n * t };
+                return (Some(hit), touched);
             }
             super::Flight::Boundary { t } => {
-                let next = if down { li + 1 } else { li.checked_sub(1)? };
-                let beyond = scene.layers.get(next)?;
+                let next = if down { Some(li + 1) } else { li.checked_sub(1) };
+                let Some((next, beyond)) = next.and_then(|j| Some((j, scene.layers.get(j)?))) else {
+                    return (None, touched);
+                };
                 // (A rough face scatters: no straight way through it, as no solid's.)
                 if !t.is_finite() || (layer.rough_faces && scene.rough_top(if down { next } else { li })) {
-                    return None;
+                    return (None, touched);
                 }
                 length += layer.n * t;
                 pos += t * dir;
                 pos.z = if down { layer.z_bottom } else { layer.z_top };
                 let (r, cos_t) = fresnel::reflectance(layer.n, beyond.n, dir.z.abs());
                 if r >= 1.0 {
-                    return None;
+                    return (None, touched);
                 }
                 transmit *= 1.0 - r;
                 radiance *= (layer.n / beyond.n) * (layer.n / beyond.n);
@@ -341,6 +362,10 @@ pub struct BeamHit {
     pub dir: DVec3,
     /// W/m² per watt emitted.
     pub irradiance: f64,
+    /// `irradiance` in the scene's layered twin (its regions' excess optical depth and ratio
+    /// tracking left out, [`crate::medium::Scene::layered_twin`]): equal to it, bit for bit,
+    /// where the way up meets no region.
+    pub twin_irradiance: f64,
     /// m.
     pub length: f64,
 }
@@ -353,7 +378,8 @@ pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rn
     let dir = refracted_down(beam, n0, scene.layers[li].n)?;
     // Back up the beam, layer by layer, to the surface.
     let up_in = |n: f64| refracted_down(beam, n0, n).map(|d| -d);
-    let Crossing { pos: p, tau, transmit, length, .. } = trace_up(scene, li, pos, -dir, up_in, Crossing::START, rng)?;
+    let Crossing { pos: p, tau, transmit, length, excess, twin_transmit } =
+        trace_up(scene, li, pos, -dir, up_in, Crossing::START, rng)?;
     if transmit <= 0.0 {
         return None;
     }
@@ -362,8 +388,11 @@ pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rn
         return None;
     }
     let back = (p - source.position).dot(source.direction) / beam.dot(source.direction);
-    let irradiance = e0 * (beam.z / dir.z) * transmit * (-tau).exp();
-    Some(BeamHit { dir, irradiance, length: length + n0 * back })
+    let e = e0 * (beam.z / dir.z);
+    let irradiance = e * transmit * (-tau).exp();
+    let twin_irradiance =
+        if excess == 0.0 && twin_transmit == transmit { irradiance } else { e * twin_transmit * (excess - tau).exp() };
+    Some(BeamHit { dir, irradiance, twin_irradiance, length: length + n0 * back })
 }
 
 /// The unscattered laser light arriving at `pos` on the top face of layer `face` from above: the
@@ -376,7 +405,12 @@ pub fn beam_at_face(scene: &Scene, source: &Source, face: usize, pos: DVec3, rng
     let beam = source.emit_direction(rng);
     let irradiance = source.irradiance_along(pos, beam);
     let back = (pos - source.position).dot(source.direction) / beam.dot(source.direction);
-    (irradiance > 0.0).then_some(BeamHit { dir: beam, irradiance, length: scene.n_above * back })
+    (irradiance > 0.0).then_some(BeamHit {
+        dir: beam,
+        irradiance,
+        twin_irradiance: irradiance,
+        length: scene.n_above * back,
+    })
 }
 
 /// A camera path's way from a vertex below the stack's first rough face up to that face, where the

@@ -103,11 +103,14 @@ impl Features {
         rec: &mut Recorder,
         key: &StreamKey,
     ) {
-        let f = match (self.doppler, self.length) {
-            (false, false) => camera_pixel::<false, false>,
-            (true, false) => camera_pixel::<true, false>,
-            (false, true) => camera_pixel::<false, true>,
-            (true, true) => camera_pixel::<true, true>,
+        // The light field ([`super::field`]) is refused where the path length is tracked.
+        let f = match (self.doppler, self.length, ctx.field.is_some()) {
+            (false, false, false) => camera_pixel::<false, false, false>,
+            (true, false, false) => camera_pixel::<true, false, false>,
+            (false, true, _) => camera_pixel::<false, true, false>,
+            (true, true, _) => camera_pixel::<true, true, false>,
+            (false, false, true) => camera_pixel::<false, false, true>,
+            (true, false, true) => camera_pixel::<true, false, true>,
         };
         f(ctx, cam, pixel, spp, batch_weight, rec, key);
     }
@@ -184,7 +187,7 @@ fn paths_loop<
 
 /// [`Features::camera_paths`] for one kind of scene.
 #[allow(clippy::too_many_arguments)]
-fn camera_pixel<const DOPPLER: bool, const LENGTH: bool>(
+fn camera_pixel<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
     ctx: &WalkContext,
     cam: &CameraTarget,
     pixel: usize,
@@ -195,7 +198,7 @@ fn camera_pixel<const DOPPLER: bool, const LENGTH: bool>(
 ) {
     for k in 0..spp {
         let mut rng = key.path(pixel as u64 * spp + k);
-        trace_camera_path::<DOPPLER, LENGTH>(ctx, cam, pixel, batch_weight, rec, &mut rng);
+        trace_camera_path::<DOPPLER, LENGTH, FIELD>(ctx, cam, pixel, batch_weight, rec, &mut rng);
         rec.end_path();
     }
 }

@@ -6,6 +6,7 @@ pub mod camera;
 pub mod carried;
 pub mod event;
 pub mod features;
+pub mod field;
 pub mod forward;
 pub use crate::surface::fresnel;
 pub mod guide;

@@ -71,6 +71,10 @@ pub struct WalkContext<'a> {
     /// The weight windows of `run.importance = "windows"` ([`super::windows`]; `None`: none, and
     /// in a twin's own walk).
     pub windows: Option<&'a super::windows::Windows>,
+    /// The layered twin's light field camera paths connect to below the regions
+    /// (`[detectors.footprints] light_field`, [`super::field`]; `None`: none, and in a twin's own
+    /// walk).
+    pub field: Option<&'a super::field::FieldTable>,
 }
 
 /// A real collision as the walk hands it to [`Estimator::collide`]: the medium collided in, its

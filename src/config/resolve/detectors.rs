@@ -380,6 +380,35 @@ fn resolve_estimator(
     err(join(path, "estimator"), format!("= \"{name}\": {why_not}"))
 }
 
+/// `[detectors.footprints] field_paths` by default.
+pub const FIELD_DEFAULT_PATHS: u64 = 2_000_000;
+
+/// The light field's pre-pass paths (`[detectors.footprints] light_field`, `field_paths`), `None`
+/// without it; refused where the scene or the beam does not suit its table
+/// (`FieldTable::check_scene`) or the path length is tracked (a chirp).
+fn light_field(p: &str, f: &FootprintsSection, scene: &Scene, source: &Source) -> R<Option<u64>> {
+    if !f.light_field.unwrap_or(false) {
+        return match f.field_paths {
+            Some(_) => err(join(p, "field_paths"), "is set, but light_field is not true"),
+            None => Ok(None),
+        };
+    }
+    let paths = f.field_paths.unwrap_or(FIELD_DEFAULT_PATHS);
+    if !(10_000..=1_000_000_000).contains(&paths) {
+        return err(join(p, "field_paths"), format!("= {paths}: expected 10⁴ to 10⁹ forward paths"));
+    }
+    if let Err((key, why)) = crate::transport::field::FieldTable::check_scene(scene, source) {
+        return err(join(p, "light_field"), format!("= true, but {key} {why}"));
+    }
+    if source.chirp.is_some() {
+        return err(
+            join(p, "light_field"),
+            "= true, but the source is chirped: the light field's table holds no path lengths",
+        );
+    }
+    Ok(Some(paths))
+}
+
 /// `[detectors.footprints] halo_um` by default, m.
 pub const FOOTPRINT_DEFAULT_HALO_M: f64 = 20e-6;
 
@@ -394,7 +423,7 @@ fn resolve_footprints(
     path: &str,
     d: &DetectorSection,
     choice: EstimatorChoice,
-    scene: &Scene,
+    (scene, source): (&Scene, &Source),
     parts: &[Option<Part>; 5],
 ) -> R<Option<std::sync::Arc<Footprints>>> {
     let p = join(path, "footprints");
@@ -462,12 +491,13 @@ fn resolve_footprints(
             ),
         );
     }
-    let Some(fp) = Footprints::new(scene, &im, halo, &rois, camera_paths) else {
+    let Some(mut fp) = Footprints::new(scene, &im, halo, &rois, camera_paths) else {
         return err(
             join(path, "estimator"),
             "= \"footprints\": no region of the scene lies under the image, and no ROI: nothing for camera paths to estimate (use \"forward\")",
         );
     };
+    fp.light_field = light_field(&p, &f, scene, source)?;
     Ok(Some(std::sync::Arc::new(fp)))
 }
 
@@ -681,7 +711,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
             correlation.map(Part::Correlation),
             ldh.map(Part::Ldh),
         ];
-        let footprints = resolve_footprints(&path, d, choice, scene, &parts)?;
+        let footprints = resolve_footprints(&path, d, choice, (scene, source), &parts)?;
         let surface = Surface {
             side,
             distance,

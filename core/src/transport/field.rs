@@ -1,0 +1,432 @@
+//! The layered twin's light field, for camera paths from the footprints
+//! (`[detectors.footprints] light_field = true`, issue 54).
+//!
+//! A camera path from a vessel's pixel goes down through the vessel, turns round below it and
+//! comes back up; most of its variance is the far end of that loop: a connection to the Dirac
+//! beam at a shallow vertex, reached along the beam's reverse to within a degree or two. Below
+//! the vessels the light arriving at a vertex is, to within the vessels' own shadow, the light of
+//! the scene without its regions (the *layered twin*, [`crate::medium::Scene::layered_twin`]),
+//! which is laterally invariant and smooth in direction. So at its first collision below every
+//! region, `j*`, a camera path takes that light from a table instead of chasing it, and from
+//! there on scores the difference between the scene and its twin, which is zero wherever the
+//! rest of its walk meets no region:
+//!
+//! `C = Σ_{j ≤ j*} c_j + W_{j*}·S_table(x_{j*}, −d_{j*}) + Σ_{k > j*} (c_k − c_k^twin)`,
+//!
+//! `c_j` the connections to the beam at vertex `j` (the beam-lobe connection from `j*` on counted
+//! with the rest of the light that scattered before reaching `j*`), `S_table` the table's scattered
+//! radiance in-scattered toward the camera. The twin's connections `c_k^twin` come from the same
+//! walk while it meets no region (the same collisions, particles and directions: the scene and
+//! its twin differ only inside the regions), differing only where a shadow ray or a beam-lobe
+//! flight crosses a region; once the walk's flight meets a region the twin parts from it and
+//! walks on by itself in the twin's scene from the vertex before, with a copy of the walk's
+//! numbers (as the forward twin does, [`super::carried::Split`]), scoring with the opposite sign.
+//! Its expectation is `W·(S_table + L_real − L_twin)`: the camera estimator's, up to the table's
+//! error (`S_table − L_twin`), which `tests/it/camera.rs` bounds.
+//!
+//! **The table.** A pre-pass of forward paths through the twin (`field_paths` of them, a fixed
+//! seed, the same in every shard and resume), each entering at one point: by the twin's lateral
+//! invariance, the light it puts into a slab of depth, summed over the whole plane, is the light
+//! a plane wave of unit irradiance puts there. The collision estimator (`w/σt` at every real
+//! collision of light that has scattered at least once) gives the scattered radiance per unit
+//! irradiance over depth bins (per layer, [`Z_STEP`]) × polar angle of travel ([`THETA_BINS`]),
+//! and, per depth × [`THETA_GROUP`] angle bins, the distribution of the light's Doppler state: its
+//! class (no Doppler event, one, more) and its `dl/dt` on an arctangent scale that covers every
+//! real number ([`U_BINS`]). A camera vertex at `x` reads `E(x)·T(z, θ)`, `E` the beam's
+//! irradiance at the surface above it (a normally incident beam: [`FieldTable::check_scene`]).
+//!
+//! At `j*` the in-scattered radiance `∫ p(ω′·o) L(ω′) dω′` toward the camera (`o = −d`) is
+//! estimated by [`TABLE_SAMPLES`] directions `ω′` drawn from the phase function around `o`,
+//! each with a Doppler state drawn from its bin.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::detect::{BeatModel, PathState, Recorder, TallyLayout};
+use crate::medium::{Layer, Scene};
+use crate::sampling::{PathRng, Purpose, StreamKey};
+use crate::source::Source;
+use crate::stats::RunStats;
+
+use super::WalkSettings;
+use super::event::{Particle, deflect};
+use super::walk::{End, Estimator, Vertex, WalkContext, scatter, walk_to_the_end};
+
+/// Depth bins per layer: one per this many metres of it, ...
+pub const Z_STEP: f64 = 10e-6;
+/// ... at most this many (a semi-infinite layer is binned over [`DEEP`] below its top).
+pub const Z_BINS_MAX: usize = 48;
+/// How deep a semi-infinite last layer is tabulated (deeper vertices read its last bin), m.
+pub const DEEP: f64 = 3e-3;
+/// Polar-angle bins of the light's direction of travel (from +z, down), uniform in angle.
+pub const THETA_BINS: usize = 36;
+/// Polar-angle bins per Doppler distribution.
+pub const THETA_GROUP: usize = 3;
+const GROUPS: usize = THETA_BINS / THETA_GROUP;
+/// Bins of the Doppler distribution's `u = (2/π)·atan(dl/dt / D)` over `(−1, 1)`, per class
+/// with Doppler events.
+pub const U_BINS: usize = 128;
+/// Slots of one Doppler distribution: no event, then one event and more than one, each over
+/// [`U_BINS`].
+const SLOTS: usize = 1 + 2 * U_BINS;
+/// Directions drawn per connection to the table.
+pub const TABLE_SAMPLES: usize = 4;
+/// Independent groups of the pre-pass, each summed in order (the table is the same whatever the
+/// threads).
+const PASS_GROUPS: u64 = 8;
+
+/// One layer's depth bins.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bins {
+    z_top: f64,
+    dz: f64,
+    first: usize,
+    n: usize,
+}
+
+/// The layered twin's scattered radiance and its Doppler states (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldTable {
+    bins: Vec<Bins>,
+    nz: usize,
+    /// Per depth bin × polar-angle bin: scattered radiance per unit irradiance, sr⁻¹.
+    radiance: Vec<f64>,
+    /// Per depth bin × angle group: the cumulative distribution over [`SLOTS`] (last = 1; all 0
+    /// where no light was tallied).
+    cdf: Vec<f64>,
+    /// The `dl/dt` scale `D` of the arctangent map, m/s (0: nothing in the twin moves).
+    scale: f64,
+    /// The depth below which a camera path's collisions read the table: the deepest point of any
+    /// region, m.
+    pub z_switch: f64,
+    /// Forward paths of the pre-pass.
+    pub paths: u64,
+}
+
+/// Why a scene cannot use the light field (the key the message is about, and the message).
+pub type Refusal = (&'static str, String);
+
+impl FieldTable {
+    /// Whether `scene` and `source` suit the table: a normally incident beam with a footprint,
+    /// planar smooth faces, no opaque solid or bottom, no box phantom, no density field, and
+    /// layers whose filling media move the same everywhere (no flow profile, no Brownian
+    /// motion: the table holds `dl/dt` only).
+    pub fn check_scene(scene: &Scene, source: &Source) -> Result<(), Refusal> {
+        let d = source.direction;
+        if d.x.abs() > 1e-9 || d.y.abs() > 1e-9 {
+            return Err((
+                "source.direction",
+                "is oblique: the light field's table is azimuthally symmetric, which needs a normally incident beam ([0, 0, 1])".into(),
+            ));
+        }
+        if !source.has_footprint() {
+            return Err(("source.profile", "is a pencil beam: the light field needs a beam with a footprint".into()));
+        }
+        if scene.first_rough_face < scene.layers.len() {
+            return Err(("layers", "has a rough face: the light field's walks support smooth faces only".into()));
+        }
+        if scene.bottom.is_some() || !scene.opaque.is_empty() {
+            return Err((
+                "surfaces",
+                "puts an opaque surface in the stack: the light field supports layers and regions only".into(),
+            ));
+        }
+        if scene.lateral.is_some() {
+            return Err(("lateral", "makes a box phantom, which is not laterally invariant".into()));
+        }
+        if scene.layers.iter().any(|l| l.heterogeneous) {
+            return Err(("media", "has a density field: the light field needs homogeneous layers and regions".into()));
+        }
+        for l in &scene.layers {
+            let m = &scene.media[l.medium];
+            for p in m.populations() {
+                let uniform =
+                    matches!(p.velocity, crate::flow::VelocityField::Static | crate::flow::VelocityField::Uniform(_));
+                if !uniform || p.motion.diffusion > 0.0 {
+                    return Err((
+                        "media",
+                        format!(
+                            "\"{}\" fills layer \"{}\" with a flow profile or Brownian motion: the light field needs layers whose media move the same everywhere, without Brownian motion",
+                            m.name, l.name
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The table of `scene`'s layered twin lit by `source`, from `paths` forward paths of the
+    /// stream `seed`.
+    pub fn build(scene: &Scene, source: &Source, settings: &WalkSettings, paths: u64, seed: u64) -> FieldTable {
+        let twin = scene.layered_twin();
+        let mut bins = Vec::with_capacity(twin.layers.len());
+        let mut nz = 0;
+        for l in &twin.layers {
+            let depth = if l.z_bottom.is_finite() { l.z_bottom - l.z_top } else { DEEP };
+            let n = ((depth / Z_STEP).ceil() as usize).clamp(1, Z_BINS_MAX);
+            bins.push(Bins { z_top: l.z_top, dz: depth / n as f64, first: nz, n });
+            nz += n;
+        }
+        let scale = doppler_scale(&twin);
+        let z_switch = scene.regions.iter().map(|r| r.shape.z_range().1).fold(0.0, f64::max);
+        let shape = Shape { bins: &bins, nz, scale };
+        let key = StreamKey::new(seed, Purpose::Field, 0);
+        let sums: Vec<Sums> = (0..PASS_GROUPS)
+            .into_par_iter()
+            .map(|g| {
+                let (a, b) = (paths * g / PASS_GROUPS, paths * (g + 1) / PASS_GROUPS);
+                pass(&twin, source, settings, &shape, &key, a..b)
+            })
+            .collect();
+        let mut total = Sums::new(nz);
+        for s in &sums {
+            total.add(s);
+        }
+        let mut radiance = vec![0.0; nz * THETA_BINS];
+        for b in &bins {
+            for iz in b.first..b.first + b.n {
+                for it in 0..THETA_BINS {
+                    let (c0, c1) = (theta_edge(it).cos(), theta_edge(it + 1).cos());
+                    let solid_angle = std::f64::consts::TAU * (c0 - c1);
+                    let k = iz * THETA_BINS + it;
+                    radiance[k] = total.radiance[k] / (paths.max(1) as f64 * b.dz * solid_angle);
+                }
+            }
+        }
+        let mut cdf = total.doppler;
+        for row in cdf.chunks_mut(SLOTS) {
+            let sum: f64 = row.iter().sum();
+            if sum > 0.0 {
+                let mut acc = 0.0;
+                for v in row.iter_mut() {
+                    acc += *v;
+                    *v = acc / sum;
+                }
+                row[SLOTS - 1] = 1.0;
+            }
+        }
+        FieldTable { bins, nz, radiance, cdf, scale, z_switch, paths }
+    }
+
+    /// Bytes the table holds.
+    pub fn bytes(&self) -> usize {
+        (self.radiance.len() + self.cdf.len()) * std::mem::size_of::<f64>()
+    }
+
+    /// The depth bin of `z` in layer `li`.
+    #[inline]
+    fn z_bin(&self, li: usize, z: f64) -> usize {
+        let b = &self.bins[li];
+        b.first + (((z - b.z_top) / b.dz).max(0.0) as usize).min(b.n - 1)
+    }
+
+    /// The twin's scattered radiance per unit irradiance at depth `z` in layer `li` travelling
+    /// along `dir`, sr⁻¹, and its bin.
+    #[inline]
+    pub fn radiance(&self, li: usize, z: f64, dir: DVec3) -> (f64, usize, usize) {
+        let iz = self.z_bin(li, z);
+        let theta = dir.z.clamp(-1.0, 1.0).acos();
+        let it = ((theta / std::f64::consts::PI * THETA_BINS as f64) as usize).min(THETA_BINS - 1);
+        (self.radiance[iz * THETA_BINS + it], iz, it)
+    }
+
+    /// A Doppler state of the light of bin `(iz, it)` from the uniform `u`: its Doppler events
+    /// (0, 1, or 2 for more) and its `dl/dt`, m/s.
+    pub fn draw(&self, iz: usize, it: usize, u: f64) -> (u32, f64) {
+        let row = &self.cdf[(iz * GROUPS + it / THETA_GROUP) * SLOTS..][..SLOTS];
+        let k = row.partition_point(|&c| c <= u).min(SLOTS - 1);
+        if k == 0 || self.scale == 0.0 {
+            return (0, 0.0);
+        }
+        let below = row[k - 1];
+        let frac = if row[k] > below { ((u - below) / (row[k] - below)).clamp(0.0, 1.0) } else { 0.5 };
+        let (class, ub) = (1 + (k - 1) / U_BINS, (k - 1) % U_BINS);
+        let v = (-1.0 + 2.0 * (ub as f64 + frac) / U_BINS as f64).clamp(-1.0 + 1e-12, 1.0 - 1e-12);
+        (class as u32, self.scale * (v * std::f64::consts::FRAC_PI_2).tan())
+    }
+
+    /// Depth bins in all.
+    pub fn depth_bins(&self) -> usize {
+        self.nz
+    }
+}
+
+/// Whether the segment `p + s·d`, `0 ≤ s ≤ t`, in `layer` meets one of its regions.
+#[inline]
+pub fn touches_region(scene: &Scene, layer: &Layer, p: DVec3, d: DVec3, t: f64) -> bool {
+    layer.regions.iter().any(|&r| scene.regions[r].shape.intersect(p, d).is_some_and(|(a, b)| b.min(t) >= a.max(0.0)))
+}
+
+/// The `dl/dt` scale of the arctangent map: twice the largest index times the largest speed a
+/// filling medium's particles reach (its flow plus three standard deviations), m/s.
+fn doppler_scale(twin: &Scene) -> f64 {
+    let mut scale: f64 = 0.0;
+    for l in &twin.layers {
+        for p in twin.media[l.medium].populations() {
+            let flow = match p.velocity {
+                crate::flow::VelocityField::Uniform(v) => v.length(),
+                _ => 0.0,
+            };
+            scale = scale.max(2.0 * l.n * (flow + 3.0 * p.motion.dispersion));
+        }
+    }
+    scale
+}
+
+/// The polar angle of the lower edge of bin `it`.
+fn theta_edge(it: usize) -> f64 {
+    std::f64::consts::PI * it as f64 / THETA_BINS as f64
+}
+
+/// What a pass bins by.
+struct Shape<'a> {
+    bins: &'a [Bins],
+    nz: usize,
+    scale: f64,
+}
+
+/// One group's sums: `w/σt` per depth × angle bin, and the same weight per Doppler slot.
+struct Sums {
+    radiance: Vec<f64>,
+    doppler: Vec<f64>,
+}
+
+impl Sums {
+    fn new(nz: usize) -> Sums {
+        Sums { radiance: vec![0.0; nz * THETA_BINS], doppler: vec![0.0; nz * GROUPS * SLOTS] }
+    }
+
+    fn add(&mut self, o: &Sums) {
+        for (a, b) in self.radiance.iter_mut().zip(&o.radiance) {
+            *a += b;
+        }
+        for (a, b) in self.doppler.iter_mut().zip(&o.doppler) {
+            *a += b;
+        }
+    }
+}
+
+/// The pre-pass's paths `range` through the twin `scene`.
+fn pass(
+    scene: &Scene,
+    source: &Source,
+    settings: &WalkSettings,
+    shape: &Shape,
+    key: &StreamKey,
+    range: std::ops::Range<u64>,
+) -> Sums {
+    let mut sums = Sums::new(shape.nz);
+    // The walk wants a recorder; the pass records nothing into it.
+    let beat = BeatModel::new(source.wavelength, None);
+    let layout = TallyLayout::new(&[], &beat);
+    let mut acc = vec![0.0; layout.tallies()];
+    let mut stats = RunStats::default();
+    let mut rec = Recorder {
+        detectors: &[],
+        layout: &layout,
+        beat,
+        acc: &mut acc,
+        stats: &mut stats,
+        lines: None,
+        scratch: Vec::new(),
+        kernels: Vec::new(),
+        path_scores: Vec::new(),
+        trace: None,
+        line_draws: None,
+    };
+    let ctx = WalkContext {
+        scene,
+        source,
+        settings,
+        nee: &[],
+        shot: None,
+        volume: None,
+        reflections: false,
+        twin: false,
+        twin_scene: None,
+        launches: None,
+        windows: None,
+        field: None,
+    };
+    let n_top = scene.layers[0].n;
+    for i in range {
+        let mut rng = key.path(i);
+        let dir = source.emit_direction(&mut rng);
+        let (r, cos_t) = super::fresnel::reflectance(scene.n_above, n_top, dir.z);
+        if r >= 1.0 {
+            continue;
+        }
+        let dir = super::fresnel::refract(dir, scene.n_above, n_top, cos_t);
+        let mut s = PathState::new(DVec3::ZERO, dir, 1.0 - r, 0.0);
+        let mut est = FieldPass { shape, sums: &mut sums };
+        let (mut absorbed, mut nulls) = (0.0, 0);
+        walk_to_the_end(&mut est, &ctx, 0, &mut s, &mut rng, &mut absorbed, &mut nulls, &mut rec, false);
+    }
+    sums
+}
+
+/// The pre-pass's walk: a forward path carrying power, tallying the light arriving at each real
+/// collision once it has scattered.
+struct FieldPass<'a, 's> {
+    shape: &'a Shape<'a>,
+    sums: &'s mut Sums,
+}
+
+impl FieldPass<'_, '_> {
+    #[inline]
+    fn tally(&mut self, li: usize, s: &PathState, sigma_t: f64) {
+        let b = &self.shape.bins[li];
+        let iz = b.first + (((s.pos.z - b.z_top) / b.dz).max(0.0) as usize).min(b.n - 1);
+        if s.pos.z - b.z_top > b.dz * b.n as f64 {
+            return; // below a semi-infinite layer's tabulated depth
+        }
+        let theta = s.dir.z.clamp(-1.0, 1.0).acos();
+        let it = ((theta / std::f64::consts::PI * THETA_BINS as f64) as usize).min(THETA_BINS - 1);
+        let w = s.weight / sigma_t;
+        self.sums.radiance[iz * THETA_BINS + it] += w;
+        let slot = match s.doppler_events {
+            0 => 0,
+            e => {
+                let scale = self.shape.scale;
+                let u = if scale > 0.0 { s.dldt.atan2(scale) * std::f64::consts::FRAC_2_PI } else { 0.0 };
+                let ub = (((u + 1.0) * 0.5 * U_BINS as f64) as usize).min(U_BINS - 1);
+                1 + (e.min(2) as usize - 1) * U_BINS + ub
+            }
+        };
+        self.sums.doppler[(iz * GROUPS + it / THETA_GROUP) * SLOTS + slot] += w;
+    }
+}
+
+impl Estimator for FieldPass<'_, '_> {
+    const DOPPLER: bool = true;
+    const LENGTH: bool = false;
+    const GATE: bool = false;
+    const LATERAL: bool = false;
+    const VOLUME: bool = false;
+
+    #[inline(always)]
+    fn collide(
+        &mut self,
+        ctx: &WalkContext,
+        s: &mut PathState,
+        t: f64,
+        v: Vertex,
+        rng: &mut PathRng,
+        _absorbed: &mut f64,
+        checkpoint: &mut u32,
+        _rec: &mut Recorder,
+    ) -> Option<End> {
+        super::walk::advance::<Self>(s, t, v.n);
+        if s.order >= 1 {
+            self.tally(v.li, s, v.medium.sigma_t());
+        }
+        s.weight *= v.albedo;
+        if s.weight <= 0.0 {
+            return Some(End::Absorbed);
+        }
+        let particle = Particle::pick::<true>(v.medium, s.pos, rng);
+        let (_, out, delta) = deflect(s.dir, &particle.pop.phase, rng);
+        scatter(s, particle, v.n, (out, delta), ctx.settings, rng, checkpoint)
+    }
+}
