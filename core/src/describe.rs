@@ -813,6 +813,12 @@ impl Display for Detector {
                 length(fp.halo),
                 fp.camera_paths
             )?;
+            if let Some(paths) = fp.light_field {
+                write!(
+                    f,
+                    "; below the regions they connect to the layered scene's light field (a table from {paths} forward paths)"
+                )?;
+            }
         } else if d.next_event {
             write!(f, ", next-event estimation")?;
         }

@@ -422,6 +422,7 @@ impl<'a> BatchRunner<'a> {
                     &exp.scene,
                     &exp.source,
                     &exp.plan.walk,
+                    exp.field_reach(),
                     paths,
                     exp.plan.seed,
                 )
@@ -820,6 +821,20 @@ impl Experiment {
     /// any camera asks for; `None` if none connects to it.
     pub fn field_paths(&self) -> Option<u64> {
         self.detectors.iter().filter_map(|d| d.surface()?.footprints.as_ref()?.light_field).max()
+    }
+
+    /// How far from the beam's axis the light field is tabulated: the farthest corner of the
+    /// images whose camera paths connect to it, and [`crate::transport::field::REACH_MARGIN`].
+    pub fn field_reach(&self) -> f64 {
+        let axis = (self.source.position.x, self.source.position.y);
+        let corners = self.detectors.iter().filter_map(|d| {
+            let s = d.surface()?;
+            s.footprints.as_ref()?.light_field?;
+            let im = s.image()?;
+            let far = |lo: f64, hi: f64, c: f64| (lo - c).abs().max((hi - c).abs());
+            Some(far(im.min[0], im.max[0], axis.0).hypot(far(im.min[1], im.max[1], axis.1)))
+        });
+        corners.fold(0.0, f64::max) + crate::transport::field::REACH_MARGIN
     }
 
     fn footprints_of(&self, cam: &CameraTarget) -> Option<&crate::detect::image::Footprints> {

@@ -34,8 +34,13 @@ enum FieldWalk {
     /// Its flight from `Start` met a region: the path scores alone, and once it has ended the twin
     /// walks on from there by itself.
     Parted(Start),
-    /// A plain camera path to its end: the twin's own walk, or a path without the field.
+    /// Its twin has parted and walked: the path scores alone, until its next collision in a
+    /// layer's filling medium shares its walk with a new twin.
     Plain,
+    /// The layered twin's own walk after it parted: its flight to its first collision, the
+    /// connection there to the beam, and the light field's table for the rest (in the twin's
+    /// scene the table is all the scattered light there is).
+    Twin,
 }
 
 /// Where a flight starts: the path after its collision there, its generator, its layer and its
@@ -96,6 +101,13 @@ impl<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> Estimator for A
         rec: &mut Recorder,
     ) -> Option<End> {
         super::walk::advance::<Self>(s, t, v.n);
+        // The twin that parted on the way here walks first; this collision may share the walk
+        // with a new one.
+        if FIELD && matches!(self.field, FieldWalk::Parted(_)) {
+            if let FieldWalk::Parted(start) = std::mem::replace(&mut self.field, FieldWalk::Plain) {
+                twin_walk::<DOPPLER, LENGTH>(ctx, start, rec);
+            }
+        }
         let end = collide_camera::<DOPPLER, LENGTH, FIELD>(
             ctx,
             v.li,
@@ -302,9 +314,9 @@ pub(super) fn trace_camera_path<const DOPPLER: bool, const LENGTH: bool, const F
 #[inline(never)]
 fn twin_walk<const DOPPLER: bool, const LENGTH: bool>(ctx: &WalkContext, start: Start, rec: &mut Recorder) {
     let (Some(scene), Some(shot)) = (ctx.twin_scene, ctx.shot) else { return };
-    let ctx = WalkContext { scene, shot: Some(Shot { scale: -shot.scale, ..shot }), field: None, ..*ctx };
+    let ctx = WalkContext { scene, shot: Some(Shot { scale: -shot.scale, ..shot }), ..*ctx };
     let Start { mut s, mut rng, li, balance } = start;
-    let mut est = Adjoint::<DOPPLER, LENGTH, true> { balance, field: FieldWalk::Plain };
+    let mut est = Adjoint::<DOPPLER, LENGTH, true> { balance, field: FieldWalk::Twin };
     let (mut absorbed, mut null_collisions) = (0.0, 0);
     let before = s.order;
     let end = walk_to_the_end(&mut est, &ctx, li, &mut s, &mut rng, &mut absorbed, &mut null_collisions, rec, false);
@@ -466,7 +478,15 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
     let up = super::camera::refracted_down(ctx.source.direction, scene.n_above, n).map(|b| -b);
     // With the light field: shared with the twin from before, or from here (`j*`).
     let shared = FIELD && matches!(field, FieldWalk::Shared(_));
-    let switch = FIELD && matches!(field, FieldWalk::Before) && switches_here(ctx, li, s.pos, m);
+    let switch = FIELD
+        && match field {
+            FieldWalk::Before => switches_here(ctx, li, s.pos, m),
+            FieldWalk::Plain => ctx.field.is_some() && in_fill(ctx, li, m),
+            _ => false,
+        };
+    if FIELD && matches!(field, FieldWalk::Twin) {
+        return twin_collision::<DOPPLER, LENGTH>(ctx, li, s, *balance, particle, boost, n, rng, rec);
+    }
     if let (Some(shot), true) = (ctx.shot, boost > 0.0) {
         // This vertex as the walk's last: weighted against the lobe connection from the vertex
         // before, [`Balance::BeamLobe`] = (walk density · Fresnel transmittances)/(guide density)
@@ -522,11 +542,48 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
     scatter(s, particle, n, (out, delta), ctx.settings, rng, checkpoint)
 }
 
+/// The parted twin's collision ([`FieldWalk::Twin`]): its connection to the beam, weighted
+/// against the beam-lobe connection of the vertex it parted at, and the light field's table for
+/// the light that scattered before reaching it. Its walk ends here.
+#[allow(clippy::too_many_arguments)]
+#[cold]
+#[inline(never)]
+fn twin_collision<const DOPPLER: bool, const LENGTH: bool>(
+    ctx: &WalkContext,
+    li: usize,
+    s: &mut PathState,
+    balance: Balance,
+    particle: Particle,
+    boost: f64,
+    n: f64,
+    rng: &mut PathRng,
+    rec: &mut Recorder,
+) -> Option<End> {
+    let (Some(shot), Some(table)) = (ctx.shot, ctx.field) else { return Some(End::Absorbed) };
+    if boost > 0.0 {
+        let w = Balance::weight(match balance {
+            Balance::BeamLobe(q) => Some(q),
+            _ => None,
+        });
+        let here = Link { pos: s.pos, dir_in: s.dir, particle, n };
+        rec.stats.work.camera_connections += 1;
+        connect::<LENGTH, false>(ctx, li, &shot, here, *s, s.weight * w * boost, rng, rec);
+    }
+    table_connection(ctx, table, li, &shot, s, particle, n, rng, rec);
+    Some(End::Absorbed)
+}
+
 /// Whether a camera path's collision at `pos` in layer `li` (in medium `m`) is its `j*`
 /// ([`super::field`]): below every region, in the layer's filling medium.
 #[inline(always)]
 fn switches_here(ctx: &WalkContext, li: usize, pos: DVec3, m: &Medium) -> bool {
-    ctx.field.is_some_and(|t| pos.z > t.z_switch) && std::ptr::eq(m, &ctx.scene.media[ctx.scene.layers[li].medium])
+    ctx.field.is_some_and(|t| pos.z > t.z_switch) && in_fill(ctx, li, m)
+}
+
+/// Whether `m` is layer `li`'s filling medium (not a region's).
+#[inline(always)]
+fn in_fill(ctx: &WalkContext, li: usize, m: &Medium) -> bool {
+    std::ptr::eq(m, &ctx.scene.media[ctx.scene.layers[li].medium])
 }
 
 /// A beam-lobe connection from a camera path's vertex: the vertex's layer and position, the
@@ -630,12 +687,12 @@ fn lobe_pair<const DOPPLER: bool, const LENGTH: bool>(
 
 /// The light field's connection at `j*` ([`super::field`]): the twin's scattered light arriving
 /// along directions `ω′` drawn from the phase function about the way to the camera, read from the
-/// table at the beam's irradiance above the vertex, each with a Doppler state drawn from its bin.
+/// table, each with a Doppler state drawn from its bin.
 #[allow(clippy::too_many_arguments)]
 #[cold]
 #[inline(never)]
 fn table_connection(
-    ctx: &WalkContext,
+    _ctx: &WalkContext,
     table: &super::field::FieldTable,
     li: usize,
     shot: &Shot,
@@ -645,16 +702,11 @@ fn table_connection(
     rng: &mut PathRng,
     rec: &mut Recorder,
 ) {
-    let source = ctx.source;
-    let e0 = source.irradiance_along(DVec3::new(s.pos.x, s.pos.y, 0.0), source.direction);
-    if e0 <= 0.0 {
-        return;
-    }
     let to_camera = -s.dir;
-    let w = s.weight * e0 * shot.scale / super::field::TABLE_SAMPLES as f64;
+    let w = s.weight * shot.scale / super::field::TABLE_SAMPLES as f64;
     for _ in 0..super::field::TABLE_SAMPLES {
         let (_, arrive, _) = deflect(to_camera, &particle.pop.phase, rng);
-        let (radiance, iz, it) = table.radiance(li, s.pos.z, arrive);
+        let (radiance, iz, it) = table.radiance(li, s.pos, arrive);
         let u = rng.uniform();
         if radiance <= 0.0 {
             continue;

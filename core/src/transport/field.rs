@@ -55,9 +55,16 @@ use super::walk::{End, Estimator, Vertex, WalkContext, scatter, walk_to_the_end}
 /// Depth bins per layer: one per this many metres of it, ...
 pub const Z_STEP: f64 = 10e-6;
 /// ... at most this many (a semi-infinite layer is binned over [`DEEP`] below its top).
-pub const Z_BINS_MAX: usize = 48;
+pub const Z_BINS_MAX: usize = 64;
 /// How deep a semi-infinite last layer is tabulated (deeper vertices read its last bin), m.
 pub const DEEP: f64 = 3e-3;
+/// Radial bins, of the table (distance from the beam's axis) and of the pencil beam's kernel
+/// (distance from its entry point), m wide ...
+pub const RHO_STEP: f64 = 25e-6;
+/// ... at most this many.
+pub const RHO_BINS_MAX: usize = 400;
+/// How far beyond the images' farthest corner the table reaches (a camera path wanders), m.
+pub const REACH_MARGIN: f64 = 0.5e-3;
 /// Polar-angle bins of the light's direction of travel (from +z, down), uniform in angle.
 pub const THETA_BINS: usize = 36;
 /// Polar-angle bins per Doppler distribution.
@@ -89,7 +96,12 @@ struct Bins {
 pub struct FieldTable {
     bins: Vec<Bins>,
     nz: usize,
-    /// Per depth bin × polar-angle bin: scattered radiance per unit irradiance, sr⁻¹.
+    /// The beam's axis on the surface, and the radial bins' width and number.
+    axis: (f64, f64),
+    dr: f64,
+    nr: usize,
+    /// Per radial bin × depth bin × polar-angle bin: scattered radiance per watt emitted,
+    /// W m⁻² sr⁻¹ W⁻¹.
     radiance: Vec<f64>,
     /// Per depth bin × angle group: the cumulative distribution over [`SLOTS`] (last = 1; all 0
     /// where no light was tallied).
@@ -156,9 +168,16 @@ impl FieldTable {
         Ok(())
     }
 
-    /// The table of `scene`'s layered twin lit by `source`, from `paths` forward paths of the
-    /// stream `seed`.
-    pub fn build(scene: &Scene, source: &Source, settings: &WalkSettings, paths: u64, seed: u64) -> FieldTable {
+    /// The table of `scene`'s layered twin lit by `source` out to `reach` from the beam's axis
+    /// (m; beyond, the last radial bin), from `paths` forward paths of the stream `seed`.
+    pub fn build(
+        scene: &Scene,
+        source: &Source,
+        settings: &WalkSettings,
+        reach: f64,
+        paths: u64,
+        seed: u64,
+    ) -> FieldTable {
         let twin = scene.layered_twin();
         let mut bins = Vec::with_capacity(twin.layers.len());
         let mut nz = 0;
@@ -170,7 +189,18 @@ impl FieldTable {
         }
         let scale = doppler_scale(&twin);
         let z_switch = scene.regions.iter().map(|r| r.shape.z_range().1).fold(0.0, f64::max);
-        let shape = Shape { bins: &bins, nz, scale };
+        let nr = ((reach / RHO_STEP).ceil() as usize).clamp(1, RHO_BINS_MAX);
+        let dr = reach.max(RHO_STEP) / nr as f64;
+        let axis = (source.position.x, source.position.y);
+        // The kernel reaches as far as a vertex within `reach` can be from the beam's light.
+        let spread = reach
+            + match source.profile {
+                crate::source::Profile::Disk { radius } => radius,
+                crate::source::Profile::Gaussian { waist } => 2.5 * waist,
+                crate::source::Profile::Pencil => 0.0,
+            };
+        let nk = ((spread / dr).ceil() as usize).clamp(1, 4 * RHO_BINS_MAX);
+        let shape = Shape { bins: &bins, nz, scale, dr, nk };
         let key = StreamKey::new(seed, Purpose::Field, 0);
         let sums: Vec<Sums> = (0..PASS_GROUPS)
             .into_par_iter()
@@ -179,18 +209,37 @@ impl FieldTable {
                 pass(&twin, source, settings, &shape, &key, a..b)
             })
             .collect();
-        let mut total = Sums::new(nz);
+        let mut total = Sums::new(nk, nz);
         for s in &sums {
             total.add(s);
         }
-        let mut radiance = vec![0.0; nz * THETA_BINS];
-        for b in &bins {
-            for iz in b.first..b.first + b.n {
-                for it in 0..THETA_BINS {
-                    let (c0, c1) = (theta_edge(it).cos(), theta_edge(it + 1).cos());
-                    let solid_angle = std::f64::consts::TAU * (c0 - c1);
-                    let k = iz * THETA_BINS + it;
-                    radiance[k] = total.radiance[k] / (paths.max(1) as f64 * b.dz * solid_angle);
+        // The pencil beam's kernel per unit area of its annulus, depth and solid angle, then
+        // convolved with the beam's profile: the radiance at distance ρ from its axis is the sum
+        // over the kernel's annuli of the kernel times the beam's power in the annulus of that
+        // radius about the point (the kernel keeps the polar angle of the light's direction
+        // only, which a rotation about the vertical leaves as it is).
+        let per = |ik: usize, iz: usize, it: usize| {
+            let area = std::f64::consts::PI * dr * dr * ((ik + 1) * (ik + 1) - ik * ik) as f64;
+            let (c0, c1) = (theta_edge(it).cos(), theta_edge(it + 1).cos());
+            let solid_angle = std::f64::consts::TAU * (c0 - c1);
+            let b = bins.iter().find(|b| (b.first..b.first + b.n).contains(&iz)).expect("a depth bin's layer");
+            total.radiance[(ik * nz + iz) * THETA_BINS + it] / (paths.max(1) as f64 * area * b.dz * solid_angle)
+        };
+        let kernel: Vec<f64> = (0..nk * nz * THETA_BINS)
+            .map(|k| per(k / (nz * THETA_BINS), (k / THETA_BINS) % nz, k % THETA_BINS))
+            .collect();
+        let mut radiance = vec![0.0; nr * nz * THETA_BINS];
+        for ir in 0..nr {
+            let rho = (ir as f64 + 0.5) * dr;
+            for ik in 0..nk {
+                let mass = annulus_mass(source, axis, rho, (ik as f64 * dr, (ik + 1) as f64 * dr));
+                if mass <= 0.0 {
+                    continue;
+                }
+                let from = &kernel[ik * nz * THETA_BINS..][..nz * THETA_BINS];
+                let to = &mut radiance[ir * nz * THETA_BINS..][..nz * THETA_BINS];
+                for (t, k) in to.iter_mut().zip(from) {
+                    *t += mass * k;
                 }
             }
         }
@@ -206,7 +255,7 @@ impl FieldTable {
                 row[SLOTS - 1] = 1.0;
             }
         }
-        FieldTable { bins, nz, radiance, cdf, scale, z_switch, paths }
+        FieldTable { bins, nz, axis, dr, nr, radiance, cdf, scale, z_switch, paths }
     }
 
     /// Bytes the table holds.
@@ -221,14 +270,16 @@ impl FieldTable {
         b.first + (((z - b.z_top) / b.dz).max(0.0) as usize).min(b.n - 1)
     }
 
-    /// The twin's scattered radiance per unit irradiance at depth `z` in layer `li` travelling
-    /// along `dir`, sr⁻¹, and its bin.
+    /// The twin's scattered radiance at `pos` in layer `li` travelling along `dir`, W m⁻² sr⁻¹
+    /// per watt emitted, and its depth and angle bins.
     #[inline]
-    pub fn radiance(&self, li: usize, z: f64, dir: DVec3) -> (f64, usize, usize) {
-        let iz = self.z_bin(li, z);
+    pub fn radiance(&self, li: usize, pos: DVec3, dir: DVec3) -> (f64, usize, usize) {
+        let iz = self.z_bin(li, pos.z);
+        let rho = (pos.x - self.axis.0).hypot(pos.y - self.axis.1);
+        let ir = ((rho / self.dr) as usize).min(self.nr - 1);
         let theta = dir.z.clamp(-1.0, 1.0).acos();
         let it = ((theta / std::f64::consts::PI * THETA_BINS as f64) as usize).min(THETA_BINS - 1);
-        (self.radiance[iz * THETA_BINS + it], iz, it)
+        (self.radiance[(ir * self.nz + iz) * THETA_BINS + it], iz, it)
     }
 
     /// A Doppler state of the light of bin `(iz, it)` from the uniform `u`: its Doppler events
@@ -274,6 +325,26 @@ fn doppler_scale(twin: &Scene) -> f64 {
     scale
 }
 
+/// The beam's power (per watt emitted) on the surface in the annulus `r0 ≤ r < r1` about the
+/// point at distance `rho` from its axis `axis`: the profile's irradiance across the
+/// (vertical) beam, by the midpoint rule over 4 radii × 128 angles per 25 µm of radius.
+fn annulus_mass(source: &Source, axis: (f64, f64), rho: f64, (r0, r1): (f64, f64)) -> f64 {
+    const RADII: usize = 4;
+    const ANGLES: usize = 128;
+    let mut sum = 0.0;
+    let dr = (r1 - r0) / RADII as f64;
+    let dphi = std::f64::consts::TAU / ANGLES as f64;
+    for i in 0..RADII {
+        let r = r0 + (i as f64 + 0.5) * dr;
+        for j in 0..ANGLES {
+            let phi = (j as f64 + 0.5) * dphi;
+            let p = DVec3::new(axis.0 + rho + r * phi.cos(), axis.1 + r * phi.sin(), 0.0);
+            sum += source.irradiance_along(p, source.direction) * r * dr * dphi;
+        }
+    }
+    sum
+}
+
 /// The polar angle of the lower edge of bin `it`.
 fn theta_edge(it: usize) -> f64 {
     std::f64::consts::PI * it as f64 / THETA_BINS as f64
@@ -284,6 +355,9 @@ struct Shape<'a> {
     bins: &'a [Bins],
     nz: usize,
     scale: f64,
+    /// The kernel's radial bins: width and number.
+    dr: f64,
+    nk: usize,
 }
 
 /// One group's sums: `w/σt` per depth × angle bin, and the same weight per Doppler slot.
@@ -293,8 +367,8 @@ struct Sums {
 }
 
 impl Sums {
-    fn new(nz: usize) -> Sums {
-        Sums { radiance: vec![0.0; nz * THETA_BINS], doppler: vec![0.0; nz * GROUPS * SLOTS] }
+    fn new(nr: usize, nz: usize) -> Sums {
+        Sums { radiance: vec![0.0; nr * nz * THETA_BINS], doppler: vec![0.0; nz * GROUPS * SLOTS] }
     }
 
     fn add(&mut self, o: &Sums) {
@@ -316,7 +390,7 @@ fn pass(
     key: &StreamKey,
     range: std::ops::Range<u64>,
 ) -> Sums {
-    let mut sums = Sums::new(shape.nz);
+    let mut sums = Sums::new(shape.nk, shape.nz);
     // The walk wants a recorder; the pass records nothing into it.
     let beat = BeatModel::new(source.wavelength, None);
     let layout = TallyLayout::new(&[], &beat);
@@ -384,7 +458,11 @@ impl FieldPass<'_, '_> {
         let theta = s.dir.z.clamp(-1.0, 1.0).acos();
         let it = ((theta / std::f64::consts::PI * THETA_BINS as f64) as usize).min(THETA_BINS - 1);
         let w = s.weight / sigma_t;
-        self.sums.radiance[iz * THETA_BINS + it] += w;
+        let sh = self.shape;
+        let ik = s.pos.x.hypot(s.pos.y) / sh.dr;
+        if ik < sh.nk as f64 {
+            self.sums.radiance[((ik as usize) * sh.nz + iz) * THETA_BINS + it] += w;
+        }
         let slot = match s.doppler_events {
             0 => 0,
             e => {

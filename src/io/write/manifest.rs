@@ -180,6 +180,10 @@ pub struct FootprintsEntry {
     pub camera_paths_per_forward_path: f64,
     /// Camera paths traced from each camera pixel over the run.
     pub camera_paths_per_pixel: u64,
+    /// With `light_field = true`: the forward paths of the light field's pre-pass (its seed is
+    /// the run's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub light_field_paths: Option<u64>,
 }
 
 /// Where a run's wall time went, seconds (`timing` in the manifest; like `wall_seconds`, the only
@@ -339,6 +343,7 @@ fn write_run_to<S: super::Sink>(
                 halo_m: fp.halo,
                 camera_paths_per_forward_path: fp.camera_paths,
                 camera_paths_per_pixel: fp.paths_per_pixel(out.paths_per_batch) * out.estimates.batches() as u64,
+                light_field_paths: fp.light_field,
             }),
             parts: BTreeMap::new(),
         };
