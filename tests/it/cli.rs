@@ -689,6 +689,7 @@ fn shards_merge_into_a_single_run() {
     let retina = repo().join("configs/retina_ldh.toml");
     let camera = repo().join("tests/configs/good/camera_estimator.toml");
     let footprints = repo().join("tests/configs/good/footprints_estimator.toml");
+    let light_field = repo().join("tests/configs/good/footprints_light_field.toml");
     for (case, config, samples, count, set) in [
         ("vessel", None, "400000", 3u64, None),
         // With the LDH moments: their frequency images are ratios whose σ is a jackknife over
@@ -699,6 +700,8 @@ fn shards_merge_into_a_single_run() {
         ("auto", Some(&camera), "64000", 2, Some("detectors.0.estimator=\"auto\"")),
         // Camera paths from the footprints' pixels beside the forward paths, speckle from these.
         ("footprints", Some(&footprints), "64000", 3, None),
+        // Every shard makes the same light field's table.
+        ("light_field", Some(&light_field), "64000", 3, None),
     ] {
         let base = |dir: &Path| -> Vec<String> {
             let mut a: Vec<String> = vec!["run".into()];

@@ -14,6 +14,9 @@ fn one_and_two_threads_write_identical_outputs() {
         ("camera", include_str!("../configs/good/camera_estimator.toml")),
         // Camera paths from the footprints' pixels, the forward paths elsewhere.
         ("footprints", include_str!("../configs/good/footprints_estimator.toml")),
+        // ... connected to the layered twin's light field below the vessel (its table's pre-pass
+        // in parallel groups summed in order).
+        ("light_field", include_str!("../configs/good/footprints_light_field.toml")),
     ] {
         let dirs: Vec<tempfile::TempDir> = (0..2).map(|_| tempfile::tempdir().unwrap()).collect();
         let mut manifests = Vec::new();

@@ -445,6 +445,7 @@ fn resolve_footprints(
             format!("= {camera_paths}: expected camera paths per forward path from 0.001 to 1000"),
         );
     }
+    let light_field = light_field(&p, &f, scene, source)?;
     let mut im = None;
     let mut rois = Vec::new();
     for part in parts.iter().flatten() {
@@ -497,7 +498,7 @@ fn resolve_footprints(
             "= \"footprints\": no region of the scene lies under the image, and no ROI: nothing for camera paths to estimate (use \"forward\")",
         );
     };
-    fp.light_field = light_field(&p, &f, scene, source)?;
+    fp.light_field = light_field;
     Ok(Some(std::sync::Arc::new(fp)))
 }
 
