@@ -473,8 +473,11 @@ fn light_field_agrees_with_the_camera_paths_it_replaces() {
     for name in ["camera.image", "camera.m0_plus", "camera.m0_minus"] {
         let (a, b) = (output(&plain, name), output(&lit, name));
         let (stat, dof, p) = chi2_difference((&a.0, &a.1), (&b.0, &b.1));
-        eprintln!("{name}: χ² = {stat:.1} over {dof} (p = {p:.2e}); camera pixels' pooled error {:.3e} → {:.3e}",
-            pooled(&a.1), pooled(&b.1));
+        eprintln!(
+            "{name}: χ² = {stat:.1} over {dof} (p = {p:.2e}); camera pixels' pooled error {:.3e} → {:.3e}",
+            pooled(&a.1),
+            pooled(&b.1)
+        );
         assert!(dof >= 200 && p > 1e-4, "{name}: χ² = {stat:.1} over {dof} slots (p = {p:.2e})");
         if name == "camera.m0_plus" {
             assert!(pooled(&b.1) * 1.5 < pooled(&a.1), "{name}: {:.3e} against {:.3e}", pooled(&b.1), pooled(&a.1));
@@ -499,7 +502,10 @@ fn light_field_agrees_with_the_camera_paths_it_replaces() {
 /// variance per camera path at least 20× smaller.
 #[test]
 fn light_field_table_error_is_bounded_on_a_layered_slab() {
-    let (head, tail) = lit_scene("footprints").split_once("[[regions]]").map(|(h, t)| (h.to_string(), t.to_string())).expect("a vessel");
+    let (head, tail) = lit_scene("footprints")
+        .split_once("[[regions]]")
+        .map(|(h, t)| (h.to_string(), t.to_string()))
+        .expect("a vessel");
     let text = format!("{head}{}", &tail[tail.find("[[detectors]]").expect("a camera after it")..]);
     let plain = run(&text, &["run.seed=6"]);
     let lit = run(&text, &["run.seed=8", "detectors.0.footprints.light_field=true"]);
@@ -513,9 +519,15 @@ fn light_field_table_error_is_bounded_on_a_layered_slab() {
     for name in ["camera.image", "camera.m0_plus"] {
         let (a, b) = (pooled(&plain, name), pooled(&lit, name));
         let z = (b.0 - a.0) / a.1.hypot(b.1);
-        eprintln!("{name} over the ROI: camera paths {a:?}, light field {b:?} ({:+.2} %, z = {z:.2})", 100.0 * (b.0 / a.0 - 1.0));
+        eprintln!(
+            "{name} over the ROI: camera paths {a:?}, light field {b:?} ({:+.2} %, z = {z:.2})",
+            100.0 * (b.0 / a.0 - 1.0)
+        );
         assert!(a.0 > 30.0 * a.1, "{name}: {a:?} not resolved");
-        assert!((b.0 - a.0).abs() <= 3.0 * a.1.hypot(b.1) + 0.015 * a.0, "{name}: camera paths {a:?}, light field {b:?}");
+        assert!(
+            (b.0 - a.0).abs() <= 3.0 * a.1.hypot(b.1) + 0.015 * a.0,
+            "{name}: camera paths {a:?}, light field {b:?}"
+        );
         assert!(b.1 * b.1 * 20.0 < a.1 * a.1, "{name}: error {:.3e} against {:.3e}", b.1, a.1);
     }
 }

@@ -26,7 +26,8 @@ pub(super) struct Adjoint<const DOPPLER: bool, const LENGTH: bool, const FIELD: 
 /// A camera path's part in the light field's estimate ([`super::field`]).
 #[derive(Clone)]
 enum FieldWalk {
-    /// Above its first collision below every region: a plain camera path.
+    /// Before it has met a region or gone below every region: a plain camera path (its light
+    /// has not yet seen what the regions change).
     Before,
     /// From that collision (`j*`) on, its walk shared with the layered twin's: the connections
     /// score the scene's light minus the twin's. Holds where the next flight starts from.
@@ -34,8 +35,9 @@ enum FieldWalk {
     /// Its flight from `Start` met a region: the path scores alone, and once it has ended the twin
     /// walks on from there by itself.
     Parted(Start),
-    /// Its twin has parted and walked: the path scores alone, until its next collision in a
-    /// layer's filling medium shares its walk with a new twin.
+    /// It has met a region (and its twin, if it had one, has parted and walked): the path scores
+    /// alone, until its next collision in a layer's filling medium shares its walk with a new
+    /// twin.
     Plain,
     /// The layered twin's own walk after it parted: its flight to its first collision, the
     /// connection there to the beam, and the light field's table for the rest (in the twin's
@@ -130,7 +132,8 @@ impl<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> Estimator for A
         end
     }
 
-    /// A flight shared with the layered twin that meets a region parts the two.
+    /// A flight shared with the layered twin that meets a region parts the two; a plain path's
+    /// first such flight makes its next collision outside the regions share its walk.
     #[inline(always)]
     fn flew(&mut self, scene: &crate::medium::Scene, layer: &crate::medium::Layer, s: &PathState, t: f64) {
         if FIELD
@@ -138,6 +141,11 @@ impl<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> Estimator for A
             && super::field::touches_region(scene, layer, s.pos, s.dir, t)
         {
             self.field = start.take().map_or(FieldWalk::Plain, FieldWalk::Parted);
+        } else if FIELD
+            && matches!(self.field, FieldWalk::Before)
+            && super::field::touches_region(scene, layer, s.pos, s.dir, t)
+        {
+            self.field = FieldWalk::Plain;
         }
     }
 
@@ -573,8 +581,8 @@ fn twin_collision<const DOPPLER: bool, const LENGTH: bool>(
     Some(End::Absorbed)
 }
 
-/// Whether a camera path's collision at `pos` in layer `li` (in medium `m`) is its `j*`
-/// ([`super::field`]): below every region, in the layer's filling medium.
+/// Whether a camera path's collision at `pos` in layer `li` (in medium `m`), before it has met a
+/// region, is its `j*` ([`super::field`]): below every region, in the layer's filling medium.
 #[inline(always)]
 fn switches_here(ctx: &WalkContext, li: usize, pos: DVec3, m: &Medium) -> bool {
     ctx.field.is_some_and(|t| pos.z > t.z_switch) && in_fill(ctx, li, m)
