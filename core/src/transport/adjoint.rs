@@ -714,12 +714,12 @@ fn table_connection(
     let w = s.weight * shot.scale / super::field::TABLE_SAMPLES as f64;
     for _ in 0..super::field::TABLE_SAMPLES {
         let (_, arrive, _) = deflect(to_camera, &particle.pop.phase, rng);
-        let (radiance, iz, it) = table.radiance(li, s.pos, arrive);
+        let (radiance, bin) = table.radiance(li, s.pos, arrive);
         let u = rng.uniform();
         if radiance <= 0.0 {
             continue;
         }
-        let (events, dldt) = table.draw(iz, it, u);
+        let (events, dldt) = table.draw(bin, u);
         let mut e = PathState { dir: to_camera, weight: w * radiance, order: s.order + 2, ..*s };
         particle.event(&mut e, n, arrive + s.dir);
         e.dldt += dldt;
