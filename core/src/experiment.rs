@@ -418,7 +418,7 @@ impl<'a> BatchRunner<'a> {
         });
         let field = exp.field_paths().map(|paths| {
             let build = || {
-                crate::transport::field::FieldTable::build(
+                crate::transport::field_pass::build(
                     &exp.scene,
                     &exp.source,
                     &exp.plan.walk,

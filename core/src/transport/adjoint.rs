@@ -138,12 +138,12 @@ impl<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool> Estimator for A
     fn flew(&mut self, scene: &crate::medium::Scene, layer: &crate::medium::Layer, s: &PathState, t: f64) {
         if FIELD
             && let FieldWalk::Shared(start) = &mut self.field
-            && super::field::touches_region(scene, layer, s.pos, s.dir, t)
+            && super::nee::touches_region(scene, layer, s.pos, s.dir, t)
         {
             self.field = start.take().map_or(FieldWalk::Plain, FieldWalk::Parted);
         } else if FIELD
             && matches!(self.field, FieldWalk::Before)
-            && super::field::touches_region(scene, layer, s.pos, s.dir, t)
+            && super::nee::touches_region(scene, layer, s.pos, s.dir, t)
         {
             self.field = FieldWalk::Plain;
         }

@@ -318,7 +318,7 @@ pub fn lobe_flight_touching<const TOUCH: bool>(
         // whose flight a solid cuts short: up to the solid the two have the same density.)
         let (super::Flight::Collision { t, .. } | super::Flight::Boundary { t }) = flight;
         if TOUCH && !touched {
-            touched = super::field::touches_region(scene, layer, pos, dir, t);
+            touched = super::nee::touches_region(scene, layer, pos, dir, t);
         }
         if !layer.opaque.is_empty() && scene.blocked(layer, pos, dir, t) {
             return (None, touched);

@@ -7,6 +7,7 @@ pub mod carried;
 pub mod event;
 pub mod features;
 pub mod field;
+pub mod field_pass;
 pub mod forward;
 pub use crate::surface::fresnel;
 pub mod guide;

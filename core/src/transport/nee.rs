@@ -249,6 +249,12 @@ pub fn region_excess(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: D
     segment_optical_depth(scene, layer, p, d, t).1
 }
 
+/// Whether the segment `p + s·d`, `0 ≤ s ≤ t`, in `layer` meets one of its regions.
+#[inline]
+pub fn touches_region(scene: &Scene, layer: &crate::medium::Layer, p: DVec3, d: DVec3, t: f64) -> bool {
+    layer.regions.iter().any(|&r| scene.regions[r].shape.intersect(p, d).is_some_and(|(a, b)| b.min(t) >= a.max(0.0)))
+}
+
 /// A direction uniform in the cone of half-angle cosine `cos_acceptance` about `axis` (with
 /// `basis` completing it) from the uniforms `(u1, u2)`: `cos θ′` uniform on `[cos α, 1]`.
 #[inline(always)]
