@@ -532,7 +532,7 @@ fn collide_camera<const DOPPLER: bool, const LENGTH: bool, const FIELD: bool>(
             if shared || switch {
                 lobe_pair::<DOPPLER, LENGTH>(ctx, &shot, lobe, rng, rec);
             } else {
-                lobe_connection::<DOPPLER, LENGTH, false>(ctx, &shot, lobe, rng, rec);
+                lobe_connection::<DOPPLER, LENGTH>(ctx, &shot, lobe, rng, rec);
             }
         }
     }
@@ -614,10 +614,9 @@ struct Lobe<'a> {
 
 /// The beam-lobe connection `lobe` in `ctx`'s scene: the straight way to a real collision further
 /// up ([`super::camera::lobe_flight`]) and its connection there, weighted against the walk's way
-/// there by the balance heuristic. With `PAIR` the collision's connection scores the scene's light
-/// minus the layered twin's (the way up met no region, [`lobe_pair`]).
+/// there by the balance heuristic (with the light field, [`lobe_pair`]).
 #[inline(always)]
-fn lobe_connection<const DOPPLER: bool, const LENGTH: bool, const PAIR: bool>(
+fn lobe_connection<const DOPPLER: bool, const LENGTH: bool>(
     ctx: &WalkContext,
     shot: &Shot,
     lobe: Lobe,
@@ -627,11 +626,12 @@ fn lobe_connection<const DOPPLER: bool, const LENGTH: bool, const PAIR: bool>(
     rec.stats.work.camera_connections += 1;
     let h = super::camera::lobe_flight(ctx.scene, lobe.li, lobe.pos, lobe.dir, ctx.settings.tracking, rng);
     if let Some(h) = h {
-        lobe_vertex::<DOPPLER, LENGTH, PAIR>(ctx, shot, &lobe, h, rng, rec);
+        lobe_vertex::<DOPPLER, LENGTH, false>(ctx, shot, &lobe, h, rng, rec);
     }
 }
 
-/// The connection at `h`, where `lobe`'s flight collided.
+/// The connection at `h`, where `lobe`'s flight collided; with `PAIR` the scene's light minus
+/// the layered twin's (the way up met no region, [`lobe_pair`]).
 #[inline(always)]
 fn lobe_vertex<const DOPPLER: bool, const LENGTH: bool, const PAIR: bool>(
     ctx: &WalkContext,
