@@ -794,7 +794,7 @@ fn connect<const LENGTH: bool, const PAIR: bool>(
     rec: &mut Recorder,
 ) {
     let Some(b) = super::camera::beam_connection(ctx.scene, ctx.source, li, at.pos, rng) else { return };
-    let irradiance = if PAIR { b.irradiance - b.twin_irradiance } else { b.irradiance };
+    let irradiance = if PAIR { b.irradiance - b.twin_irradiance() } else { b.irradiance };
     if PAIR && irradiance == 0.0 {
         return;
     }

@@ -362,12 +362,27 @@ pub struct BeamHit {
     pub dir: DVec3,
     /// W/m² per watt emitted.
     pub irradiance: f64,
-    /// `irradiance` in the scene's layered twin (its regions' excess optical depth and ratio
-    /// tracking left out, [`crate::medium::Scene::layered_twin`]): equal to it, bit for bit,
-    /// where the way up meets no region.
-    pub twin_irradiance: f64,
     /// m.
     pub length: f64,
+    /// What the way up met, for [`twin_irradiance`](Self::twin_irradiance): the irradiance
+    /// before its transmittances, its optical depth and the part of it the regions add, its
+    /// transmittance and the layered twin's.
+    way: (f64, f64, f64, f64, f64),
+}
+
+impl BeamHit {
+    /// `irradiance` in the scene's layered twin (its regions' excess optical depth and ratio
+    /// tracking left out, [`crate::medium::Scene::layered_twin`]): equal to it, bit for bit,
+    /// where the way up meets no region. (Evaluated only where asked: the light field's paired
+    /// connections, [`super::field`].)
+    pub fn twin_irradiance(&self) -> f64 {
+        let (e, tau, excess, transmit, twin_transmit) = self.way;
+        if excess == 0.0 && twin_transmit == transmit {
+            self.irradiance
+        } else {
+            e * twin_transmit * (excess - tau).exp()
+        }
+    }
 }
 
 /// The unscattered laser light reaching `pos` in layer `li` (see the module docs). `None` where
@@ -390,9 +405,7 @@ pub fn beam_connection(scene: &Scene, source: &Source, li: usize, pos: DVec3, rn
     let back = (p - source.position).dot(source.direction) / beam.dot(source.direction);
     let e = e0 * (beam.z / dir.z);
     let irradiance = e * transmit * (-tau).exp();
-    let twin_irradiance =
-        if excess == 0.0 && twin_transmit == transmit { irradiance } else { e * twin_transmit * (excess - tau).exp() };
-    Some(BeamHit { dir, irradiance, twin_irradiance, length: length + n0 * back })
+    Some(BeamHit { dir, irradiance, length: length + n0 * back, way: (e, tau, excess, transmit, twin_transmit) })
 }
 
 /// The unscattered laser light arriving at `pos` on the top face of layer `face` from above: the
@@ -408,8 +421,8 @@ pub fn beam_at_face(scene: &Scene, source: &Source, face: usize, pos: DVec3, rng
     (irradiance > 0.0).then_some(BeamHit {
         dir: beam,
         irradiance,
-        twin_irradiance: irradiance,
         length: scene.n_above * back,
+        way: (irradiance, 0.0, 0.0, 1.0, 1.0),
     })
 }
 

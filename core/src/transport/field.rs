@@ -199,11 +199,6 @@ impl FieldTable {
         Ok(())
     }
 
-    /// Bytes the table holds.
-    pub fn bytes(&self) -> usize {
-        (self.radiance.len() + self.cdf.len()) * std::mem::size_of::<f64>()
-    }
-
     /// The depth bin of `z` in layer `li`.
     #[inline]
     fn z_bin(&self, li: usize, z: f64) -> usize {
@@ -237,11 +232,6 @@ impl FieldTable {
         let (class, ub) = (1 + (k - 1) / U_BINS, (k - 1) % U_BINS);
         let v = (-1.0 + 2.0 * (ub as f64 + frac) / U_BINS as f64).clamp(-1.0 + 1e-12, 1.0 - 1e-12);
         (class as u32, self.scale * (v * std::f64::consts::FRAC_PI_2).tan())
-    }
-
-    /// Depth bins in all.
-    pub fn depth_bins(&self) -> usize {
-        self.nz
     }
 }
 
