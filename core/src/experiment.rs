@@ -608,6 +608,9 @@ impl Experiment {
     /// [`importance_table`](Self::importance_table)): it needs a main output of a detector scored
     /// by forward paths: a surface detector with the forward estimator (not a lidar receiver).
     pub fn importance_obstacle(&self) -> Option<String> {
+        if self.scene.cycle.is_some() {
+            return Some("the scene's flows pulse ([cardiac]): split copies do not carry the harmonics yet".into());
+        }
         let main = self.main_output();
         let Some(d) = main.detector else {
             return Some(format!("the main output `{}` is not a detector's", main.name));
@@ -1094,6 +1097,11 @@ impl Experiment {
             path_scores: layout.tail_scores(),
             trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
             line_draws: None,
+            pulse: Vec::new(),
+            window_draws: self
+                .scene
+                .cycle
+                .map(|_| StreamKey::new(self.plan.seed, Purpose::Windows, batch).path(0)),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());

@@ -89,6 +89,10 @@ pub enum Kind {
     /// A full spectrum in every pixel of an image: `[y][x][bin]`, its rows ordered as an
     /// [`Kind::Image`]'s.
     PixelSpectra { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2], axis: FrequencyAxis, mirrored: bool },
+    /// A series of `len` values in every pixel of an image, `[y][x][k]` (an acquisition's windows
+    /// over the cardiac cycle), its rows ordered as an [`Kind::Image`]'s; the series' axis is
+    /// named by its declaration.
+    PixelSeries { nx: usize, ny: usize, min: [f64; 2], max: [f64; 2], len: usize },
     /// A stack of `layers` images over one detector's pixels, `[layer][y][x]` (the time gates of
     /// a TPSF); each layer's rows ordered as an [`Kind::Image`]'s.
     ImageStack { layers: usize, nx: usize, ny: usize, min: [f64; 2], max: [f64; 2] },
@@ -191,6 +195,10 @@ impl Kind {
                 let [y, x] = Axis::image(nx, ny, min, max);
                 vec![Axis::linear("layer", "", 0.0, 1.0, layers), y, x]
             }
+            &Kind::PixelSeries { nx, ny, min, max, len } => {
+                let [y, x] = Axis::image(nx, ny, min, max);
+                vec![y, x, Axis::linear("index", "", 0.0, 1.0, len)]
+            }
             &Kind::Volume { voxels: [nx, ny, nz], min, max } => {
                 let d = |a: usize, n: usize| (max[a] - min[a]) / n as f64;
                 let z = Axis::bins("z_m", "m", min[2], d(2, nz), nz);
@@ -212,6 +220,7 @@ impl Kind {
             Kind::Spectrum { .. } => "spectrum",
             Kind::Image { .. } => "image",
             Kind::PixelSpectra { .. } => "pixel_spectra",
+            Kind::PixelSeries { .. } => "pixel_series",
             Kind::ImageStack { .. } => "image_stack",
             Kind::Curve => "curve",
             Kind::RangeDoppler { .. } => "range_doppler",
@@ -331,6 +340,7 @@ impl Output {
         match self.kind {
             Kind::Image { nx, ny, .. } => Some((ny, nx)),
             Kind::PixelSpectra { nx, ny, axis, .. } => Some((ny, nx * axis.bins)),
+            Kind::PixelSeries { nx, ny, len, .. } => Some((ny, nx * len)),
             _ => None,
         }
     }

@@ -81,9 +81,48 @@ pub struct ExperimentFile {
     pub lateral: Option<LateralSection>,
     /// An opaque surface closing the stack from below.
     pub bottom: Option<BottomSection>,
+    /// The cardiac cycle of pulsatile flows: the heart rate and the named waveforms that
+    /// velocities follow (`velocity.waveform`, `motion.waveform`).
+    pub cardiac: Option<CardiacSection>,
     /// Opaque solids inside the layers: reflectors with a surface BSDF.
     #[serde(default)]
     pub opaque: Vec<OpaqueSection>,
+}
+
+/// `[cardiac]`: one heart rate for every pulsatile flow of the scene, and its waveforms.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CardiacSection {
+    pub heart_rate_bpm: Option<f64>,
+    /// The kinematic viscosity of blood for Womersley profiles (default 3.3·10⁻⁶ m²/s).
+    #[serde(rename = "blood_kinematic_viscosity_m2_per_s", alias = "blood_kinematic_viscosity_um2_per_s")]
+    pub kinematic_viscosity: Option<Quantity<Diffusivity>>,
+    #[serde(default)]
+    pub waveforms: BTreeMap<String, WaveformSection>,
+}
+
+/// `[cardiac.waveforms.NAME]`: a waveform over the cycle, relative to its mean; exactly one of
+/// `shape`, `fourier`, `samples` or `table`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WaveformSection {
+    /// A built-in shape: "artery", "vein" or "choroid" (illustrative; see configs/README.md).
+    pub shape: Option<String>,
+    /// `(max − min)/max` of a built-in shape (default the shape's).
+    pub resistivity_index: Option<f64>,
+    /// `[[a1, b1], [a2, b2], …]`: `s(t) = 1 + Σ a_k cos(kωt) + b_k sin(kωt)`.
+    pub fourier: Option<Vec<[f64; 2]>>,
+    /// Values at equally spaced times over one cycle (the first at t = 0; not closed).
+    pub samples: Option<Vec<f64>>,
+    /// A CSV file (relative to the config) of `time_s,value` or `phase,value` rows over one
+    /// closed cycle: from 0 to the period (or phase 1), the last value the first's.
+    pub table: Option<String>,
+    /// Harmonics kept (default 10 for shapes, samples and tables; the coefficients given for
+    /// `fourier`), at most 32.
+    pub harmonics: Option<i64>,
+    /// The waveform arrives this late (default 0).
+    #[serde(rename = "delay_ms", alias = "delay_s", alias = "delay_us")]
+    pub delay: Option<Quantity<Delay>>,
 }
 
 /// `[bottom]`: an opaque surface under the last layer (which must be finite): a reflector with a
@@ -527,6 +566,9 @@ pub struct MotionSection {
     pub temperature: Option<Quantity<Temperature>>,
     #[serde(rename = "viscosity_mpa_s", alias = "viscosity_pa_s")]
     pub viscosity: Option<Quantity<Viscosity>>,
+    /// The name of a `[cardiac.waveforms]` entry the dispersion follows over the cycle (a
+    /// perfused bed's pulsatility; the dispersion given is its cycle mean).
+    pub waveform: Option<String>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -662,26 +704,49 @@ pub enum SizeSection {
 pub enum VelocitySection {
     None {},
     Uniform {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
         #[serde(rename = "velocity_mm_per_s", alias = "velocity_m_per_s")]
         velocity: Option<Quantity<Speed, [f64; 3]>>,
     },
     Poiseuille {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
+        /// With a waveform: Womersley's pulsatile profile in the rigid tube (default false: the
+        /// Poiseuille profile times the waveform, Womersley's limit at α → 0).
+        womersley: Option<bool>,
         #[serde(rename = "v_max_mm_per_s", alias = "v_max_m_per_s")]
         v_max: Option<Quantity<Speed>>,
         #[serde(rename = "mean_mm_per_s", alias = "mean_m_per_s")]
         mean: Option<Quantity<Speed>>,
     },
     RandomDirection {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
         #[serde(rename = "speed_mm_per_s", alias = "speed_m_per_s")]
         speed: Option<Quantity<Speed>>,
     },
     /// Carried by the `[wind]` at the particle's height.
-    Wind {},
+    Wind {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
+    },
     /// Falling drops: the `[wind]` (calm without one) plus each drop size's terminal fall speed
     /// (Atlas et al. 1973) downward; the drop sizes are the medium's particles.
-    TerminalFall {},
+    TerminalFall {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
+    },
     /// A Vec3SGrid (m/s) from an OpenVDB file.
     Vdb {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
         /// The `.vdb` file, relative to the config file.
         file: String,
         /// The grid's name (default: the file's first vec3 grid).
@@ -698,6 +763,9 @@ pub enum VelocitySection {
     /// A velocity volume (m/s) from a NumPy `.npy` file of shape `(nx, ny, nz, 3)`, placed as a
     /// `density = { type = "npy" }` is.
     Npy {
+        /// The name of a `[cardiac.waveforms]` entry: the velocities follow it over the cycle
+        /// (the field given is the cycle-mean flow).
+        waveform: Option<String>,
         /// The `.npy` file, relative to the config file.
         file: String,
         /// The voxels' edge (cubic voxels).
@@ -893,6 +961,23 @@ pub struct LdhSection {
     #[serde(default)]
     pub roi: Vec<RoiSection>,
     pub speckle: Option<SpeckleSection>,
+    /// Windows over the cardiac cycle of a scene whose flows pulse (`[cardiac]`).
+    pub acquisition: Option<AcquisitionSection>,
+}
+
+/// `[detectors.ldh.acquisition]`: HoloDoppler's windows over the cardiac cycle, each of the
+/// camera's `window_samples` frames.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcquisitionSection {
+    /// Frames between the windows' starts (default `window_samples`: back to back).
+    pub hop_samples: Option<u64>,
+    /// How long the acquisition lasts (default one cardiac cycle).
+    #[serde(rename = "duration_s", alias = "duration_ms")]
+    pub duration: Option<Quantity<Delay>>,
+    /// When it starts in the cycle (default 0).
+    #[serde(rename = "start_ms", alias = "start_s")]
+    pub start: Option<Quantity<Delay>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

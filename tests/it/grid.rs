@@ -216,6 +216,7 @@ fn ramp_scene(kind: MajorantKind) -> (Scene, Ramp) {
         bottom: None,
         opaque: Vec::new(),
         first_rough_face: 1,
+        cycle: None,
     };
     scene.update_layers();
     (scene, ramp)

@@ -29,6 +29,7 @@ fn camera(axis: FrequencyAxis, windows: u32) -> LdhSpec {
         spectrum_axis: axis,
         pixel_spectra: true,
         speckle: Some(SpeckleSpec { windows, pixels: true }),
+        acquisition: None,
     };
     LdhSpec::new(stft, (3_000.0, 15_000.0), options).unwrap()
 }

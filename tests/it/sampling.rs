@@ -108,6 +108,7 @@ fn piecewise_scene() -> Scene {
         bottom: None,
         opaque: Vec::new(),
         first_rough_face: 1,
+        cycle: None,
     }
 }
 

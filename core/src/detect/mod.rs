@@ -703,7 +703,8 @@ pub struct Recorder<'a> {
     pub stats: &'a mut RunStats,
     /// Paths detected in LDH regions of interest, kept when speckle is asked for (else `None`).
     pub lines: Option<&'a mut Vec<RecordedLine>>,
-    /// Scratch space of the lidar receiver's pulse samples.
+    /// Scratch space of one record: the lidar receiver's pulse samples, an acquisition's rates
+    /// per window.
     pub scratch: Vec<f64>,
     /// This batch's twin kernels, one per detector (empty for those without a control variate).
     pub kernels: Vec<Vec<f64>>,
@@ -717,6 +718,13 @@ pub struct Recorder<'a> {
     /// While camera paths are recorded: the stream their broadened lines' slots are drawn from
     /// (`FrequencyAxis::drawn_slot`; a camera path adds a line per connection, tens per path).
     pub line_draws: Option<crate::sampling::PathRng>,
+    /// In a scene whose flows pulse: the harmonic Doppler components `F_k` of the contribution
+    /// being recorded ([`crate::flow::pulse`]), set by the estimator before each record; empty
+    /// otherwise.
+    pub pulse: Vec<num_complex::Complex64>,
+    /// In a scene whose flows pulse: the stream the acquisition windows' broadened lines' slots
+    /// are drawn from ([`ldh::LdhSpec::record_windows`]), one per batch.
+    pub window_draws: Option<crate::sampling::PathRng>,
 }
 
 /// Where a path entered the stack (its layered twin's launch point, `TwinPath::launch`), m.

@@ -107,6 +107,12 @@ impl Placed {
                 let draw = r.line_draws.as_mut();
                 let m0_plus = l.record(lay, r.acc, d, draw, |roi| push_line(lines.as_deref_mut(), roi, &d));
                 r.tail_score(hit, tail::M0_PLUS, m0_plus);
+                if let Some(wl) = &lay.windows {
+                    let u = r.window_draws.as_mut().map_or(0.5, |g| g.uniform());
+                    let beat = &r.beat;
+                    let frequency = |rate: f64| beat.frequency(0, hit.l, rate);
+                    l.record_windows(lay, wl, r.acc, &d, hit.dldt, &r.pulse, u, &mut r.scratch, frequency);
+                }
             }
         }
     }

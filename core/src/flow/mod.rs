@@ -11,6 +11,8 @@ use glam::DVec3;
 use crate::medium::density::GridField;
 use crate::sampling::{Discrete, PathRng, warp};
 
+pub mod pulse;
+
 /// Von Kármán's constant of the logarithmic wind profile (media/references.md §B5).
 pub const VON_KARMAN: f64 = 0.40;
 

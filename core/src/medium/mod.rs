@@ -112,6 +112,9 @@ pub struct Population {
     pub motion: Motion,
     /// This population's scattering coefficient, m⁻¹.
     pub sigma_s: f64,
+    /// How its velocities pulse over the cardiac cycle (steady by default): `velocity` and
+    /// `motion.dispersion` are then the cycle means ([`crate::flow::pulse`]).
+    pub pulse: crate::flow::pulse::Pulse,
 }
 
 impl Population {
@@ -168,7 +171,14 @@ impl Medium {
         velocity: VelocityField,
     ) -> Self {
         let name = name.into();
-        let population = Population { name: name.clone(), phase, velocity, motion: Motion::default(), sigma_s };
+        let population = Population {
+            name: name.clone(),
+            phase,
+            velocity,
+            motion: Motion::default(),
+            sigma_s,
+            pulse: Default::default(),
+        };
         Medium::mixture(name, sigma_a, vec![population])
     }
 
@@ -396,6 +406,7 @@ mod tests {
             velocity: VelocityField::Static,
             motion: Motion::default(),
             sigma_s,
+            pulse: Default::default(),
         }
     }
 

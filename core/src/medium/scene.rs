@@ -183,6 +183,9 @@ pub struct Scene {
     /// laser's collimated beam is a Dirac direction only above it, in the layers before (no
     /// camera path connects to it below but through that face).
     pub first_rough_face: usize,
+    /// The cardiac cycle its pulsatile flows share (`None`: every flow is steady; the walk is
+    /// compiled without the harmonics, [`crate::flow::pulse`]).
+    pub cycle: Option<crate::flow::pulse::Cycle>,
 }
 
 impl Scene {

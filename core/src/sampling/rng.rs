@@ -29,6 +29,9 @@ pub enum Purpose {
     Lines = 0x4c49_4e45,
     /// The light field's pre-pass ([`crate::transport::field`]): element 0, sample = the path.
     Field = 0x4649_454c,
+    /// The slots of the broadened lines of an acquisition's windows over the cardiac cycle
+    /// ([`crate::detect::ldh::LdhSpec::record_windows`]): element = batch, one stream.
+    Windows = 0x5749_4e44,
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.

@@ -16,7 +16,7 @@
 pub mod stft;
 pub mod synth;
 
-pub use stft::{BandKernel, BandMoments, BandPowers, BinnedPeriodogram, Line, Stft, Window};
+pub use stft::{BandKernel, BandMoments, BandPowers, BandTable, BinnedPeriodogram, Line, Stft, Window};
 pub use synth::{Synthesizer, speckle_draw};
 
 use std::f64::consts::PI;

@@ -27,6 +27,9 @@ pub(super) struct ForwardState {
     /// Copies of the path split off by its weight windows, waiting to walk on after it
     /// ([`super::steering::split`]).
     pub copies: Vec<Pending>,
+    /// The path's harmonic Doppler components `F_k` in a scene whose flows pulse (empty
+    /// otherwise, [`crate::flow::pulse`]).
+    pub pulse: Vec<num_complex::Complex64>,
 }
 
 /// Where a forward path's layered twin parts from it: a collision of the path in a region with

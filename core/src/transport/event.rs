@@ -108,6 +108,23 @@ impl<'a> Particle<'a> {
         Particle { pop, moving, v }
     }
 
+    /// [`Particle::pick`] with the particle's velocity apart: its flow (the field's cycle-mean
+    /// velocity) and its random velocity (the dispersion's draw), whose sum is the particle's
+    /// `v` as [`Particle::pick`] draws it (the same numbers in the same order), for the harmonics
+    /// of a pulsatile scene ([`crate::flow::pulse::Pulse::event`]).
+    #[inline(always)]
+    pub fn pick_parts(m: &'a crate::medium::Medium, pos: DVec3, rng: &mut PathRng) -> (Self, DVec3, DVec3) {
+        let (pop, moving) = m.pick_dynamic(rng);
+        if !moving {
+            return (Particle { pop, moving, v: DVec3::ZERO }, DVec3::ZERO, DVec3::ZERO);
+        }
+        let flow = pop.velocity.velocity(pos, rng);
+        let sd = pop.motion.dispersion;
+        let random = if sd > 0.0 { sd * DVec3::new(rng.normal(), rng.normal(), rng.normal()) } else { DVec3::ZERO };
+        let v = if sd > 0.0 { flow + random } else { flow };
+        (Particle { pop, moving, v }, flow, random)
+    }
+
     /// The event's Doppler and Brownian terms on `s`, in a layer of index `n`, for
     /// `dir_in − dir_out = delta` ([`doppler_event`]); nothing if the particle does not move.
     #[inline(always)]

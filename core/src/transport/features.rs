@@ -45,6 +45,11 @@ pub struct Features {
     pub gate: bool,
     /// The layers end at the side faces of a box phantom (`[lateral]`; never with `nee`).
     pub lateral: bool,
+    /// The scene's flows pulse (`Scene::cycle`): forward paths carry their harmonic Doppler
+    /// components ([`crate::flow::pulse`]); resolve refuses the volume tally, the time gate, a
+    /// box phantom, the control variate and the weight windows with it, and its walk always has
+    /// `NEE`.
+    pub pulse: bool,
 }
 
 impl Features {
@@ -58,6 +63,7 @@ impl Features {
             volume: ctx.volume.is_some(),
             gate: length && ctx.settings.gate.is_some(),
             lateral: ctx.scene.lateral.is_some(),
+            pulse: ctx.scene.cycle.is_some(),
         }
     }
 
@@ -78,6 +84,9 @@ impl Features {
         mut tick: impl FnMut() -> bool,
     ) -> bool {
         let t = &mut tick;
+        if self.pulse {
+            return pulse_paths(self.length, ctx, rec, key, paths, t);
+        }
         // A time gate comes only with the optical path length (`Features::new`): no walk is
         // compiled for a gate without it.
         match (self.doppler, self.length, self.gate) {
@@ -157,6 +166,45 @@ fn lateral_paths<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
     }
 }
 
+/// The forward paths of a scene whose flows pulse, carrying their harmonics (outlined: the walks
+/// of the other scenes are compiled as before).
+#[inline(never)]
+fn pulse_paths(
+    length: bool,
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    key: &StreamKey,
+    paths: u64,
+    tick: &mut impl FnMut() -> bool,
+) -> bool {
+    if length {
+        pulse_loop::<true>(ctx, rec, key, paths, tick)
+    } else {
+        pulse_loop::<false>(ctx, rec, key, paths, tick)
+    }
+}
+
+#[inline(always)]
+fn pulse_loop<const LENGTH: bool>(
+    ctx: &WalkContext,
+    rec: &mut Recorder,
+    key: &StreamKey,
+    paths: u64,
+    tick: &mut impl FnMut() -> bool,
+) -> bool {
+    let mut estimator = Forward::<true, LENGTH, true, false, false, false, true>::new();
+    rec.pulse = vec![num_complex::Complex64::ZERO; ctx.scene.cycle.map_or(0, |c| c.harmonics)];
+    for i in 0..paths {
+        let mut rng = key.path(i);
+        estimator.trace_path(ctx, rec, &mut rng);
+        rec.end_path();
+        if (i + 1) % PATHS_PER_TICK == 0 && tick() {
+            return true;
+        }
+    }
+    false
+}
+
 /// The batch loop of forward paths of one monomorphised walk.
 #[inline(always)]
 fn paths_loop<
@@ -173,7 +221,7 @@ fn paths_loop<
     paths: u64,
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
-    let mut estimator = Forward::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>::new();
+    let mut estimator = Forward::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, false>::new();
     for i in 0..paths {
         let mut rng = key.path(i);
         estimator.trace_path(ctx, rec, &mut rng);

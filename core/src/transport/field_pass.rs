@@ -223,6 +223,8 @@ fn pass(
         path_scores: Vec::new(),
         trace: None,
         line_draws: None,
+        pulse: Vec::new(),
+        window_draws: None,
     };
     let ctx = WalkContext {
         scene,

@@ -39,6 +39,7 @@ pub(super) struct Forward<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
+    const PULSE: bool,
 >(ForwardState);
 
 impl<
@@ -48,7 +49,8 @@ impl<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
-> Estimator for Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
+    const PULSE: bool,
+> Estimator for Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, PULSE>
 {
     const DOPPLER: bool = DOPPLER;
     const LENGTH: bool = LENGTH;
@@ -74,7 +76,7 @@ impl<
         let li = v.li;
         if NEE {
             super::walk::advance::<Self>(s, t, v.n);
-            if let Some(end) = collide_nee::<DOPPLER, LENGTH>(
+            if let Some(end) = collide_nee::<DOPPLER, LENGTH, PULSE>(
                 ctx.scene,
                 ctx.nee,
                 ctx.windows,
@@ -93,6 +95,7 @@ impl<
                 return Some(end);
             }
         } else if let Some(end) = collide::<DOPPLER, LENGTH>(s, t, v, ctx, rng, absorbed, checkpoint) {
+            // (A pulsatile scene's walk always has `NEE`: its collisions carry the harmonics.)
             return Some(end);
         }
         rec.scattered(li, s);
@@ -164,6 +167,9 @@ impl<
                 let wo = at.frame.to_local(d);
                 (at.interface.eval(at.wi, wo, at.n_i, at.n_t), at.interface.pdf(at.wi, wo, at.n_i, at.n_t))
             };
+            if PULSE {
+                rec.pulse.copy_from_slice(&self.0.pulse);
+            }
             let twin = self.0.twin.as_ref();
             surface_shadow_rays::<LENGTH>(ctx, face.checked_sub(1), s, twin, density, s.order, None, rng, rec);
         }
@@ -198,6 +204,9 @@ impl<
                 (surface.bsdf.eval(wi, wo), surface.bsdf.pdf(wi, wo))
             };
             let doppler = moving.then_some((n, v));
+            if PULSE {
+                rec.pulse.copy_from_slice(&self.0.pulse);
+            }
             let twin = self.0.twin.as_ref();
             surface_shadow_rays::<LENGTH>(ctx, Some(li), s, twin, density, s.order + 1, doppler, rng, rec);
         }
@@ -229,7 +238,8 @@ impl<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
-> Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL>
+    const PULSE: bool,
+> Forward<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, PULSE>
 {
     /// The estimator for a batch of paths.
     pub(super) fn new() -> Self {
@@ -259,6 +269,14 @@ impl<
         let t0 = (0.0 - start.z) / dir.z;
         let pos = DVec3::new(start.x + t0 * dir.x, start.y + t0 * dir.y, 0.0);
         let mut s = PathState::new(pos, dir, w0, if LENGTH { scene.n_above * t0 } else { 0.0 });
+        if PULSE {
+            // Nothing has moved the light yet: the specular reflection and the unscattered
+            // reflections carry no harmonic.
+            let k = scene.cycle.map_or(0, |c| c.harmonics);
+            self.0.pulse.clear();
+            self.0.pulse.resize(k, num_complex::Complex64::ZERO);
+            rec.pulse.clone_from(&self.0.pulse);
+        }
         if NEE {
             self.0.direct = None;
             if ctx.twin {
@@ -315,7 +333,7 @@ impl<
                 rec,
                 entering,
             );
-            finish_walk::<DOPPLER, LENGTH, NEE, GATE>(
+            finish_walk::<DOPPLER, LENGTH, NEE, GATE, PULSE>(
                 ctx,
                 rec,
                 &mut self.0,
@@ -335,7 +353,7 @@ impl<
 /// the scattering order it started its walk with (0 for a path from the source, a copy's order
 /// at its split), and walk the layered twin that parted from it.
 #[inline(always)]
-fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool>(
+fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const GATE: bool, const PULSE: bool>(
     ctx: &WalkContext,
     rec: &mut Recorder,
     st: &mut ForwardState,
@@ -353,6 +371,9 @@ fn finish_walk<const DOPPLER: bool, const LENGTH: bool, const NEE: bool, const G
             if in_gate::<GATE>(ctx.settings, s.l) {
                 // With deterministic reflections their detectors' share is scored already.
                 let exit = if reflected_once && ctx.reflections { Exit::ScalarsOnly } else { Exit::Walked };
+                if PULSE {
+                    rec.pulse.copy_from_slice(&st.pulse);
+                }
                 rec.escape(side, s, exit, n_ambient, st.twin.as_ref(), st.direct);
             }
         }
@@ -526,7 +547,7 @@ fn collide<const DOPPLER: bool, const LENGTH: bool>(
 // (it is outlined, so the grouped arguments go through memory).
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
+pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool, const PULSE: bool>(
     scene: &Scene,
     nee: &[NeeTarget],
     windows: Option<&Windows>,
@@ -551,7 +572,10 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     }
     // One particle serves the shadow rays and the continuation (so that the balance heuristic
     // of `shadow_ray` weighs against the density the continuation is drawn from).
-    let path = Particle::pick::<DOPPLER>(m, s.pos, rng);
+    // In a pulsatile scene the particle's cycle-mean flow and random velocity apart (drawn as
+    // `Particle::pick` draws them): each pulses by its own waveform.
+    let (path, flow, random) =
+        if PULSE { Particle::pick_parts(m, s.pos, rng) } else { (Particle::pick::<DOPPLER>(m, s.pos, rng), DVec3::ZERO, DVec3::ZERO) };
     let pop = path.pop;
     // The coupled twin's own particle where it shares a collision in a region.
     let coupled = if in_region { super::twin::couple::<DOPPLER>(st, m, fill, s.pos, rng) } else { None };
@@ -593,6 +617,12 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
             |t| own.event(t, n, in_out),
         );
         path.event(&mut e, n, in_out);
+        if PULSE {
+            rec.pulse.copy_from_slice(&st.pulse);
+            if path.moving {
+                pop.pulse.event(&mut rec.pulse, s.pos, n, flow, random, in_out);
+            }
+        }
         rec.next_event(target.detector, &e, twin, scene.n_above);
     }
     // The continuation: guided where the weight windows have a guide that acts here, but not at
@@ -605,6 +635,9 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool>(
     }
     if let Some(own) = coupled {
         super::twin::turned(st, own, path, s, n, cos, delta);
+    }
+    if PULSE && path.moving {
+        pop.pulse.event(&mut st.pulse, s.pos, n, flow, random, delta);
     }
     scatter(s, path, n, (out, delta), settings, rng, checkpoint)
 }
@@ -624,7 +657,7 @@ pub(super) fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: boo
     let Some(scene) = ctx.twin_scene else { return };
     let ctx = WalkContext { scene, volume: None, reflections: false, windows: None, ..*ctx };
     let Split { mut s, li, twin, mut rng, flying, direct } = split;
-    let mut own = Forward::<DOPPLER, LENGTH, true, false, GATE, false>(ForwardState {
+    let mut own = Forward::<DOPPLER, LENGTH, true, false, GATE, false, false>(ForwardState {
         direct,
         twin: Some(TwinPath { only: true, ..twin }),
         ..ForwardState::default()
@@ -636,7 +669,7 @@ pub(super) fn twin_walk<const DOPPLER: bool, const LENGTH: bool, const GATE: boo
     let first = if flying {
         None
     } else {
-        collide_nee::<DOPPLER, LENGTH>(
+        collide_nee::<DOPPLER, LENGTH, false>(
             scene,
             ctx.nee,
             None,

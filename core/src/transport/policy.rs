@@ -101,6 +101,9 @@ pub fn control_variate_obstacle(
     if scene.lateral.is_some() {
         return Some("the layers end at the box's side faces ([lateral]): the twin is not laterally invariant".into());
     }
+    if scene.cycle.is_some() {
+        return Some("the scene's flows pulse ([cardiac]): the twin does not carry the harmonics yet".into());
+    }
     if scene.bottom.as_ref().is_some_and(|b| b.angular_velocity != DVec3::ZERO) {
         return Some(
             "the [bottom] surface rotates: its Doppler shift depends on where light meets it, so the twin is not laterally invariant"

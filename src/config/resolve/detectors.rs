@@ -9,6 +9,7 @@ use super::{
 use crate::config::schema::*;
 use crate::config::units::unit_of;
 use crate::config::units::{Length, Quantity};
+use crate::detect::ldh::Acquisition;
 use crate::detect::{
     Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Part,
     Roi, Side, SpeckleSpec, SpectrumSpec, Surface, TimeSpec, image::Footprints,
@@ -111,7 +112,7 @@ pub const LDH_DEFAULT_WINDOW_SAMPLES: u64 = 512;
 pub const LDH_DEFAULT_BAND_HZ: [f64; 2] = [6_000.0, 18_300.0];
 pub const LDH_DEFAULT_SPECKLE_WINDOWS: u64 = 16;
 
-fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
+fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec, scene: &Scene) -> R<LdhSpec> {
     let rate = given(path, &l.frame_rate)?;
     let fs = rate.clone().map_or(Ok(LDH_DEFAULT_FRAME_RATE_HZ), |v| positive(v, "a camera frame rate"))?;
     let n = l.window_samples.unwrap_or(LDH_DEFAULT_WINDOW_SAMPLES);
@@ -229,7 +230,12 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             Some(SpeckleSpec { windows: w as u32, pixels })
         }
     };
+    let acquisition = match &l.acquisition {
+        None => None,
+        Some(a) => Some(resolve_acquisition(&join(path, "acquisition"), a, &stft, scene)?),
+    };
     let options = LdhOptions {
+        acquisition,
         flip_sign: l.flip_sign.unwrap_or(false),
         m1: l.m1.unwrap_or(false),
         moments: l.moments.unwrap_or(false),
@@ -245,6 +251,59 @@ fn resolve_ldh(path: &str, l: &LdhSection, im: &ImageSpec) -> R<LdhSpec> {
             format!("= [{}, {}] Hz holds no STFT bin (bins are {bin} Hz wide): widen the band", band[0], band[1]),
         )
     })
+}
+
+/// The most windows an acquisition holds (HoloDoppler's 1.6 ms windows over 10 cycles at
+/// 70 bpm are ≈ 5,000).
+const MAX_WINDOWS: usize = 100_000;
+
+/// `[detectors.ldh.acquisition]` on the camera's STFT, in a scene whose flows pulse.
+fn resolve_acquisition(path: &str, a: &AcquisitionSection, stft: &Stft, scene: &Scene) -> R<Acquisition> {
+    let Some(cycle) = scene.cycle else {
+        return err(
+            path,
+            "windows over the cardiac cycle need flows that pulse: give [cardiac] and a velocity.waveform (or motion.waveform) on a moving medium",
+        );
+    };
+    let (rate, samples) = (stft.sample_rate(), stft.samples());
+    let hop = a.hop_samples.unwrap_or(samples as u64);
+    if !(1..=1 << 32).contains(&hop) {
+        return err(join(path, "hop_samples"), format!("= {hop}: expected 1 to 2^32 frames between windows"));
+    }
+    let (duration, duration_key) = match given(path, &a.duration)? {
+        None => (cycle.period(), join(path, "duration_s")),
+        Some((d, key, _)) if d.is_finite() && d > 0.0 && d <= 1e4 => (d, key),
+        Some((_, key, written)) => {
+            return err(key, format!("= {}: expected a duration in (0, 10^4] s", shown(written)));
+        }
+    };
+    let start = match given(path, &a.start)? {
+        None => 0.0,
+        Some((s, _, _)) if s.is_finite() && s.abs() <= 1e4 => s,
+        Some((_, key, written)) => {
+            return err(key, format!("= {}: expected a start of at most 10⁴ s either way", shown(written)));
+        }
+    };
+    let window = samples as f64 / rate;
+    let windows = ((duration * rate - samples as f64) / hop as f64).floor() + 1.0;
+    if duration < window {
+        return err(
+            duration_key,
+            format!(
+                "= {} s: shorter than one window ({samples} frames at {} Hz = {} s): lengthen the acquisition or shorten detectors.ldh.window_samples",
+                shown(duration),
+                shown(rate),
+                shown(window)
+            ),
+        );
+    }
+    if windows > MAX_WINDOWS as f64 {
+        return err(
+            join(path, "hop_samples"),
+            format!("= {hop}: {windows} windows over {} s, expected at most {MAX_WINDOWS}", shown(duration)),
+        );
+    }
+    Ok(Acquisition::new(&cycle, rate, samples, hop as usize, start, duration).expect("one window fits"))
 }
 
 /// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so
@@ -693,7 +752,7 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                 if out.iter().any(|o| o.ldh().is_some()) {
                     return err(p, "only one detector may be an LDH camera");
                 }
-                Some(Box::new(resolve_ldh(&p, l, &im)?))
+                Some(Box::new(resolve_ldh(&p, l, &im, scene)?))
             }
         };
         // Correlation on an LDH camera: also per ROI.

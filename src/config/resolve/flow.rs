@@ -59,22 +59,22 @@ fn below_light(path: &str, v: f64, written: &str) -> R<()> {
 /// is used.
 pub(super) fn check_velocity(path: &str, v: &VelocitySection) -> R<()> {
     match v {
-        VelocitySection::None {} | VelocitySection::Wind {} | VelocitySection::TerminalFall {} => Ok(()),
+        VelocitySection::None {} | VelocitySection::Wind { .. } | VelocitySection::TerminalFall { .. } => Ok(()),
         // Its placement's numbers (the file is not read for an unused medium).
         VelocitySection::Vdb { scale, translate, .. } => resolve_placement(path, *scale, translate).map(drop),
         VelocitySection::Npy { voxel_size, translate, .. } => {
             super::density::npy_transform(path, voxel_size, translate).map(drop)
         }
-        VelocitySection::Uniform { velocity } => {
+        VelocitySection::Uniform { velocity, .. } => {
             let Some(q) = velocity else { return Ok(()) };
             let (v, key) = require_arr(path, "velocity", velocity, "the velocity vector")?;
             below_light(&key, DVec3::from_array(v).length(), &format!("[{}]", q.value.map(shown).join(", ")))
         }
-        VelocitySection::RandomDirection { speed } => match given(path, speed)? {
+        VelocitySection::RandomDirection { speed, .. } => match given(path, speed)? {
             Some((v, key, as_written)) => below_light(&key, v, &shown(as_written)),
             None => Ok(()),
         },
-        VelocitySection::Poiseuille { v_max, mean } => {
+        VelocitySection::Poiseuille { v_max, mean, .. } => {
             if let Some((v, key, as_written)) = given(path, v_max)? {
                 below_light(&key, v, &shown(as_written))?;
             }
@@ -94,11 +94,11 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
     let cylinder = fc.cylinder;
     Ok(match v {
         VelocitySection::None {} => VelocityField::Static,
-        VelocitySection::Wind {} => match fc.wind {
+        VelocitySection::Wind { .. } => match fc.wind {
             Some(w) => VelocityField::Wind(w.clone()),
             None => return err(join(path, "type"), "= \"wind\" needs a [wind] table (the wind profile)"),
         },
-        VelocitySection::TerminalFall {} => {
+        VelocitySection::TerminalFall { .. } => {
             if fc.sizes.is_empty() {
                 return err(
                     join(path, "type"),
@@ -111,15 +111,15 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             let wind = fc.wind.cloned().unwrap_or(WindProfile::Uniform(DVec3::ZERO));
             VelocityField::TerminalFall { wind, fall: Arc::new(fall) }
         }
-        VelocitySection::Uniform { velocity } => {
+        VelocitySection::Uniform { velocity, .. } => {
             let (v, _) = require_arr(path, "velocity", velocity, "the velocity vector")?;
             VelocityField::Uniform(DVec3::from_array(v))
         }
-        VelocitySection::RandomDirection { speed } => {
+        VelocitySection::RandomDirection { speed, .. } => {
             let s = require(path, "speed", speed, "the speed")?;
             VelocityField::RandomDirection { speed: non_negative(s, "a speed")? }
         }
-        VelocitySection::Poiseuille { v_max, mean } => {
+        VelocitySection::Poiseuille { v_max, mean, .. } => {
             let Some(&Shape::Cylinder { center, axis, radius, .. }) = cylinder else {
                 return err(
                     join(path, "type"),
@@ -148,12 +148,12 @@ pub(super) fn resolve_velocity(path: &str, v: &VelocitySection, fc: FlowCtx) -> 
             }
             VelocityField::Poiseuille { origin: center, axis, radius, v_max: v.0 }
         }
-        VelocitySection::Npy { file, voxel_size, translate, interpolation: i } => {
+        VelocitySection::Npy { file, voxel_size, translate, interpolation: i, .. } => {
             let transform = super::density::npy_transform(path, voxel_size, translate)?;
             let g = super::GridFiles::npy::<[f32; 3]>(path, (fc.base, fc.memory), file, transform, 1, |_| None)?;
             grid_velocity(path, file, Arc::new(g), interpolation(*i), Placement::default())?
         }
-        VelocitySection::Vdb { file, grid, interpolation: i, scale, translate } => {
+        VelocitySection::Vdb { file, grid, interpolation: i, scale, translate, .. } => {
             let g = fc.files.vec3(path, (fc.base, fc.memory), file, grid.as_deref())?;
             let place = resolve_placement(path, *scale, translate)?;
             grid_velocity(path, file, g, interpolation(*i), place)?

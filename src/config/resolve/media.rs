@@ -603,11 +603,23 @@ pub(super) fn populations_of(
             ),
         }
     };
+    let motion_waveform = ms.motion.as_ref().map(|m| (join(path, "motion"), m.waveform.as_deref()));
+    let pulse = |field: &VelocityField| {
+        super::cardiac::resolve_pulse(
+            ctx.cardiac.as_ref(),
+            velocity.as_ref().map(|(p, v)| (p.as_str(), *v)),
+            field,
+            motion_waveform.as_ref().map(|(p, w)| (p.as_str(), *w)),
+            motion.dispersion,
+        )
+    };
     if o.classes.is_empty() {
+        let velocity = field(&o.sizes)?;
         let population = Population {
             name: name.to_string(),
             phase: o.phase.clone(),
-            velocity: field(&o.sizes)?,
+            pulse: pulse(&velocity)?,
+            velocity,
             motion,
             sigma_s: o.sigma_s * factor,
         };
@@ -615,10 +627,12 @@ pub(super) fn populations_of(
     }
     let mut populations = Vec::with_capacity(o.classes.len());
     for (i, c) in o.classes.iter().enumerate() {
+        let velocity = field(&c.sizes)?;
         populations.push(Population {
             name: format!("{name}[{i}]"),
             phase: c.phase.clone(),
-            velocity: field(&c.sizes)?,
+            pulse: pulse(&velocity)?,
+            velocity,
             motion,
             sigma_s: c.sigma_s * factor,
         });

@@ -8,6 +8,7 @@
 //! LDH, lidar). This module holds the entry points, the cross-checks between parts (lidar, LDH
 //! and chirp; references; the memory budget) and the helpers they share.
 
+mod cardiac;
 mod density;
 mod detectors;
 mod flow;
@@ -161,8 +162,10 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         files: GridFiles::default(),
         memory: Memory::new(plan.memory_budget, plan.memory_limited_by),
         scene_copies: 1 + source.pointings.len().max(1) as u64,
+        cardiac: cardiac::resolve_cardiac(f.cardiac.as_ref(), base)?,
     };
-    let scene = resolve_scene(f, n_above, n_below, &ctx)?;
+    let mut scene = resolve_scene(f, n_above, n_below, &ctx)?;
+    scene.cycle = cardiac::scene_cycle(ctx.cardiac.as_ref(), &scene);
     let mut detectors = resolve_detectors(&f.detectors, &scene, &source)?;
     for (i, d) in f.detectors.iter().enumerate() {
         if let Some(l) = &d.lidar {
@@ -209,6 +212,7 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         );
     }
     check_chirp_ranges(f, &source, &detectors)?;
+    let scene = scene;
     if plan.walk.gate.is_some()
         && let Some(i) =
             detectors.iter().position(|d| d.surface().is_some_and(|s| s.choice != EstimatorChoice::Forward))
@@ -227,6 +231,9 @@ pub fn resolve_in(f: &ExperimentFile, base: &Path) -> R<Experiment> {
         // The surface lies on the last layer's bottom plane: no interface of index there (the
         // walk meets the surface where it would refract out; reflections below see no step).
         scene.n_below = scene.layers.last().map_or(scene.n_below, |l| l.n);
+    }
+    if scene.cycle.is_some() {
+        cardiac::check_pulsatile_run(f, &plan, &detectors)?;
     }
     let mut exp = Experiment {
         name: f.name.clone().unwrap_or_else(|| "experiment".to_string()),
@@ -409,6 +416,8 @@ struct Ctx<'a> {
     /// How many copies of the scene a run holds: the experiment as resolved, and one per part it
     /// runs (a plain run's part is a copy; a scan makes one per pointing).
     scene_copies: u64,
+    /// `[cardiac]`: the heart rate and waveforms of pulsatile flows.
+    cardiac: Option<cardiac::Cardiac>,
 }
 
 /// What an experiment will hold in memory, counted while it is resolved (issue 21, item 3: four

@@ -351,6 +351,7 @@ pub(super) fn resolve_scene(f: &ExperimentFile, n_above: f64, n_below: f64, ctx:
         bottom: None,
         opaque: Vec::new(),
         first_rough_face: 0,
+        cycle: None,
     };
     scene.update_layers();
     Ok(scene)
