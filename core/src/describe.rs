@@ -324,6 +324,19 @@ impl Display for VelocityField {
                     velocity(DVec3::from_array(g.grid.background.map(f64::from)))
                 )
             }
+            VelocityField::Womersley { tube, t } => {
+                let u = unit(LENGTH, 1, scale(tube.origin.to_array().into_iter().chain([tube.radius])));
+                write!(
+                    f,
+                    "Womersley flow (α = {:.3}) frozen at {:.2} ms of its cycle, {} cycle-mean on the axis, tube of radius {} through {} along {}",
+                    tube.alpha,
+                    1e3 * t,
+                    speed(tube.v_max),
+                    u.of(tube.radius),
+                    u.point(tube.origin),
+                    direction(tube.axis)
+                )
+            }
         }
     }
 }

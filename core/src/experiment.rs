@@ -1098,10 +1098,7 @@ impl Experiment {
             trace: layout.importance.as_ref().map(|_| crate::detect::importance::Trace::default()),
             line_draws: None,
             pulse: Vec::new(),
-            window_draws: self
-                .scene
-                .cycle
-                .map(|_| StreamKey::new(self.plan.seed, Purpose::Windows, batch).path(0)),
+            window_draws: self.scene.cycle.map(|_| StreamKey::new(self.plan.seed, Purpose::Windows, batch).path(0)),
         };
         let launches = self.plan.walk.launches.and_then(|l| l.launches(&self.scene, &self.source));
         let twin = layout.detectors.iter().any(|d| d.twin.is_some());

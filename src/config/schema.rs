@@ -99,6 +99,10 @@ pub struct CardiacSection {
     pub kinematic_viscosity: Option<Quantity<Diffusivity>>,
     #[serde(default)]
     pub waveforms: BTreeMap<String, WaveformSection>,
+    /// Every flow steady at this time of the cycle (its velocities then): the steady run a
+    /// window of an acquisition is compared with.
+    #[serde(rename = "frozen_at_ms", alias = "frozen_at_s")]
+    pub frozen_at: Option<Quantity<Delay>>,
 }
 
 /// `[cardiac.waveforms.NAME]`: a waveform over the cycle, relative to its mean; exactly one of

@@ -690,6 +690,7 @@ fn shards_merge_into_a_single_run() {
     let camera = repo().join("tests/configs/good/camera_estimator.toml");
     let footprints = repo().join("tests/configs/good/footprints_estimator.toml");
     let light_field = repo().join("tests/configs/good/footprints_light_field.toml");
+    let pulsatile = repo().join("tests/configs/good/pulsatile_vessel.toml");
     for (case, config, samples, count, set) in [
         ("vessel", None, "400000", 3u64, None),
         // With the LDH moments: their frequency images are ratios whose σ is a jackknife over
@@ -702,6 +703,8 @@ fn shards_merge_into_a_single_run() {
         ("footprints", Some(&footprints), "64000", 3, None),
         // Every shard makes the same light field's table.
         ("light_field", Some(&light_field), "64000", 3, None),
+        // An acquisition over the cardiac cycle, its windows' line slots drawn per batch.
+        ("pulsatile", Some(&pulsatile), "64000", 3, None),
     ] {
         let base = |dir: &Path| -> Vec<String> {
             let mut a: Vec<String> = vec!["run".into()];

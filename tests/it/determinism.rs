@@ -17,6 +17,9 @@ fn one_and_two_threads_write_identical_outputs() {
         // ... connected to the layered twin's light field below the vessel (its table's pre-pass
         // in parallel groups summed in order).
         ("light_field", include_str!("../configs/good/footprints_light_field.toml")),
+        // Pulsatile flows: the paths' harmonics, an acquisition's windows over the cycle and the
+        // per-batch stream of its broadened lines' slots.
+        ("pulsatile", include_str!("../configs/good/pulsatile_vessel.toml")),
     ] {
         let dirs: Vec<tempfile::TempDir> = (0..2).map(|_| tempfile::tempdir().unwrap()).collect();
         let mut manifests = Vec::new();

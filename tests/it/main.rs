@@ -31,6 +31,7 @@ mod phase_table;
 mod pixel_speckle;
 mod precision;
 mod presets;
+mod pulsatile;
 mod reflections;
 mod reliability;
 mod retrieval;

@@ -105,14 +105,20 @@ pub struct Acquisition {
 impl Acquisition {
     /// Windows of `samples` samples at `rate` (Hz), `hop` samples apart, over `duration` s from
     /// `start` s, on the cycle `cycle`; `None` if not one window fits.
-    pub fn new(cycle: &crate::flow::pulse::Cycle, rate: f64, samples: usize, hop: usize, start: f64, duration: f64) -> Option<Self> {
+    pub fn new(
+        cycle: &crate::flow::pulse::Cycle,
+        rate: f64,
+        samples: usize,
+        hop: usize,
+        start: f64,
+        duration: f64,
+    ) -> Option<Self> {
         let span = duration * rate;
         if span < samples as f64 {
             return None;
         }
         let windows = ((span - samples as f64) / hop as f64).floor() as usize + 1;
-        let times: Vec<f64> =
-            (0..windows).map(|m| start + ((m * hop) as f64 + 0.5 * samples as f64) / rate).collect();
+        let times: Vec<f64> = (0..windows).map(|m| start + ((m * hop) as f64 + 0.5 * samples as f64) / rate).collect();
         let phasors: Vec<_> = times.iter().map(|&t| cycle.phasors(t)).collect();
         let part = |f: fn(&num_complex::Complex64) -> f64| -> Vec<Vec<f64>> {
             (0..cycle.harmonics).map(|k| phasors.iter().map(|p| f(&p[k])).collect()).collect()

@@ -67,30 +67,35 @@ impl WindProfile {
         }
     }
 
-    /// The same profile with every velocity reversed.
-    pub fn reversed(&self) -> Self {
+    /// The same profile with every velocity multiplied by `k`.
+    pub fn scaled(&self, k: f64) -> Self {
         match self {
-            WindProfile::Uniform(v) => WindProfile::Uniform(-*v),
+            WindProfile::Uniform(v) => WindProfile::Uniform(k * *v),
             WindProfile::PowerLaw { direction, speed_ref, height_ref, exponent, vertical } => WindProfile::PowerLaw {
-                direction: -*direction,
-                speed_ref: *speed_ref,
+                direction: *direction,
+                speed_ref: k * speed_ref,
                 height_ref: *height_ref,
                 exponent: *exponent,
-                vertical: -vertical,
+                vertical: k * vertical,
             },
             WindProfile::LogLaw { direction, friction_velocity, roughness, displacement, vertical } => {
                 WindProfile::LogLaw {
-                    direction: -*direction,
-                    friction_velocity: *friction_velocity,
+                    direction: *direction,
+                    friction_velocity: k * friction_velocity,
                     roughness: *roughness,
                     displacement: *displacement,
-                    vertical: -vertical,
+                    vertical: k * vertical,
                 }
             }
             WindProfile::Table { edges, velocities } => {
-                WindProfile::Table { edges: edges.clone(), velocities: velocities.iter().map(|v| -*v).collect() }
+                WindProfile::Table { edges: edges.clone(), velocities: velocities.iter().map(|v| k * *v).collect() }
             }
         }
+    }
+
+    /// The same profile with every velocity reversed.
+    pub fn reversed(&self) -> Self {
+        self.scaled(-1.0)
     }
 }
 
@@ -172,6 +177,8 @@ pub enum VelocityField {
     /// A velocity grid (m/s per voxel), read trilinearly (or nearest) at the scattering point:
     /// a flow solver's field, a wind box. Independent of the medium's density.
     Grid(Arc<GridField<[f32; 3]>>),
+    /// Womersley flow in a tube frozen at time `t` of its cycle ([`pulse::WomersleyTube`]).
+    Womersley { tube: Arc<pulse::WomersleyTube>, t: f64 },
 }
 
 impl VelocityField {
@@ -187,6 +194,7 @@ impl VelocityField {
                 !wind.is_calm() || fall.speeds.iter().any(|&s| s != 0.0)
             }
             VelocityField::Grid(ref g) => g.grid.background != [0.0; 3] || g.grid.data.iter().any(|v| *v != [0.0; 3]),
+            VelocityField::Womersley { ref tube, .. } => tube.v_max != 0.0,
         }
     }
 
@@ -216,7 +224,7 @@ impl VelocityField {
                 let u = rng.uniform();
                 self.lookup(p) - DVec3::new(0.0, 0.0, fall.sample(u))
             }
-            VelocityField::Wind(_) | VelocityField::Grid(_) => self.lookup(p),
+            VelocityField::Wind(_) | VelocityField::Grid(_) | VelocityField::Womersley { .. } => self.lookup(p),
         }
     }
 
@@ -228,6 +236,7 @@ impl VelocityField {
         match *self {
             VelocityField::Wind(ref w) | VelocityField::TerminalFall { wind: ref w, .. } => w.at(p.z),
             VelocityField::Grid(ref g) => g.value(p),
+            VelocityField::Womersley { ref tube, t } => tube.velocity_at(p, t),
             _ => DVec3::ZERO,
         }
     }
@@ -244,22 +253,31 @@ impl VelocityField {
 
     /// The same field with every velocity reversed (used by the mirror-symmetry check).
     pub fn reversed(&self) -> Self {
+        self.scaled(-1.0)
+    }
+
+    /// The same field with every velocity multiplied by `k` (a pulsatile flow frozen at one
+    /// instant of its cycle, [`pulse`]).
+    pub fn scaled(&self, k: f64) -> Self {
         match *self {
             VelocityField::Static => VelocityField::Static,
-            VelocityField::Uniform(v) => VelocityField::Uniform(-v),
+            VelocityField::Uniform(v) => VelocityField::Uniform(k * v),
             VelocityField::Poiseuille { origin, axis, radius, v_max } => {
-                VelocityField::Poiseuille { origin, axis, radius, v_max: -v_max }
+                VelocityField::Poiseuille { origin, axis, radius, v_max: k * v_max }
             }
-            VelocityField::RandomDirection { speed } => VelocityField::RandomDirection { speed: -speed },
-            VelocityField::Wind(ref w) => VelocityField::Wind(w.reversed()),
+            VelocityField::RandomDirection { speed } => VelocityField::RandomDirection { speed: k * speed },
+            VelocityField::Wind(ref w) => VelocityField::Wind(w.scaled(k)),
             VelocityField::TerminalFall { ref wind, ref fall } => VelocityField::TerminalFall {
-                wind: wind.reversed(),
+                wind: wind.scaled(k),
                 fall: Arc::new(FallSpeeds {
-                    speeds: fall.speeds.iter().map(|s| -s).collect(),
+                    speeds: fall.speeds.iter().map(|s| k * s).collect(),
                     shares: fall.shares.clone(),
                 }),
             },
-            VelocityField::Grid(ref g) => VelocityField::Grid(Arc::new(g.map(|v| v.map(|c| -c)))),
+            VelocityField::Grid(ref g) => {
+                VelocityField::Grid(Arc::new(g.map(|v| v.map(|c| (k * f64::from(c)) as f32))))
+            }
+            VelocityField::Womersley { ref tube, t } => VelocityField::Womersley { tube: Arc::new(tube.scaled(k)), t },
         }
     }
 }

@@ -143,6 +143,14 @@ impl Waveform {
         Waveform { harmonics }
     }
 
+    /// The same waveform without its trailing zero harmonics (a steady one has none).
+    pub fn trimmed(mut self) -> Self {
+        while self.harmonics.last().is_some_and(|z| *z == Complex64::new(0.0, 0.0)) {
+            self.harmonics.pop();
+        }
+        self
+    }
+
     /// Its value at time `t` of a cycle of angular frequency `omega`.
     pub fn value(&self, omega: f64, t: f64) -> f64 {
         let phase = omega * t;
@@ -270,6 +278,10 @@ pub struct WomersleyTube {
     pub origin: DVec3,
     pub axis: DVec3,
     pub radius: f64,
+    /// Cycle-mean centre-line speed, m/s.
+    pub v_max: f64,
+    /// Angular frequency of the cycle, rad/s.
+    pub omega: f64,
     /// Womersley number of the fundamental, `R·√(ω/ν)`.
     pub alpha: f64,
     /// `[k − 1][i]`: `ū·s_k·u_k(ρ)/ū_k` at `ρ² = i/(TABLE − 1)` (m/s), the harmonic's axial velocity.
@@ -283,7 +295,14 @@ impl WomersleyTube {
     /// The tube of cycle-mean centre-line speed `v_max` (the Poiseuille profile of the mean flow;
     /// its mean velocity is `v_max/2`) whose mean velocity follows `waveform`, fundamental
     /// Womersley number `alpha`.
-    pub fn new(origin: DVec3, axis: DVec3, radius: f64, v_max: f64, alpha: f64, waveform: &Waveform) -> Self {
+    pub fn new(
+        origin: DVec3,
+        axis: DVec3,
+        radius: f64,
+        (v_max, omega): (f64, f64),
+        alpha: f64,
+        waveform: &Waveform,
+    ) -> Self {
         let mean = 0.5 * v_max;
         let table = waveform
             .harmonics
@@ -299,7 +318,28 @@ impl WomersleyTube {
                     .collect()
             })
             .collect();
-        WomersleyTube { origin, axis, radius, alpha, table }
+        WomersleyTube { origin, axis, radius, v_max, omega, alpha, table }
+    }
+
+    /// The same tube with every velocity multiplied by `k`.
+    pub fn scaled(&self, k: f64) -> Self {
+        let table = self.table.iter().map(|row| row.iter().map(|z| z * k).collect()).collect();
+        WomersleyTube { v_max: k * self.v_max, table, ..self.clone() }
+    }
+
+    /// The velocity at `p` at time `t` of the cycle: the mean flow's Poiseuille profile plus every
+    /// harmonic's Womersley profile then.
+    pub fn velocity_at(&self, p: DVec3, t: f64) -> DVec3 {
+        let d = p - self.origin;
+        let radial = d - d.dot(self.axis) * self.axis;
+        let s = radial.length_squared() / (self.radius * self.radius);
+        if s >= 1.0 {
+            return DVec3::ZERO;
+        }
+        let mut f = vec![Complex64::new(0.0, 0.0); self.table.len()];
+        self.add(&mut f, p, 1.0);
+        let e = Cycle { omega: self.omega, harmonics: self.table.len() }.phasors(t);
+        self.axis * rate(self.v_max * (1.0 - s), &f, &e)
     }
 
     /// Add `n·(axis·delta)·V_k(p)` to `f` (harmonic `k` at `f[k − 1]`).
@@ -466,8 +506,8 @@ mod tests {
         // The mean velocity over the cross-section at time t is v_max/2·s(t), for every t.
         let w = Waveform::built_in(Shape::Artery, 0.7, 10);
         let (v_max, radius, alpha) = (0.016, 55e-6, 4.0);
-        let tube = WomersleyTube::new(DVec3::ZERO, DVec3::X, radius, v_max, alpha, &w);
         let omega = 7.0;
+        let tube = WomersleyTube::new(DVec3::ZERO, DVec3::X, radius, (v_max, omega), alpha, &w);
         let n = 400;
         for t in [0.0, 0.1, 0.37, 0.8] {
             let e: Vec<Complex64> = (1..=10).map(|k| Complex64::from_polar(1.0, k as f64 * omega * t)).collect();
@@ -481,6 +521,13 @@ mod tests {
             }
             let want = 0.5 * v_max * w.value(omega, t);
             assert!((mean - want).abs() < 1e-4 * v_max, "t = {t}: {mean} vs {want}");
+            // Frozen at t, the tube's field is the same profile.
+            let p = DVec3::new(0.1, 0.37 * radius, 0.2 * radius);
+            let mut f = vec![Complex64::new(0.0, 0.0); 10];
+            tube.add(&mut f, p, 1.0);
+            let s = 0.37f64.powi(2) + 0.2f64.powi(2);
+            let frozen = tube.velocity_at(p, t);
+            assert!((frozen.x - rate(v_max * (1.0 - s), &f, &e)).abs() < 1e-15 && frozen.y == 0.0);
         }
     }
 

@@ -522,9 +522,7 @@ impl BandTable {
             -(u + 1.0) * u * (u - 2.0) / 2.0,
             (u + 1.0) * u * (u - 1.0) / 6.0,
         ];
-        let at = |t: &[[f64; 2]], c: usize| -> f64 {
-            (0..4).map(|j| w[j] * t[(i + size + j - 1) % size][c]).sum()
-        };
+        let at = |t: &[[f64; 2]], c: usize| -> f64 { (0..4).map(|j| w[j] * t[(i + size + j - 1) % size][c]).sum() };
         let series = |c: usize| -> f64 {
             let t = &self.tables;
             if eps == 0.0 {

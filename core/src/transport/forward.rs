@@ -574,8 +574,11 @@ pub(super) fn collide_nee<const DOPPLER: bool, const LENGTH: bool, const PULSE: 
     // of `shadow_ray` weighs against the density the continuation is drawn from).
     // In a pulsatile scene the particle's cycle-mean flow and random velocity apart (drawn as
     // `Particle::pick` draws them): each pulses by its own waveform.
-    let (path, flow, random) =
-        if PULSE { Particle::pick_parts(m, s.pos, rng) } else { (Particle::pick::<DOPPLER>(m, s.pos, rng), DVec3::ZERO, DVec3::ZERO) };
+    let (path, flow, random) = if PULSE {
+        Particle::pick_parts(m, s.pos, rng)
+    } else {
+        (Particle::pick::<DOPPLER>(m, s.pos, rng), DVec3::ZERO, DVec3::ZERO)
+    };
     let pop = path.pop;
     // The coupled twin's own particle where it shares a collision in a region.
     let coupled = if in_region { super::twin::couple::<DOPPLER>(st, m, fill, s.pos, rng) } else { None };

@@ -31,6 +31,8 @@ pub(super) struct Cardiac {
     pub nu: f64,
     /// Each waveform, delayed.
     pub waveforms: BTreeMap<String, Arc<Waveform>>,
+    /// `frozen_at_ms`: every flow steady at this time of the cycle, s.
+    pub frozen_at: Option<f64>,
 }
 
 pub(super) fn resolve_cardiac(c: Option<&CardiacSection>, base: &Path) -> R<Option<Cardiac>> {
@@ -74,9 +76,16 @@ pub(super) fn resolve_cardiac(c: Option<&CardiacSection>, base: &Path) -> R<Opti
                 return err(key, format!("= {}: expected a delay of at most 10⁴ s either way", shown(written)));
             }
         };
-        waveforms.insert(name.clone(), Arc::new(wave.delayed(delay, omega)));
+        waveforms.insert(name.clone(), Arc::new(wave.delayed(delay, omega).trimmed()));
     }
-    Ok(Some(Cardiac { omega, nu, waveforms }))
+    let frozen_at = match given(path, &c.frozen_at)? {
+        None => None,
+        Some((t, _, _)) if t.is_finite() && t.abs() <= 1e4 => Some(t),
+        Some((_, key, written)) => {
+            return err(key, format!("= {}: expected a time of at most 10⁴ s either way", shown(written)));
+        }
+    };
+    Ok(Some(Cardiac { omega, nu, waveforms, frozen_at }))
 }
 
 /// One waveform from exactly one of its four forms; `period` in s.
@@ -144,7 +153,8 @@ fn resolve_waveform(path: &str, w: &WaveformSection, base: &Path, period: f64) -
         Waveform::from_samples(v, k).or_else(|e| err(join(path, "samples"), e.to_string()))?
     } else {
         let file = w.table.as_deref().expect("one form is given");
-        let values = read_table(&base.join(file), period).or_else(|m| err(join(path, "table"), format!("{file}: {m}")))?;
+        let values =
+            read_table(&base.join(file), period).or_else(|m| err(join(path, "table"), format!("{file}: {m}")))?;
         Waveform::from_samples(&values, k).or_else(|e| err(join(path, "table"), format!("{file}: {e}")))?
     };
     Ok(wave)
@@ -154,7 +164,8 @@ fn resolve_waveform(path: &str, w: &WaveformSection, base: &Path, period: f64) -
 /// t = 0). Its first column is `time_s` (0 to `period`) or `phase` (0 to 1), as its header says
 /// (no header: time in s).
 fn read_table(file: &Path, period: f64) -> Result<Vec<f64>, String> {
-    let text = crate::io::read_text_limited(file, MAX_TABLE_BYTES, "a waveform table (CSV)").map_err(|e| e.to_string())?;
+    let text =
+        crate::io::read_text_limited(file, MAX_TABLE_BYTES, "a waveform table (CSV)").map_err(|e| e.to_string())?;
     let mut rows: Vec<(f64, f64)> = Vec::new();
     let mut scale = 1.0 / period;
     for (i, line) in text.lines().enumerate() {
@@ -265,7 +276,7 @@ pub(super) fn resolve_pulse(
                         ),
                     );
                 }
-                FlowPulse::Womersley(Arc::new(WomersleyTube::new(origin, axis, radius, v_max, alpha, &w)))
+                FlowPulse::Womersley(Arc::new(WomersleyTube::new(origin, axis, radius, (v_max, c.omega), alpha, &w)))
             } else {
                 FlowPulse::Separable(w)
             });
@@ -333,4 +344,27 @@ pub(super) fn check_pulsatile_run(
         return err("source.chirp", format!("a chirp is not traced {why}: remove it"));
     }
     Ok(())
+}
+
+/// A population whose velocities pulse as `pulse`, frozen at `[cardiac] frozen_at_ms` if given:
+/// its flow and dispersion then (a separable flow scaled by its waveform's value, a Womersley tube
+/// as its profile then), steady. Unchanged otherwise.
+pub(super) fn frozen(
+    cardiac: Option<&Cardiac>,
+    pulse: Pulse,
+    field: VelocityField,
+    motion: crate::medium::Motion,
+) -> (Pulse, VelocityField, crate::medium::Motion) {
+    let Some((c, t)) = cardiac.and_then(|c| c.frozen_at.map(|t| (c, t))) else { return (pulse, field, motion) };
+    let field = match &pulse.flow {
+        None => field,
+        Some(FlowPulse::Separable(w)) => field.scaled(w.value(c.omega, t)),
+        Some(FlowPulse::Womersley(tube)) => VelocityField::Womersley { tube: tube.clone(), t },
+    };
+    let motion = match &pulse.dispersion {
+        None => motion,
+        // A Gaussian dispersion's sign is no matter: its spread is |s(t)| times the mean's.
+        Some(w) => crate::medium::Motion { dispersion: motion.dispersion * w.value(c.omega, t).abs(), ..motion },
+    };
+    (Pulse::default(), field, motion)
 }

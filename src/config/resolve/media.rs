@@ -603,6 +603,7 @@ pub(super) fn populations_of(
             ),
         }
     };
+    use super::cardiac::frozen;
     let motion_waveform = ms.motion.as_ref().map(|m| (join(path, "motion"), m.waveform.as_deref()));
     let pulse = |field: &VelocityField| {
         super::cardiac::resolve_pulse(
@@ -615,10 +616,11 @@ pub(super) fn populations_of(
     };
     if o.classes.is_empty() {
         let velocity = field(&o.sizes)?;
+        let (pulse, velocity, motion) = frozen(ctx.cardiac.as_ref(), pulse(&velocity)?, velocity, motion);
         let population = Population {
             name: name.to_string(),
             phase: o.phase.clone(),
-            pulse: pulse(&velocity)?,
+            pulse,
             velocity,
             motion,
             sigma_s: o.sigma_s * factor,
@@ -628,10 +630,11 @@ pub(super) fn populations_of(
     let mut populations = Vec::with_capacity(o.classes.len());
     for (i, c) in o.classes.iter().enumerate() {
         let velocity = field(&c.sizes)?;
+        let (pulse, velocity, motion) = frozen(ctx.cardiac.as_ref(), pulse(&velocity)?, velocity, motion);
         populations.push(Population {
             name: format!("{name}[{i}]"),
             phase: c.phase.clone(),
-            pulse: pulse(&velocity)?,
+            pulse,
             velocity,
             motion,
             sigma_s: c.sigma_s * factor,
