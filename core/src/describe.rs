@@ -369,6 +369,31 @@ fn motion(p: &Population) -> String {
     if p.motion.diffusion > 0.0 {
         s += &format!(", diffusion {} m²/s", num(p.motion.diffusion));
     }
+    s + &pulse(&p.pulse)
+}
+
+/// How a population's velocities pulse over the cardiac cycle, if they do: each waveform's
+/// resistivity index as its harmonics keep it.
+fn pulse(p: &crate::flow::pulse::Pulse) -> String {
+    use crate::flow::pulse::FlowPulse;
+    let mut s = String::new();
+    match &p.flow {
+        None => {}
+        Some(FlowPulse::Separable(w)) => {
+            s +=
+                &format!(", pulsing over the cycle (RI {:.2}, {} harmonics)", w.resistivity_index(), w.harmonics.len());
+        }
+        Some(FlowPulse::Womersley(t)) => {
+            s += &format!(
+                ", pulsing as Womersley flow (α = {:.3} at the heart rate, {} harmonics)",
+                t.alpha,
+                p.harmonics()
+            );
+        }
+    }
+    if let Some(w) = &p.dispersion {
+        s += &format!(", random velocity pulsing (RI {:.2})", w.resistivity_index());
+    }
     s
 }
 
@@ -746,6 +771,19 @@ impl Display for LdhSpec {
                 write!(f, " (and per pixel)")?;
             }
         }
+        if let Some(a) = &self.acquisition {
+            let (first, last) = (a.times[0], a.times[a.times.len() - 1]);
+            let half = 0.5 * self.stft.samples() as f64 / self.stft.sample_rate();
+            write!(
+                f,
+                ", acquisition over the cardiac cycle: {} windows of {:.2} ms every {:.2} ms, {:.1}–{:.1} ms",
+                a.times.len(),
+                2e3 * half,
+                1e3 * a.hop,
+                1e3 * (first - half),
+                1e3 * (last + half)
+            )?;
+        }
         Ok(())
     }
 }
@@ -968,6 +1006,15 @@ impl Display for Experiment {
                     100.0 * n.p_near
                 )?,
             },
+        }
+        if let Some(c) = self.scene.cycle {
+            writeln!(
+                f,
+                "cardiac cycle: {:.1} bpm ({:.1} ms), paths carry {} harmonics of their Doppler rate",
+                60.0 / c.period(),
+                1e3 * c.period(),
+                c.harmonics
+            )?;
         }
         // The cameras' layered control variate (`run.control_variate`).
         let obstacle = crate::transport::control_variate_obstacle(&self.scene, &self.source, &self.detectors);

@@ -242,6 +242,21 @@ pub enum Derivation {
     /// ([`Registry::finish_run`]). NaN where the ratio is undefined (a zero denominator, a
     /// negative ratio under the root), so such outputs are declared `undefined_nan`.
     Ratio { numerator: usize, denominator: usize, sqrt: bool },
+    /// Three values of the waveform `source .. source + len` over an acquisition's windows, its
+    /// tallies kept per group of batches: its largest value (systolic), its smallest (diastolic)
+    /// and Pourcelot's resistivity index `(max − min)/max`, each from the run's means, σ by the
+    /// delete-one-group jackknife (the windows' correlation, and which window is the largest,
+    /// accounted for).
+    Waveform { source: usize, len: usize },
+}
+
+/// The values of a [`Derivation::Waveform`], in its slots' order.
+pub const WAVEFORM_VALUES: [&str; 3] = ["systolic", "diastolic", "resistivity_index"];
+
+/// `[max, min, (max − min)/max]` of `w` (NaN for an index whose max is not positive).
+fn waveform_values(w: impl Iterator<Item = f64>) -> [f64; 3] {
+    let (lo, hi) = w.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    [hi, lo, if hi > 0.0 { (hi - lo) / hi } else { f64::NAN }]
 }
 
 /// A tally range whose per-batch values are also kept per group of batches (`[group][len]` from
@@ -639,6 +654,26 @@ impl Registry {
         let used = b.min(GROUPS);
         let block = |source: usize| self.grouped.iter().find(|g| g.source == source).map(|g| (g.block, g.len));
         for o in &self.outputs {
+            if let Derivation::Waveform { source, len } = o.derivation {
+                let Some((g, _)) = block(source) else { unreachable!("{}: the waveform is grouped", o.name) };
+                let m = est.mean();
+                let values = waveform_values(m[source..source + len].iter().copied());
+                // Replicate h: the mean over the batches outside group h (which holds Σ over its
+                // batches / B of the per-batch means).
+                let reps: Vec<[f64; 3]> = (0..used)
+                    .map(|h| {
+                        let n_h = (b - h).div_ceil(GROUPS) as f64;
+                        let scale = b as f64 / (b as f64 - n_h);
+                        waveform_values((0..len).map(|j| scale * (m[source + j] - m[g + h * len + j])))
+                    })
+                    .collect();
+                for (k, &value) in values.iter().enumerate() {
+                    let var = if b < 3 { 0.0 } else { jackknife_variance(reps.iter().map(|r| r[k])) };
+                    est.set_mean(o.slots.start + k, value);
+                    est.set_variance(o.slots.start + k, if value.is_finite() { var } else { f64::NAN });
+                }
+                continue;
+            }
             let Derivation::Ratio { numerator, denominator, sqrt } = o.derivation else { continue };
             let (Some((num_block, len)), Some((den_block, _))) = (block(numerator), block(denominator)) else {
                 unreachable!("{}: the tallies of a ratio are grouped", o.name)
@@ -751,6 +786,57 @@ impl Registry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A waveform's systolic and diastolic values and resistivity index from the run's means,
+    /// their σ the delete-one-group jackknife of the same three values over the means of the
+    /// batches outside each group (computed here from the batches themselves).
+    #[test]
+    fn waveform_values_and_their_jackknife() {
+        let len = 5;
+        let mut reg = Registry::default();
+        let source = reg.take(len);
+        reg.group("w_groups".into(), None, source, len, None);
+        let o = reg.take(3);
+        reg.declare(Output {
+            derivation: Derivation::Waveform { source, len },
+            ..Output::new("w".into(), Kind::Curve, Slots::contiguous(o, 3), vec![3])
+        });
+        let batches = 2 * GROUPS + 3;
+        let paths = 10u64;
+        let mut rng = crate::sampling::PathRng::new(4, crate::sampling::Purpose::Test, 0, 0);
+        let mut est = BatchAccumulator::new(reg.len);
+        let mut means: Vec<Vec<f64>> = Vec::new();
+        for b in 0..batches {
+            let mut sums = vec![0.0; reg.len];
+            for (j, s) in sums[source..source + len].iter_mut().enumerate() {
+                // A pulse peaking at window 1, with noise.
+                let shape = [1.0, 1.8, 1.3, 1.0, 0.9][j];
+                *s = paths as f64 * (shape + 0.3 * (rng.uniform() - 0.5));
+            }
+            means.push(sums[source..source + len].iter().map(|s| s / paths as f64).collect());
+            reg.finish_batch(&mut sums, b as u64);
+            est.push(&sums, paths);
+        }
+        reg.finish_run(&mut est);
+        let all: Vec<f64> = (0..len).map(|j| means.iter().map(|m| m[j]).sum::<f64>() / batches as f64).collect();
+        let want = waveform_values(all.iter().copied());
+        let reps: Vec<[f64; 3]> = (0..GROUPS)
+            .map(|h| {
+                let kept: Vec<&Vec<f64>> =
+                    means.iter().enumerate().filter(|(b, _)| b % GROUPS != h).map(|(_, m)| m).collect();
+                waveform_values((0..len).map(|j| kept.iter().map(|m| m[j]).sum::<f64>() / kept.len() as f64))
+            })
+            .collect();
+        let stderr = est.stderr();
+        for k in 0..3 {
+            let var = jackknife_variance(reps.iter().map(|r| r[k]));
+            let (got, err) = (est.mean()[o + k], stderr[o + k]);
+            assert!((got - want[k]).abs() < 1e-12 * want[k].abs(), "{}: {got} vs {}", WAVEFORM_VALUES[k], want[k]);
+            assert!((err - var.sqrt()).abs() < 1e-9 * var.sqrt(), "{}: σ {err} vs {}", WAVEFORM_VALUES[k], var.sqrt());
+            assert!(err > 0.0);
+        }
+        assert!((want[2] - 0.8 / 1.8).abs() < 0.1, "{want:?}");
+    }
 
     /// ε is the RMS of the footprint's σ over its mean, which one noisy pixel among quiet ones
     /// moves where the median does not; the variance per path is N·ε².

@@ -22,7 +22,7 @@
 //! diffusing particles): static tissue only (0), one, several.
 
 use super::{ImageSpec, detector_output};
-use crate::output::{Derivation, Kind, Output, Registry, Slots, Style};
+use crate::output::{Derivation, Kind, Output, Registry, Slots, Style, WAVEFORM_VALUES};
 use crate::sampling::PathRng;
 use crate::spectrum::{BandKernel, BandMoments, BandPowers, BandTable, FrequencyAxis, Stft};
 use crate::stats::GROUPS;
@@ -446,6 +446,25 @@ impl LdhSpec {
                     o
                 };
                 let (plus, minus) = (curve("m0_plus_windows", 1.0), curve("m0_minus_windows", sign));
+                // The M0+ waveform's systolic and diastolic values and resistivity index.
+                reg.group(format!("{name}.roi_{}.m0_plus_windows_groups", roi.name), Some(i), plus, w, budget.clone());
+                let o = reg.take(WAVEFORM_VALUES.len());
+                let mut summary = Output {
+                    file: format!("{name}_roi_{}_m0_plus_waveform.npy", roi.name),
+                    units: "fraction of emitted power (systolic, diastolic); 1 (resistivity index)",
+                    derivation: Derivation::Waveform { source: plus, len: w },
+                    undefined_nan: true,
+                    title: "M0+ over the cycle: systolic, diastolic, resistivity index".into(),
+                    ..detector_output(
+                        i,
+                        format!("{name}.roi_{}.m0_plus_waveform", roi.name),
+                        Kind::Curve,
+                        Slots::contiguous(o, WAVEFORM_VALUES.len()),
+                        vec![WAVEFORM_VALUES.len()],
+                    )
+                };
+                summary.axes = vec![crate::output::Axis::labels("value", WAVEFORM_VALUES.map(String::from).to_vec())];
+                reg.declare(summary);
                 let s = reg.take(w * stride);
                 let labels = (0..w).map(|m| format!("window_{m}")).collect();
                 let mut out = Output {
