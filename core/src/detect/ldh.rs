@@ -100,6 +100,9 @@ pub struct Acquisition {
     /// vectorised product, [`Acquisition::rates`]).
     pub cos: Vec<Vec<f64>>,
     pub sin: Vec<Vec<f64>>,
+    /// The scene's pulsing populations' waveforms at the windows' times, relative to their cycle
+    /// means (`population flow`, `population random velocity`), drawn beside the ROIs' M0+.
+    pub waveforms: Vec<(String, Vec<f64>)>,
 }
 
 impl Acquisition {
@@ -123,7 +126,43 @@ impl Acquisition {
         let part = |f: fn(&num_complex::Complex64) -> f64| -> Vec<Vec<f64>> {
             (0..cycle.harmonics).map(|k| phasors.iter().map(|p| f(&p[k])).collect()).collect()
         };
-        Some(Acquisition { times, hop: hop as f64 / rate, cos: part(|z| z.re), sin: part(|z| z.im) })
+        Some(Acquisition {
+            times,
+            hop: hop as f64 / rate,
+            cos: part(|z| z.re),
+            sin: part(|z| z.im),
+            waveforms: Vec::new(),
+        })
+    }
+
+    /// With the waveforms of the pulsing populations of `scene` at its windows' times, named by
+    /// the region or layer they fill.
+    pub fn with_waveforms(mut self, scene: &crate::medium::Scene) -> Self {
+        use crate::flow::pulse::FlowPulse;
+        let omega = scene.cycle.map_or(0.0, |c| c.omega);
+        let at = |w: &crate::flow::pulse::Waveform| self.times.iter().map(|&t| w.value(omega, t)).collect::<Vec<_>>();
+        let places =
+            scene.regions.iter().map(|r| (&r.name, r.medium)).chain(scene.layers.iter().map(|l| (&l.name, l.medium)));
+        let mut out: Vec<(String, Vec<f64>)> = Vec::new();
+        for (place, m) in places {
+            let pops = scene.media[m].populations();
+            for p in pops {
+                let who = if pops.len() > 1 { format!("{place} ({})", p.name) } else { place.clone() };
+                let flow = match &p.pulse.flow {
+                    Some(FlowPulse::Separable(w)) => Some(w.as_ref()),
+                    Some(FlowPulse::Womersley(t)) => Some(&t.waveform),
+                    None => None,
+                };
+                if let Some(w) = flow {
+                    out.push((format!("{who} flow"), at(w)));
+                }
+                if let Some(w) = &p.pulse.dispersion {
+                    out.push((format!("{who} random velocity"), at(w)));
+                }
+            }
+        }
+        self.waveforms = out;
+        self
     }
 
     /// The rate `dl/dt` in every window of a path of steady rate `dldt` and harmonics `pulse`

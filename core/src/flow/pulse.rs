@@ -284,6 +284,8 @@ pub struct WomersleyTube {
     pub omega: f64,
     /// Womersley number of the fundamental, `R·√(ω/ν)`.
     pub alpha: f64,
+    /// The waveform of its mean velocity.
+    pub waveform: Waveform,
     /// `[k − 1][i]`: `ū·s_k·u_k(ρ)/ū_k` at `ρ² = i/(TABLE − 1)` (m/s), the harmonic's axial velocity.
     table: Vec<Vec<Complex64>>,
 }
@@ -318,7 +320,7 @@ impl WomersleyTube {
                     .collect()
             })
             .collect();
-        WomersleyTube { origin, axis, radius, v_max, omega, alpha, table }
+        WomersleyTube { origin, axis, radius, v_max, omega, alpha, waveform: waveform.clone(), table }
     }
 
     /// The same tube with every velocity multiplied by `k`.

@@ -303,7 +303,9 @@ fn resolve_acquisition(path: &str, a: &AcquisitionSection, stft: &Stft, scene: &
             format!("= {hop}: {windows} windows over {} s, expected at most {MAX_WINDOWS}", shown(duration)),
         );
     }
-    Ok(Acquisition::new(&cycle, rate, samples, hop as usize, start, duration).expect("one window fits"))
+    Ok(Acquisition::new(&cycle, rate, samples, hop as usize, start, duration)
+        .expect("one window fits")
+        .with_waveforms(scene))
 }
 
 /// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so

@@ -115,6 +115,11 @@ pub fn write_ldh(
         }
         rois.insert(roi.name.clone(), Value::Object(info));
     }
+    if let (Some(acq), Some(wl)) = (&spec.acquisition, &lay.windows) {
+        for (roi, rw) in spec.rois.iter().zip(&wl.rois) {
+            waveform_figure(w, name, &roi.name, acq, out(rw.m0_plus), &band)?;
+        }
+    }
     if let Some(slot) = lay.pixel_spectra {
         let o = out(slot);
         let (v, _) = w.array(o)?;
@@ -419,4 +424,49 @@ fn pixel_spectra_plot(
     let (div, _) = frequency_unit(centres.iter().fold(0.0_f64, |m, f| m.max(f.abs())));
     mark_band(&mut plot, band, div, "M0 band (both signs)");
     plot
+}
+
+/// An ROI's M0+ over an acquisition's windows (`o`, its per-window output) relative to its mean
+/// over them, ±σ, with the scene's pulsing waveforms (relative to their cycle means) beside it;
+/// its resistivity index in the title.
+fn waveform_figure(
+    w: &mut Writer,
+    name: &str,
+    roi: &str,
+    acq: &crate::detect::ldh::Acquisition,
+    o: &Output,
+    band: &str,
+) -> Result<()> {
+    use crate::io::figures::lines::{Curve, LinePlot, PALETTE};
+    if !w.figures {
+        return Ok(());
+    }
+    let (v, e) = o.values(w.mean, w.stderr);
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    if !(mean > 0.0) {
+        return Ok(());
+    }
+    let x: Vec<f64> = acq.times.iter().map(|t| 1e3 * t).collect();
+    let (hi, lo) = v.iter().fold((f64::NEG_INFINITY, f64::INFINITY), |(h, l), &a| (h.max(a), l.min(a)));
+    let mut plot = LinePlot::new(
+        format!("{name}: ROI \"{roi}\" M0+ ({band}) over the cycle, RI {:.3}", (hi - lo) / hi),
+        "time in the cycle (ms)",
+        "relative to the cycle mean",
+    );
+    let mut m0 = Curve::line("M0+ / mean, ±σ", x.clone(), v.iter().map(|a| a / mean).collect(), PALETTE[0]);
+    m0.band = Some((
+        v.iter().zip(&e).map(|(a, s)| (a - s) / mean).collect(),
+        v.iter().zip(&e).map(|(a, s)| (a + s) / mean).collect(),
+    ));
+    plot.curves.push(m0);
+    for (k, (label, s)) in acq.waveforms.iter().enumerate() {
+        plot.curves.push(Curve::line(
+            format!("{label} (input)"),
+            x.clone(),
+            s.clone(),
+            PALETTE[(k + 1) % PALETTE.len()],
+        ));
+    }
+    plot.note = "σ of each window; the windows share their paths, so their differences are known better".into();
+    w.figure(&format!("{name}_roi_{roi}_waveform"), &plot)
 }
