@@ -443,7 +443,7 @@ fn waveform_figure(
     }
     let (v, e) = o.values(w.mean, w.stderr);
     let mean = v.iter().sum::<f64>() / v.len() as f64;
-    if !(mean > 0.0) {
+    if mean.is_nan() || mean <= 0.0 {
         return Ok(());
     }
     let x: Vec<f64> = acq.times.iter().map(|t| 1e3 * t).collect();
