@@ -1068,6 +1068,27 @@ pub struct SpectrumSection {
     pub bins: Option<u64>,
     pub by_order: Option<u64>,
     pub by_doppler_events: Option<u64>,
+    /// Spectra in windows over the cardiac cycle of a scene whose flows pulse.
+    pub acquisition: Option<SpectrumAcquisitionSection>,
+}
+
+/// `[detectors.spectrum.acquisition]`: a point detector's spectra in windows over the cardiac
+/// cycle (laser Doppler flowmetry).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpectrumAcquisitionSection {
+    /// Each window's length (required).
+    #[serde(rename = "window_ms", alias = "window_s", alias = "window_us")]
+    pub window: Option<Quantity<Delay>>,
+    /// Between the windows' starts (default the window: back to back).
+    #[serde(rename = "hop_ms", alias = "hop_s", alias = "hop_us")]
+    pub hop: Option<Quantity<Delay>>,
+    /// How long the acquisition lasts (default one cardiac cycle).
+    #[serde(rename = "duration_s", alias = "duration_ms")]
+    pub duration: Option<Quantity<Delay>>,
+    /// When it starts in the cycle (default 0).
+    #[serde(rename = "start_ms", alias = "start_s")]
+    pub start: Option<Quantity<Delay>>,
 }
 
 /// `[detectors.time]`: time-of-flight bins over `[t_min, t_max)`.

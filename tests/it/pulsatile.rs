@@ -7,6 +7,18 @@ use crate::support::stats::chi2_sf;
 
 const FIXTURE: &str = include_str!("../configs/good/pulsatile_vessel.toml");
 
+/// A point detector over the vessel (laser Doppler flowmetry): its spectrum, and with
+/// `acquisition` its spectra in 20 ms windows every 100 ms over the cycle (each window's lines
+/// integrated over the bins as the steady spectrum's: equal to the frozen run's to rounding).
+fn probe(acquisition: bool) -> String {
+    let windows = if acquisition { "[detectors.spectrum.acquisition]\nwindow_ms = 20\nhop_ms = 100\n" } else { "" };
+    format!(
+        "\n[[detectors]]\nname = \"probe\"\narea = {{ type = \"disk\", radius_mm = 0.3 }}\n\
+         acceptance_half_angle_deg = 20\ninclude_specular = false\n\
+         [detectors.spectrum]\nf_min_khz = -40\nf_max_khz = 40\nbins = 160\n{windows}"
+    )
+}
+
 /// Output `name` of a run as written (values, standard errors).
 fn output(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
     let layout = r.exp.output_layout();
@@ -20,6 +32,19 @@ fn without_acquisition() -> String {
     head.to_string()
 }
 
+/// The χ² of `a` against `b` (values and standard errors) over the slots with an error.
+fn chi2(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize) {
+    let (mut stat, mut dof) = (0.0, 0);
+    for k in 0..a.0.len() {
+        let var = a.1[k].powi(2) + b.1[k].powi(2);
+        if var > 0.0 {
+            stat += (a.0[k] - b.0[k]).powi(2) / var;
+            dof += 1;
+        }
+    }
+    (stat, dof)
+}
+
 /// Window `m` of an acquisition run against a steady run frozen at the window's centre time (the
 /// same seed, so the same paths: the harmonics are bookkeeping of the velocities each path met,
 /// exact to rounding; the windows' band powers come from the tabulated kernel, within 10⁻⁸ of the
@@ -29,7 +54,7 @@ fn without_acquisition() -> String {
 #[test]
 fn each_window_equals_the_steady_run_frozen_at_its_time() {
     let off = ["run.control_variate=\"off\"", "run.importance=\"off\"", "run.samples=200000"];
-    let one = run(FIXTURE, &off);
+    let one = run(&format!("{FIXTURE}{}", probe(true)), &off);
     let acq = one.exp.detectors[0].ldh().and_then(|l| l.acquisition.clone()).expect("an acquisition");
     let windows = acq.times.len();
     assert_eq!(windows, 9);
@@ -37,12 +62,16 @@ fn each_window_equals_the_steady_run_frozen_at_its_time() {
     let (roi_plus, _) = output(&one, "camera.roi_vessel.m0_plus_windows");
     let (roi_spectra, roi_spectra_err) = output(&one, "camera.roi_vessel.spectrum_windows");
     let bins = roi_spectra.len() / windows;
+    let probe_acq = one.exp.detectors[1].surface().and_then(|s| s.spectrum()).and_then(|s| s.acquisition.clone());
+    let probe_times = probe_acq.expect("the probe's acquisition").times;
+    assert_eq!(probe_times.len(), 9);
+    let (probe_windows, probe_errors) = output(&one, "probe.spectrum_windows");
     let mut frozen_roi = Vec::new();
     // The first window (late diastole), the systolic one (the arterial peak at 12 % of the
     // cycle, 0.10 s) and one in diastole.
     for m in [0, 1, 5] {
         let t = format!("cardiac.frozen_at_s={:e}", acq.times[m]);
-        let frozen = run(&without_acquisition(), &[off[0], off[1], off[2], &t]);
+        let frozen = run(&format!("{}{}", without_acquisition(), probe(false)), &[off[0], off[1], off[2], &t]);
         for (name, series) in [("camera.m0_plus", &plus), ("camera.m0_minus", &minus)] {
             let (f, _) = output(&frozen, name);
             let scale = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -56,18 +85,22 @@ fn each_window_equals_the_steady_run_frozen_at_its_time() {
         }
         let (spectra, errs) = output(&frozen, "camera.roi_vessel.spectrum");
         // The total channel against the window's spectrum (drawn slots against integrated lines).
-        let (mut stat, mut dof) = (0.0, 0);
-        for k in 0..bins {
-            let (a, b) = (roi_spectra[m * bins + k], spectra[k]);
-            let var = roi_spectra_err[m * bins + k].powi(2) + errs[k].powi(2);
-            if var > 0.0 {
-                stat += (a - b).powi(2) / var;
-                dof += 1;
-            }
-        }
+        let row = m * bins..(m + 1) * bins;
+        let (stat, dof) = chi2((&roi_spectra[row.clone()], &roi_spectra_err[row]), (&spectra[..bins], &errs[..bins]));
         let p = chi2_sf(stat, dof);
         eprintln!("window {m}: ROI spectrum χ² = {stat:.1} over {dof} bins (p = {p:.2e})");
         assert!(dof >= 20 && p > 1e-4, "window {m}: ROI spectrum χ² = {stat:.1} over {dof} bins");
+        // The point detector's window m (centred at 10 ms + m·100 ms) against a run frozen then.
+        let t_probe = format!("cardiac.frozen_at_s={:e}", probe_times[m]);
+        let frozen_probe =
+            run(&format!("{}{}", without_acquisition(), probe(false)), &[off[0], off[1], off[2], &t_probe]);
+        let (ps, _) = output(&frozen_probe, "probe.spectrum");
+        let pb = ps.len();
+        let scale = ps.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let worst = (0..pb).map(|k| (probe_windows[m * pb + k] - ps[k]).abs()).fold(0.0, f64::max);
+        eprintln!("window {m}: point detector's spectrum, largest difference {:.2e} of its peak", worst / scale);
+        assert!(scale > 0.0 && worst <= 1e-9 * scale, "window {m}: point spectrum {worst:e} against {scale:e}");
+        assert!(probe_errors[m * pb..(m + 1) * pb].iter().any(|e| *e > 0.0));
         let (v, e) = output(&frozen, "camera.roi_vessel.m0_plus");
         assert!((roi_plus[m] - v[0]).abs() <= 1e-6 * v[0].abs(), "window {m}: ROI M0+ {} vs {}", roi_plus[m], v[0]);
         assert!(e[0] > 0.0);

@@ -124,6 +124,27 @@ def test_ldh_camera_run_is_the_cli_run(cli, tmp_path):
         ohd.load(tmp_path / "nothing")
 
 
+def test_pulsatile_run_has_the_cycles_time_axis(cli, tmp_path):
+    """An acquisition over the cardiac cycle: the windows' outputs carry the time axis (the
+    windows' centres over one 70 bpm cycle), and the run is the CLI's byte for byte."""
+    cfg = CONFIGS / "retina_pulsatile.toml"
+    sets = ["detectors.0.image.pixels=[16, 16]"]
+    cli("run", cfg, "--samples", 20000, "--no-figures", "--set", sets[0], "--out", tmp_path / "cli", "--quiet")
+    r = ohd.run(cfg, samples=20000, figures=False, progress=False, overrides=sets)
+    assert_same_as_dir(r, tmp_path / "cli")
+    series = r["camera_m0_plus_windows"]
+    assert series.kind == "pixel_series" and series.values.shape == (16, 16, 65)
+    t = series.axes["time_s"]
+    np.testing.assert_allclose(np.diff(t), 512 / 39000, rtol=1e-12)
+    assert 0 < t[0] < t[-1] < 60 / 70
+    waveform = r["camera_roi_artery_m0_plus_waveform"]
+    assert list(waveform.axes["value"]) == ["systolic", "diastolic", "resistivity_index"]
+    roi = r["camera_roi_artery_m0_plus_windows"].values
+    assert waveform.values[0] == roi.max() and waveform.values[1] == roi.min()
+    assert waveform.values[2] == pytest.approx((roi.max() - roi.min()) / roi.max(), rel=1e-12)
+    assert r["camera_roi_artery_spectrum_windows"].values.shape[0] == 65
+
+
 def test_scan_run_is_the_cli_scan(cli, tmp_path):
     cfg = CONFIGS / "wind_sunny.toml"
     cli("run", cfg, "--samples", 4000, "--no-figures", "--out", tmp_path / "cli", "--quiet")

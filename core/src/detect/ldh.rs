@@ -85,8 +85,8 @@ pub struct LdhOptions {
     pub acquisition: Option<Acquisition>,
 }
 
-/// A HoloDoppler acquisition over the cardiac cycle of a scene whose flows pulse: the STFT
-/// windows' centre times. In every window each detected path's line sits at its frequency then,
+/// An acquisition over the cardiac cycle of a scene whose flows pulse (HoloDoppler's STFT windows,
+/// a point detector's spectra): the windows' centre times. In every window each detected path's line sits at its frequency then,
 /// `dl/dt(t_m)/λ0` from its harmonics ([`crate::flow::pulse::rate`]): the flow is taken as
 /// steady within a window (quasi-static; a 13 ms window spans 1.5 % of a 70 bpm cycle).
 #[derive(Debug, Clone, PartialEq)]
@@ -106,33 +106,20 @@ pub struct Acquisition {
 }
 
 impl Acquisition {
-    /// Windows of `samples` samples at `rate` (Hz), `hop` samples apart, over `duration` s from
-    /// `start` s, on the cycle `cycle`; `None` if not one window fits.
-    pub fn new(
-        cycle: &crate::flow::pulse::Cycle,
-        rate: f64,
-        samples: usize,
-        hop: usize,
-        start: f64,
-        duration: f64,
-    ) -> Option<Self> {
-        let span = duration * rate;
-        if span < samples as f64 {
+    /// Windows `window` s long, `hop` s apart, over `duration` s from `start` s, on the cycle
+    /// `cycle`; `None` if not one window fits.
+    pub fn new(cycle: &crate::flow::pulse::Cycle, window: f64, hop: f64, start: f64, duration: f64) -> Option<Self> {
+        if duration < window {
             return None;
         }
-        let windows = ((span - samples as f64) / hop as f64).floor() as usize + 1;
-        let times: Vec<f64> = (0..windows).map(|m| start + ((m * hop) as f64 + 0.5 * samples as f64) / rate).collect();
+        // (A span that is a whole number of hops keeps its last window despite rounding.)
+        let windows = ((duration - window) / hop + 1e-9).floor() as usize + 1;
+        let times: Vec<f64> = (0..windows).map(|m| start + m as f64 * hop + 0.5 * window).collect();
         let phasors: Vec<_> = times.iter().map(|&t| cycle.phasors(t)).collect();
         let part = |f: fn(&num_complex::Complex64) -> f64| -> Vec<Vec<f64>> {
             (0..cycle.harmonics).map(|k| phasors.iter().map(|p| f(&p[k])).collect()).collect()
         };
-        Some(Acquisition {
-            times,
-            hop: hop as f64 / rate,
-            cos: part(|z| z.re),
-            sin: part(|z| z.im),
-            waveforms: Vec::new(),
-        })
+        Some(Acquisition { times, hop, cos: part(|z| z.re), sin: part(|z| z.im), waveforms: Vec::new() })
     }
 
     /// With the waveforms of the pulsing populations of `scene` at its windows' times, named by

@@ -87,7 +87,12 @@ impl Placed {
     #[inline(always)]
     fn record_into(&self, r: &mut Recorder, hit: &Hit, keep_lines: bool) {
         match self {
-            Placed::Spectrum(s, lay) => s.record(lay, r.acc, r.stats, &r.beat, hit),
+            Placed::Spectrum(s, lay) => {
+                s.record(lay, r.acc, r.stats, &r.beat, hit);
+                if let Some(o) = lay.windows {
+                    s.record_windows(o, lay.stride, r.acc, &r.beat, hit, &r.pulse, &mut r.scratch);
+                }
+            }
             Placed::Image(_, start) => {
                 ImageSpec::record(*start, r.acc, hit);
                 r.tail_score(hit, tail::INTENSITY, hit.weight);

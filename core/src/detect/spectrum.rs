@@ -16,6 +16,8 @@ pub struct SpectrumSpec {
     pub by_order: Option<u32>,
     /// Split by number of Doppler-shifting events 0, 1, …, E−1 and ≥ E (`Some(E)`).
     pub by_doppler_events: Option<u32>,
+    /// Windows over the cardiac cycle (a scene whose flows pulse): the total spectrum per window.
+    pub acquisition: Option<super::ldh::Acquisition>,
 }
 
 /// Where a detector's spectra lie: `chirps × channels × stride` slots from `start`.
@@ -28,6 +30,8 @@ pub struct SpectrumLayout {
     /// Channels of the split by scattering order (0 without it): the split by Doppler events
     /// follows them.
     pub order_channels: usize,
+    /// With an acquisition: its total spectra `[window][slot]` from here.
+    pub windows: Option<usize>,
 }
 
 /// The chirp of a detector's spectra in file and output names: `""` without a chirp (one
@@ -127,7 +131,52 @@ impl SpectrumSpec {
                 });
             }
         }
-        SpectrumLayout { start, stride, channels, order_channels: self.by_order.map_or(0, |k| k as usize + 1) }
+        // (Resolve refuses a chirp with pulsing flows: one spectrum per window.)
+        let windows = self.acquisition.as_ref().map(|acq| {
+            let w = acq.times.len();
+            let o = reg.take(w * stride);
+            let labels = (0..w).map(|m| format!("window_{m}")).collect();
+            let mut out = Output {
+                file: format!("{name}_spectrum_windows.npy"),
+                units: PER_BIN,
+                budget_key: Some((format!("detectors[{i}].spectrum.acquisition"), format!("= {w} windows"))),
+                ..detector_output(
+                    i,
+                    format!("{name}.spectrum_windows"),
+                    Kind::Spectrum { axis: self.axis, channels: labels, mirrored: false },
+                    Slots { start: o, rows: w, stride, len: bins },
+                    vec![w, bins],
+                )
+            };
+            out.axes[0] = acq.axis();
+            reg.declare(out);
+            o
+        });
+        SpectrumLayout { start, stride, channels, order_channels: self.by_order.map_or(0, |k| k as usize + 1), windows }
+    }
+
+    /// Record `hit` (its harmonics `pulse`) into the acquisition's windows at `start`: its line
+    /// at its frequency in each window, integrated over the bins as the spectrum's own (a point
+    /// detector's hits are few beside a camera's: the windows' lines are not drawn into slots
+    /// here, so that each window's far Lorentzian tails are the steady spectrum's).
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_windows(
+        &self,
+        start: usize,
+        stride: usize,
+        acc: &mut [f64],
+        beat: &BeatModel,
+        hit: &Hit,
+        pulse: &[num_complex::Complex64],
+        rates: &mut Vec<f64>,
+    ) {
+        let Some(acq) = &self.acquisition else { return };
+        acq.rates(hit.dldt, pulse, rates);
+        for (m, &rate) in rates.iter().enumerate() {
+            let f = beat.frequency(0, hit.l, rate);
+            let s = start + m * stride;
+            self.axis.add_line(&mut acc[s..s + stride], hit.weight, f, hit.gamma);
+        }
     }
 
     /// Record `hit` into every chirp's total and its split channels (a non-finite beat frequency

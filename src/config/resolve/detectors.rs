@@ -8,7 +8,7 @@ use super::{
 };
 use crate::config::schema::*;
 use crate::config::units::unit_of;
-use crate::config::units::{Length, Quantity};
+use crate::config::units::{Delay, Length, Quantity, UnitSet};
 use crate::detect::ldh::Acquisition;
 use crate::detect::{
     Area, CorrelationSpec, Detector, DetectorKind, EstimatorChoice, ImageSpec, LdhOptions, LdhSpec, LidarSpec, Part,
@@ -303,9 +303,55 @@ fn resolve_acquisition(path: &str, a: &AcquisitionSection, stft: &Stft, scene: &
             format!("= {hop}: {windows} windows over {} s, expected at most {MAX_WINDOWS}", shown(duration)),
         );
     }
-    Ok(Acquisition::new(&cycle, rate, samples, hop as usize, start, duration)
-        .expect("one window fits")
-        .with_waveforms(scene))
+    let acq = Acquisition::new(&cycle, window, hop as f64 / rate, start, duration).expect("one window fits");
+    Ok(acq.with_waveforms(scene))
+}
+
+/// `[detectors.spectrum.acquisition]`: spectra in windows over the cardiac cycle (laser Doppler
+/// flowmetry's), in a scene whose flows pulse.
+fn resolve_spectrum_acquisition(path: &str, a: &SpectrumAcquisitionSection, scene: &Scene) -> R<Acquisition> {
+    let Some(cycle) = scene.cycle else {
+        return err(
+            path,
+            "windows over the cardiac cycle need flows that pulse: give [cardiac] and a velocity.waveform (or motion.waveform) on a moving medium",
+        );
+    };
+    let time = |q: &Option<Quantity<Delay>>, name: &str, default: Option<f64>| -> R<(f64, String)> {
+        match given(path, q)? {
+            None => match default {
+                Some(d) => Ok((d, join(path, name))),
+                None => err(path, format!("missing {name}: give one of {}", Delay::keys(name).join(", "))),
+            },
+            Some((v, key, _)) if v.is_finite() && v > 0.0 && v <= 1e4 => Ok((v, key)),
+            Some((_, key, written)) => err(key, format!("= {}: expected a time in (0, 10^4] s", shown(written))),
+        }
+    };
+    let (window, _) = time(&a.window, "window", None)?;
+    let (hop, hop_key) = time(&a.hop, "hop", Some(window))?;
+    let (duration, duration_key) = time(&a.duration, "duration", Some(cycle.period()))?;
+    let start = match given(path, &a.start)? {
+        None => 0.0,
+        Some((s, _, _)) if s.is_finite() && s.abs() <= 1e4 => s,
+        Some((_, key, written)) => {
+            return err(key, format!("= {}: expected a start of at most 10⁴ s either way", shown(written)));
+        }
+    };
+    if duration < window {
+        return err(
+            duration_key,
+            format!(
+                "= {} s: shorter than one window ({} s): lengthen the acquisition or shorten the window",
+                shown(duration),
+                shown(window)
+            ),
+        );
+    }
+    let windows = ((duration - window) / hop).floor() + 1.0;
+    if windows > MAX_WINDOWS as f64 {
+        return err(hop_key, format!("= {} s: {windows} windows, expected at most {MAX_WINDOWS}", shown(hop)));
+    }
+    let acq = Acquisition::new(&cycle, window, hop, start, duration).expect("one window fits");
+    Ok(acq.with_waveforms(scene))
 }
 
 /// A monostatic lidar receiver at the source. Its local estimate traces straight shadow rays, so
@@ -680,10 +726,15 @@ pub(super) fn resolve_detectors(ds: &[DetectorSection], scene: &Scene, source: &
                         }
                     }
                 };
+                let acquisition = match &s.acquisition {
+                    None => None,
+                    Some(a) => Some(resolve_spectrum_acquisition(&join(&path, "spectrum.acquisition"), a, scene)?),
+                };
                 Some(SpectrumSpec {
                     axis,
                     by_order: split("by_order", s.by_order)?,
                     by_doppler_events: split("by_doppler_events", s.by_doppler_events)?,
+                    acquisition,
                 })
             }
         };
