@@ -734,8 +734,22 @@ impl Display for SpectrumSpec {
         if let Some(e) = self.by_doppler_events {
             write!(f, ", by Doppler events ({})", split(e))?;
         }
+        if let Some(a) = &self.acquisition {
+            write!(f, ", {}", windows(a))?;
+        }
         Ok(())
     }
+}
+
+/// An acquisition's windows over the cardiac cycle, in words.
+fn windows(a: &crate::detect::ldh::Acquisition) -> String {
+    let n = a.times.len();
+    format!(
+        "acquisition over the cardiac cycle: {n} windows centred {:.1}–{:.1} ms, every {:.2} ms",
+        1e3 * a.times[0],
+        1e3 * a.times[n - 1],
+        1e3 * a.hop
+    )
 }
 
 impl Display for ImageSpec {

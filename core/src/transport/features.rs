@@ -7,7 +7,8 @@
 //! (`NEE`), the volume tally (`VOLUME`), the time gate (`GATE`, only with `LENGTH`), the side faces
 //! of a box phantom (`LATERAL`, never with `NEE`); camera paths ([`super::adjoint::Adjoint`]) over
 //! the first two. [`Features::forward_paths`] and [`Features::camera_paths`] are the only places
-//! that turn a run's flags into these types: 36 forward walks, 4 camera walks and 6 walks of a
+//! that turn a run's flags into these types: 36 forward walks (and 2 carrying a pulsatile scene's
+//! harmonics, `PULSE`), 4 camera walks and 6 walks of a
 //! parted twin are compiled (issue 53: 48 forward walks, each inlined twice, before; a gate without
 //! the length was compiled though never run).
 //!
@@ -140,10 +141,12 @@ impl Features {
             return lateral_paths::<DOPPLER, LENGTH, GATE>(ctx, rec, key, paths, tick);
         }
         match (self.nee, self.volume) {
-            (false, false) => paths_loop::<DOPPLER, LENGTH, false, false, GATE, false>(ctx, rec, key, paths, tick),
-            (false, true) => paths_loop::<DOPPLER, LENGTH, false, true, GATE, false>(ctx, rec, key, paths, tick),
-            (true, false) => paths_loop::<DOPPLER, LENGTH, true, false, GATE, false>(ctx, rec, key, paths, tick),
-            (true, true) => paths_loop::<DOPPLER, LENGTH, true, true, GATE, false>(ctx, rec, key, paths, tick),
+            (false, false) => {
+                paths_loop::<DOPPLER, LENGTH, false, false, GATE, false, false>(ctx, rec, key, paths, tick)
+            }
+            (false, true) => paths_loop::<DOPPLER, LENGTH, false, true, GATE, false, false>(ctx, rec, key, paths, tick),
+            (true, false) => paths_loop::<DOPPLER, LENGTH, true, false, GATE, false, false>(ctx, rec, key, paths, tick),
+            (true, true) => paths_loop::<DOPPLER, LENGTH, true, true, GATE, false, false>(ctx, rec, key, paths, tick),
         }
     }
 }
@@ -160,9 +163,9 @@ fn lateral_paths<const DOPPLER: bool, const LENGTH: bool, const GATE: bool>(
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
     if ctx.volume.is_some() {
-        paths_loop::<DOPPLER, LENGTH, false, true, GATE, true>(ctx, rec, key, paths, tick)
+        paths_loop::<DOPPLER, LENGTH, false, true, GATE, true, false>(ctx, rec, key, paths, tick)
     } else {
-        paths_loop::<DOPPLER, LENGTH, false, false, GATE, true>(ctx, rec, key, paths, tick)
+        paths_loop::<DOPPLER, LENGTH, false, false, GATE, true, false>(ctx, rec, key, paths, tick)
     }
 }
 
@@ -192,17 +195,8 @@ fn pulse_loop<const LENGTH: bool>(
     paths: u64,
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
-    let mut estimator = Forward::<true, LENGTH, true, false, false, false, true>::new();
     rec.pulse = vec![num_complex::Complex64::ZERO; ctx.scene.cycle.map_or(0, |c| c.harmonics)];
-    for i in 0..paths {
-        let mut rng = key.path(i);
-        estimator.trace_path(ctx, rec, &mut rng);
-        rec.end_path();
-        if (i + 1) % PATHS_PER_TICK == 0 && tick() {
-            return true;
-        }
-    }
-    false
+    paths_loop::<true, LENGTH, true, false, false, false, true>(ctx, rec, key, paths, tick)
 }
 
 /// The batch loop of forward paths of one monomorphised walk.
@@ -214,6 +208,7 @@ fn paths_loop<
     const VOLUME: bool,
     const GATE: bool,
     const LATERAL: bool,
+    const PULSE: bool,
 >(
     ctx: &WalkContext,
     rec: &mut Recorder,
@@ -221,7 +216,7 @@ fn paths_loop<
     paths: u64,
     tick: &mut impl FnMut() -> bool,
 ) -> bool {
-    let mut estimator = Forward::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, false>::new();
+    let mut estimator = Forward::<DOPPLER, LENGTH, NEE, VOLUME, GATE, LATERAL, PULSE>::new();
     for i in 0..paths {
         let mut rng = key.path(i);
         estimator.trace_path(ctx, rec, &mut rng);
