@@ -3,7 +3,7 @@
 //! a steady waveform changes nothing.
 
 use crate::support::run::{Run, run};
-use crate::support::stats::chi2_sf;
+use crate::support::stats::chi2_difference;
 
 const FIXTURE: &str = include_str!("../configs/good/pulsatile_vessel.toml");
 
@@ -30,19 +30,6 @@ fn output(r: &Run, name: &str) -> (Vec<f64>, Vec<f64>) {
 fn without_acquisition() -> String {
     let (head, _) = FIXTURE.split_once("[detectors.ldh.acquisition]").expect("an acquisition");
     head.to_string()
-}
-
-/// The χ² of `a` against `b` (values and standard errors) over the slots with an error.
-fn chi2(a: (&[f64], &[f64]), b: (&[f64], &[f64])) -> (f64, usize) {
-    let (mut stat, mut dof) = (0.0, 0);
-    for k in 0..a.0.len() {
-        let var = a.1[k].powi(2) + b.1[k].powi(2);
-        if var > 0.0 {
-            stat += (a.0[k] - b.0[k]).powi(2) / var;
-            dof += 1;
-        }
-    }
-    (stat, dof)
 }
 
 /// Window `m` of an acquisition run against a steady run frozen at the window's centre time (the
@@ -86,8 +73,8 @@ fn each_window_equals_the_steady_run_frozen_at_its_time() {
         let (spectra, errs) = output(&frozen, "camera.roi_vessel.spectrum");
         // The total channel against the window's spectrum (drawn slots against integrated lines).
         let row = m * bins..(m + 1) * bins;
-        let (stat, dof) = chi2((&roi_spectra[row.clone()], &roi_spectra_err[row]), (&spectra[..bins], &errs[..bins]));
-        let p = chi2_sf(stat, dof);
+        let (stat, dof, p) =
+            chi2_difference((&roi_spectra[row.clone()], &roi_spectra_err[row]), (&spectra[..bins], &errs[..bins]));
         eprintln!("window {m}: ROI spectrum χ² = {stat:.1} over {dof} bins (p = {p:.2e})");
         assert!(dof >= 20 && p > 1e-4, "window {m}: ROI spectrum χ² = {stat:.1} over {dof} bins");
         // The point detector's window m (centred at 10 ms + m·100 ms) against a run frozen then.
