@@ -430,7 +430,9 @@ impl LdhSpec {
         let sign = if self.flip_sign { -1.0 } else { 1.0 };
         let budget = Some((format!("detectors[{i}].ldh.acquisition"), format!("= {w} windows")));
         let band = format!("{}–{} kHz", self.band.0 / 1e3, self.band.1 / 1e3);
-        let start = reg.take(2 * w * pixels);
+        // (M0−'s rows start `w` into each pixel's block, so its declared footprint, rows × stride,
+        // reaches `w` past the block's end: reserved, never written.)
+        let start = reg.take(2 * w * pixels + w);
         let series = |reg: &mut Registry, offset: usize, stem: &str, title: &str, sign: f64, style: Style| {
             let kind = Kind::PixelSeries { nx: im.nx, ny: im.ny, min: im.min, max: im.max, len: w };
             let slots = Slots { start: start + offset, rows: pixels, stride: 2 * w, len: w };
