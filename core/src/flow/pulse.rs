@@ -338,10 +338,19 @@ impl WomersleyTube {
         if s >= 1.0 {
             return DVec3::ZERO;
         }
-        let mut f = vec![Complex64::new(0.0, 0.0); self.table.len()];
-        self.add(&mut f, p, 1.0);
-        let e = Cycle { omega: self.omega, harmonics: self.table.len() }.phasors(t);
-        self.axis * rate(self.v_max * (1.0 - s), &f, &e)
+        // Read at every scattering event of a frozen run: no allocation, one sine and cosine
+        // (the harmonics' phasors by recurrence from the fundamental's).
+        let x = s * (TABLE - 1) as f64;
+        let i = (x as usize).min(TABLE - 2);
+        let u = x - i as f64;
+        let phase = (t * self.omega / std::f64::consts::TAU).rem_euclid(1.0) * std::f64::consts::TAU;
+        let e1 = Complex64::from_polar(1.0, phase);
+        let (mut e, mut v) = (e1, self.v_max * (1.0 - s));
+        for row in &self.table {
+            v += ((row[i] * (1.0 - u) + row[i + 1] * u) * e).re;
+            e *= e1;
+        }
+        self.axis * v
     }
 
     /// Add `n·(axis·delta)·V_k(p)` to `f` (harmonic `k` at `f[k − 1]`).

@@ -277,13 +277,7 @@ fn resolve_acquisition(path: &str, a: &AcquisitionSection, stft: &Stft, scene: &
             return err(key, format!("= {}: expected a duration in (0, 10^4] s", shown(written)));
         }
     };
-    let start = match given(path, &a.start)? {
-        None => 0.0,
-        Some((s, _, _)) if s.is_finite() && s.abs() <= 1e4 => s,
-        Some((_, key, written)) => {
-            return err(key, format!("= {}: expected a start of at most 10⁴ s either way", shown(written)));
-        }
-    };
+    let start = acquisition_start(path, &a.start)?;
     let window = samples as f64 / rate;
     let windows = ((duration * rate - samples as f64) / hop as f64).floor() + 1.0;
     if duration < window {
@@ -305,6 +299,17 @@ fn resolve_acquisition(path: &str, a: &AcquisitionSection, stft: &Stft, scene: &
     }
     let acq = Acquisition::new(&cycle, window, hop as f64 / rate, start, duration).expect("one window fits");
     Ok(acq.with_waveforms(scene))
+}
+
+/// An acquisition's `start_ms` (s; 0 by default), at most 10⁴ s either way.
+fn acquisition_start(path: &str, q: &Option<Quantity<Delay>>) -> R<f64> {
+    match given(path, q)? {
+        None => Ok(0.0),
+        Some((s, _, _)) if s.is_finite() && s.abs() <= 1e4 => Ok(s),
+        Some((_, key, written)) => {
+            err(key, format!("= {}: expected a start of at most 10⁴ s either way", shown(written)))
+        }
+    }
 }
 
 /// `[detectors.spectrum.acquisition]`: spectra in windows over the cardiac cycle (laser Doppler
@@ -329,13 +334,7 @@ fn resolve_spectrum_acquisition(path: &str, a: &SpectrumAcquisitionSection, scen
     let (window, _) = time(&a.window, "window", None)?;
     let (hop, hop_key) = time(&a.hop, "hop", Some(window))?;
     let (duration, duration_key) = time(&a.duration, "duration", Some(cycle.period()))?;
-    let start = match given(path, &a.start)? {
-        None => 0.0,
-        Some((s, _, _)) if s.is_finite() && s.abs() <= 1e4 => s,
-        Some((_, key, written)) => {
-            return err(key, format!("= {}: expected a start of at most 10⁴ s either way", shown(written)));
-        }
-    };
+    let start = acquisition_start(path, &a.start)?;
     if duration < window {
         return err(
             duration_key,
